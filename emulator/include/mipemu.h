@@ -1,0 +1,110 @@
+/* mipemu: an emulated Piciorgros MIP radio network (1 MDP-810 central + N TRM-810 outstations).
+ *
+ * The core is pure: no sockets, no clocks, no global state. A caller moves Modbus TCP frames
+ * in and out (mipemu_handle) and moves virtual time forward (mipemu_net_advance); the radio
+ * model runs only inside mipemu_net_advance. Randomness comes from the configured seed only,
+ * so the same seed, the same requests at the same virtual times give the same trace bytes.
+ * Several networks may live in one process. Not thread-safe per network.
+ *
+ * Register maps, status bits and the radio timing formula: emulator/README.md. */
+#ifndef MIPEMU_H
+#define MIPEMU_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define MIPEMU_MAX_STATIONS 247
+#define MIPEMU_AREA_REGS 148           /* write area and read area, per direction */
+#define MIPEMU_MBAP_LEN_MAX 1024       /* larger MBAP length field: malformed, connection closed */
+#define MIPEMU_FRAME_MAX (6 + MIPEMU_MBAP_LEN_MAX)
+#define MIPEMU_RESPONSE_MAX 300        /* enough for any response (127 registers + MBAP) */
+
+enum mipemu_mode { MIPEMU_DYNAMIC = 0, MIPEMU_STATIC = 1 };
+
+/* Endpoint numbers for mipemu_handle: 0 is the MDP-810, 1..N the TRM-810 of station 1..N. */
+#define MIPEMU_EP_MDP 0
+
+/* Read-status bits (MDP register 2/198, TRM register 2198). */
+#define MIPEMU_RS_NEW_DATA 0x0001
+#define MIPEMU_RS_WRITE_WAITING 0x0002
+#define MIPEMU_RS_WRITE_UNCONFIRMED 0x0010
+
+/* Station-status bits (MDP register 1, per station). */
+#define MIPEMU_ST_ANSWERED 0x0001    /* the station answered the last poll */
+#define MIPEMU_ST_UNREACHABLE 0x0002 /* the last fail_polls polls went unanswered */
+#define MIPEMU_ST_EVER_ANSWERED 0x0004 /* answered at least once since start */
+#define MIPEMU_ST_DOWN_RESEND 0x0008 /* a downlink block was sent and is being repeated */
+
+typedef struct mipemu_config {
+    int stations;               /* 1..247; station addresses are 1..stations */
+    int mode;                   /* MIPEMU_DYNAMIC or MIPEMU_STATIC */
+    int static_registers;       /* static mode: N mirrored registers, 1..148 */
+    double loss_down;           /* probability a MDP->station telegram is lost, 0..1 */
+    double loss_up;             /* probability a station->MDP telegram is lost, 0..1 */
+    double burst;               /* 0: independent losses; >= 1: Gilbert-Elliott, mean burst length in telegrams */
+    uint64_t seed;
+    uint32_t bitrate;           /* radio bit rate, bit/s, 300..10000000 */
+    uint64_t slot_gap_ns;       /* turnaround gap after every telegram */
+    int overhead_bytes;         /* per telegram: preamble, sync, header, CRC; 1..255 */
+    int fail_polls;             /* unanswered polls in a row before "not reachable", 1..255 */
+    int allow_127;              /* accept up to 127 registers per request (the device's limit) */
+} mipemu_config;
+
+typedef struct mipemu_net mipemu_net;
+
+/* Per-station radio counters, for tests and benchmarks. */
+typedef struct mipemu_stats {
+    uint64_t polls;             /* slots started for this station */
+    uint64_t tel_down, lost_down; /* MDP->station telegrams (polls and acks) sent / lost */
+    uint64_t tel_up, lost_up;   /* station->MDP telegrams sent / lost */
+    uint64_t blocks_down, blocks_up;     /* blocks delivered into the receiver's read area */
+    uint64_t dup_down, dup_up;  /* of those, repeats of a block already delivered */
+    uint64_t confirmed_down, confirmed_up; /* blocks whose confirmation reached the sender */
+} mipemu_stats;
+
+typedef void (*mipemu_trace_fn)(void *user, const char *line, size_t len);
+
+/* Fills c with the defaults documented in README.md (1 station, dynamic, no loss, 9600 bit/s...). */
+void mipemu_config_default(mipemu_config *c);
+
+/* Returns NULL when the configuration is invalid (errmsg, if given, gets a one-line reason)
+ * or memory is short. */
+mipemu_net *mipemu_net_new(const mipemu_config *c, char *errmsg, size_t errmsg_size);
+void mipemu_net_free(mipemu_net *net);
+
+/* Trace: fn receives one JSON object per line, newline included, stamped in virtual ns. */
+void mipemu_net_set_trace(mipemu_net *net, mipemu_trace_fn fn, void *user);
+
+/* Runs the radio model up to virtual time now_ns. Returns 0, or -1 if now_ns lies before the
+ * time already reached (nothing is done then). */
+int mipemu_net_advance(mipemu_net *net, uint64_t now_ns);
+uint64_t mipemu_net_now(const mipemu_net *net);
+/* Virtual time of the next radio event (the end of the telegram or gap in progress). */
+uint64_t mipemu_net_next_event(const mipemu_net *net);
+
+/* Frame length from the first bytes of a Modbus TCP stream: 0 = need more bytes (fewer than 7),
+ * > 0 = total length of the frame (MBAP + PDU), -1 = malformed header (protocol id not 0,
+ * length field < 2 or > MIPEMU_MBAP_LEN_MAX): close the connection. */
+long mipemu_frame_length(const uint8_t *buf, size_t len);
+
+/* One Modbus TCP request (a whole frame) to endpoint ep (MIPEMU_EP_MDP or a station 1..N).
+ * Writes the response frame into out (out_cap >= MIPEMU_RESPONSE_MAX) and returns its length;
+ * returns -1 when the connection must be closed (malformed frame, bad endpoint). */
+long mipemu_handle(mipemu_net *net, int ep, const uint8_t *req, size_t req_len,
+                   uint8_t *out, size_t out_cap);
+
+int mipemu_net_stations(const mipemu_net *net);
+/* Returns 0, or -1 for an unknown station. */
+int mipemu_net_stats(const mipemu_net *net, int station, mipemu_stats *out);
+
+/* Radio timing: air time of a telegram carrying nregs registers, in ns (see README.md). */
+uint64_t mipemu_telegram_ns(const mipemu_config *c, int nregs);
+
+#ifdef __cplusplus
+}
+#endif
+#endif
