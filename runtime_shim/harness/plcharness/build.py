@@ -1,0 +1,436 @@
+"""Build flow: ST files → translator (stc or matiec) → symbol table → shared library + executable.
+
+    python -m plcharness.build -o OUTDIR [--compiler auto|stc|matiec] FILE.st...
+
+leaves OUTDIR/libplc.so (for the harness, via ctypes), OUTDIR/plc (the real-mode executable),
+OUTDIR/symbols.json (the variables, by IEC path) and OUTDIR/gen/ (the translator's output).
+"""
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+RUNTIME_DIR = HERE.parent.parent  # runtime_shim/
+REPO_ROOT = RUNTIME_DIR.parent
+CORE_SOURCES = ["plcrt_core.c", "plcrt_image.c", "plcrt_config.c", "plcrt_master.c", "plcrt_slave.c"]
+BUILD_FORMAT = "3"  # bump when the generated files change, to invalidate the cache
+
+ELEMENTARY = {
+    "BOOL", "BYTE", "SINT", "USINT", "WORD", "INT", "UINT", "DWORD", "DINT", "UDINT",
+    "LWORD", "LINT", "ULINT", "REAL", "LREAL", "TIME", "DATE", "TOD", "DT",
+    "TIME_OF_DAY", "DATE_AND_TIME", "STRING",
+}
+
+
+class BuildError(Exception):
+    """A build step failed; str() is the compiler's message (file:line: error: ...)."""
+
+
+@dataclass
+class Symbol:
+    path: str      # upper-case IEC path, CONFIG0.RES0.INSTANCE0.X
+    type: str      # INT, WORD[0..147], ENUM:E_STATE, ...
+    kind: str      # VAR, VAR_INPUT, ..., LOCATED
+    c_ref: str     # C lvalue of the storage (first element for arrays)
+
+
+@dataclass
+class BuildResult:
+    outdir: Path
+    library: Path
+    executable: Path
+    compiler: str
+    symbols: list[Symbol]
+    programs: dict[str, str] = field(default_factory=dict)  # instance path → program type
+
+
+# ---------------------------------------------------------------- translators
+
+def _matiec_paths():
+    iec2c = os.environ.get("IEC2C") or shutil.which("iec2c")
+    if not iec2c:
+        return None, None
+    lib = os.environ.get("MATIEC_LIB") or str(Path(iec2c).resolve().parent / "lib")
+    return iec2c, lib
+
+
+def matiec_available() -> bool:
+    iec2c, lib = _matiec_paths()
+    return bool(iec2c) and Path(lib, "C", "iec_std_lib.h").is_file()
+
+
+def _stc_command():
+    exe = Path(sys.executable).parent / "stc"
+    if exe.is_file():
+        return [str(exe)]
+    found = shutil.which("stc")
+    if found:
+        return [found]
+    return [sys.executable, "-m", "stc.cli"]
+
+
+def resolve_compiler(compiler: str) -> str:
+    compiler = compiler.lower()
+    if compiler == "auto":
+        env = os.environ.get("PLCRT_COMPILER", "").lower()
+        return env if env in ("stc", "matiec") else "stc"
+    if compiler not in ("stc", "matiec"):
+        raise BuildError(f"unknown compiler {compiler!r} (stc, matiec or auto)")
+    return compiler
+
+
+def _run(cmd, what, cwd=None):
+    try:
+        proc = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True)
+    except FileNotFoundError as e:
+        raise BuildError(f"{what}: cannot run {cmd[0]}: {e.strerror}") from None
+    if proc.returncode != 0:
+        msg = (proc.stderr.strip() + "\n" + proc.stdout.strip()).strip()
+        raise BuildError(f"{what} failed:\n{msg}")
+    return proc
+
+
+def _translate_stc(sources, gen):
+    _run(_stc_command() + ["-o", str(gen)] + [str(s) for s in sources], "stc")
+
+
+def _translate_matiec(sources, gen, workdir):
+    iec2c, lib = _matiec_paths()
+    if not iec2c:
+        raise BuildError("matiec: iec2c not found on PATH (or env IEC2C)")
+    # iec2c takes one file: concatenate, and map error lines back to the originals.
+    combined = workdir / "combined.st"
+    line_map = []  # (first combined line, file, first line)
+    text = []
+    line = 1
+    for src in sources:
+        body = Path(src).read_text()
+        if not body.endswith("\n"):
+            body += "\n"
+        line_map.append((line, str(src)))
+        text.append(body)
+        line += body.count("\n")
+    combined.write_text("".join(text))
+    proc = subprocess.run([iec2c, "-I", lib, "-T", str(gen), str(combined)],
+                          capture_output=True, text=True)
+    if proc.returncode != 0:
+        def remap(m):
+            n = int(m.group(1))
+            start, name = max((s for s in line_map if s[0] <= n), key=lambda s: s[0])
+            return f"{name}:{n - start + 1}:{m.group(2)}"
+        out = (proc.stdout + proc.stderr)
+        out = re.sub(re.escape(str(combined)) + r":(\d+)-(\d+)(?:\.\.\d+-\d+)?", remap, out)
+        raise BuildError("matiec failed:\n" + out.strip())
+    return lib
+
+
+# ---------------------------------------------------------------- symbol tables
+
+def read_symbols_tsv(path: Path):
+    """SYMBOLS.tsv (stc): returns (symbols, decl lines)."""
+    symbols, decls = [], []
+    for n, raw in enumerate(path.read_text().splitlines(), 1):
+        if raw.startswith("#decl"):
+            decls.append(raw[len("#decl"):].lstrip("\t "))
+            continue
+        if not raw.strip() or raw.startswith("#") or raw.startswith("path\t"):
+            continue
+        cols = raw.split("\t")
+        if len(cols) < 4:
+            raise BuildError(f"{path}:{n}: error: expected 4 tab-separated columns")
+        symbols.append(Symbol(cols[0].upper(), cols[1].upper(), cols[2].upper(), cols[3]))
+    return symbols, decls
+
+
+def _matiec_enums(gen: Path):
+    names = set()
+    for f in ("POUS.h",):
+        p = gen / f
+        if p.is_file():
+            names.update(re.findall(r"__DECLARE_ENUMERATED_TYPE\(\s*(\w+)", p.read_text()))
+    return names
+
+
+def read_variables_csv(gen: Path):
+    """Derive the SYMBOLS.tsv table from matiec's VARIABLES.csv (see docs/dev/interfaces.md §1).
+    matiec lists elementary and enum variables (not arrays or structs)."""
+    programs = {}
+    rows = []
+    section = None
+    for raw in (gen / "VARIABLES.csv").read_text().splitlines():
+        line = raw.strip()
+        if line.startswith("//"):
+            section = line[2:].strip().lower()
+            continue
+        if not line:
+            continue
+        cols = line.split(";")
+        if section == "programs" and len(cols) >= 3:
+            programs[cols[1].upper()] = cols[2].upper()
+        elif section == "variables" and len(cols) >= 5:
+            rows.append((cols[1].upper(), cols[2].upper(), cols[4].upper()))
+    enums = _matiec_enums(gen)
+    symbols = []
+    decls = ['#include "iec_std_lib.h"', '#include "POUS.h"']
+    declared = set()
+    kind_names = {"VAR": "VAR", "IN": "LOCATED", "OUT": "LOCATED", "MEM": "LOCATED",
+                  "EXT": "VAR_EXTERNAL"}
+    for inst, ptype in programs.items():
+        parts = inst.split(".")
+        if len(parts) == 3:
+            cname = f"{parts[1]}__{parts[2]}"
+            decls.append(f"extern {ptype} {cname};")
+            declared.add(cname)
+    for kind, path, typ in rows:
+        if kind == "FB":
+            continue
+        if typ in ELEMENTARY and typ != "STRING":
+            sym_type = {"TIME_OF_DAY": "TOD", "DATE_AND_TIME": "DT"}.get(typ, typ)
+        elif typ in enums:
+            sym_type = "ENUM:" + typ
+        else:
+            continue
+        parts = path.split(".")
+        inst = ".".join(parts[:3])
+        pointer = kind in ("IN", "OUT", "MEM", "EXT")
+        if inst in programs and len(parts) > 3:
+            base = f"{parts[1]}__{parts[2]}"
+            member = ".".join(parts[3:])
+            lv = f"{base}.{member}.value"
+        else:
+            # a global of the configuration (CONFIG0.X) or of a resource (CONFIG0.RES0.X)
+            base = "__".join(parts[-2:]) if len(parts) in (2, 3) else None
+            if base is None:
+                continue
+            lv = f"{base}.value"
+            if base not in declared:
+                ctype = typ if typ in ELEMENTARY else typ
+                suffix = "_p" if pointer else "_t"
+                decls.append(f"extern __IEC_{ctype}{suffix} {base};")
+                declared.add(base)
+        c_ref = f"(*{lv})" if pointer else lv
+        symbols.append(Symbol(path, sym_type, kind_names.get(kind, "VAR"), c_ref))
+    return symbols, decls, programs
+
+
+def _programs_from_sources(sources):
+    """PROGRAM inst WITH task : TYPE lines of the CONFIGURATION (stc's table has no such rows)."""
+    progs = {}
+    conf = res = None
+    for src in sources:
+        text = re.sub(r"\(\*.*?\*\)", " ", Path(src).read_text(), flags=re.S)
+        for m in re.finditer(r"\b(CONFIGURATION|RESOURCE)\s+(\w+)|\bPROGRAM\s+(\w+)\s*"
+                             r"(?:WITH\s+\w+\s*)?:\s*(\w+)", text, flags=re.I):
+            if m.group(1):
+                if m.group(1).upper() == "CONFIGURATION":
+                    conf = m.group(2).upper()
+                else:
+                    res = m.group(2).upper()
+            elif conf and res:
+                progs[f"{conf}.{res}.{m.group(3).upper()}"] = m.group(4).upper()
+    return progs
+
+
+def _write_symbols_c(path: Path, symbols, decls):
+    out = ["/* generated by plcharness.build: addresses of the program's variables */",
+           "#include <stddef.h>"]
+    out += decls
+    out.append("const char *const plcrt_gen_symbol_names[] = {")
+    out += [f'  "{s.path}",' for s in symbols]
+    out.append("  0 };")
+    out.append(f"const size_t plcrt_gen_n_symbols = {len(symbols)};")
+    out.append("const unsigned plcrt_gen_symbol_sizes[] = {")
+    out += [f"  (unsigned)sizeof({s.c_ref})," for s in symbols]
+    out.append("  0 };")
+    out.append("void *plcrt_gen_symbol_addr(size_t i) {\n  switch (i) {")
+    out += [f"  case {i}: return (void *)&({s.c_ref});" for i, s in enumerate(symbols)]
+    out.append("  default: return 0;\n  }\n}")
+    path.write_text("\n".join(out) + "\n")
+
+
+# ---------------------------------------------------------------- C build
+
+def _cc():
+    return os.environ.get("CC", "cc")
+
+
+def _compile(cmd, what):
+    _run(cmd, what)
+
+
+def _hash_inputs(sources, compiler, extra):
+    h = hashlib.sha256()
+    h.update(BUILD_FORMAT.encode())
+    h.update(compiler.encode())
+    h.update(extra.encode())
+    for src in sources:
+        h.update(Path(src).name.encode())
+        h.update(Path(src).read_bytes())
+    for f in sorted((RUNTIME_DIR / "src").glob("*")) + sorted((RUNTIME_DIR / "include").glob("*")):
+        h.update(f.name.encode())
+        h.update(f.read_bytes())
+    h.update(Path(__file__).read_bytes())
+    return h.hexdigest()[:24]
+
+
+def _compiler_fingerprint(compiler):
+    if compiler == "matiec":
+        iec2c, lib = _matiec_paths()
+        if not iec2c:
+            raise BuildError("matiec: iec2c not found on PATH (or env IEC2C)")
+        st = os.stat(iec2c)
+        return f"{iec2c}:{st.st_size}:{st.st_mtime_ns}:{lib}"
+    # stc: its own sources decide what it produces
+    h = hashlib.sha256()
+    stc_dir = REPO_ROOT / "translator" / "stc"
+    for f in sorted(stc_dir.rglob("*")) if stc_dir.is_dir() else []:
+        if f.is_file() and "__pycache__" not in f.parts:
+            h.update(str(f.relative_to(stc_dir)).encode())
+            h.update(f.read_bytes())
+    return h.hexdigest()
+
+
+def _cache_root():
+    env = os.environ.get("PLCRT_CACHE")
+    if env == "off":
+        return None
+    root = Path(env) if env else REPO_ROOT / "build" / "runtime_shim" / "cache"
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+        return root
+    except OSError:
+        return None
+
+
+def build_program(sources, outdir, compiler="auto", cflags=None) -> BuildResult:
+    """Translate and link ST sources; the result lands in outdir (created)."""
+    sources = [Path(s).resolve() for s in sources]
+    for s in sources:
+        if not s.is_file():
+            raise BuildError(f"{s}: error: no such file")
+    compiler = resolve_compiler(compiler)
+    outdir = Path(outdir).resolve()
+    key = _hash_inputs(sources, compiler, _compiler_fingerprint(compiler) + repr(cflags))
+    cache = _cache_root()
+    if cache and (cache / key / "symbols.json").is_file():
+        if outdir.exists() and outdir != cache / key:
+            shutil.rmtree(outdir)
+        shutil.copytree(cache / key, outdir)
+        return _load_result(outdir)
+    tmp = Path(tempfile.mkdtemp(prefix="plcrt-build-", dir=cache if cache else None))
+    try:
+        _build_into(sources, tmp, compiler, cflags or [])
+        if outdir.exists():
+            shutil.rmtree(outdir)
+        shutil.copytree(tmp, outdir)
+        if cache:
+            try:
+                os.rename(tmp, cache / key)  # atomic; a concurrent build of the same key may win
+                tmp = None
+            except OSError:
+                pass
+    finally:
+        if tmp is not None:
+            shutil.rmtree(tmp, ignore_errors=True)
+    return _load_result(outdir)
+
+
+def _load_result(outdir: Path) -> BuildResult:
+    meta = json.loads((outdir / "symbols.json").read_text())
+    return BuildResult(outdir=outdir, library=outdir / "libplc.so", executable=outdir / "plc",
+                       compiler=meta["compiler"],
+                       symbols=[Symbol(**s) for s in meta["symbols"]],
+                       programs=meta["programs"])
+
+
+def _build_into(sources, out: Path, compiler: str, cflags):
+    gen = out / "gen"
+    gen.mkdir(parents=True)
+    include = [f"-I{gen}"]
+    if compiler == "stc":
+        _translate_stc(sources, gen)
+        if not (gen / "SYMBOLS.tsv").is_file():
+            raise BuildError(f"stc: {gen}/SYMBOLS.tsv missing: the program does not match the ABI")
+        symbols, decls = read_symbols_tsv(gen / "SYMBOLS.tsv")
+        programs = _programs_from_sources(sources)
+        if (gen / "SOURCES.txt").is_file():
+            prog_c = [gen / l.strip() for l in (gen / "SOURCES.txt").read_text().splitlines()
+                      if l.strip()]
+        else:
+            prog_c = [gen / "Config0.c"] + sorted(gen.glob("Res*.c"))
+    else:
+        lib = _translate_matiec(sources, gen, out)
+        include.append(f"-I{Path(lib) / 'C'}")
+        symbols, decls, programs = read_variables_csv(gen)
+        prog_c = [gen / "Config0.c"] + sorted(gen.glob("Res*.c"))
+    for f in prog_c + [gen / "LOCATED_VARIABLES.h"]:
+        if not f.is_file():
+            raise BuildError(f"{compiler}: {f.name} missing in the translator output: "
+                             "the program does not match the ABI")
+    _write_symbols_c(out / "plcrt_symbols.c", symbols, decls)
+    cc = _cc()
+    core_inc = f"-I{RUNTIME_DIR / 'include'}"
+    src = RUNTIME_DIR / "src"
+    objs = []
+    base = ["-O2", "-fPIC", "-g"] + cflags
+    # program: generated code, warnings are the translator's business
+    for c in prog_c:
+        o = out / (c.stem + ".o")
+        _compile([cc, "-std=gnu99", "-w", *base, *include, "-c", str(c), "-o", str(o)],
+                 f"compiling {c.name}")
+        objs.append(o)
+    o = out / "plcrt_symbols.o"
+    _compile([cc, "-std=gnu99", "-w", *base, *include, "-c", str(out / "plcrt_symbols.c"),
+              "-o", str(o)], "compiling the symbol table (c_ref of SYMBOLS.tsv)")
+    objs.append(o)
+    o = out / "plcrt_glue.o"
+    _compile([cc, "-std=gnu11", "-Wall", *base, core_inc, f"-I{gen}", "-c",
+              str(src / "plcrt_glue.c"), "-o", str(o)], "compiling the located variables")
+    objs.append(o)
+    for name in CORE_SOURCES:
+        o = out / (Path(name).stem + ".o")
+        _compile([cc, "-std=gnu11", "-Wall", *base, core_inc, "-c", str(src / name), "-o", str(o)],
+                 f"compiling {name}")
+        objs.append(o)
+    libs = ["-lmodbus", "-lpthread", "-lm"]
+    _compile([cc, "-shared", "-Wl,-Bsymbolic", "-o", str(out / "libplc.so"),
+              *map(str, objs), *libs], "linking libplc.so")
+    main_o = out / "plcrt_main.o"
+    _compile([cc, "-std=gnu11", "-Wall", *base, core_inc, "-c", str(src / "plcrt_main.c"),
+              "-o", str(main_o)], "compiling plcrt_main.c")
+    _compile([cc, "-o", str(out / "plc"), str(main_o), *map(str, objs), *libs],
+             "linking the executable")
+    for o in out.glob("*.o"):
+        o.unlink()
+    meta = {"compiler": compiler, "programs": programs,
+            "symbols": [s.__dict__ for s in symbols]}
+    (out / "symbols.json").write_text(json.dumps(meta, indent=1))
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(prog="plcrt-build", description=__doc__.split("\n\n")[0])
+    ap.add_argument("-o", "--outdir", required=True)
+    ap.add_argument("--compiler", default="auto", choices=["auto", "stc", "matiec"])
+    ap.add_argument("sources", nargs="+")
+    args = ap.parse_args(argv)
+    try:
+        res = build_program(args.sources, args.outdir, args.compiler)
+    except BuildError as e:
+        print(f"plcrt-build: {e}", file=sys.stderr)
+        return 1
+    print(f"{res.executable}\n{res.library}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,135 @@
+/* plcrt: a small soft-PLC runtime for programs compiled by stc or matiec.
+ *
+ * One program is linked with the core per executable / shared library (the program's
+ * state lives in C globals), so there is one plcrt_t per process image of a program.
+ * Every function returning int returns 0 on success and -1 on error; the error text is
+ * then available from plcrt_errmsg(). */
+#ifndef PLCRT_H
+#define PLCRT_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define PLCRT_IMAGE_SIZE 1024 /* n < 1024 for %IW n, %QW n, %MW n, %MD n, %ML n, a in %IX a.b */
+
+/* The located image, with OpenPLC's address space. */
+typedef struct plcrt_image {
+    uint8_t ix[PLCRT_IMAGE_SIZE][8]; /* %IX a.b, 0/1 */
+    uint8_t qx[PLCRT_IMAGE_SIZE][8]; /* %QX a.b */
+    uint8_t ib[PLCRT_IMAGE_SIZE];    /* %IB n */
+    uint8_t qb[PLCRT_IMAGE_SIZE];    /* %QB n */
+    uint16_t iw[PLCRT_IMAGE_SIZE];   /* %IW n */
+    uint16_t qw[PLCRT_IMAGE_SIZE];   /* %QW n */
+    uint16_t mw[PLCRT_IMAGE_SIZE];   /* %MW n */
+    uint32_t md[PLCRT_IMAGE_SIZE];   /* %MD n */
+    uint64_t ml[PLCRT_IMAGE_SIZE];   /* %ML n */
+} plcrt_image_t;
+
+/* Pointer to a located address: area 'I','Q','M'; size 'X','B','W','D','L';
+ * parts = {n} or {a, b} for bits. NULL when the address is outside the image
+ * (why goes into err when err != NULL). */
+void *plcrt_image_locate(plcrt_image_t *img, char area, char size, const long *parts,
+                         int nparts, char *err, size_t errlen);
+/* Parse "%QW100" / "%IX0.1" (also without '%'); 0 or -1. */
+int plcrt_parse_address(const char *text, char *area, char *size, long parts[2], int *nparts);
+
+/* What a compiled program provides (filled by the generated glue, plcrt_glue.c). */
+typedef struct plcrt_timespec { long tv_sec; long tv_nsec; } plcrt_timespec_t;
+typedef struct plcrt_program {
+    void (*init)(void);
+    void (*run)(unsigned long tick);
+    unsigned long long *ticktime_ns;
+    plcrt_timespec_t *current_time;
+    /* Points every located variable into img; -1 with a message naming the variable. */
+    int (*bind)(plcrt_image_t *img, char *err, size_t errlen);
+    size_t n_symbols;
+    const char *const *symbol_names;       /* upper-case IEC paths */
+    void *(*symbol_addr)(size_t i);        /* valid after init */
+} plcrt_program_t;
+
+/* The program linked into this executable / library (defined by the glue). */
+const plcrt_program_t *plcrt_linked_program(void);
+
+typedef struct plcrt plcrt_t;
+
+typedef enum { PLCRT_VIRTUAL = 0, PLCRT_REALTIME = 1 } plcrt_mode_t;
+
+/* Binds the located variables, runs config_init__. NULL on error (message in err). */
+plcrt_t *plcrt_new(const plcrt_program_t *prog, char *err, size_t errlen);
+void plcrt_free(plcrt_t *rt);
+const char *plcrt_errmsg(const plcrt_t *rt);
+
+plcrt_image_t *plcrt_image(plcrt_t *rt);
+uint64_t plcrt_time_ns(const plcrt_t *rt);
+uint64_t plcrt_tick_ns(const plcrt_t *rt);
+uint64_t plcrt_scan_count(const plcrt_t *rt);
+
+/* Loads a config file (own format or OpenPLC's mbconfig.cfg). Errors are one line
+ * "FILE:LINE: error: ...". Must be called before the first scan. */
+int plcrt_load_config(plcrt_t *rt, const char *path);
+/* Like plcrt_load_config, from a string (name is used in messages). */
+int plcrt_load_config_text(plcrt_t *rt, const char *name, const char *text);
+
+/* One scan in virtual time: I/O phase (Modbus in/out, handshakes) → forces → program
+ * → forces → advance time by the tick. n scans. */
+int plcrt_scan(plcrt_t *rt, uint64_t n);
+
+typedef struct plcrt_rt_stats {
+    uint64_t scans;
+    uint64_t overruns;          /* scans that started after their deadline had passed */
+    uint64_t max_late_ns;       /* worst start lateness */
+    uint64_t max_scan_ns;       /* worst scan duration (I/O + program) */
+} plcrt_rt_stats_t;
+
+/* Real-time mode: absolute deadlines (CLOCK_MONOTONIC, clock_nanosleep), the Modbus
+ * master in its own thread. Runs max_scans scans (0 = until *stop becomes non-zero). */
+int plcrt_run_realtime(plcrt_t *rt, uint64_t max_scans, volatile int *stop);
+void plcrt_rt_stats(const plcrt_t *rt, plcrt_rt_stats_t *out);
+
+/* Forces: the bytes are written to addr after the I/O phase and after the program,
+ * every scan, until unforced. size <= 16. */
+int plcrt_force(plcrt_t *rt, void *addr, const void *value, size_t size);
+int plcrt_unforce(plcrt_t *rt, void *addr);
+
+/* Symbols of the program by upper-case IEC path (NULL if unknown). */
+size_t plcrt_symbol_count(const plcrt_t *rt);
+const char *plcrt_symbol_name(const plcrt_t *rt, size_t i);
+void *plcrt_symbol_addr(const plcrt_t *rt, size_t i);
+
+/* Logging: lines go to the callback (default: stderr with a "plcrt: " prefix). */
+typedef void (*plcrt_log_fn)(void *user, const char *line);
+void plcrt_set_log(plcrt_t *rt, plcrt_log_fn fn, void *user);
+
+/* ---- Modbus master (configured by plcrt_load_config) ---- */
+
+/* Transport seam: instead of TCP, a device can talk over an fd (one end of a
+ * socketpair()); after each request is sent, after_send(user) is called so a
+ * single-threaded co-simulation can answer on the other end before the master
+ * reads. Call before the first scan; the runtime does not close the fd. */
+typedef void (*plcrt_after_send_fn)(void *user);
+int plcrt_device_set_fd(plcrt_t *rt, const char *device, int fd,
+                        plcrt_after_send_fn after_send, void *user);
+int plcrt_device_count(const plcrt_t *rt);
+const char *plcrt_device_name(const plcrt_t *rt, int i);
+/* Counters of a device: failed requests, successful requests, reconnects. */
+int plcrt_device_stats(const plcrt_t *rt, int i, uint64_t *errors, uint64_t *requests,
+                       uint64_t *connects);
+
+/* ---- Modbus slave (optional) ---- */
+/* Serve the image (holding 0-1023 = %QW, 1024-2047 = %MW, input registers = %IW,
+ * coils = %QX, discrete inputs = %IX) on host:port. port 0 picks a free port,
+ * returned by plcrt_slave_port(). In virtual mode requests are served in the I/O
+ * phase of each scan; in real-time mode by a thread. */
+int plcrt_slave_start(plcrt_t *rt, const char *host, int port);
+int plcrt_slave_port(const plcrt_t *rt);
+/* Serves pending slave requests now (virtual mode; called by plcrt_scan too). */
+int plcrt_slave_poll(plcrt_t *rt, int timeout_ms);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,290 @@
+/* The scan loop: I/O phase → forces → program → forces → advance time by the tick. */
+#include "plcrt_internal.h"
+
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+void plcrt_seterr(plcrt_t *rt, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(rt->err, sizeof rt->err, fmt, ap);
+    va_end(ap);
+}
+
+static void default_log(void *user, const char *line)
+{
+    (void)user;
+    fprintf(stderr, "plcrt: %s\n", line);
+}
+
+void plcrt_log(plcrt_t *rt, const char *fmt, ...)
+{
+    char line[600];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(line, sizeof line, fmt, ap);
+    va_end(ap);
+    if (rt->log_fn) rt->log_fn(rt->log_user, line);
+}
+
+void plcrt_set_log(plcrt_t *rt, plcrt_log_fn fn, void *user)
+{
+    rt->log_fn = fn;
+    rt->log_user = user;
+}
+
+uint64_t plcrt_monotonic_ns(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (uint64_t)ts.tv_sec * 1000000000ull + (uint64_t)ts.tv_nsec;
+}
+
+plcrt_t *plcrt_new(const plcrt_program_t *prog, char *err, size_t errlen)
+{
+    if (!prog || !prog->init || !prog->run || !prog->ticktime_ns || !prog->current_time) {
+        snprintf(err, errlen, "program does not provide the ABI (config_init__, config_run__, common_ticktime__)");
+        return NULL;
+    }
+    if (*prog->ticktime_ns == 0) {
+        snprintf(err, errlen, "program has common_ticktime__ = 0: no task with an INTERVAL?");
+        return NULL;
+    }
+    plcrt_t *rt = calloc(1, sizeof *rt);
+    if (!rt) {
+        snprintf(err, errlen, "out of memory");
+        return NULL;
+    }
+    rt->prog = prog;
+    rt->tick_ns = *prog->ticktime_ns;
+    rt->log_fn = default_log;
+    pthread_mutex_init(&rt->image_lock, NULL);
+    if (prog->bind && prog->bind(&rt->img, err, errlen) != 0) {
+        free(rt);
+        return NULL;
+    }
+    prog->current_time->tv_sec = 0;
+    prog->current_time->tv_nsec = 0;
+    prog->init();
+    return rt;
+}
+
+void plcrt_free(plcrt_t *rt)
+{
+    if (!rt) return;
+    plcrt_slave_stop_thread(rt);
+    if (rt->master) plcrt_master_stop_thread(rt->master);
+    plcrt_master_free(rt->master);
+    plcrt_slave_free(rt->slave);
+    pthread_mutex_destroy(&rt->image_lock);
+    free(rt);
+}
+
+const char *plcrt_errmsg(const plcrt_t *rt) { return rt->err; }
+plcrt_image_t *plcrt_image(plcrt_t *rt) { return &rt->img; }
+uint64_t plcrt_time_ns(const plcrt_t *rt) { return rt->time_ns; }
+uint64_t plcrt_tick_ns(const plcrt_t *rt) { return rt->tick_ns; }
+uint64_t plcrt_scan_count(const plcrt_t *rt) { return rt->stats.scans; }
+
+int plcrt_force(plcrt_t *rt, void *addr, const void *value, size_t size)
+{
+    if (!addr || size == 0 || size > sizeof rt->forces[0].value) {
+        plcrt_seterr(rt, "force: bad address or size %zu", size);
+        return -1;
+    }
+    size_t i;
+    for (i = 0; i < rt->n_forces; i++)
+        if (rt->forces[i].addr == addr) break;
+    if (i == rt->n_forces) {
+        if (rt->n_forces == PLCRT_MAX_FORCES) {
+            plcrt_seterr(rt, "force: more than %d forced variables", PLCRT_MAX_FORCES);
+            return -1;
+        }
+        rt->n_forces++;
+    }
+    rt->forces[i].addr = addr;
+    rt->forces[i].size = size;
+    memcpy(rt->forces[i].value, value, size);
+    memcpy(addr, value, size); /* visible at once, like a write */
+    return 0;
+}
+
+int plcrt_unforce(plcrt_t *rt, void *addr)
+{
+    for (size_t i = 0; i < rt->n_forces; i++) {
+        if (rt->forces[i].addr == addr) {
+            rt->forces[i] = rt->forces[--rt->n_forces];
+            return 0;
+        }
+    }
+    plcrt_seterr(rt, "unforce: not forced");
+    return -1;
+}
+
+static void apply_forces(plcrt_t *rt)
+{
+    for (size_t i = 0; i < rt->n_forces; i++)
+        memcpy(rt->forces[i].addr, rt->forces[i].value, rt->forces[i].size);
+}
+
+size_t plcrt_symbol_count(const plcrt_t *rt) { return rt->prog->n_symbols; }
+const char *plcrt_symbol_name(const plcrt_t *rt, size_t i)
+{
+    return i < rt->prog->n_symbols ? rt->prog->symbol_names[i] : NULL;
+}
+void *plcrt_symbol_addr(const plcrt_t *rt, size_t i)
+{
+    return i < rt->prog->n_symbols ? rt->prog->symbol_addr(i) : NULL;
+}
+
+static void set_current_time(plcrt_t *rt)
+{
+    rt->prog->current_time->tv_sec = (long)(rt->time_ns / 1000000000ull);
+    rt->prog->current_time->tv_nsec = (long)(rt->time_ns % 1000000000ull);
+}
+
+/* The program part of a scan; the caller holds image_lock. */
+static void run_program(plcrt_t *rt)
+{
+    apply_forces(rt);
+    set_current_time(rt);
+    rt->prog->run((unsigned long)rt->tick);
+    apply_forces(rt);
+}
+
+int plcrt_scan(plcrt_t *rt, uint64_t n)
+{
+    if (rt->mode == PLCRT_REALTIME && rt->started) {
+        plcrt_seterr(rt, "plcrt_scan: the runtime is in real-time mode");
+        return -1;
+    }
+    rt->started = 1;
+    for (uint64_t i = 0; i < n; i++) {
+        pthread_mutex_lock(&rt->image_lock);
+        if (rt->slave) plcrt_slave_poll(rt, 0);
+        if (rt->master) {
+            plcrt_master_exchange_out(rt, rt->master);
+            plcrt_master_step(rt, rt->master, rt->time_ns);
+            plcrt_master_exchange_in(rt, rt->master);
+        }
+        run_program(rt);
+        pthread_mutex_unlock(&rt->image_lock);
+        rt->tick++;
+        rt->time_ns += rt->tick_ns;
+        rt->stats.scans++;
+    }
+    set_current_time(rt);
+    return 0;
+}
+
+static void add_ns(struct timespec *ts, uint64_t ns)
+{
+    uint64_t t = (uint64_t)ts->tv_nsec + ns;
+    ts->tv_sec += (time_t)(t / 1000000000ull);
+    ts->tv_nsec = (long)(t % 1000000000ull);
+}
+
+static uint64_t ts_ns(const struct timespec *ts)
+{
+    return (uint64_t)ts->tv_sec * 1000000000ull + (uint64_t)ts->tv_nsec;
+}
+
+int plcrt_run_realtime(plcrt_t *rt, uint64_t max_scans, volatile int *stop)
+{
+    if (rt->started && rt->mode != PLCRT_REALTIME) {
+        plcrt_seterr(rt, "plcrt_run_realtime: virtual scans already ran");
+        return -1;
+    }
+    rt->mode = PLCRT_REALTIME;
+    rt->started = 1;
+    if (rt->master && plcrt_master_start_thread(rt, rt->master) != 0) return -1;
+    if (rt->slave && plcrt_slave_start_thread(rt) != 0) return -1;
+    struct timespec deadline;
+    clock_gettime(CLOCK_MONOTONIC, &deadline);
+    uint64_t t0 = ts_ns(&deadline);
+    for (uint64_t i = 0; (max_scans == 0 || i < max_scans) && !(stop && *stop); i++) {
+        uint64_t start = plcrt_monotonic_ns();
+        uint64_t due = ts_ns(&deadline);
+        if (start > due) {
+            uint64_t late = start - due;
+            if (late > rt->stats.max_late_ns) rt->stats.max_late_ns = late;
+        }
+        pthread_mutex_lock(&rt->image_lock);
+        if (rt->master) {
+            plcrt_master_exchange_out(rt, rt->master);
+            plcrt_master_exchange_in(rt, rt->master);
+        }
+        rt->time_ns = due - t0;
+        run_program(rt);
+        pthread_mutex_unlock(&rt->image_lock);
+        rt->tick++;
+        rt->stats.scans++;
+        uint64_t end = plcrt_monotonic_ns();
+        if (end - start > rt->stats.max_scan_ns) rt->stats.max_scan_ns = end - start;
+        add_ns(&deadline, rt->tick_ns);
+        if (end > ts_ns(&deadline)) {
+            /* Overrun: the scan ended after the next deadline. Skip the missed
+             * deadlines rather than running a burst of late scans. */
+            rt->stats.overruns++;
+            while (ts_ns(&deadline) < end) {
+                add_ns(&deadline, rt->tick_ns);
+                rt->tick++;
+            }
+        }
+        while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &deadline, NULL) == EINTR)
+            if (stop && *stop) break;
+    }
+    rt->time_ns = ts_ns(&deadline) - t0;
+    if (rt->master) plcrt_master_stop_thread(rt->master);
+    plcrt_slave_stop_thread(rt);
+    return 0;
+}
+
+void plcrt_rt_stats(const plcrt_t *rt, plcrt_rt_stats_t *out) { *out = rt->stats; }
+
+int plcrt_load_config_text(plcrt_t *rt, const char *name, const char *text)
+{
+    if (rt->started) {
+        plcrt_seterr(rt, "%s: error: config must be loaded before the first scan", name);
+        return -1;
+    }
+    struct plcrt_master *m = NULL;
+    if (plcrt_master_parse(rt, name, text, &m) != 0) return -1;
+    plcrt_master_free(rt->master);
+    rt->master = m;
+    return 0;
+}
+
+int plcrt_load_config(plcrt_t *rt, const char *path)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f) {
+        plcrt_seterr(rt, "%s: error: cannot open: %s", path, strerror(errno));
+        return -1;
+    }
+    size_t cap = 4096, len = 0;
+    char *buf = malloc(cap);
+    size_t got;
+    while (buf && (got = fread(buf + len, 1, cap - len - 1, f)) > 0) {
+        len += got;
+        if (cap - len < 2) {
+            char *nb = realloc(buf, cap * 2);
+            if (!nb) { free(buf); buf = NULL; break; }
+            buf = nb;
+            cap *= 2;
+        }
+    }
+    fclose(f);
+    if (!buf) {
+        plcrt_seterr(rt, "%s: error: out of memory", path);
+        return -1;
+    }
+    buf[len] = 0;
+    int rc = plcrt_load_config_text(rt, path, buf);
+    free(buf);
+    return rc;
+}

@@ -1,0 +1,95 @@
+/* Per-program glue, compiled once for every program with -I <translator output dir>
+ * -I <generated dir>: defines what the matiec ABI asks of a runtime (__CURRENT_TIME,
+ * __DEBUG, one pointer per located variable) and describes the program to the core. */
+#include "plcrt.h"
+
+#include <stdio.h>
+
+extern void config_init__(void);
+extern void config_run__(unsigned long tick);
+extern unsigned long long common_ticktime__;
+
+/* Layout-compatible with matiec's IEC_TIMESPEC / BOOL. */
+plcrt_timespec_t __CURRENT_TIME;
+uint8_t __DEBUG;
+
+/* C storage of the elementary types a located variable can have. */
+#define PLCRT_CT_BOOL uint8_t
+#define PLCRT_CT_BYTE uint8_t
+#define PLCRT_CT_SINT int8_t
+#define PLCRT_CT_USINT uint8_t
+#define PLCRT_CT_WORD uint16_t
+#define PLCRT_CT_INT int16_t
+#define PLCRT_CT_UINT uint16_t
+#define PLCRT_CT_DWORD uint32_t
+#define PLCRT_CT_DINT int32_t
+#define PLCRT_CT_UDINT uint32_t
+#define PLCRT_CT_REAL float
+#define PLCRT_CT_LWORD uint64_t
+#define PLCRT_CT_LINT int64_t
+#define PLCRT_CT_ULINT uint64_t
+#define PLCRT_CT_LREAL double
+
+#define __LOCATED_VAR(type, name, area, size, ...) PLCRT_CT_##type *name;
+#include "LOCATED_VARIABLES.h"
+#undef __LOCATED_VAR
+
+static size_t size_bytes(char size)
+{
+    switch (size) {
+    case 'X': case 'B': return 1;
+    case 'W': return 2;
+    case 'D': return 4;
+    default: return 8;
+    }
+}
+
+static int bind_located(plcrt_image_t *img, char *err, size_t errlen)
+{
+    char why[200];
+    (void)size_bytes;
+    (void)why;
+#define __LOCATED_VAR(type, name, area, size, ...)                                          \
+    {                                                                                       \
+        static const long parts_[] = {__VA_ARGS__};                                        \
+        name = (PLCRT_CT_##type *)plcrt_image_locate(img, #area[0], #size[0], parts_,       \
+                                                     (int)(sizeof parts_ / sizeof parts_[0]), \
+                                                     why, sizeof why);                      \
+        if (!name) {                                                                        \
+            snprintf(err, errlen, "located variable %s: %s", #name, why);                   \
+            return -1;                                                                      \
+        }                                                                                   \
+        if (sizeof(PLCRT_CT_##type) != size_bytes(#size[0])) {                              \
+            snprintf(err, errlen, "located variable %s: type %s does not fit size %s",      \
+                     #name, #type, #size);                                                  \
+            return -1;                                                                      \
+        }                                                                                   \
+    }
+#include "LOCATED_VARIABLES.h"
+#undef __LOCATED_VAR
+    return 0;
+}
+
+/* From the generated plcrt_symbols.c */
+extern const char *const plcrt_gen_symbol_names[];
+extern const size_t plcrt_gen_n_symbols;
+extern void *plcrt_gen_symbol_addr(size_t i);
+
+static const plcrt_program_t program = {
+    .init = config_init__,
+    .run = config_run__,
+    .ticktime_ns = &common_ticktime__,
+    .current_time = &__CURRENT_TIME,
+    .bind = bind_located,
+    .n_symbols = 0, /* set below: a const object cannot take another object's value */
+    .symbol_names = plcrt_gen_symbol_names,
+    .symbol_addr = plcrt_gen_symbol_addr,
+};
+
+const plcrt_program_t *plcrt_linked_program(void)
+{
+    static plcrt_program_t p;
+    p = program;
+    p.n_symbols = plcrt_gen_n_symbols;
+    return &p;
+}

@@ -1,0 +1,61 @@
+/* Internal structures shared by the core's files (not installed). */
+#ifndef PLCRT_INTERNAL_H
+#define PLCRT_INTERNAL_H
+
+#include "plcrt.h"
+#include <pthread.h>
+#include <stdarg.h>
+
+#define PLCRT_MAX_FORCES 256
+
+typedef struct plcrt_force_entry {
+    void *addr;
+    size_t size;
+    unsigned char value[16];
+} plcrt_force_entry_t;
+
+struct plcrt_master; /* plcrt_master.c */
+struct plcrt_slave;  /* plcrt_slave.c */
+
+struct plcrt {
+    const plcrt_program_t *prog;
+    plcrt_image_t img;
+    uint64_t tick_ns;
+    uint64_t tick;      /* number of the next config_run__ tick */
+    uint64_t time_ns;   /* virtual (or elapsed, in real-time mode) time */
+    int started;        /* first scan done: config is frozen */
+    plcrt_mode_t mode;
+    plcrt_rt_stats_t stats;
+    plcrt_force_entry_t forces[PLCRT_MAX_FORCES];
+    size_t n_forces;
+    pthread_mutex_t image_lock; /* held while the program or an exchange touches the image */
+    plcrt_log_fn log_fn;
+    void *log_user;
+    struct plcrt_master *master;
+    struct plcrt_slave *slave;
+    char err[512];
+};
+
+void plcrt_seterr(plcrt_t *rt, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+void plcrt_log(plcrt_t *rt, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+uint64_t plcrt_monotonic_ns(void);
+
+/* Master (plcrt_master.c). The config parser builds it; the scan loop drives it. */
+int plcrt_master_parse(plcrt_t *rt, const char *name, const char *text, struct plcrt_master **out);
+void plcrt_master_free(struct plcrt_master *m);
+/* image → master (outputs, trigger edges); called with image_lock held */
+void plcrt_master_exchange_out(plcrt_t *rt, struct plcrt_master *m);
+/* master → image (read data, done/error/status, counters); image_lock held */
+void plcrt_master_exchange_in(plcrt_t *rt, struct plcrt_master *m);
+/* performs the requests that are due at time now_ns (virtual or monotonic) */
+void plcrt_master_step(plcrt_t *rt, struct plcrt_master *m, uint64_t now_ns);
+int plcrt_master_start_thread(plcrt_t *rt, struct plcrt_master *m);
+void plcrt_master_stop_thread(struct plcrt_master *m);
+int plcrt_master_is_empty(const struct plcrt_master *m);
+
+/* Slave (plcrt_slave.c) */
+void plcrt_slave_free(struct plcrt_slave *s);
+int plcrt_slave_start_thread(plcrt_t *rt);
+void plcrt_slave_stop_thread(plcrt_t *rt);
+
+#endif

@@ -1,0 +1,12 @@
+"""Fixtures of the runtime tests (helpers that tests import live in rt_helpers.py)."""
+import pytest
+
+
+@pytest.fixture
+def st_file(tmp_path):
+    """Write ST text into tmp_path and return the path."""
+    def write(text, name="prog.st"):
+        p = tmp_path / name
+        p.write_text(text)
+        return p
+    return write
