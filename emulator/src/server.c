@@ -1,0 +1,491 @@
+/* mip-emulator: Modbus TCP front of the mipemu core, driven in real time by the monotonic clock.
+ * One listening port for the MDP-810, one per TRM-810. epoll, non-blocking sockets; the core
+ * answers every frame, this file only moves bytes. */
+#define _GNU_SOURCE
+#include "mipemu.h"
+
+#include <arpa/inet.h>
+#include <errno.h>
+#include <fcntl.h>
+#include <getopt.h>
+#include <inttypes.h>
+#include <limits.h>
+#include <netinet/in.h>
+#include <netinet/tcp.h>
+#include <signal.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/epoll.h>
+#include <sys/resource.h>
+#include <sys/socket.h>
+#include <time.h>
+#include <unistd.h>
+
+#define PROG "mip-emulator"
+#define OUT_HIGH_WATER (64 * 1024) /* stop reading a client that does not read its answers */
+
+static const char USAGE[] =
+    "usage: " PROG " [options]\n"
+    "Emulates a Piciorgros MIP radio network: one MDP-810 central and N TRM-810 outstations,\n"
+    "each a Modbus TCP server. Runs until SIGINT or SIGTERM.\n"
+    "\n"
+    "  --host ADDR            address to listen on (default 127.0.0.1)\n"
+    "  --mdp-port PORT        MDP-810 port; the Modbus unit id selects the station (default 15020;\n"
+    "                         0 = any free port)\n"
+    "  --trm-base-port PORT   TRM-810 of station s listens on PORT+s-1 (default 15021;\n"
+    "                         0 = a free port each)\n"
+    "  --stations N           number of outstations, addresses 1..N (1..247, default 1)\n"
+    "  --mode MODE            dynamic (default) or static transfer\n"
+    "  --static-registers N   static mode: registers mirrored per direction (1..148, default 148)\n"
+    "  --loss-down P          probability a MDP->station telegram is lost (0..1, default 0)\n"
+    "  --loss-up P            probability a station->MDP telegram is lost (0..1, default 0)\n"
+    "  --burst L              bursty loss (Gilbert-Elliott), mean burst length L telegrams (>= 1;\n"
+    "                         default 0 = independent losses)\n"
+    "  --seed S               seed of the radio randomness (default 1)\n"
+    "  --bitrate B            radio bit rate in bit/s (300..10000000, default 9600)\n"
+    "  --slot-gap-ms MS       turnaround gap after every telegram in ms (default 20)\n"
+    "  --overhead-bytes N     bytes per telegram besides the registers (1..255, default 12)\n"
+    "  --fail-polls N         unanswered polls before a station counts as not reachable (default 3)\n"
+    "  --allow-127            accept up to 127 registers per request, as the device does\n"
+    "                         (default: the Modbus limits 125 read / 123 FC16 / 121 FC23 write)\n"
+    "  --trace FILE           write the JSON-lines trace to FILE ('-' = stdout)\n"
+    "  --help                 this text\n"
+    "\n"
+    "When all ports are bound it prints one line:\n"
+    "  mip-emulator: listening mdp=HOST:PORT trm=PORT1,PORT2,...\n"
+    "Register maps, status bits, radio timing and trace format: emulator/README.md.\n";
+
+__attribute__((noreturn, format(printf, 1, 2))) static void die_usage(const char *fmt, ...)
+{
+    va_list ap;
+    fprintf(stderr, PROG ": error: ");
+    va_start(ap, fmt);
+    vfprintf(stderr, fmt, ap);
+    va_end(ap);
+    fprintf(stderr, " (see --help)\n");
+    exit(2);
+}
+
+__attribute__((noreturn)) static void die_sys(const char *what)
+{
+    fprintf(stderr, PROG ": error: %s: %s\n", what, strerror(errno));
+    exit(1);
+}
+
+static long parse_long(const char *opt, const char *s, long lo, long hi)
+{
+    char *e;
+    errno = 0;
+    long v = strtol(s, &e, 10);
+    if (errno || e == s || *e || v < lo || v > hi)
+        die_usage("%s expects an integer %ld..%ld, got '%s'", opt, lo, hi, s);
+    return v;
+}
+
+static double parse_double(const char *opt, const char *s, double lo, double hi)
+{
+    char *e;
+    errno = 0;
+    double v = strtod(s, &e);
+    if (errno || e == s || *e || !(v >= lo && v <= hi))
+        die_usage("%s expects a number %g..%g, got '%s'", opt, lo, hi, s);
+    return v;
+}
+
+/* ---- connections ---- */
+
+enum { T_LISTEN, T_CONN };
+
+typedef struct conn {
+    int type;
+    int fd;
+    int ep;                       /* endpoint of the core */
+    uint8_t in[2 * MIPEMU_FRAME_MAX];
+    size_t in_len;
+    uint8_t *out;
+    size_t out_len, out_off, out_cap;
+    uint32_t events;
+} conn_t;
+
+static volatile sig_atomic_t g_stop;
+static void on_signal(int sig) { (void)sig; g_stop = 1; }
+
+static int g_epfd;
+static mipemu_net *g_net;
+static uint64_t g_t0;
+static FILE *g_trace;
+static long g_clients;
+
+static uint64_t mono_ns(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (uint64_t)ts.tv_sec * 1000000000ULL + (uint64_t)ts.tv_nsec;
+}
+
+static void advance_now(void) { mipemu_net_advance(g_net, mono_ns() - g_t0); }
+
+static void trace_to_file(void *user, const char *line, size_t len)
+{
+    fwrite(line, 1, len, (FILE *)user);
+}
+
+static void conn_close(conn_t *c)
+{
+    epoll_ctl(g_epfd, EPOLL_CTL_DEL, c->fd, NULL);
+    close(c->fd);
+    free(c->out);
+    free(c);
+    g_clients--;
+}
+
+static void set_events(conn_t *c, uint32_t ev)
+{
+    if (c->events == ev)
+        return;
+    struct epoll_event e = { .events = ev, .data.ptr = c };
+    epoll_ctl(g_epfd, EPOLL_CTL_MOD, c->fd, &e);
+    c->events = ev;
+}
+
+/* returns -1 when the connection has to go */
+static int flush_out(conn_t *c)
+{
+    while (c->out_off < c->out_len) {
+        ssize_t n = send(c->fd, c->out + c->out_off, c->out_len - c->out_off, MSG_NOSIGNAL);
+        if (n < 0) {
+            if (errno == EINTR)
+                continue;
+            if (errno == EAGAIN || errno == EWOULDBLOCK)
+                break;
+            return -1;
+        }
+        c->out_off += (size_t)n;
+    }
+    if (c->out_off == c->out_len)
+        c->out_off = c->out_len = 0;
+    return 0;
+}
+
+static int append_out(conn_t *c, const uint8_t *b, size_t n)
+{
+    if (c->out_len + n > c->out_cap) {
+        if (c->out_off) {
+            memmove(c->out, c->out + c->out_off, c->out_len - c->out_off);
+            c->out_len -= c->out_off;
+            c->out_off = 0;
+        }
+        if (c->out_len + n > c->out_cap) {
+            size_t cap = (c->out_len + n) * 2;
+            uint8_t *p = realloc(c->out, cap);
+            if (!p)
+                return -1;
+            c->out = p;
+            c->out_cap = cap;
+        }
+    }
+    memcpy(c->out + c->out_len, b, n);
+    c->out_len += n;
+    return 0;
+}
+
+/* Answers every whole frame in the input buffer; -1 closes the connection. */
+static int process_frames(conn_t *c)
+{
+    size_t off = 0;
+    int advanced = 0;
+    while (off < c->in_len) {
+        long fl = mipemu_frame_length(c->in + off, c->in_len - off);
+        if (fl < 0)
+            return -1;
+        if (fl == 0 || (size_t)fl > c->in_len - off)
+            break;
+        if (!advanced) {
+            advance_now();
+            advanced = 1;
+        }
+        uint8_t resp[MIPEMU_RESPONSE_MAX];
+        long rl = mipemu_handle(g_net, c->ep, c->in + off, (size_t)fl, resp, sizeof resp);
+        if (rl < 0 || append_out(c, resp, (size_t)rl) < 0)
+            return -1;
+        off += (size_t)fl;
+    }
+    if (off) {
+        memmove(c->in, c->in + off, c->in_len - off);
+        c->in_len -= off;
+    }
+    return 0;
+}
+
+static void on_readable(conn_t *c)
+{
+    for (;;) {
+        if (c->out_len - c->out_off > OUT_HIGH_WATER)
+            break; /* the client does not read: wait until it does */
+        ssize_t n = recv(c->fd, c->in + c->in_len, sizeof c->in - c->in_len, 0);
+        if (n == 0) {
+            conn_close(c);
+            return;
+        }
+        if (n < 0) {
+            if (errno == EINTR)
+                continue;
+            if (errno == EAGAIN || errno == EWOULDBLOCK)
+                break;
+            conn_close(c);
+            return;
+        }
+        c->in_len += (size_t)n;
+        if (process_frames(c) < 0) {
+            flush_out(c); /* answers to the frames before the bad one still go out */
+            conn_close(c);
+            return;
+        }
+    }
+    if (flush_out(c) < 0) {
+        conn_close(c);
+        return;
+    }
+    int pending = c->out_len > c->out_off;
+    int reading = c->out_len - c->out_off <= OUT_HIGH_WATER;
+    set_events(c, (reading ? EPOLLIN : 0) | (pending ? EPOLLOUT : 0));
+}
+
+static void on_writable(conn_t *c)
+{
+    if (flush_out(c) < 0) {
+        conn_close(c);
+        return;
+    }
+    if (c->out_len - c->out_off <= OUT_HIGH_WATER) {
+        set_events(c, EPOLLIN | (c->out_len > c->out_off ? EPOLLOUT : 0));
+        on_readable(c); /* data may be waiting that we stopped reading */
+    }
+}
+
+static void on_accept(conn_t *l)
+{
+    for (;;) {
+        int fd = accept4(l->fd, NULL, NULL, SOCK_NONBLOCK | SOCK_CLOEXEC);
+        if (fd < 0) {
+            if (errno == EINTR || errno == ECONNABORTED)
+                continue;
+            if (errno == EMFILE || errno == ENFILE)
+                fprintf(stderr, PROG ": warning: accept: %s\n", strerror(errno));
+            return;
+        }
+        int one = 1;
+        setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
+        conn_t *c = calloc(1, sizeof *c);
+        if (!c) {
+            close(fd);
+            continue;
+        }
+        c->type = T_CONN;
+        c->fd = fd;
+        c->ep = l->ep;
+        c->events = EPOLLIN;
+        struct epoll_event e = { .events = EPOLLIN, .data.ptr = c };
+        if (epoll_ctl(g_epfd, EPOLL_CTL_ADD, fd, &e) < 0) {
+            close(fd);
+            free(c);
+            continue;
+        }
+        g_clients++;
+    }
+}
+
+static int listen_on(const char *host, int port, int *bound_port)
+{
+    struct sockaddr_in a = { .sin_family = AF_INET, .sin_port = htons((uint16_t)port) };
+    if (inet_pton(AF_INET, host, &a.sin_addr) != 1)
+        die_usage("--host expects an IPv4 address, got '%s'", host);
+    int fd = socket(AF_INET, SOCK_STREAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
+    if (fd < 0)
+        die_sys("socket");
+    int one = 1;
+    setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
+    if (bind(fd, (struct sockaddr *)&a, sizeof a) < 0) {
+        fprintf(stderr, PROG ": error: cannot listen on %s:%d: %s\n", host, port, strerror(errno));
+        exit(1);
+    }
+    if (listen(fd, 512) < 0)
+        die_sys("listen");
+    socklen_t len = sizeof a;
+    getsockname(fd, (struct sockaddr *)&a, &len);
+    *bound_port = ntohs(a.sin_port);
+    return fd;
+}
+
+int main(int argc, char **argv)
+{
+    mipemu_config cfg;
+    mipemu_config_default(&cfg);
+    const char *host = "127.0.0.1";
+    const char *trace_path = NULL;
+    int mdp_port = 15020, trm_base = 15021;
+
+    enum { O_HOST = 256, O_MDP, O_TRM, O_STATIONS, O_MODE, O_STATIC, O_LDOWN, O_LUP, O_BURST, O_SEED,
+           O_BITRATE, O_GAP, O_OVERHEAD, O_FAILS, O_127, O_TRACE, O_HELP };
+    static const struct option opts[] = {
+        { "host", required_argument, 0, O_HOST },
+        { "mdp-port", required_argument, 0, O_MDP },
+        { "trm-base-port", required_argument, 0, O_TRM },
+        { "stations", required_argument, 0, O_STATIONS },
+        { "mode", required_argument, 0, O_MODE },
+        { "static-registers", required_argument, 0, O_STATIC },
+        { "loss-down", required_argument, 0, O_LDOWN },
+        { "loss-up", required_argument, 0, O_LUP },
+        { "burst", required_argument, 0, O_BURST },
+        { "seed", required_argument, 0, O_SEED },
+        { "bitrate", required_argument, 0, O_BITRATE },
+        { "slot-gap-ms", required_argument, 0, O_GAP },
+        { "overhead-bytes", required_argument, 0, O_OVERHEAD },
+        { "fail-polls", required_argument, 0, O_FAILS },
+        { "allow-127", no_argument, 0, O_127 },
+        { "trace", required_argument, 0, O_TRACE },
+        { "help", no_argument, 0, O_HELP },
+        { 0, 0, 0, 0 },
+    };
+    opterr = 0;
+    int o;
+    while ((o = getopt_long(argc, argv, ":", opts, NULL)) != -1) {
+        switch (o) {
+        case O_HOST: host = optarg; break;
+        case O_MDP: mdp_port = (int)parse_long("--mdp-port", optarg, 0, 65535); break;
+        case O_TRM: trm_base = (int)parse_long("--trm-base-port", optarg, 0, 65535); break;
+        case O_STATIONS: cfg.stations = (int)parse_long("--stations", optarg, 1, MIPEMU_MAX_STATIONS); break;
+        case O_MODE:
+            if (!strcmp(optarg, "dynamic")) cfg.mode = MIPEMU_DYNAMIC;
+            else if (!strcmp(optarg, "static")) cfg.mode = MIPEMU_STATIC;
+            else die_usage("--mode expects static or dynamic, got '%s'", optarg);
+            break;
+        case O_STATIC: cfg.static_registers = (int)parse_long("--static-registers", optarg, 1, MIPEMU_AREA_REGS); break;
+        case O_LDOWN: cfg.loss_down = parse_double("--loss-down", optarg, 0, 1); break;
+        case O_LUP: cfg.loss_up = parse_double("--loss-up", optarg, 0, 1); break;
+        case O_BURST:
+            cfg.burst = parse_double("--burst", optarg, 0, 1e6);
+            if (cfg.burst != 0 && cfg.burst < 1)
+                die_usage("--burst expects 0 or a mean burst length >= 1, got '%s'", optarg);
+            break;
+        case O_SEED: {
+            char *e;
+            errno = 0;
+            unsigned long long v = strtoull(optarg, &e, 0);
+            if (errno || e == optarg || *e || optarg[0] == '-')
+                die_usage("--seed expects an unsigned integer, got '%s'", optarg);
+            cfg.seed = v;
+            break;
+        }
+        case O_BITRATE: cfg.bitrate = (uint32_t)parse_long("--bitrate", optarg, 300, 10000000); break;
+        case O_GAP: cfg.slot_gap_ns = (uint64_t)(parse_double("--slot-gap-ms", optarg, 0, 60000) * 1e6 + 0.5); break;
+        case O_OVERHEAD: cfg.overhead_bytes = (int)parse_long("--overhead-bytes", optarg, 1, 255); break;
+        case O_FAILS: cfg.fail_polls = (int)parse_long("--fail-polls", optarg, 1, 255); break;
+        case O_127: cfg.allow_127 = 1; break;
+        case O_TRACE: trace_path = optarg; break;
+        case O_HELP: fputs(USAGE, stdout); return 0;
+        case ':': die_usage("option %s needs a value", argv[optind - 1]);
+        default:
+            die_usage("unknown option '%s'", argv[optind - 1]);
+        }
+    }
+    if (optind < argc)
+        die_usage("unexpected argument '%s'", argv[optind]);
+    if (trm_base != 0 && trm_base + cfg.stations - 1 > 65535)
+        die_usage("--trm-base-port %d leaves no room for %d stations", trm_base, cfg.stations);
+
+    char err[160];
+    g_net = mipemu_net_new(&cfg, err, sizeof err);
+    if (!g_net)
+        die_usage("%s", err);
+
+    if (trace_path) {
+        g_trace = strcmp(trace_path, "-") ? fopen(trace_path, "w") : stdout;
+        if (!g_trace) {
+            fprintf(stderr, PROG ": error: cannot write trace %s: %s\n", trace_path, strerror(errno));
+            return 1;
+        }
+        mipemu_net_set_trace(g_net, trace_to_file, g_trace);
+    }
+
+    /* many clients: lift the descriptor limit as far as allowed (epoll has no FD_SETSIZE) */
+    struct rlimit rl;
+    if (getrlimit(RLIMIT_NOFILE, &rl) == 0 && rl.rlim_cur < rl.rlim_max) {
+        rl.rlim_cur = rl.rlim_max;
+        setrlimit(RLIMIT_NOFILE, &rl);
+    }
+    struct sigaction sa = { .sa_handler = on_signal };
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGINT, &sa, NULL);
+    sigaction(SIGTERM, &sa, NULL);
+    signal(SIGPIPE, SIG_IGN);
+
+    g_epfd = epoll_create1(EPOLL_CLOEXEC);
+    if (g_epfd < 0)
+        die_sys("epoll_create1");
+    int nlisten = cfg.stations + 1;
+    conn_t *listeners = calloc((size_t)nlisten, sizeof *listeners);
+    int *ports = calloc((size_t)nlisten, sizeof *ports);
+    if (!listeners || !ports)
+        die_sys("calloc");
+    for (int i = 0; i < nlisten; i++) {
+        int want = i == 0 ? mdp_port : trm_base == 0 ? 0 : trm_base + i - 1;
+        listeners[i].type = T_LISTEN;
+        listeners[i].ep = i;
+        listeners[i].fd = listen_on(host, want, &ports[i]);
+        struct epoll_event e = { .events = EPOLLIN, .data.ptr = &listeners[i] };
+        if (epoll_ctl(g_epfd, EPOLL_CTL_ADD, listeners[i].fd, &e) < 0)
+            die_sys("epoll_ctl");
+    }
+    printf(PROG ": listening mdp=%s:%d trm=", host, ports[0]);
+    for (int i = 1; i < nlisten; i++)
+        printf("%s%d", i > 1 ? "," : "", ports[i]);
+    printf("\n");
+    fflush(stdout);
+
+    g_t0 = mono_ns();
+    struct epoll_event evs[256];
+    while (!g_stop) {
+        uint64_t now = mono_ns() - g_t0;
+        uint64_t next = mipemu_net_next_event(g_net);
+        int timeout = 0;
+        if (next > now) {
+            uint64_t ms = (next - now + 999999) / 1000000;
+            timeout = ms > 1000 ? 1000 : (int)ms;
+        }
+        int n = epoll_wait(g_epfd, evs, 256, timeout);
+        if (n < 0) {
+            if (errno == EINTR)
+                continue;
+            die_sys("epoll_wait");
+        }
+        advance_now();
+        for (int i = 0; i < n; i++) {
+            conn_t *c = evs[i].data.ptr;
+            if (c->type == T_LISTEN) {
+                on_accept(c);
+                continue;
+            }
+            if (evs[i].events & (EPOLLERR | EPOLLHUP) && !(evs[i].events & EPOLLIN)) {
+                conn_close(c);
+                continue;
+            }
+            if (evs[i].events & EPOLLOUT) {
+                on_writable(c);
+                continue; /* on_writable reads too; c may be gone */
+            }
+            if (evs[i].events & EPOLLIN)
+                on_readable(c);
+        }
+        if (g_trace)
+            fflush(g_trace);
+    }
+    if (g_trace && g_trace != stdout)
+        fclose(g_trace);
+    else if (g_trace)
+        fflush(g_trace);
+    mipemu_net_free(g_net);
+    return 0;
+}
