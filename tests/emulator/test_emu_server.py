@@ -251,20 +251,38 @@ def test_port_in_use_is_one_line_error():
     assert len(r.stderr.strip().splitlines()) == 1 and "cannot listen" in r.stderr
 
 
-def test_fixed_ports(tmp_path):
-    s = socket.socket()
-    s.bind(("127.0.0.1", 0))
-    base = s.getsockname()[1]
-    s.close()
-    # ask for the free port and its neighbours; retry elsewhere if a neighbour is taken
-    proc = subprocess.Popen([str(BINARY), "--mdp-port", "0", "--trm-base-port", str(base), "--stations", "2"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    line = proc.stdout.readline()
-    proc.terminate()
-    proc.wait(timeout=10)
-    if not line:
-        pytest.skip(f"port {base} or {base + 1} was taken meanwhile: {proc.stderr.read().strip()}")
+def free_port_pair():
+    """A port p such that p and p+1 could both be bound just now."""
+    for _ in range(50):
+        a = socket.socket()
+        a.bind(("127.0.0.1", 0))
+        base = a.getsockname()[1]
+        b = socket.socket()
+        try:
+            b.bind(("127.0.0.1", base + 1))
+            return base
+        except OSError:
+            continue
+        finally:
+            a.close()
+            b.close()
+    return None
+
+
+def test_fixed_ports():
+    for _ in range(5):
+        base = free_port_pair()
+        assert base is not None, "no two neighbouring free ports found on 127.0.0.1"
+        proc = subprocess.Popen([str(BINARY), "--mdp-port", "0", "--trm-base-port", str(base),
+                                 "--stations", "2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        line = proc.stdout.readline()
+        proc.terminate()
+        proc.wait(timeout=10)
+        proc.stdout.close()
+        err = proc.stderr.read()
+        proc.stderr.close()
+        if line:
+            break
+        assert "Address already in use" in err  # another process took it meanwhile: try again
     assert line.strip().endswith(f"trm={base},{base + 1}")
     assert proc.returncode == 0
-    proc.stdout.close()
-    proc.stderr.close()
