@@ -5,9 +5,9 @@ PY_PACKAGES += runtime_shim/harness
 RT_BUILD    := $(BUILD)/runtime_shim
 RT_SRC      := runtime_shim/src
 RT_CORE     := plcrt_core plcrt_image plcrt_config plcrt_master plcrt_slave
-RT_HEADERS  := runtime_shim/include/plcrt.h $(RT_SRC)/plcrt_internal.h
-RT_CFLAGS   := -std=gnu11 -Wall -Wextra -O2 -g -fPIC -Iruntime_shim/include
-RT_LIBS     := -lmodbus -lpthread -lm
+RT_HEADERS  := runtime_shim/include/plcrt.h $(RT_SRC)/plcrt_internal.h $(RT_SRC)/plcrt_master.h
+RT_CFLAGS   := -std=gnu11 -Wall -Wextra -O2 -g -fPIC -Iruntime_shim/include $(shell pkg-config --cflags libmodbus)
+RT_LIBS     := $(shell pkg-config --libs libmodbus) -lpthread -lm
 
 $(RT_BUILD)/%.o: $(RT_SRC)/%.c $(RT_HEADERS)
 	@mkdir -p $(@D)
@@ -17,5 +17,21 @@ $(RT_BUILD)/libplcrt.a: $(foreach f,$(RT_CORE),$(RT_BUILD)/$(f).o)
 	ar rcs $@ $^
 
 BUILD_TARGETS += $(RT_BUILD)/libplcrt.a
+
+# C unit tests: a hand-written program with the matiec ABI (runtime_shim/tests/fakeprog/),
+# linked with the core and the per-program glue; a libmodbus test server on 127.0.0.1.
+RT_TEST_DIR := runtime_shim/tests
+$(RT_BUILD)/test_plcrt: $(RT_TEST_DIR)/test_plcrt.c $(RT_TEST_DIR)/fakeprog/fakeprog.c \
+		$(RT_TEST_DIR)/fakeprog/LOCATED_VARIABLES.h $(RT_TEST_DIR)/minitest.h \
+		$(RT_SRC)/plcrt_glue.c $(RT_BUILD)/libplcrt.a $(RT_HEADERS)
+	$(CC) $(RT_CFLAGS) -Wno-missing-field-initializers -I$(RT_TEST_DIR)/fakeprog -I$(RT_TEST_DIR) -o $@ \
+		$(RT_TEST_DIR)/test_plcrt.c $(RT_TEST_DIR)/fakeprog/fakeprog.c $(RT_SRC)/plcrt_glue.c \
+		$(RT_BUILD)/libplcrt.a $(RT_LIBS)
+
+.PHONY: runtime-c-tests
+C_TESTS += runtime-c-tests
+runtime-c-tests: $(RT_BUILD)/test_plcrt
+	@mkdir -p $(RESULTS)
+	$(RT_BUILD)/test_plcrt --junit $(RESULTS)/runtime_shim.xml
 
 PYTEST_DEPS += $(RT_BUILD)/libplcrt.a

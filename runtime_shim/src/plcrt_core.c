@@ -1,5 +1,5 @@
 /* The scan loop: I/O phase → forces → program → forces → advance time by the tick. */
-#include "plcrt_internal.h"
+#include "plcrt_master.h"
 
 #include <errno.h>
 #include <stdio.h>
@@ -164,8 +164,8 @@ int plcrt_scan(plcrt_t *rt, uint64_t n)
     }
     rt->started = 1;
     for (uint64_t i = 0; i < n; i++) {
-        pthread_mutex_lock(&rt->image_lock);
         if (rt->slave) plcrt_slave_poll(rt, 0);
+        pthread_mutex_lock(&rt->image_lock);
         if (rt->master) {
             plcrt_master_exchange_out(rt, rt->master);
             plcrt_master_step(rt, rt->master, rt->time_ns);
@@ -256,6 +256,9 @@ int plcrt_load_config_text(plcrt_t *rt, const char *name, const char *text)
     if (plcrt_master_parse(rt, name, text, &m) != 0) return -1;
     plcrt_master_free(rt->master);
     rt->master = m;
+    if (m->slave_enabled && !rt->slave &&
+        plcrt_slave_start(rt, m->slave_host, m->slave_port) != 0)
+        return -1;
     return 0;
 }
 

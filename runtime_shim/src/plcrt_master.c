@@ -1,24 +1,455 @@
-/* Modbus TCP master (placeholder until the master lands). */
-#include "plcrt_internal.h"
+/* Modbus TCP master: one raw request per range (modbus_send_raw_request, then the
+ * transport seam's after_send hook, then modbus_receive_confirmation), policies cycle /
+ * change / trigger, reconnect with backoff. Data meet the image only in the exchange
+ * functions, which the scan loop calls between scans. */
+#include "plcrt_master.h"
+
+#include <errno.h>
+#include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
+#include <time.h>
 
-struct plcrt_master { int empty; };
+#define STATUS_TRANSPORT(e) (1000 + ((e) > 0 && (e) < 64000 ? (e) : EPROTO))
 
-int plcrt_master_parse(plcrt_t *rt, const char *name, const char *text, struct plcrt_master **out)
+static uint8_t *ix_bits(plcrt_t *rt) { return &rt->img.ix[0][0]; }
+static uint8_t *qx_bits(plcrt_t *rt) { return &rt->img.qx[0][0]; }
+
+void plcrt_master_free(struct plcrt_master *m)
 {
-    (void)text; (void)out;
-    plcrt_seterr(rt, "%s:1: error: the Modbus master is not implemented yet", name);
+    if (!m) return;
+    plcrt_master_stop_thread(m);
+    for (int i = 0; i < m->n_devices; i++) {
+        plcrt_device_t *d = &m->devices[i];
+        if (d->ctx) {
+            if (d->ext_fd >= 0) modbus_set_socket(d->ctx, -1); /* the fd is the caller's */
+            else modbus_close(d->ctx);
+            modbus_free(d->ctx);
+        }
+    }
+    pthread_mutex_destroy(&m->lock);
+    pthread_cond_destroy(&m->wake);
+    free(m->devices);
+    free(m->ranges);
+    free(m);
+}
+
+int plcrt_master_is_empty(const struct plcrt_master *m) { return !m || m->n_ranges == 0; }
+
+/* ------------------------------------------------------------------ exchange (image side) */
+
+void plcrt_master_exchange_out(plcrt_t *rt, struct plcrt_master *m)
+{
+    int wake = 0;
+    pthread_mutex_lock(&m->lock);
+    for (int i = 0; i < m->n_ranges; i++) {
+        plcrt_range_t *r = &m->ranges[i];
+        int bits = r->table == 'c' || r->table == 'd';
+        if (r->is_write) {
+            for (int j = 0; j < r->size; j++)
+                r->out[j] = bits ? qx_bits(rt)[r->image + j] : rt->img.qw[r->image + j];
+        }
+        if (r->policy != POLICY_TRIGGER) continue;
+        int level = qx_bits(rt)[r->trigger] != 0;
+        if (level && !r->trig_level && !r->pending) {
+            /* rising edge: the request takes the data and length as they are now */
+            r->pending = 1;
+            r->result = RESULT_NONE;
+            r->req_len = r->size;
+            if (r->length >= 0) r->req_len = rt->img.qw[r->length];
+            if (r->is_write) memcpy(r->req, r->out, sizeof r->req[0] * (size_t)r->size);
+            wake = 1;
+        }
+        r->trig_level = level;
+    }
+    if (wake) pthread_cond_signal(&m->wake);
+    pthread_mutex_unlock(&m->lock);
+}
+
+void plcrt_master_exchange_in(plcrt_t *rt, struct plcrt_master *m)
+{
+    pthread_mutex_lock(&m->lock);
+    for (int i = 0; i < m->n_ranges; i++) {
+        plcrt_range_t *r = &m->ranges[i];
+        int bits = r->table == 'c' || r->table == 'd';
+        if (r->policy == POLICY_TRIGGER) {
+            if (!r->trig_level) {
+                /* the program dropped the trigger: handshake over */
+                ix_bits(rt)[r->done] = 0;
+                ix_bits(rt)[r->error] = 0;
+                r->done_shown = r->error_shown = 0;
+                if (!r->pending) r->result = RESULT_NONE;
+                continue;
+            }
+            if (r->result == RESULT_NONE) continue;
+            if (r->result == RESULT_OK && !r->is_write) {
+                for (int j = 0; j < r->size; j++) {
+                    if (bits) ix_bits(rt)[r->image + j] = (uint8_t)(r->in[j] != 0);
+                    else rt->img.iw[r->image + j] = r->in[j];
+                }
+            }
+            ix_bits(rt)[r->done] = r->result == RESULT_OK;
+            ix_bits(rt)[r->error] = r->result == RESULT_ERROR;
+            if (r->status >= 0) rt->img.iw[r->status] = (uint16_t)r->status_value;
+            r->result = RESULT_NONE;
+            continue;
+        }
+        if (!r->is_write && r->fresh) {
+            for (int j = 0; j < r->size; j++) {
+                if (bits) ix_bits(rt)[r->image + j] = (uint8_t)(r->in[j] != 0);
+                else rt->img.iw[r->image + j] = r->in[j];
+            }
+            r->fresh = 0;
+        }
+    }
+    for (int i = 0; i < m->n_devices; i++) {
+        plcrt_device_t *d = &m->devices[i];
+        if (d->errors_word >= 0) rt->img.iw[d->errors_word] = (uint16_t)d->n_errors;
+        if (d->online_bit >= 0) ix_bits(rt)[d->online_bit] = (uint8_t)d->connected;
+    }
+    pthread_mutex_unlock(&m->lock);
+}
+
+/* ------------------------------------------------------------------ transport */
+
+static void device_close(plcrt_device_t *d)
+{
+    if (d->ctx && d->ext_fd < 0) modbus_close(d->ctx);
+    d->connected = d->ext_fd >= 0;
+}
+
+static int device_ensure_ctx(plcrt_t *rt, plcrt_device_t *d)
+{
+    if (d->ctx) return 0;
+    d->ctx = modbus_new_tcp(d->host[0] ? d->host : "127.0.0.1", d->port);
+    if (!d->ctx) {
+        plcrt_log(rt, "device %s: cannot create a Modbus context: %s", d->name, modbus_strerror(errno));
+        return -1;
+    }
+    modbus_set_slave(d->ctx, d->unit_id);
+    modbus_set_error_recovery(d->ctx, MODBUS_ERROR_RECOVERY_NONE);
+    modbus_set_response_timeout(d->ctx, (uint32_t)(d->timeout_ns / 1000000000ull),
+                                (uint32_t)((d->timeout_ns % 1000000000ull) / 1000));
+    if (d->ext_fd >= 0) {
+        modbus_set_socket(d->ctx, d->ext_fd);
+        d->connected = 1;
+    }
+    return 0;
+}
+
+/* 0 when connected; otherwise -1 with the errno to report */
+static int device_connect(plcrt_t *rt, struct plcrt_master *m, plcrt_device_t *d, uint64_t now,
+                          int *err)
+{
+    if (device_ensure_ctx(rt, d) != 0) { *err = ENOMEM; return -1; }
+    if (d->connected) return 0;
+    if (now < d->next_connect_ns) { *err = ENOTCONN; return -1; }
+    if (modbus_connect(d->ctx) == 0) {
+        d->connected = 1;
+        d->n_connects++;
+        d->backoff_ns = 0;
+        if (d->n_connects > 1 || d->failing)
+            plcrt_log(rt, "device %s: connected to %s:%d", d->name, d->host, d->port);
+        return 0;
+    }
+    *err = errno;
+    d->backoff_ns = d->backoff_ns ? d->backoff_ns * 2 : m->reconnect_min_ns;
+    if (d->backoff_ns > m->reconnect_max_ns) d->backoff_ns = m->reconnect_max_ns;
+    d->next_connect_ns = now + d->backoff_ns;
     return -1;
 }
-void plcrt_master_free(struct plcrt_master *m) { free(m); }
-void plcrt_master_exchange_out(plcrt_t *rt, struct plcrt_master *m) { (void)rt; (void)m; }
-void plcrt_master_exchange_in(plcrt_t *rt, struct plcrt_master *m) { (void)rt; (void)m; }
-void plcrt_master_step(plcrt_t *rt, struct plcrt_master *m, uint64_t now_ns) { (void)rt; (void)m; (void)now_ns; }
-int plcrt_master_start_thread(plcrt_t *rt, struct plcrt_master *m) { (void)rt; (void)m; return 0; }
-void plcrt_master_stop_thread(struct plcrt_master *m) { (void)m; }
-int plcrt_device_set_fd(plcrt_t *rt, const char *device, int fd, plcrt_after_send_fn f, void *u)
-{ (void)device; (void)fd; (void)f; (void)u; plcrt_seterr(rt, "no such device"); return -1; }
-int plcrt_device_count(const plcrt_t *rt) { (void)rt; return 0; }
-const char *plcrt_device_name(const plcrt_t *rt, int i) { (void)rt; (void)i; return NULL; }
-int plcrt_device_stats(const plcrt_t *rt, int i, uint64_t *e, uint64_t *r, uint64_t *c)
-{ (void)rt; (void)i; (void)e; (void)r; (void)c; return -1; }
+
+static void put16(uint8_t *p, int v) { p[0] = (uint8_t)(v >> 8); p[1] = (uint8_t)v; }
+static int get16(const uint8_t *p) { return (p[0] << 8) | p[1]; }
+
+typedef struct request {
+    int fc, addr, count;
+    uint16_t data[PLCRT_MAX_BITS]; /* write data in, read data out */
+} request_t;
+
+/* One request over the device's transport. Returns 0, or the status for the program:
+ * a Modbus exception code 1..255, or 1000+errno for transport errors (then *transport = 1). */
+static int do_request(plcrt_device_t *d, request_t *q, int *transport)
+{
+    uint8_t req[MODBUS_TCP_MAX_ADU_LENGTH];
+    uint8_t rsp[MODBUS_TCP_MAX_ADU_LENGTH];
+    int n = 0;
+    *transport = 0;
+    req[n++] = (uint8_t)d->unit_id;
+    req[n++] = (uint8_t)q->fc;
+    put16(req + n, q->addr); n += 2;
+    put16(req + n, q->count); n += 2;
+    if (q->fc == 16) {
+        req[n++] = (uint8_t)(q->count * 2);
+        for (int i = 0; i < q->count; i++) { put16(req + n, q->data[i]); n += 2; }
+    } else if (q->fc == 15) {
+        int bytes = (q->count + 7) / 8;
+        req[n++] = (uint8_t)bytes;
+        memset(req + n, 0, (size_t)bytes);
+        for (int i = 0; i < q->count; i++)
+            if (q->data[i]) req[n + i / 8] |= (uint8_t)(1u << (i % 8));
+        n += bytes;
+    }
+    if (modbus_send_raw_request(d->ctx, req, n) < 0) {
+        *transport = 1;
+        return STATUS_TRANSPORT(errno);
+    }
+    if (d->after_send) d->after_send(d->after_send_user);
+    int len = modbus_receive_confirmation(d->ctx, rsp);
+    if (len < 0) {
+        *transport = 1;
+        return STATUS_TRANSPORT(errno);
+    }
+    int h = modbus_get_header_length(d->ctx); /* MBAP incl. unit id: the function code follows */
+    if (len < h + 2 || rsp[h - 1] != (uint8_t)d->unit_id) goto bad;
+    if (rsp[h] == (uint8_t)(q->fc | 0x80)) return rsp[h + 1] ? rsp[h + 1] : EPROTO + 1000;
+    if (rsp[h] != q->fc) goto bad;
+    if (q->fc == 3 || q->fc == 4) {
+        if (rsp[h + 1] != q->count * 2 || len < h + 2 + q->count * 2) goto bad;
+        for (int i = 0; i < q->count; i++) q->data[i] = (uint16_t)get16(rsp + h + 2 + 2 * i);
+    } else if (q->fc == 1 || q->fc == 2) {
+        int bytes = (q->count + 7) / 8;
+        if (rsp[h + 1] != bytes || len < h + 2 + bytes) goto bad;
+        for (int i = 0; i < q->count; i++) q->data[i] = (rsp[h + 2 + i / 8] >> (i % 8)) & 1;
+    } else {
+        if (len < h + 5 || get16(rsp + h + 1) != q->addr || get16(rsp + h + 3) != q->count) goto bad;
+    }
+    return 0;
+bad:
+    /* a reply that does not fit the request: treat the stream as out of step */
+    *transport = 1;
+    return STATUS_TRANSPORT(EPROTO);
+}
+
+static const char *status_text(int status, char *buf, size_t n)
+{
+    if (status >= 1000) snprintf(buf, n, "%s", modbus_strerror(status - 1000));
+    else snprintf(buf, n, "Modbus exception %d (%s)", status, modbus_strerror(MODBUS_ENOBASE + status));
+    return buf;
+}
+
+/* Performs one request of range r at time now; returns the status (0 = ok). */
+static int range_request(plcrt_t *rt, struct plcrt_master *m, plcrt_range_t *r, request_t *q,
+                         uint64_t now)
+{
+    plcrt_device_t *d = &m->devices[r->dev];
+    int status, transport = 0, err;
+    if (device_connect(rt, m, d, now, &err) != 0) {
+        if (err == ENOTCONN && r->policy != POLICY_TRIGGER)
+            return -1; /* waiting for the reconnect backoff: no request, no error */
+        status = STATUS_TRANSPORT(err);
+        transport = 1;
+    } else {
+        status = do_request(d, q, &transport);
+    }
+    d->n_requests++;
+    if (status == 0) {
+        if (d->failing)
+            plcrt_log(rt, "device %s: requests succeed again (%llu errors so far)", d->name,
+                      (unsigned long long)d->n_errors);
+        d->failing = 0;
+        return 0;
+    }
+    d->n_errors++;
+    char why[160];
+    status_text(status, why, sizeof why);
+    /* log transitions (and every 100th error), not every failed poll of a dead device */
+    if (!d->failing || d->n_errors % 100 == 0)
+        plcrt_log(rt, "device %s: %s %s %d+%d (range %s) failed: %s; %llu errors", d->name,
+                  r->is_write ? "write" : "read",
+                  r->table == 'h' ? "holding" : r->table == 'i' ? "input" : r->table == 'c' ? "coils" : "discrete",
+                  q->addr, q->count, r->name, why, (unsigned long long)d->n_errors);
+    snprintf(d->last_error, sizeof d->last_error, "%s", why);
+    d->failing = 1;
+    if (transport && d->connected && d->ext_fd < 0) {
+        /* the TCP stream may hold a late answer: start over on a new connection */
+        device_close(d);
+        d->backoff_ns = m->reconnect_min_ns;
+        d->next_connect_ns = now + d->backoff_ns;
+    } else if (transport && d->ext_fd >= 0) {
+        modbus_flush(d->ctx);
+    }
+    return status;
+}
+
+static int function_code(const plcrt_range_t *r)
+{
+    if (r->is_write) return r->table == 'c' ? 15 : 16;
+    switch (r->table) {
+    case 'i': return 4;
+    case 'c': return 1;
+    case 'd': return 2;
+    default: return 3;
+    }
+}
+
+void plcrt_master_step(plcrt_t *rt, struct plcrt_master *m, uint64_t now)
+{
+    static __thread request_t q; /* large: keep it off the stack */
+    for (int i = 0; i < m->n_ranges; i++) {
+        plcrt_range_t *r = &m->ranges[i];
+        plcrt_device_t *d = &m->devices[r->dev];
+        pthread_mutex_lock(&m->lock);
+        int go = 0;
+        q.fc = function_code(r);
+        q.addr = r->start;
+        q.count = r->size;
+        if (r->policy == POLICY_TRIGGER) {
+            if (r->pending) {
+                go = 1;
+                if (r->is_write) {
+                    memcpy(q.data, r->req, sizeof q.data[0] * (size_t)r->size);
+                    q.count = r->req_len;
+                }
+            }
+        } else if (now >= r->next_due) {
+            r->next_due = r->next_due + d->poll_ns > now ? r->next_due + d->poll_ns : now + d->poll_ns;
+            if (r->next_due == 0) r->next_due = now + d->poll_ns;
+            go = 1;
+            if (r->is_write) {
+                memcpy(q.data, r->out, sizeof q.data[0] * (size_t)r->size);
+                if (r->length >= 0) q.count = rt->img.qw[r->length];
+                if (r->policy == POLICY_CHANGE && r->have_last &&
+                    !memcmp(r->last, q.data, sizeof q.data[0] * (size_t)r->size))
+                    go = 0;
+            }
+        }
+        pthread_mutex_unlock(&m->lock);
+        if (!go) continue;
+        int status;
+        if (q.count < 1 || q.count > r->size) {
+            /* the length word asks for more than the range has */
+            d->n_errors++;
+            plcrt_log(rt, "range %s: length word %%QW%d = %d is outside 1..%d", r->name, r->length,
+                      q.count, r->size);
+            status = STATUS_TRANSPORT(EINVAL);
+        } else {
+            status = range_request(rt, m, r, &q, now);
+            if (status < 0) continue; /* skipped: device in reconnect backoff */
+        }
+        pthread_mutex_lock(&m->lock);
+        if (r->policy == POLICY_TRIGGER) {
+            r->pending = 0;
+            r->status_value = status;
+            r->result = status == 0 ? RESULT_OK : RESULT_ERROR;
+            if (status == 0 && !r->is_write) memcpy(r->in, q.data, sizeof q.data[0] * (size_t)r->size);
+        } else if (status == 0) {
+            if (r->is_write) {
+                memcpy(r->last, q.data, sizeof q.data[0] * (size_t)r->size);
+                r->have_last = 1;
+            } else {
+                memcpy(r->in, q.data, sizeof q.data[0] * (size_t)r->size);
+                r->fresh = 1;
+            }
+        }
+        pthread_mutex_unlock(&m->lock);
+    }
+}
+
+/* ------------------------------------------------------------------ real-time thread */
+
+static void *master_thread(void *arg)
+{
+    struct plcrt_master *m = arg;
+    pthread_mutex_lock(&m->lock);
+    while (!m->stop) {
+        pthread_mutex_unlock(&m->lock);
+        uint64_t now = plcrt_monotonic_ns();
+        plcrt_master_step(m->rt, m, now);
+        pthread_mutex_lock(&m->lock);
+        /* sleep until the next range is due, a trigger edge, or stop */
+        uint64_t wake = now + 1000000000ull;
+        int pending = 0;
+        for (int i = 0; i < m->n_ranges; i++) {
+            plcrt_range_t *r = &m->ranges[i];
+            if (r->pending) pending = 1;
+            if (r->policy != POLICY_TRIGGER && r->next_due < wake) wake = r->next_due;
+        }
+        if (pending || m->stop) continue;
+        struct timespec ts = {(time_t)(wake / 1000000000ull), (long)(wake % 1000000000ull)};
+        pthread_cond_timedwait(&m->wake, &m->lock, &ts);
+    }
+    pthread_mutex_unlock(&m->lock);
+    return NULL;
+}
+
+int plcrt_master_start_thread(plcrt_t *rt, struct plcrt_master *m)
+{
+    if (m->thread_running || m->n_ranges == 0) return 0;
+    /* next_due values of earlier virtual scans mean nothing on the monotonic clock */
+    uint64_t now = plcrt_monotonic_ns();
+    for (int i = 0; i < m->n_ranges; i++) m->ranges[i].next_due = now;
+    for (int i = 0; i < m->n_devices; i++) m->devices[i].next_connect_ns = 0;
+    m->stop = 0;
+    if (pthread_create(&m->thread, NULL, master_thread, m) != 0) {
+        plcrt_seterr(rt, "cannot start the Modbus master thread");
+        return -1;
+    }
+    m->thread_running = 1;
+    return 0;
+}
+
+void plcrt_master_stop_thread(struct plcrt_master *m)
+{
+    if (!m || !m->thread_running) return;
+    pthread_mutex_lock(&m->lock);
+    m->stop = 1;
+    pthread_cond_signal(&m->wake);
+    pthread_mutex_unlock(&m->lock);
+    pthread_join(m->thread, NULL);
+    m->thread_running = 0;
+}
+
+/* ------------------------------------------------------------------ public API */
+
+int plcrt_device_set_fd(plcrt_t *rt, const char *device, int fd, plcrt_after_send_fn after_send,
+                        void *user)
+{
+    struct plcrt_master *m = rt->master;
+    if (rt->started) {
+        plcrt_seterr(rt, "plcrt_device_set_fd: call before the first scan");
+        return -1;
+    }
+    for (int i = 0; m && i < m->n_devices; i++) {
+        plcrt_device_t *d = &m->devices[i];
+        if (strcmp(d->name, device) != 0) continue;
+        if (fd < 0) {
+            plcrt_seterr(rt, "plcrt_device_set_fd: bad fd %d", fd);
+            return -1;
+        }
+        if (d->ctx) {
+            if (d->ext_fd >= 0) modbus_set_socket(d->ctx, -1);
+            else modbus_close(d->ctx);
+            modbus_free(d->ctx);
+            d->ctx = NULL;
+        }
+        d->ext_fd = fd;
+        d->after_send = after_send;
+        d->after_send_user = user;
+        return device_ensure_ctx(rt, d);
+    }
+    plcrt_seterr(rt, "no device '%s' in the config", device);
+    return -1;
+}
+
+int plcrt_device_count(const plcrt_t *rt) { return rt->master ? rt->master->n_devices : 0; }
+
+const char *plcrt_device_name(const plcrt_t *rt, int i)
+{
+    if (!rt->master || i < 0 || i >= rt->master->n_devices) return NULL;
+    return rt->master->devices[i].name;
+}
+
+int plcrt_device_stats(const plcrt_t *rt, int i, uint64_t *errors, uint64_t *requests,
+                       uint64_t *connects)
+{
+    if (!rt->master || i < 0 || i >= rt->master->n_devices) return -1;
+    struct plcrt_master *m = rt->master;
+    pthread_mutex_lock(&m->lock);
+    const plcrt_device_t *d = &m->devices[i];
+    if (errors) *errors = d->n_errors;
+    if (requests) *requests = d->n_requests;
+    if (connects) *connects = d->n_connects;
+    pthread_mutex_unlock(&m->lock);
+    return 0;
+}

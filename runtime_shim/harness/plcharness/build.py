@@ -264,6 +264,18 @@ def _cc():
     return os.environ.get("CC", "cc")
 
 
+def _modbus_flags():
+    """(cflags, libs) of libmodbus from pkg-config, with Debian's layout as the fallback."""
+    try:
+        cflags = subprocess.run(["pkg-config", "--cflags", "libmodbus"], capture_output=True,
+                                text=True, check=True).stdout.split()
+        libs = subprocess.run(["pkg-config", "--libs", "libmodbus"], capture_output=True,
+                              text=True, check=True).stdout.split()
+        return cflags, libs
+    except (OSError, subprocess.CalledProcessError):
+        return ["-I/usr/include/modbus"], ["-lmodbus"]
+
+
 def _compile(cmd, what):
     _run(cmd, what)
 
@@ -379,6 +391,7 @@ def _build_into(sources, out: Path, compiler: str, cflags):
                              "the program does not match the ABI")
     _write_symbols_c(out / "plcrt_symbols.c", symbols, decls)
     cc = _cc()
+    mb_cflags, mb_libs = _modbus_flags()
     core_inc = f"-I{RUNTIME_DIR / 'include'}"
     src = RUNTIME_DIR / "src"
     objs = []
@@ -399,10 +412,11 @@ def _build_into(sources, out: Path, compiler: str, cflags):
     objs.append(o)
     for name in CORE_SOURCES:
         o = out / (Path(name).stem + ".o")
-        _compile([cc, "-std=gnu11", "-Wall", *base, core_inc, "-c", str(src / name), "-o", str(o)],
+        _compile([cc, "-std=gnu11", "-Wall", *base, core_inc, *mb_cflags, "-c", str(src / name),
+                  "-o", str(o)],
                  f"compiling {name}")
         objs.append(o)
-    libs = ["-lmodbus", "-lpthread", "-lm"]
+    libs = mb_libs + ["-lpthread", "-lm"]
     _compile([cc, "-shared", "-Wl,-Bsymbolic", "-o", str(out / "libplc.so"),
               *map(str, objs), *libs], "linking libplc.so")
     main_o = out / "plcrt_main.o"

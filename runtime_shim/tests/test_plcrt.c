@@ -1,0 +1,681 @@
+/* Unit tests of the plcrt core: image, scan timing in virtual time, forces, config
+ * errors, the Modbus master's policies against a real libmodbus server on 127.0.0.1,
+ * the socketpair transport seam, the slave, and a few real-time scans. */
+#include "minitest.h"
+#include "plcrt.h"
+
+#include <arpa/inet.h>
+#include <errno.h>
+#include <modbus.h>
+#include <netinet/in.h>
+#include <pthread.h>
+#include <sys/select.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+extern uint32_t fake_fast_count, fake_slow_count;
+extern uint64_t fake_time_seen[64];
+extern int16_t fake_counter;
+
+static char log_buf[8192];
+static void capture_log(void *user, const char *line)
+{
+    (void)user;
+    size_t n = strlen(log_buf);
+    snprintf(log_buf + n, sizeof log_buf - n, "%s\n", line);
+}
+
+static plcrt_t *new_rt(void)
+{
+    char err[256];
+    plcrt_t *rt = plcrt_new(plcrt_linked_program(), err, sizeof err);
+    if (!rt) fprintf(stderr, "plcrt_new: %s\n", err);
+    log_buf[0] = 0;
+    plcrt_set_log(rt, capture_log, NULL);
+    return rt;
+}
+
+/* ------------------------------------------------------------------ test server */
+
+#define SRV_LOG 256
+typedef struct server {
+    modbus_t *ctx;
+    modbus_mapping_t *map;
+    int listen_fd, port;
+    int client;
+    pthread_t thread;
+    volatile int stop;
+    pthread_mutex_t lock;
+    int n_log;
+    int log_fc[SRV_LOG], log_addr[SRV_LOG], log_count[SRV_LOG];
+} server_t;
+
+static void server_record(server_t *s, const uint8_t *q, int hl)
+{
+    pthread_mutex_lock(&s->lock);
+    if (s->n_log < SRV_LOG) {
+        s->log_fc[s->n_log] = q[hl];
+        s->log_addr[s->n_log] = (q[hl + 1] << 8) | q[hl + 2];
+        s->log_count[s->n_log] = (q[hl + 3] << 8) | q[hl + 4];
+        s->n_log++;
+    }
+    pthread_mutex_unlock(&s->lock);
+}
+
+/* serves one request on fd; -1 when the peer closed */
+static int server_serve_fd(server_t *s, int fd)
+{
+    uint8_t q[MODBUS_TCP_MAX_ADU_LENGTH];
+    modbus_set_socket(s->ctx, fd);
+    int rc = modbus_receive(s->ctx, q);
+    if (rc <= 0) return rc;
+    server_record(s, q, modbus_get_header_length(s->ctx));
+    pthread_mutex_lock(&s->lock);
+    rc = modbus_reply(s->ctx, q, rc, s->map);
+    pthread_mutex_unlock(&s->lock);
+    return rc < 0 ? -1 : 1;
+}
+
+static void *server_thread(void *arg)
+{
+    server_t *s = arg;
+    while (!s->stop) {
+        fd_set rd;
+        FD_ZERO(&rd);
+        int maxfd = s->listen_fd;
+        FD_SET(s->listen_fd, &rd);
+        if (s->client >= 0) {
+            FD_SET(s->client, &rd);
+            if (s->client > maxfd) maxfd = s->client;
+        }
+        struct timeval tv = {0, 20000};
+        if (select(maxfd + 1, &rd, NULL, NULL, &tv) <= 0) continue;
+        if (FD_ISSET(s->listen_fd, &rd)) {
+            int c = accept(s->listen_fd, NULL, NULL);
+            if (c >= 0) {
+                if (s->client >= 0) close(s->client);
+                s->client = c;
+            }
+            continue;
+        }
+        if (s->client >= 0 && FD_ISSET(s->client, &rd) && server_serve_fd(s, s->client) < 0) {
+            close(s->client);
+            s->client = -1;
+        }
+    }
+    return NULL;
+}
+
+/* A libmodbus server with 200 holding registers, 200 input registers, 64 coils. */
+static server_t *server_new(int with_listener)
+{
+    server_t *s = calloc(1, sizeof *s);
+    s->ctx = modbus_new_tcp("127.0.0.1", 1502);
+    s->map = modbus_mapping_new(64, 64, 200, 200);
+    modbus_set_indication_timeout(s->ctx, 1, 0);
+    pthread_mutex_init(&s->lock, NULL);
+    s->client = -1;
+    s->listen_fd = -1;
+    if (with_listener) {
+        struct sockaddr_in a = {0};
+        a.sin_family = AF_INET;
+        a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+        s->listen_fd = socket(AF_INET, SOCK_STREAM, 0);
+        bind(s->listen_fd, (struct sockaddr *)&a, sizeof a);
+        listen(s->listen_fd, 4);
+        socklen_t len = sizeof a;
+        getsockname(s->listen_fd, (struct sockaddr *)&a, &len);
+        s->port = ntohs(a.sin_port);
+        pthread_create(&s->thread, NULL, server_thread, s);
+    }
+    return s;
+}
+
+static void server_free(server_t *s)
+{
+    if (s->listen_fd >= 0) {
+        s->stop = 1;
+        pthread_join(s->thread, NULL);
+        close(s->listen_fd);
+    }
+    if (s->client >= 0) close(s->client);
+    modbus_set_socket(s->ctx, -1);
+    modbus_free(s->ctx);
+    modbus_mapping_free(s->map);
+    free(s);
+}
+
+static int server_count(server_t *s, int fc)
+{
+    pthread_mutex_lock(&s->lock);
+    int n = 0;
+    for (int i = 0; i < s->n_log; i++) n += s->log_fc[i] == fc;
+    pthread_mutex_unlock(&s->lock);
+    return n;
+}
+
+static int config_for(plcrt_t *rt, int port, const char *ranges)
+{
+    char text[4096];
+    snprintf(text, sizeof text,
+             "[master]\npolling_period = 100ms\ntimeout = 500ms\n"
+             "[device dev]\nhost = 127.0.0.1\nport = %d\nunit_id = 1\nerrors = %%IW50\nonline = %%IX50.0\n%s",
+             port, ranges);
+    int rc = plcrt_load_config_text(rt, "test.cfg", text);
+    if (rc) fprintf(stderr, "config: %s\n", plcrt_errmsg(rt));
+    return rc;
+}
+
+static uint8_t *qx(plcrt_t *rt) { return &plcrt_image(rt)->qx[0][0]; }
+static uint8_t *ix(plcrt_t *rt) { return &plcrt_image(rt)->ix[0][0]; }
+
+/* ------------------------------------------------------------------ image */
+
+TEST(image_locates_openplc_addresses)
+{
+    plcrt_t *rt = new_rt();
+    plcrt_image_t *img = plcrt_image(rt);
+    long a[2];
+    char err[200];
+    a[0] = 1023;
+    CHECK(plcrt_image_locate(img, 'I', 'W', a, 1, err, sizeof err) == &img->iw[1023]);
+    CHECK(plcrt_image_locate(img, 'M', 'D', a, 1, err, sizeof err) == &img->md[1023]);
+    a[0] = 1024;
+    CHECK(plcrt_image_locate(img, 'Q', 'W', a, 1, err, sizeof err) == NULL);
+    CHECK_STR_CONTAINS(err, "outside the image");
+    a[0] = 3; a[1] = 7;
+    CHECK(plcrt_image_locate(img, 'Q', 'X', a, 2, err, sizeof err) == &img->qx[3][7]);
+    a[1] = 8;
+    CHECK(plcrt_image_locate(img, 'I', 'X', a, 2, err, sizeof err) == NULL);
+    a[1] = 0;
+    CHECK(plcrt_image_locate(img, 'M', 'X', a, 2, err, sizeof err) == NULL);
+    char ar, sz;
+    int n;
+    CHECK_EQ(plcrt_parse_address("%IX12.3", &ar, &sz, a, &n), 0);
+    CHECK(ar == 'I' && sz == 'X' && n == 2 && a[0] == 12 && a[1] == 3);
+    CHECK_EQ(plcrt_parse_address("%QW", &ar, &sz, a, &n), -1);
+    CHECK_EQ(plcrt_parse_address("%ZW1", &ar, &sz, a, &n), -1);
+    plcrt_free(rt);
+}
+
+TEST(located_variables_point_into_the_image)
+{
+    plcrt_t *rt = new_rt();
+    plcrt_image_t *img = plcrt_image(rt);
+    img->iw[100] = 41;
+    img->ix[0][0] = 1;
+    plcrt_scan(rt, 1);
+    CHECK_EQ(img->qw[100], 42);
+    CHECK_EQ(img->qx[0][1], 1);
+    CHECK_EQ(img->md[5], 1);
+    plcrt_free(rt);
+}
+
+/* ------------------------------------------------------------------ scan timing */
+
+TEST(virtual_time_advances_by_the_tick_and_runs_tasks_by_tick_count)
+{
+    plcrt_t *rt = new_rt();
+    CHECK_EQ(plcrt_tick_ns(rt), 10000000);
+    CHECK_EQ(plcrt_scan(rt, 100), 0);
+    CHECK_EQ(plcrt_time_ns(rt), 1000000000);
+    CHECK_EQ(plcrt_scan_count(rt), 100);
+    CHECK_EQ(fake_fast_count, 100);
+    CHECK_EQ(fake_slow_count, 20); /* a task of 5 ticks */
+    /* the program sees __CURRENT_TIME = start of its scan: 0, 10 ms, 20 ms ... */
+    for (int i = 0; i < 64; i++) CHECK_EQ(fake_time_seen[i], (uint64_t)i * 10000000ull);
+    plcrt_free(rt);
+}
+
+TEST(virtual_time_is_deterministic_across_runs)
+{
+    uint64_t first[64];
+    plcrt_t *rt = new_rt();
+    plcrt_scan(rt, 64);
+    memcpy(first, fake_time_seen, sizeof first);
+    plcrt_free(rt);
+    rt = new_rt();
+    for (int i = 0; i < 64; i++) plcrt_scan(rt, 1);
+    CHECK(!memcmp(first, fake_time_seen, sizeof first));
+    plcrt_free(rt);
+}
+
+TEST(force_holds_an_input_and_an_output)
+{
+    plcrt_t *rt = new_rt();
+    plcrt_image_t *img = plcrt_image(rt);
+    uint16_t seven = 7, nine = 9;
+    CHECK_EQ(plcrt_force(rt, &img->iw[100], &seven, 2), 0);
+    img->iw[100] = 1;   /* overwritten by the force before the program runs */
+    plcrt_scan(rt, 1);
+    CHECK_EQ(img->qw[100], 8);
+    CHECK_EQ(plcrt_force(rt, &img->qw[100], &nine, 2), 0);
+    plcrt_scan(rt, 1);
+    CHECK_EQ(img->qw[100], 9); /* the program wrote 8, the force won */
+    CHECK_EQ(plcrt_unforce(rt, &img->qw[100]), 0);
+    CHECK_EQ(plcrt_unforce(rt, &img->iw[100]), 0);
+    CHECK_EQ(plcrt_unforce(rt, &img->iw[100]), -1);
+    img->iw[100] = 1;
+    plcrt_scan(rt, 1);
+    CHECK_EQ(img->qw[100], 2);
+    plcrt_free(rt);
+}
+
+TEST(symbols_are_listed_by_path)
+{
+    plcrt_t *rt = new_rt();
+    CHECK_EQ(plcrt_symbol_count(rt), 1);
+    CHECK_STR_CONTAINS(plcrt_symbol_name(rt, 0), "INSTANCE0.COUNTER");
+    plcrt_scan(rt, 3);
+    CHECK_EQ(*(int16_t *)plcrt_symbol_addr(rt, 0), 3);
+    plcrt_free(rt);
+}
+
+TEST(realtime_runs_scans_with_the_program)
+{
+    plcrt_t *rt = new_rt();
+    CHECK_EQ(plcrt_run_realtime(rt, 5, NULL), 0);
+    plcrt_rt_stats_t st;
+    plcrt_rt_stats(rt, &st);
+    CHECK_EQ(st.scans, 5);
+    CHECK_EQ(fake_fast_count, 5);
+    CHECK(plcrt_time_ns(rt) >= 50000000ull); /* deadlines are absolute: 5 ticks passed */
+    CHECK_EQ(plcrt_scan(rt, 1), -1);          /* no virtual scans after real time */
+    plcrt_free(rt);
+}
+
+/* ------------------------------------------------------------------ config errors */
+
+static void expect_config_error(const char *text, const char *expected)
+{
+    plcrt_t *rt = new_rt();
+    CHECK_EQ(plcrt_load_config_text(rt, "bad.cfg", text), -1);
+    CHECK_STR_CONTAINS(plcrt_errmsg(rt), expected);
+    CHECK(strchr(plcrt_errmsg(rt), '\n') == NULL);
+    plcrt_free(rt);
+}
+
+#define DEV "[device d]\nhost = 127.0.0.1\n"
+TEST(config_errors_name_file_and_line)
+{
+    expect_config_error("[master]\nbogus = 1\n", "bad.cfg:2: error: unknown key 'bogus'");
+    expect_config_error("[nonsense]\n", "bad.cfg:1: error: unknown section [nonsense]");
+    expect_config_error("port = 5\n", "bad.cfg:1: error: key 'port' outside a section");
+    expect_config_error(DEV "port = 70000\n", "bad.cfg:3: error: port: 70000 is out of range");
+    expect_config_error(DEV "[read r]\ndevice = d\nstart = 0\nsize = 126\nimage = %IW100\n",
+                        "bad.cfg:6: error: size: 126 registers in one holding read request (1..125)");
+    expect_config_error(DEV "[write w]\ndevice = d\nstart = 0\nsize = 124\nimage = %QW100\n",
+                        "bad.cfg:6: error: size: 124 registers in one holding write request (1..123)");
+    expect_config_error(DEV "[read r]\ndevice = d\nstart = 0\nsize = 10\nimage = %IW1020\n",
+                        "bad.cfg:7: error: image: %IW1020..%IW1029 runs past the end of the image");
+    expect_config_error(DEV "[read r]\ndevice = d\nstart = 0\nsize = 10\nimage = %QW100\n",
+                        "bad.cfg:7: error: image: '%QW100' must be a %IW address");
+    expect_config_error(DEV "[read r]\ndevice = d\nstart = 0\nsize = 10\nimage = %IW1x\n",
+                        "bad.cfg:7: error: image: bad address '%IW1x'");
+    expect_config_error(DEV "[read a]\ndevice = d\nstart = 0\nsize = 10\nimage = %IW100\n"
+                            "[read b]\ndevice = d\nstart = 20\nsize = 10\nimage = %IW105\n",
+                        "bad.cfg:12: error: image: %IW105 overlaps what line 7 uses");
+    expect_config_error(DEV "[write a]\ndevice = d\nstart = 0\nsize = 10\nimage = %QW100\n"
+                            "[write b]\ndevice = d\nstart = 5\nsize = 10\nimage = %QW200\n",
+                        "bad.cfg:10: error: write holding 5..14 of device d overlaps range 'a' (line 3)");
+    expect_config_error(DEV "[read r]\ndevice = d\nstart = 0\nsize = 1\nimage = %IW100\npolicy = change\n",
+                        "bad.cfg:8: error: policy: 'change' is not one of cycle, trigger");
+    expect_config_error(DEV "[write w]\ndevice = d\nstart = 0\nsize = 1\nimage = %QW100\npolicy = trigger\ntrigger = %QX1.0\n",
+                        "bad.cfg:3: error: [write w]: policy trigger needs 'done'");
+    expect_config_error(DEV "[write w]\ndevice = nowhere\nstart = 0\nsize = 1\nimage = %QW100\n",
+                        "bad.cfg:4: error: device: no [device nowhere]");
+    expect_config_error(DEV "host = 127.0.0.2\n", "bad.cfg:3: error: key 'host' given twice (first on line 2)");
+    expect_config_error("[device d]\nport = 5020\n", "bad.cfg:1: error: [device d]: missing key 'host'");
+    expect_config_error(DEV "[read r]\ndevice = d\nsize = 1\nimage = %IW100\n",
+                        "bad.cfg:3: error: [read r]: missing key 'start'");
+    expect_config_error(DEV "timeout = 5 parsecs\n", "bad.cfg:3: error: timeout: unknown unit");
+    expect_config_error(DEV "errors = %IW100\n[read r]\ndevice = d\nstart = 0\nsize = 1\nimage = %IW100\n",
+                        "bad.cfg:8: error: image: %IW100 overlaps what line 3 uses");
+}
+
+TEST(openplc_mbconfig_is_accepted_unchanged)
+{
+    const char *cfg =
+        "Num_Devices = \"2\"\nPolling_Period = \"100\"\nTimeout = \"1000\"\n"
+        "# ------------\n#   DEVICE 0\n# ------------\n"
+        "device0.name = \"modem\"\ndevice0.slave_id = \"1\"\ndevice0.protocol = \"TCP\"\n"
+        "device0.address = \"127.0.0.1\"\ndevice0.IP_Port = \"5020\"\n"
+        "device0.RTU_Baud_Rate = \"None\"\ndevice0.RTU_Parity = \"None\"\ndevice0.RTU_Data_Bits = \"None\"\n"
+        "device0.RTU_Stop_Bits = \"None\"\ndevice0.RTU_TX_Pause = \"None\"\n\n"
+        "device0.Discrete_Inputs_Start = \"0\"\ndevice0.Discrete_Inputs_Size = \"8\"\n"
+        "device0.Coils_Start = \"0\"\ndevice0.Coils_Size = \"8\"\n"
+        "device0.Input_Registers_Start = \"0\"\ndevice0.Input_Registers_Size = \"4\"\n"
+        "device0.Holding_Registers_Read_Start = \"10\"\ndevice0.Holding_Registers_Read_Size = \"4\"\n"
+        "device0.Holding_Registers_Start = \"20\"\ndevice0.Holding_Registers_Size = \"4\"\n"
+        "device1.name = \"other\"\ndevice1.slave_id = \"2\"\ndevice1.protocol = \"TCP\"\n"
+        "device1.address = \"127.0.0.1\"\ndevice1.IP_Port = \"5021\"\n"
+        "device1.Holding_Registers_Read_Start = \"0\"\ndevice1.Holding_Registers_Read_Size = \"2\"\n";
+    plcrt_t *rt = new_rt();
+    CHECK_EQ(plcrt_load_config_text(rt, "mbconfig.cfg", cfg), 0);
+    CHECK_EQ(plcrt_device_count(rt), 2);
+    CHECK_STR_CONTAINS(plcrt_device_name(rt, 0), "modem");
+    plcrt_free(rt);
+    expect_config_error("Num_Devices = \"1\"\ndevice0.protocol = \"RTU\"\ndevice0.address = \"/dev/ttyS0\"\n",
+                        "bad.cfg:2: error: device0: protocol 'RTU' is not supported");
+    expect_config_error("Num_Devices = \"1\"\ndevice0.Colis_Size = \"1\"\n",
+                        "bad.cfg:2: error: unknown key 'device0.Colis_Size'");
+    expect_config_error("Num_Devices = \"1\"\ndevice0.protocol = \"TCP\"\ndevice0.address = \"127.0.0.1\"\n"
+                        "device0.Holding_Registers_Read_Start = \"0\"\ndevice0.Holding_Registers_Read_Size = \"200\"\n",
+                        "bad.cfg:5: error: Holding_Registers_Read_Size: 200 in one request (at most 125)");
+}
+
+/* OpenPLC's mapping: reads land from %IW100 on, writes come from %QW100 on */
+TEST(openplc_mbconfig_maps_from_iw100_and_qw100)
+{
+    server_t *s = server_new(1);
+    for (int i = 0; i < 4; i++) s->map->tab_input_registers[i] = (uint16_t)(500 + i);
+    for (int i = 0; i < 4; i++) s->map->tab_registers[10 + i] = (uint16_t)(600 + i);
+    char cfg[2048];
+    snprintf(cfg, sizeof cfg,
+             "Num_Devices = \"1\"\nPolling_Period = \"100\"\nTimeout = \"1000\"\n"
+             "device0.name = \"dev\"\ndevice0.slave_id = \"1\"\ndevice0.protocol = \"TCP\"\n"
+             "device0.address = \"127.0.0.1\"\ndevice0.IP_Port = \"%d\"\n"
+             "device0.Input_Registers_Start = \"0\"\ndevice0.Input_Registers_Size = \"4\"\n"
+             "device0.Holding_Registers_Read_Start = \"10\"\ndevice0.Holding_Registers_Read_Size = \"4\"\n"
+             "device0.Holding_Registers_Start = \"20\"\ndevice0.Holding_Registers_Size = \"2\"\n",
+             s->port);
+    plcrt_t *rt = new_rt();
+    CHECK_EQ(plcrt_load_config_text(rt, "mbconfig.cfg", cfg), 0);
+    plcrt_image(rt)->qw[100] = 0; /* the fake program writes %QW100 = %IW100 + 1 */
+    plcrt_scan(rt, 2);
+    /* %IW100..103 input registers, %IW104..107 holding read; the program then wrote %QW100 */
+    CHECK_EQ(plcrt_image(rt)->iw[100], 500);
+    CHECK_EQ(plcrt_image(rt)->iw[103], 503);
+    CHECK_EQ(plcrt_image(rt)->iw[104], 600);
+    CHECK_EQ(plcrt_image(rt)->iw[107], 603);
+    plcrt_scan(rt, 10); /* next poll writes %QW100 = 501 to holding 20 */
+    CHECK_EQ(s->map->tab_registers[20], 501);
+    plcrt_free(rt);
+    server_free(s);
+}
+
+/* ------------------------------------------------------------------ write policies */
+
+TEST(policy_cycle_writes_every_polling_period)
+{
+    server_t *s = server_new(1);
+    plcrt_t *rt = new_rt();
+    CHECK_EQ(config_for(rt, s->port, "[write w]\ndevice = dev\nstart = 10\nsize = 3\nimage = %QW200\npolicy = cycle\n"), 0);
+    plcrt_image(rt)->qw[200] = 11;
+    plcrt_image(rt)->qw[202] = 13;
+    plcrt_scan(rt, 50); /* 500 ms of 10 ms scans, 100 ms period: polls at 0,100,...,400 */
+    CHECK_EQ(server_count(s, 16), 5);
+    CHECK_EQ(s->map->tab_registers[10], 11);
+    CHECK_EQ(s->map->tab_registers[12], 13);
+    CHECK_EQ(plcrt_image(rt)->ix[50][0], 1); /* online */
+    CHECK_EQ(plcrt_image(rt)->iw[50], 0);    /* no errors */
+    plcrt_free(rt);
+    server_free(s);
+}
+
+TEST(policy_change_writes_only_changed_registers)
+{
+    server_t *s = server_new(1);
+    plcrt_t *rt = new_rt();
+    CHECK_EQ(config_for(rt, s->port, "[write w]\ndevice = dev\nstart = 0\nsize = 2\nimage = %QW200\npolicy = change\n"), 0);
+    plcrt_image(rt)->qw[200] = 1;
+    plcrt_scan(rt, 50);
+    CHECK_EQ(server_count(s, 16), 1);
+    plcrt_image(rt)->qw[201] = 2;
+    plcrt_scan(rt, 50);
+    CHECK_EQ(server_count(s, 16), 2);
+    CHECK_EQ(s->map->tab_registers[1], 2);
+    plcrt_scan(rt, 50);
+    CHECK_EQ(server_count(s, 16), 2);
+    plcrt_free(rt);
+    server_free(s);
+}
+
+#define TRIGGER_WRITE                                                                         \
+    "[write w]\ndevice = dev\nstart = 100\nsize = 10\nimage = %QW200\npolicy = trigger\n"     \
+    "trigger = %QX10.0\ndone = %IX10.0\nerror = %IX10.1\nstatus = %IW60\nlength = %QW250\n"
+
+TEST(policy_trigger_is_a_level_handshake)
+{
+    server_t *s = server_new(1);
+    plcrt_t *rt = new_rt();
+    CHECK_EQ(config_for(rt, s->port, TRIGGER_WRITE), 0);
+    plcrt_image(rt)->qw[250] = 3; /* length word: write 3 of the 10 registers */
+    for (int i = 0; i < 10; i++) plcrt_image(rt)->qw[200 + i] = (uint16_t)(70 + i);
+    plcrt_scan(rt, 20);
+    CHECK_EQ(server_count(s, 16), 0); /* nothing without a trigger */
+    qx(rt)[80] = 1;                   /* %QX10.0 */
+    plcrt_scan(rt, 1);
+    CHECK_EQ(ix(rt)[80], 1);          /* done, one scan later */
+    CHECK_EQ(ix(rt)[81], 0);
+    CHECK_EQ(plcrt_image(rt)->iw[60], 0);
+    CHECK_EQ(server_count(s, 16), 1);
+    CHECK_EQ(s->log_count[0], 3);
+    CHECK_EQ(s->map->tab_registers[102], 72);
+    CHECK_EQ(s->map->tab_registers[103], 0);
+    plcrt_image(rt)->qw[200] = 99; /* changes while the trigger stays TRUE: no new write */
+    plcrt_scan(rt, 30);
+    CHECK_EQ(server_count(s, 16), 1);
+    CHECK_EQ(ix(rt)[80], 1);       /* done stays TRUE while the trigger is TRUE */
+    qx(rt)[80] = 0;
+    plcrt_scan(rt, 1);
+    CHECK_EQ(ix(rt)[80], 0);
+    qx(rt)[80] = 1;
+    plcrt_scan(rt, 1);
+    CHECK_EQ(server_count(s, 16), 2);
+    CHECK_EQ(s->map->tab_registers[100], 99);
+    plcrt_free(rt);
+    server_free(s);
+}
+
+TEST(policy_trigger_reports_modbus_exceptions)
+{
+    server_t *s = server_new(1);
+    plcrt_t *rt = new_rt();
+    /* the server has 200 holding registers: 195+10 is an illegal data address */
+    CHECK_EQ(config_for(rt, s->port,
+                        "[write w]\ndevice = dev\nstart = 195\nsize = 10\nimage = %QW200\npolicy = trigger\n"
+                        "trigger = %QX10.0\ndone = %IX10.0\nerror = %IX10.1\nstatus = %IW60\n"), 0);
+    qx(rt)[80] = 1;
+    plcrt_scan(rt, 1);
+    CHECK_EQ(ix(rt)[80], 0);
+    CHECK_EQ(ix(rt)[81], 1);
+    CHECK_EQ(plcrt_image(rt)->iw[60], 2); /* ILLEGAL DATA ADDRESS */
+    CHECK_EQ(plcrt_image(rt)->iw[50], 1); /* the device's error counter */
+    CHECK_STR_CONTAINS(log_buf, "device dev: write holding 195+10 (range w) failed");
+    qx(rt)[80] = 0;
+    plcrt_scan(rt, 1);
+    CHECK_EQ(ix(rt)[81], 0);
+    plcrt_free(rt);
+    server_free(s);
+}
+
+TEST(trigger_read_data_arrive_with_done)
+{
+    server_t *s = server_new(1);
+    for (int i = 0; i < 5; i++) s->map->tab_registers[40 + i] = (uint16_t)(1000 + i);
+    plcrt_t *rt = new_rt();
+    CHECK_EQ(config_for(rt, s->port,
+                        "[read r]\ndevice = dev\nstart = 40\nsize = 5\nimage = %IW300\npolicy = trigger\n"
+                        "trigger = %QX11.0\ndone = %IX11.0\nerror = %IX11.1\n"), 0);
+    plcrt_scan(rt, 20);
+    CHECK_EQ(server_count(s, 3), 0);
+    CHECK_EQ(plcrt_image(rt)->iw[300], 0);
+    qx(rt)[88] = 1;
+    plcrt_scan(rt, 1);
+    CHECK_EQ(ix(rt)[88], 1);
+    CHECK_EQ(plcrt_image(rt)->iw[300], 1000);
+    CHECK_EQ(plcrt_image(rt)->iw[304], 1004);
+    CHECK_EQ(server_count(s, 3), 1);
+    plcrt_free(rt);
+    server_free(s);
+}
+
+TEST(cycle_read_coils_and_input_registers)
+{
+    server_t *s = server_new(1);
+    s->map->tab_input_registers[7] = 4242;
+    s->map->tab_bits[3] = 1;
+    plcrt_t *rt = new_rt();
+    CHECK_EQ(config_for(rt, s->port,
+                        "[read ir]\ndevice = dev\ntable = input\nstart = 7\nsize = 1\nimage = %IW400\n"
+                        "[read co]\ndevice = dev\ntable = coils\nstart = 0\nsize = 8\nimage = %IX20.0\n"
+                        "[write wc]\ndevice = dev\ntable = coils\nstart = 10\nsize = 2\nimage = %QX20.0\n"), 0);
+    qx(rt)[161] = 1; /* %QX20.1 → coil 11 */
+    plcrt_scan(rt, 1);
+    CHECK_EQ(plcrt_image(rt)->iw[400], 4242);
+    CHECK_EQ(ix(rt)[163], 1); /* %IX20.3 */
+    CHECK_EQ(ix(rt)[162], 0);
+    CHECK_EQ(s->map->tab_bits[11], 1);
+    CHECK_EQ(s->map->tab_bits[10], 0);
+    plcrt_free(rt);
+    server_free(s);
+}
+
+TEST(unreachable_device_counts_errors_and_backs_off)
+{
+    /* a port that refuses: bind a socket and close it to find a free port */
+    server_t *s = server_new(1);
+    int port = s->port;
+    server_free(s);
+    plcrt_t *rt = new_rt();
+    CHECK_EQ(config_for(rt, port, TRIGGER_WRITE "[read r]\ndevice = dev\nstart = 0\nsize = 1\nimage = %IW500\n"), 0);
+    plcrt_image(rt)->qw[250] = 1;
+    qx(rt)[80] = 1;
+    plcrt_scan(rt, 1);
+    CHECK_EQ(ix(rt)[81], 1);
+    CHECK_EQ(plcrt_image(rt)->iw[60], 1000 + ECONNREFUSED);
+    CHECK_EQ(plcrt_image(rt)->ix[50][0], 0); /* offline */
+    uint64_t errors, requests, connects;
+    plcrt_scan(rt, 100); /* 1 s: polls every 100 ms, connects only after the backoff */
+    CHECK_EQ(plcrt_device_stats(rt, 0, &errors, &requests, &connects), 0);
+    CHECK(errors >= 3);  /* attempts at 0, 0.1, 0.3, 0.7 s: the backoff doubles */
+    CHECK(errors <= 6);
+    CHECK_EQ(connects, 0);
+    CHECK_EQ(plcrt_image(rt)->iw[50], (uint16_t)errors);
+    /* the log names the device once per kind of failure, not once per poll */
+    int lines = 0;
+    for (const char *p = log_buf; (p = strstr(p, "device dev:")); p++) lines++;
+    CHECK_EQ(lines, 1);
+    plcrt_free(rt);
+}
+
+TEST(reconnects_after_the_server_comes_back)
+{
+    server_t *s = server_new(1);
+    int port = s->port;
+    plcrt_t *rt = new_rt();
+    CHECK_EQ(config_for(rt, port, "[read r]\ndevice = dev\nstart = 0\nsize = 1\nimage = %IW500\n"), 0);
+    s->map->tab_registers[0] = 5;
+    plcrt_scan(rt, 1);
+    CHECK_EQ(plcrt_image(rt)->iw[500], 5);
+    server_free(s); /* the device goes away ... */
+    plcrt_scan(rt, 30);
+    uint64_t errors, requests, connects;
+    plcrt_device_stats(rt, 0, &errors, &requests, &connects);
+    CHECK(errors >= 1);
+    CHECK_EQ(plcrt_image(rt)->ix[50][0], 0);
+    /* ... and comes back on the same port */
+    server_t *s2 = calloc(1, sizeof *s2);
+    s2->ctx = modbus_new_tcp("127.0.0.1", port);
+    s2->map = modbus_mapping_new(0, 0, 10, 0);
+    s2->map->tab_registers[0] = 6;
+    pthread_mutex_init(&s2->lock, NULL);
+    s2->client = -1;
+    s2->listen_fd = modbus_tcp_listen(s2->ctx, 2);
+    CHECK(s2->listen_fd >= 0);
+    if (s2->listen_fd >= 0) {
+        s2->port = port;
+        pthread_create(&s2->thread, NULL, server_thread, s2);
+        modbus_set_indication_timeout(s2->ctx, 1, 0);
+        plcrt_scan(rt, 1000); /* 10 s of virtual time: backoff is at most 5 s */
+        CHECK_EQ(plcrt_image(rt)->iw[500], 6);
+        CHECK_EQ(plcrt_image(rt)->ix[50][0], 1);
+        plcrt_device_stats(rt, 0, &errors, &requests, &connects);
+        CHECK_EQ(connects, 2);
+        CHECK_STR_CONTAINS(log_buf, "device dev: connected to 127.0.0.1");
+        server_free(s2);
+    }
+    plcrt_free(rt);
+}
+
+/* ------------------------------------------------------------------ transport seam */
+
+typedef struct seam { server_t *srv; int fd; int calls; } seam_t;
+static void answer_in_process(void *user)
+{
+    seam_t *t = user;
+    t->calls++;
+    server_serve_fd(t->srv, t->fd); /* the other end of the socketpair, same thread */
+}
+
+TEST(socketpair_transport_with_after_send_hook)
+{
+    server_t *s = server_new(0); /* no listener: only the socketpair */
+    int sv[2];
+    CHECK_EQ(socketpair(AF_UNIX, SOCK_STREAM, 0, sv), 0);
+    seam_t t = {s, sv[1], 0};
+    s->map->tab_registers[5] = 321;
+    plcrt_t *rt = new_rt();
+    CHECK_EQ(config_for(rt, 1, "[read r]\ndevice = dev\nstart = 5\nsize = 1\nimage = %IW500\n"
+                               "[write w]\ndevice = dev\nstart = 6\nsize = 1\nimage = %QW500\npolicy = change\n"), 0);
+    CHECK_EQ(plcrt_device_set_fd(rt, "dev", sv[0], answer_in_process, &t), 0);
+    CHECK_EQ(plcrt_device_set_fd(rt, "nosuch", sv[0], NULL, NULL), -1);
+    plcrt_image(rt)->qw[500] = 77;
+    plcrt_scan(rt, 1);
+    CHECK_EQ(plcrt_image(rt)->iw[500], 321);
+    CHECK_EQ(s->map->tab_registers[6], 77);
+    CHECK_EQ(t.calls, 2);
+    plcrt_scan(rt, 99); /* 1 s: 10 reads, the unchanged write is not repeated */
+    CHECK_EQ(t.calls, 11);
+    plcrt_free(rt);
+    close(sv[0]);
+    close(sv[1]);
+    server_free(s);
+}
+
+/* ------------------------------------------------------------------ slave */
+
+typedef struct client_job { int port; int ok; volatile int finished; uint16_t got[2]; } client_job_t;
+static void *client_thread(void *arg)
+{
+    client_job_t *j = arg;
+    modbus_t *c = modbus_new_tcp("127.0.0.1", j->port);
+    if (modbus_connect(c) == 0) {
+        uint16_t v[2] = {1234, 5678};
+        j->ok = modbus_write_registers(c, 1024 + 7, 2, v) == 2; /* %MW7, %MW8 */
+        j->ok &= modbus_read_input_registers(c, 100, 1, j->got) == 1;
+        j->ok &= modbus_read_registers(c, 100, 1, j->got + 1) == 1;
+        modbus_close(c);
+    }
+    modbus_free(c);
+    j->finished = 1;
+    return NULL;
+}
+
+TEST(slave_exposes_the_image_like_openplc)
+{
+    plcrt_t *rt = new_rt();
+    CHECK_EQ(plcrt_slave_start(rt, "127.0.0.1", 0), 0);
+    int port = plcrt_slave_port(rt);
+    CHECK(port > 0);
+    plcrt_image(rt)->iw[100] = 9;
+    plcrt_scan(rt, 1); /* %QW100 = 10 */
+    client_job_t job = {port, 0, 0, {0, 0}};
+    pthread_t th;
+    pthread_create(&th, NULL, client_thread, &job);
+    /* requests are served in the scans' I/O phase */
+    for (int i = 0; i < 1000 && !job.finished; i++) {
+        plcrt_slave_poll(rt, 10);
+        plcrt_scan(rt, 1);
+    }
+    pthread_join(th, NULL);
+    CHECK(job.ok);
+    CHECK_EQ(plcrt_image(rt)->mw[7], 1234);
+    CHECK_EQ(plcrt_image(rt)->mw[8], 5678);
+    CHECK_EQ(job.got[0], 9);
+    CHECK_EQ(job.got[1], 10);
+    plcrt_free(rt);
+}
+
+int main(int argc, char **argv) { return mt_main(argc, argv, "runtime_shim"); }
