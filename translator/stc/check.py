@@ -1,0 +1,1411 @@
+"""Semantic analysis: declarations, IEC strict typing, and the matiec dialect's restrictions.
+
+The checker annotates expressions with `.ty` and collects everything the code generator needs in
+a `Project`. Every error goes to the diagnostics with its position; analysis goes on after an
+error so that one run reports as much as it can."""
+import re
+
+from . import syntax as S
+from . import types as T
+from .diag import CompileError
+
+_IDENT_RE = re.compile(r"^[A-Z_][A-Z0-9_]*$")
+
+
+class Var:
+    __slots__ = ("name", "kind", "type", "init", "constant", "retain", "location", "pos",
+                 "file", "cname", "glob", "owner")
+
+    def __init__(self, name, kind, type_, init, pos, file):
+        self.name, self.kind, self.type, self.init, self.pos, self.file = name, kind, type_, init, pos, file
+        self.constant = self.retain = False
+        self.location = None       # (area, size, parts) for located variables
+        self.cname = None          # C name of located pointer / global
+        self.glob = None           # for VAR_EXTERNAL: the bound Var (VAR_GLOBAL)
+        self.owner = None          # owning Pou / configuration / resource
+
+
+class Pou:
+    def __init__(self, kind, name, node, file):
+        self.kind = kind           # function function_block program
+        self.name = name
+        self.node = node
+        self.file = file
+        self.vars = {}             # NAME -> Var, declaration order
+        self.rtype = None
+        self.std = None            # StdFB for standard function blocks
+        self.used_now = False
+
+
+class Task:
+    def __init__(self, name, interval_ns, priority, pos):
+        self.name, self.interval_ns, self.priority, self.pos = name, interval_ns, priority, pos
+
+
+class Instance:
+    def __init__(self, name, pou, task, resource):
+        self.name, self.pou, self.task, self.resource = name, pou, task, resource
+
+
+class ResourceInfo:
+    def __init__(self, name):
+        self.name = name
+        self.globals = {}
+        self.tasks = []
+        self.instances = []
+
+
+class ConfigInfo:
+    def __init__(self, name):
+        self.name = name
+        self.globals = {}
+        self.resources = []
+
+
+class Project:
+    def __init__(self):
+        self.types = {}            # NAME -> Type (named types in declaration order)
+        self.type_files = {}
+        self.pous = {}             # NAME -> Pou, declaration order
+        self.std_pous = {}         # standard FBs in use
+        self.config = None
+        self.located = []          # Var of every located variable, in declaration order
+        self.enum_values = {}      # VALUE -> [EnumT] for bare enum names
+
+
+_KIND_OK = {
+    "function": {"VAR_INPUT", "VAR_OUTPUT", "VAR_IN_OUT", "VAR", "VAR_TEMP"},
+    "function_block": {"VAR_INPUT", "VAR_OUTPUT", "VAR_IN_OUT", "VAR", "VAR_TEMP", "VAR_EXTERNAL"},
+    "program": {"VAR_INPUT", "VAR_OUTPUT", "VAR_IN_OUT", "VAR", "VAR_TEMP", "VAR_EXTERNAL"},
+}
+
+
+def _lit_fits(value, ty):
+    r = ty.range()
+    if r is None:
+        return True
+    return r[0] <= value <= r[1]
+
+
+class Checker:
+    def __init__(self, diags):
+        self.d = diags
+        self.p = Project()
+        self.file = None
+
+    # ---- errors
+    def err(self, pos, msg, file=None):
+        self.d.error(file or self.file, pos, msg)
+
+    def fail(self, pos, msg):
+        self.err(pos, msg)
+        raise CompileError(msg)
+
+    # ---- entry
+    def run(self, files):
+        """files: [(filename, [top-level nodes])]"""
+        # pass 1: names of types and POUs, so declaration order does not matter
+        for fname, nodes in files:
+            self.file = fname
+            for n in nodes:
+                if isinstance(n, S.TypeDecl):
+                    for td in n.defs:
+                        self._declare_name(td.name, td.pos, "type")
+                        self.p.types[td.name] = None
+                        self.p.type_files[td.name] = (fname, td)
+                elif isinstance(n, (S.Function, S.FunctionBlock, S.Program)):
+                    kind = {S.Function: "function", S.FunctionBlock: "function_block",
+                            S.Program: "program"}[type(n)]
+                    if self._declare_name(n.name, n.pos, kind):
+                        self.p.pous[n.name] = Pou(kind, n.name, n, fname)
+                elif isinstance(n, S.StrayVarBlock):
+                    self.err(n.pos, f"{n.block.kind} outside a POU: global variables belong in a "
+                             "CONFIGURATION or RESOURCE")
+        # pass 2: resolve named types
+        self._resolving = set()
+        for name in list(self.p.types):
+            self._resolve_named(name)
+        # pass 3: POU interfaces
+        for pou in self.p.pous.values():
+            self.file = pou.file
+            self._declare_pou(pou)
+        # configuration (binds globals, needed before bodies for VAR_EXTERNAL)
+        configs = [(f, n) for f, nodes in files for n in nodes if isinstance(n, S.Configuration)]
+        for i, (fname, c) in enumerate(configs):
+            self.file = fname
+            if i > 0:
+                self.err(c.pos, "only one CONFIGURATION per build is supported")
+                continue
+            self._configuration(c)
+        # bind externals
+        for pou in self.p.pous.values():
+            self.file = pou.file
+            for v in pou.vars.values():
+                if v.kind == "VAR_EXTERNAL":
+                    self._bind_external(v)
+        # pass 4: bodies
+        for pou in self.p.pous.values():
+            self.file = pou.file
+            self._body(pou)
+        self._check_located()
+        return self.p
+
+    _SEEN_KINDS = {}
+
+    def _declare_name(self, name, pos, kind):
+        self._check_ident(name, pos)
+        if name in self.p.types or name in self.p.pous:
+            self.err(pos, f"'{name}' is declared twice")
+            return False
+        if name in T.STD_FBS or name in T.ELEMENTARY or _conversion(name):
+            self.err(pos, f"'{name}' is a standard library name and cannot be redeclared")
+            return False
+        return True
+
+    def _check_ident(self, name, pos):
+        if "__" in name:
+            self.err(pos, f"identifier '{name}' contains '__', which matiec rejects: use a single '_'")
+        elif name.endswith("_"):
+            self.err(pos, f"identifier '{name}' ends with '_', which matiec rejects")
+        elif name in T.RESERVED or _conversion(name):
+            self.err(pos, f"'{name}' is a reserved or standard library name in matiec and cannot "
+                     "be used as an identifier")
+
+    # ---- types
+    def _resolve_named(self, name):
+        t = self.p.types.get(name)
+        if t is not None:
+            return t
+        fname, td = self.p.type_files[name]
+        if name in self._resolving:
+            self.err(td.pos, f"type '{name}' is defined in terms of itself", fname)
+            return T.INT
+        self._resolving.add(name)
+        old = self.file
+        self.file = fname
+        try:
+            t = self._type_def(td)
+        except CompileError:
+            t = T.INT
+        finally:
+            self.file = old
+            self._resolving.discard(name)
+        self.p.types[name] = t
+        return t
+
+    def _type_def(self, td):
+        spec = td.spec
+        if isinstance(spec, S.EnumSpec):
+            vals = []
+            for vname, vval, vpos in spec.items:
+                if vval is not None:
+                    self.err(vpos, "enumerated values with explicit values (A := 0) are not "
+                             "portable (matiec rejects them): declare (A, B, ...) and convert "
+                             "with CASE")
+                self._check_ident(vname, vpos)
+                if vname in vals:
+                    self.err(vpos, f"enumerated value '{vname}' is declared twice")
+                vals.append(vname)
+            t = T.EnumT(td.name, vals)
+            if spec.default is not None:
+                if spec.default not in vals:
+                    self.err(spec.pos, f"'{spec.default}' is not a value of {td.name}")
+                else:
+                    t.default = spec.default
+            for v in vals:
+                self.p.enum_values.setdefault(v, []).append(t)
+            return t
+        if isinstance(spec, S.StructSpec):
+            fields = {}
+            for m in spec.members:
+                for mname, mpos in m.names:
+                    self._check_ident(mname, mpos)
+                    mt = self.resolve_type(m.type, member=True)
+                    if mname in fields:
+                        self.err(mpos, f"member '{mname}' is declared twice")
+                    fields[mname] = (mt, m.init, mpos)
+            t = T.StructT(td.name, fields)
+            for mname, (mt, minit, mpos) in fields.items():
+                if minit is not None:
+                    self.check_init(minit, mt)
+            return t
+        base = self.resolve_type(spec, member=True)
+        if base.is_array:
+            t = T.ArrayT(base.elem, base.dims, td.name)
+        elif base.is_elem:
+            t = base.with_default(None)
+        elif base.is_fb:
+            self.fail(td.pos, "a TYPE cannot be an alias of a function block")
+        else:
+            t = base   # alias of a struct or enum: same type
+        if td.init is not None:
+            self.check_init(td.init, t)
+            if t is base:
+                self.err(td.pos, "an initial value on an alias of a STRUCT or enumerated type is "
+                         "not supported: put it on the variables")
+            else:
+                t.default = td.init
+        return t
+
+    def resolve_type(self, spec, member=False, in_array=False):
+        if isinstance(spec, S.NamedType):
+            n = spec.name
+            if n in T.ELEMENTARY:
+                return T.ELEMENTARY[n]
+            if n in self.p.types:
+                return self._resolve_named(n)
+            if n in T.STD_FBS:
+                if member:
+                    self.fail(spec.pos, f"a function block ({n}) cannot be a STRUCT member or "
+                              "array element (matiec rejects it): declare the instances as "
+                              "separate variables")
+                return self._std_fb_type(n)
+            if n in self.p.pous:
+                pou = self.p.pous[n]
+                if pou.kind != "function_block":
+                    self.fail(spec.pos, f"'{n}' is a {pou.kind.replace('_', ' ')}, not a type")
+                if member:
+                    self.fail(spec.pos, f"a function block ({n}) cannot be a STRUCT member or "
+                              "array element (matiec rejects it): declare the instances as "
+                              "separate variables")
+                return T.FBT(n, pou)
+            if n in T.UNSUPPORTED_TYPES:
+                self.fail(spec.pos, f"type {n} is not supported by stc")
+            self.fail(spec.pos, f"unknown type '{n}'")
+        if isinstance(spec, S.ArraySpec):
+            dims = []
+            for lo, hi in spec.dims:
+                if isinstance(lo, S.ConstBound) or isinstance(hi, S.ConstBound):
+                    b = lo if isinstance(lo, S.ConstBound) else hi
+                    self.fail(b.pos, "array bounds from a named constant are not portable "
+                              "(matiec rejects them): write the number")
+                if hi < lo:
+                    self.fail(spec.pos, f"array range {lo}..{hi} is empty")
+                dims.append((lo, hi))
+            if isinstance(spec.elem, S.ArraySpec):
+                self.fail(spec.elem.pos, "ARRAY OF ARRAY is not portable (matiec rejects it): "
+                          "use a multi-dimensional array ARRAY[a..b, c..d] OF ...")
+            elem = self.resolve_type(spec.elem, member=True, in_array=True)
+            if elem.is_array:
+                self.fail(spec.elem.pos, "ARRAY OF an array type is not portable (matiec rejects "
+                          "it): use a multi-dimensional array ARRAY[a..b, c..d] OF ...")
+            n = 1
+            for lo, hi in dims:
+                n *= hi - lo + 1
+            if n > 1 << 24:
+                self.fail(spec.pos, "array too large")
+            return T.ArrayT(elem, dims)
+        if isinstance(spec, S.SubrangeRef):
+            self.fail(spec.pos, f"subrange types like {spec.base}(0..100) are not portable "
+                      f"(matiec rejects them): use plain {spec.base} and LIMIT()")
+        if isinstance(spec, S.StringRef):
+            self.fail(spec.pos, f"{spec.base}[{spec.size}] is not portable (matiec drops or "
+                      "crashes on it): use an ARRAY OF BYTE")
+        if isinstance(spec, S.StructSpec):
+            self.fail(spec.pos, "an inline STRUCT in a variable declaration is not supported: "
+                      "declare it in a TYPE")
+        if isinstance(spec, S.EnumSpec):
+            self.fail(spec.pos, "an inline enumeration in a variable declaration is not "
+                      "supported: declare it in a TYPE")
+        self.fail(getattr(spec, "pos", (0, 0)), "unsupported type")
+
+    def _std_fb_type(self, name):
+        pou = self.p.std_pous.get(name)
+        if pou is None:
+            std = T.STD_FBS[name]
+            pou = Pou("function_block", name, None, None)
+            pou.std = std
+            for vn, tn in std.inputs:
+                pou.vars[vn] = Var(vn, "VAR_INPUT", T.ELEMENTARY[tn], None, None, None)
+            for vn, tn in std.outputs:
+                pou.vars[vn] = Var(vn, "VAR_OUTPUT", T.ELEMENTARY[tn], None, None, None)
+            self.p.std_pous[name] = pou
+        return T.FBT(name, pou)
+
+    # ---- initial values
+    def check_init(self, init, ty):
+        try:
+            if isinstance(init, S.ArrayInit):
+                if not ty.is_array:
+                    self.fail(init.pos, f"an array initialiser [...] needs an ARRAY, not {ty}")
+                n = 0
+                for count, val in init.items:
+                    if count is not None and count <= 0:
+                        self.err(init.pos, "repetition count must be positive")
+                    n += count if count is not None else 1
+                    if val is not None:
+                        self.check_init(val, ty.elem)
+                if n > ty.count():
+                    self.err(init.pos, f"{n} initial values for an array of {ty.count()} elements")
+            elif isinstance(init, S.StructInit):
+                if not ty.is_struct:
+                    self.fail(init.pos, f"a structure initialiser (a := ...) needs a STRUCT, not {ty}")
+                for name, val, pos in init.items:
+                    if name not in ty.fields:
+                        self.err(pos, f"{ty.name} has no member '{name}'")
+                        continue
+                    self.check_init(val, ty.fields[name][0])
+            else:
+                if ty.is_array or ty.is_struct or ty.is_fb:
+                    self.fail(init.pos, f"initial value of {ty} must be a "
+                              + ("[...] list" if ty.is_array else "(member := ...) list"
+                                 if ty.is_struct else "nothing"))
+                self.scope = {}
+                self.cur = None
+                t = self.expr(init, ty)
+                self.coerce(init, t, ty, "initial value")
+                if not self.is_constant(init):
+                    self.err(init.pos, "initial values must be constant expressions")
+        except CompileError:
+            pass
+
+    def is_constant(self, e):
+        if isinstance(e, (S.IntLit, S.RealLit, S.TimeLit, S.BoolLit, S.TypedLit)):
+            return True
+        if isinstance(e, S.Paren):
+            return self.is_constant(e.inner)
+        if isinstance(e, S.UnOp):
+            return self.is_constant(e.operand)
+        if isinstance(e, S.BinOp):
+            return self.is_constant(e.left) and self.is_constant(e.right)
+        if isinstance(e, S.Name):
+            return getattr(e, "enum_value", None) is not None or isinstance(e.ty, T.EnumT) and e.name not in self.scope
+        if isinstance(e, S.Call):
+            return _conversion(e.name) is not None and all(
+                self.is_constant(a.value) for a in e.args if isinstance(a, S.ArgPos))
+        return False
+
+    # ---- POU declarations
+    def _declare_pou(self, pou):
+        n = pou.node
+        if isinstance(n, S.Function):
+            try:
+                pou.rtype = self.resolve_type(n.rtype)
+            except CompileError:
+                pou.rtype = T.INT
+            if pou.rtype.is_fb:
+                self.err(n.rtype.pos, "a FUNCTION cannot return a function block")
+        for blk in n.blocks:
+            self._var_block(pou, blk)
+
+    def _var_block(self, pou, blk, where=None):
+        kind = blk.kind
+        allowed = _KIND_OK[pou.kind] if pou is not None else {"VAR_GLOBAL"}
+        if kind not in allowed:
+            if kind == "VAR_GLOBAL":
+                self.err(blk.pos, f"VAR_GLOBAL is not allowed in a {pou.kind.replace('_', ' ').upper()}: "
+                         "declare it in the CONFIGURATION or RESOURCE and use VAR_EXTERNAL")
+            elif kind == "VAR_EXTERNAL":
+                self.err(blk.pos, "VAR_EXTERNAL is not allowed in a FUNCTION: pass the value as "
+                         "VAR_INPUT or VAR_IN_OUT")
+            else:
+                self.err(blk.pos, f"{kind} is not allowed here")
+            return
+        constant = "CONSTANT" in blk.quals
+        retain = "RETAIN" in blk.quals
+        if constant and kind not in ("VAR", "VAR_GLOBAL", "VAR_EXTERNAL"):
+            self.err(blk.pos, f"CONSTANT is not allowed on {kind}")
+        located = [d for d in blk.decls if d.location is not None]
+        if located and len(located) != len(blk.decls):
+            self.err(blk.pos, "located and unlocated variables in one VAR block are not portable "
+                     "(matiec rejects it): put the AT variables in a VAR block of their own")
+        target = pou.vars if pou is not None else where
+        for d in blk.decls:
+            try:
+                ty = self.resolve_type(d.type)
+            except CompileError:
+                continue
+            if not d.names:
+                self.err(d.pos, "a located variable needs a name (matiec rejects 'AT %... :' "
+                         "without one)")
+                continue
+            for name, npos in d.names:
+                self._check_ident(name, npos)
+                if name in target:
+                    self.err(npos, f"'{name}' is declared twice")
+                    continue
+                if pou is not None and name == pou.name:
+                    self.err(npos, f"'{name}' is the name of the POU")
+                if name in self.p.pous:
+                    self.err(npos, f"'{name}' is already the name of a POU")
+                v = Var(name, kind, ty, d.init, npos, self.file)
+                v.constant, v.retain, v.owner = constant, retain, pou
+                if ty.is_fb:
+                    if pou is not None and pou.kind == "function":
+                        self.err(npos, "a function block instance inside a FUNCTION is not "
+                                 "portable (matiec rejects it): use a FUNCTION_BLOCK")
+                    if kind == "VAR_IN_OUT":
+                        self.err(npos, "VAR_IN_OUT of a function block type is not portable "
+                                 "(it crashes matiec)")
+                    if kind in ("VAR_INPUT", "VAR_OUTPUT") and pou is not None and pou.kind == "function":
+                        self.err(npos, "a function block cannot be a FUNCTION parameter")
+                    if constant:
+                        self.err(npos, "a function block instance cannot be CONSTANT")
+                if d.location is not None:
+                    self._located(v, d.location, pou)
+                if d.init is not None:
+                    if kind == "VAR_IN_OUT" or kind == "VAR_EXTERNAL":
+                        self.err(d.init.pos, f"{kind} variables cannot have an initial value")
+                    elif ty.is_fb:
+                        self.err(d.init.pos, "function block instances cannot have an initial value")
+                    else:
+                        self.check_init(d.init, ty)
+                if constant and d.init is None and kind != "VAR_EXTERNAL":
+                    self.err(npos, f"CONSTANT '{name}' needs an initial value")
+                if (pou is not None and pou.kind == "function" and kind == "VAR_INPUT"
+                        and ty.is_array):
+                    self.err(npos, "a FUNCTION with an array VAR_INPUT compiles with matiec but "
+                             "its C does not: use VAR_IN_OUT")
+                target[name] = v
+
+    _LOC_RE = re.compile(r"^%([IQM])([XBWDL]?)([0-9]+(?:\.[0-9]+)*)$")
+    _SIZE = {"X": 1, "B": 8, "W": 16, "D": 32, "L": 64}
+
+    def _located(self, v, loc, pou):
+        text, pos = loc
+        if pou is not None and pou.kind != "program":
+            self.err(pos, f"located variables in a {pou.kind.replace('_', ' ').upper()} are not "
+                     "portable (matiec rejects them): declare them in the PROGRAM and pass them "
+                     "as inputs/outputs")
+            return
+        if "*" in text:
+            self.err(pos, "'AT %I*' is not portable (matiec rejects it): give the full address")
+            return
+        m = self._LOC_RE.match(text)
+        if not m:
+            self.err(pos, f"invalid direct address {text}")
+            return
+        area, size, addr = m.group(1), m.group(2) or "X", m.group(3)
+        parts = [int(x) for x in addr.split(".")]
+        if v.type.is_array:
+            self.err(pos, "a located ARRAY is not portable (matiec rejects it): declare one "
+                     "located variable per address")
+            return
+        if not v.type.is_elem or v.type.kind in ("time", "real") and size in ("X", "B", "W"):
+            if not v.type.is_elem:
+                self.err(pos, f"a located variable must be of an elementary type, not {v.type}")
+                return
+        if v.type.is_elem and v.type.kind != "time":
+            bits = v.type.bits
+            if (size == "X") != (bits == 1) or size != "X" and self._SIZE[size] != bits:
+                self.err(pos, f"{v.type} does not fit address {text} ({self._SIZE[size]} bit)")
+                return
+        elif v.type.kind == "time":
+            self.err(pos, "a located TIME variable is not supported")
+            return
+        if size == "X" and len(parts) != 2:
+            self.err(pos, f"a bit address needs byte.bit, like %{area}X0.0")
+            return
+        if size != "X" and len(parts) != 1:
+            self.err(pos, f"invalid direct address {text}")
+            return
+        if size == "X" and not 0 <= parts[1] <= 7:
+            self.err(pos, f"bit number {parts[1]} out of range 0..7")
+            return
+        v.location = (area, size, parts)
+        v.cname = "__" + area + size + "_".join(str(x) for x in parts)
+        v.pos = v.pos
+        self.p.located.append(v)
+
+    def _check_located(self):
+        seen = {}
+        for v in self.p.located:
+            if v.cname in seen:
+                first = seen[v.cname]
+                self.err(v.pos, f"address {_addr_text(v)} is already used by '{first.name}' "
+                         f"({first.file}:{first.pos[0]}): matiec rejects an address used twice",
+                         v.file)
+            else:
+                seen[v.cname] = v
+
+    # ---- configuration
+    def _configuration(self, c):
+        cfg = ConfigInfo(c.name)
+        self.p.config = cfg
+        self._check_ident(c.name, c.pos)
+        for blk in c.blocks:
+            self._global_block(blk, cfg.globals, cfg.name)
+        resources = list(c.resources)
+        if c.tasks or c.progs:
+            if resources:
+                self.err(c.pos, "tasks and programs belong inside the RESOURCE")
+            else:
+                # single resource configuration
+                resources = [S.Resource(c.pos, "RESOURCE1", "PLC", [], c.tasks, c.progs)]
+        if not resources:
+            self.err(c.pos, f"CONFIGURATION {c.name} has no RESOURCE")
+        names = set()
+        for r in resources:
+            ri = ResourceInfo(r.name)
+            if r.name in names:
+                self.err(r.pos, f"resource '{r.name}' is declared twice")
+            names.add(r.name)
+            self._check_ident(r.name, r.pos)
+            cfg.resources.append(ri)
+            for blk in r.blocks:
+                self._global_block(blk, ri.globals, f"{cfg.name}.{ri.name}")
+            tasks = {}
+            for t in r.tasks:
+                self._check_ident(t.name, t.pos)
+                interval, prio = None, 0
+                for pn, pv, ppos in t.params:
+                    if pn == "INTERVAL":
+                        self.scope, self.cur = {}, None
+                        try:
+                            ty = self.expr(pv, T.TIME)
+                            if not (ty.is_elem and ty.kind == "time") or not isinstance(pv, S.TimeLit):
+                                self.fail(pv.pos, "INTERVAL must be a TIME literal like T#20ms")
+                            interval = pv.ns
+                        except CompileError:
+                            pass
+                    elif pn == "PRIORITY":
+                        if not isinstance(pv, S.IntLit):
+                            self.err(pv.pos, "PRIORITY must be an integer")
+                        else:
+                            prio = pv.value
+                    elif pn == "SINGLE":
+                        self.err(ppos, "SINGLE (event) tasks are not supported by stc: use INTERVAL")
+                    else:
+                        self.err(ppos, f"unknown task parameter '{pn}'")
+                if interval is not None and interval <= 0:
+                    self.err(t.pos, "task INTERVAL must be positive")
+                    interval = None
+                if interval is None and not any(pn == "SINGLE" for pn, _, _ in t.params):
+                    self.err(t.pos, f"task {t.name} needs INTERVAL := T#...")
+                if t.name in tasks:
+                    self.err(t.pos, f"task '{t.name}' is declared twice")
+                task = Task(t.name, interval or 1, prio, t.pos)
+                tasks[t.name] = task
+                ri.tasks.append(task)
+            inames = set()
+            for pc in r.progs:
+                self._check_ident(pc.name, pc.pos)
+                if pc.name in inames:
+                    self.err(pc.pos, f"program instance '{pc.name}' is declared twice")
+                inames.add(pc.name)
+                pou = self.p.pous.get(pc.type)
+                if pou is None or pou.kind != "program":
+                    self.err(pc.pos, f"'{pc.type}' is not a PROGRAM")
+                    continue
+                if pc.args:
+                    self.err(pc.pos, "program instance arguments are not supported by stc: use "
+                             "VAR_GLOBAL and VAR_EXTERNAL")
+                task = None
+                if pc.task is not None:
+                    task = tasks.get(pc.task)
+                    if task is None:
+                        self.err(pc.pos, f"unknown task '{pc.task}'")
+                ri.instances.append(Instance(pc.name, pou, task, ri))
+
+    def _global_block(self, blk, target, owner):
+        if blk.kind != "VAR_GLOBAL":
+            self.err(blk.pos, f"{blk.kind} is not allowed in a CONFIGURATION or RESOURCE: use VAR_GLOBAL")
+            return
+        before = set(target)
+        self._var_block(None, blk, target)
+        for name, v in target.items():
+            if name in before:
+                continue
+            v.owner = owner
+            if v.type.is_fb:
+                self.err(v.pos, "a function block instance as VAR_GLOBAL is not supported by stc")
+            if v.location is None:
+                v.cname = owner.replace(".", "__") + "__" + name
+
+    def _bind_external(self, v):
+        cands = []
+        cfg = self.p.config
+        if cfg is not None:
+            if v.name in cfg.globals:
+                cands.append(cfg.globals[v.name])
+            for r in cfg.resources:
+                if v.name in r.globals:
+                    cands.append(r.globals[v.name])
+        if not cands:
+            self.err(v.pos, f"VAR_EXTERNAL '{v.name}' has no VAR_GLOBAL of that name in the "
+                     "configuration")
+            return
+        if len(cands) > 1:
+            self.err(v.pos, f"VAR_EXTERNAL '{v.name}' matches VAR_GLOBALs of several resources: "
+                     "stc binds externals by name, give them distinct names")
+            return
+        g = cands[0]
+        if not T.same_type(g.type, v.type):
+            self.err(v.pos, f"VAR_EXTERNAL '{v.name}' is {v.type} but the VAR_GLOBAL is {g.type}")
+            return
+        if g.constant and not v.constant:
+            self.err(v.pos, f"VAR_GLOBAL '{v.name}' is CONSTANT: declare the VAR_EXTERNAL CONSTANT too")
+        v.glob = g
+
+    # ---- bodies
+    def _body(self, pou):
+        self.cur = pou
+        self.scope = pou.vars
+        self.loop_depth = 0
+        self.for_vars = []
+        if not pou.node.body and pou.kind != "function":
+            pass
+        self.stmts(pou.node.body)
+
+    def stmts(self, lst):
+        for s in lst:
+            try:
+                self.stmt(s)
+            except CompileError:
+                pass
+
+    def stmt(self, s):
+        if isinstance(s, S.Assign):
+            tt = self.lvalue(s.target, "assign to")
+            vt = self.expr(s.value, tt)
+            self.coerce(s.value, vt, tt, "assignment")
+        elif isinstance(s, S.CallStmt):
+            self.call(s, statement=True)
+        elif isinstance(s, S.If):
+            for cond, body in s.branches:
+                self.cond(cond, "IF")
+                if not body:
+                    self.err(cond.pos, "empty THEN/ELSIF branch is not portable (matiec rejects "
+                             "it): add a statement or invert the condition")
+                self.stmts(body)
+            if s.orelse is not None:
+                if not s.orelse:
+                    self.err(s.pos, "empty ELSE branch is not portable (matiec rejects it): "
+                             "remove the ELSE")
+                self.stmts(s.orelse)
+        elif isinstance(s, S.Case):
+            self.case(s)
+        elif isinstance(s, S.For):
+            self.for_(s)
+        elif isinstance(s, S.While):
+            self.cond(s.cond, "WHILE")
+            self.loop_depth += 1
+            self.stmts(s.body)
+            self.loop_depth -= 1
+        elif isinstance(s, S.Repeat):
+            self.loop_depth += 1
+            self.stmts(s.body)
+            self.loop_depth -= 1
+            self.cond(s.cond, "UNTIL")
+        elif isinstance(s, S.Exit):
+            if not self.loop_depth:
+                self.err(s.pos, "EXIT outside a loop")
+        elif isinstance(s, S.Continue):
+            if not self.loop_depth:
+                self.err(s.pos, "CONTINUE outside a loop")
+        elif isinstance(s, S.Return):
+            pass
+        elif isinstance(s, S.Empty):
+            self.err(s.pos, "a lone ';' (empty statement) is not portable (matiec rejects it): "
+                     "remove it")
+        elif isinstance(s, S.CaseLabels):
+            self.err(s.pos, "case label outside CASE")
+
+    def cond(self, e, what):
+        t = self.expr(e, T.BOOL)
+        if not (t.is_elem and t.kind == "bool"):
+            self.err(e.pos, f"{what} condition must be BOOL, not {t} (write e.g. x <> 0)")
+
+    def case(self, s):
+        st = self.expr(s.selector, None)
+        if st.is_lit:
+            self.settle(s.selector, T.DINT)
+            st = T.DINT
+        if st.is_elem and st.kind == "bit":
+            self.err(s.selector.pos, f"CASE on {st} is not portable (matiec rejects it): "
+                     f"convert first, e.g. CASE {st.name}_TO_UINT(x) OF")
+        elif not (st.is_enum or st.is_elem and st.is_int):
+            self.err(s.selector.pos, f"CASE selector must be an integer or enumerated type, not {st}")
+            st = None
+        groups = []
+        cur = None
+        seen = []
+        for item in s.items:
+            if isinstance(item, S.CaseLabels):
+                cur = (item, [])
+                groups.append(cur)
+                for lo, hi in item.labels:
+                    vlo = self.case_label(lo, st)
+                    vhi = self.case_label(hi, st) if hi is not None else vlo
+                    if vlo is not None and vhi is not None:
+                        if hi is not None and vhi < vlo:
+                            self.err(lo.pos if isinstance(lo, S.Node) else item.pos,
+                                     f"empty case range {vlo}..{vhi}")
+                        for a, b in seen:
+                            if not (vhi < a or vlo > b):
+                                self.err(item.pos, "case label value already used")
+                                break
+                        seen.append((vlo, vhi))
+            else:
+                if cur is None:
+                    self.err(item.pos, "statement before the first case label")
+                    continue
+                cur[1].append(item)
+        s.groups = groups
+        self.stmts([x for _, body in groups for x in body])
+        for labels, body in groups:
+            if not body:
+                self.err(labels.pos, "empty case branch is not portable (matiec rejects it): "
+                         "add a statement")
+        if s.orelse is not None:
+            if not s.orelse:
+                self.err(s.pos, "empty ELSE branch is not portable (matiec rejects it): remove the ELSE")
+            self.stmts(s.orelse)
+        s.sel_type = st
+
+    def case_label(self, lab, st):
+        """Return the integer value of a case label (enum: its index)."""
+        if isinstance(lab, int):
+            if st is not None and st.is_enum:
+                self.err(None, "integer label in CASE on enumeration")
+                return None
+            if st is not None and st.is_elem and not _lit_fits(lab, st):
+                self.err(None, f"case label {lab} out of range of {st}")
+            return lab
+        pos = lab.pos
+        if isinstance(lab, S.IntLit):
+            self.err(pos, f"hexadecimal/based case labels ({lab.text}) are not portable (matiec "
+                     f"rejects them): write the decimal value {lab.value}")
+            return None
+        if isinstance(lab, S.TypedLit):
+            if lab.kind == "ident":
+                return self.enum_label(lab.type_name, lab.value, pos, st)
+            self.err(pos, f"typed case labels ({lab.text}) are not portable (matiec rejects them): "
+                     f"write the plain decimal value")
+            return None
+        if isinstance(lab, S.Name):
+            if st is not None and st.is_enum:
+                if lab.name in st.values:
+                    return st.values.index(lab.name)
+                self.err(pos, f"'{lab.name}' is not a value of {st.name}")
+                return None
+            self.err(pos, f"named constants as case labels ('{lab.name}') are not portable "
+                     "(matiec rejects them): write the decimal value")
+            return None
+        return None
+
+    def enum_label(self, tname, vname, pos, st):
+        et = self.p.types.get(tname)
+        if et is None or not et.is_enum:
+            self.err(pos, f"'{tname}' is not an enumerated type")
+            return None
+        if vname not in et.values:
+            self.err(pos, f"'{vname}' is not a value of {tname}")
+            return None
+        if st is not None and not (st.is_enum and st.name == et.name):
+            self.err(pos, f"label of type {et.name} in CASE on {st}")
+            return None
+        return et.values.index(vname)
+
+    def for_(self, s):
+        v = self.lookup(s.var)
+        vt = v.type
+        s.var.ty = vt
+        s.var.var = v
+        if not (vt.is_elem and vt.is_int):
+            self.err(s.var.pos, f"FOR variable must be of an integer type, not {vt}")
+        if v.constant:
+            self.err(s.var.pos, f"'{v.name}' is CONSTANT")
+        if v.kind in ("VAR_INPUT",) and self.cur.kind == "function_block":
+            pass
+        for e in (s.start, s.end, s.step):
+            if e is not None:
+                t = self.expr(e, vt)
+                self.coerce(e, t, vt, "FOR bound")
+        self.loop_depth += 1
+        self.stmts(s.body)
+        self.loop_depth -= 1
+
+    # ---- lookup
+    def lookup(self, name_node):
+        n = name_node.name
+        v = self.scope.get(n)
+        if v is not None:
+            return v
+        if self.cur is not None and self.cur.kind == "function" and n == self.cur.name:
+            return self._result_var(self.cur)
+        self.fail(name_node.pos, f"unknown variable '{n}'")
+
+    def _result_var(self, pou):
+        rv = getattr(pou, "result_var", None)
+        if rv is None:
+            rv = Var(pou.name, "RESULT", pou.rtype, None, pou.node.pos, pou.file)
+            pou.result_var = rv
+        return rv
+
+    def lvalue(self, e, what):
+        """Type of an assignable expression; rejects constants and outputs of instances."""
+        if isinstance(e, S.Name):
+            v = self.lookup(e)
+            e.var = v
+            e.ty = v.type
+            if v.constant:
+                self.err(e.pos, f"cannot {what} CONSTANT '{v.name}'")
+            if v.kind == "VAR_INPUT" and self.cur is not None and self.cur.kind == "function":
+                pass
+            if v.type.is_fb:
+                self.err(e.pos, f"cannot assign to function block instance '{v.name}'")
+            return v.type
+        if isinstance(e, S.Field):
+            bt = self.expr(e.base, None, lvalue=True)
+            if bt.is_fb:
+                ft = self.fb_member(e, bt)
+                fv = bt.pou.vars[e.name]
+                if fv.kind == "VAR_OUTPUT":
+                    self.err(e.pos, f"writing output {e.name} of function block instance from "
+                             "outside is not portable (matiec rejects it)")
+                elif fv.kind not in ("VAR_INPUT",):
+                    self.err(e.pos, f"'{e.name}' is not an input of {bt.name}")
+                self._check_base_assignable(e.base)
+                return ft
+            self._check_base_assignable(e.base)
+            return self.expr(e, None)
+        if isinstance(e, S.Index):
+            self._check_base_assignable(e.base)
+            return self.expr(e, None)
+        if isinstance(e, S.BitAccess):
+            return self.expr(e, None)
+        self.fail(e.pos, "the left side of ':=' must be a variable")
+
+    def _check_base_assignable(self, e):
+        while isinstance(e, (S.Field, S.Index)):
+            e = e.base
+        if isinstance(e, S.Name):
+            v = getattr(e, "var", None) or self.scope.get(e.name)
+            if v is not None and v.constant:
+                self.err(e.pos, f"cannot assign to CONSTANT '{v.name}'")
+
+    def fb_member(self, e, bt):
+        fv = bt.pou.vars.get(e.name)
+        if fv is None or fv.kind not in ("VAR_INPUT", "VAR_OUTPUT"):
+            if fv is not None and bt.pou.std is None:
+                self.fail(e.pos, f"'{e.name}' of {bt.name} is not an input or output: internal "
+                          "variables are not accessible from outside")
+            self.fail(e.pos, f"{bt.name} has no input or output '{e.name}'")
+        e.ty = fv.type
+        return fv.type
+
+    # ---- expressions
+    def expr(self, e, expected, lvalue=False):
+        """Type of expression e (LitT for untyped literal expressions). `expected` is a hint
+        used to settle untyped literals."""
+        t = self._expr(e, expected)
+        e.ty = t
+        if t.is_lit and expected is not None and not expected.is_lit:
+            self.coerce(e, t, expected, None, soft=True)
+        return e.ty
+
+    def _expr(self, e, expected):
+        if isinstance(e, S.IntLit):
+            return T.LIT_INT
+        if isinstance(e, S.RealLit):
+            return T.LIT_REAL
+        if isinstance(e, S.BoolLit):
+            return T.BOOL
+        if isinstance(e, S.TimeLit):
+            if e.ns is None:
+                self.fail(e.pos, f"malformed TIME literal {e.text}")
+            return T.TIME
+        if isinstance(e, S.StringLit):
+            self.fail(e.pos, "string literals are not supported by stc")
+        if isinstance(e, S.TypedLit):
+            return self.typed_lit(e)
+        if isinstance(e, S.Paren):
+            t = self.expr(e.inner, expected)
+            return t
+        if isinstance(e, S.Name):
+            v = self.scope.get(e.name)
+            if v is None and self.cur is not None and self.cur.kind == "function" and e.name == self.cur.name:
+                v = self._result_var(self.cur)
+            if v is None:
+                ets = self.p.enum_values.get(e.name)
+                if ets:
+                    et = ets[0]
+                    if len(ets) > 1:
+                        if expected is not None and expected.is_enum and expected in ets:
+                            et = expected
+                        else:
+                            self.fail(e.pos, f"'{e.name}' is a value of several enumerated types: "
+                                      f"write {ets[0].name}#{e.name}")
+                    e.enum_value = (et, et.values.index(e.name))
+                    return et
+                if e.name in self.p.pous or e.name in T.STD_FBS:
+                    self.fail(e.pos, f"'{e.name}' is a POU, not a variable")
+                self.fail(e.pos, f"unknown variable '{e.name}'")
+            e.var = v
+            return v.type
+        if isinstance(e, S.Field):
+            bt = self.expr(e.base, None)
+            if bt.is_fb:
+                return self.fb_member(e, bt)
+            if bt.is_struct:
+                f = bt.fields.get(e.name)
+                if f is None:
+                    self.fail(e.pos, f"{bt.name} has no member '{e.name}'")
+                return f[0]
+            self.fail(e.pos, f"'.{e.name}' on a value of type {bt} (only STRUCT members and "
+                      "function block outputs have fields)")
+        if isinstance(e, S.Index):
+            bt = self.expr(e.base, None)
+            if not bt.is_array:
+                self.fail(e.pos, f"indexing a value of type {bt}, which is not an ARRAY")
+            if len(e.indexes) != len(bt.dims):
+                self.fail(e.pos, f"{bt} needs {len(bt.dims)} index(es), got {len(e.indexes)}")
+            for ix, (lo, hi) in zip(e.indexes, bt.dims):
+                it = self.expr(ix, None)
+                if it.is_lit:
+                    if it.kind != "int":
+                        self.fail(ix.pos, "array index must be an integer")
+                    self.settle(ix, T.DINT)
+                    v = self.const_value(ix)
+                    if v is not None and not lo <= v <= hi:
+                        self.err(ix.pos, f"index {v} is out of bounds {lo}..{hi}")
+                elif it.is_elem and it.kind == "bit":
+                    self.err(ix.pos, f"an array index of type {it} is not portable (matiec rejects "
+                             f"it): convert it, e.g. {it.name}_TO_UINT(i)")
+                elif not (it.is_elem and it.is_int):
+                    self.err(ix.pos, f"array index must be of an integer type, not {it}")
+            return bt.elem
+        if isinstance(e, S.BitAccess):
+            self.expr(e.base, None)
+            bit = e.bit.lstrip("%XxBbWwDd") if e.bit.startswith("%") else e.bit
+            self.fail(e.pos, f"bit access .{e.bit} is not portable (matiec rejects it): use "
+                      f"(x AND 16#{1 << min(int(bit) if bit.isdigit() else 0, 63):X}) <> 0 to read; "
+                      "OR / AND NOT masks to write")
+        if isinstance(e, S.Deref):
+            self.fail(e.pos, "pointer dereference (^) is not portable (matiec rejects POINTER TO)")
+        if isinstance(e, S.Call):
+            return self.call(e, statement=False, expected=expected)
+        if isinstance(e, S.UnOp):
+            return self.unop(e, expected)
+        if isinstance(e, S.BinOp):
+            return self.binop(e, expected)
+        self.fail(e.pos, "unsupported expression")
+
+    def typed_lit(self, e):
+        tn = e.type_name
+        if tn in self.p.types and self.p.types[tn] is not None and self.p.types[tn].is_enum:
+            et = self.p.types[tn]
+            if e.kind != "ident" or e.value not in et.values:
+                self.fail(e.pos, f"'{e.text}': {e.value} is not a value of {tn}")
+            e.enum_value = (et, et.values.index(e.value))
+            return et
+        if tn in ("T", "TIME"):
+            self.fail(e.pos, f"malformed TIME literal {e.text}")
+        t = T.ELEMENTARY.get(tn)
+        if t is None or t.kind == "time":
+            if tn in T.UNSUPPORTED_TYPES or tn in ("D", "TOD", "DT"):
+                self.fail(e.pos, f"{tn} literals are not supported by stc")
+            self.fail(e.pos, f"unknown type or enumeration '{tn}' in literal {e.text}")
+        if t.kind == "bool":
+            if e.kind == "bool" or e.kind == "int" and e.value in (0, 1):
+                return t
+            self.fail(e.pos, f"invalid BOOL literal {e.text}")
+        if t.kind == "real":
+            if e.kind not in ("int", "real"):
+                self.fail(e.pos, f"invalid {tn} literal {e.text}")
+            return t
+        if e.kind != "int":
+            self.fail(e.pos, f"invalid {tn} literal {e.text}")
+        if not _lit_fits(e.value, t):
+            self.fail(e.pos, f"{e.text} is out of range of {tn}")
+        return t
+
+    def unop(self, e, expected):
+        t = self.expr(e.operand, expected)
+        if e.op == "NOT":
+            if t.is_lit:
+                self.fail(e.pos, "NOT of an untyped literal: write a typed literal like WORD#16#FF")
+            if not (t.is_elem and t.is_anybit):
+                self.fail(e.pos, f"NOT needs BOOL or a bit string type, not {t}")
+            return t
+        if t.is_lit:
+            return t
+        if e.op == "-":
+            if t.is_elem and (t.kind in ("sint", "real", "time")):
+                return t
+            self.fail(e.pos, f"unary minus needs a signed type, not {t}")
+        if t.is_elem and t.is_num:
+            return t
+        self.fail(e.pos, f"unary + needs a numeric type, not {t}")
+
+    _ARITH = {"+", "-", "*", "/", "MOD", "**"}
+    _CMP = {"=", "<>", "<", ">", "<=", ">="}
+    _LOGIC = {"AND", "OR", "XOR"}
+
+    def binop(self, e, expected):
+        op = e.op
+        hint = expected if op in self._ARITH or op in self._LOGIC else None
+        lt = self.expr(e.left, hint)
+        rt = self.expr(e.right, hint if not lt.is_lit and op in self._CMP else (lt if not lt.is_lit else hint))
+        if op in self._CMP and lt.is_lit and not rt.is_lit:
+            self.coerce(e.left, lt, rt, None, soft=True)
+            lt = e.left.ty
+        if op in self._CMP and rt.is_lit and not lt.is_lit:
+            self.coerce(e.right, rt, lt, None, soft=True)
+            rt = e.right.ty
+        # TIME arithmetic
+        if op in ("*", "/") and lt.is_elem and lt.kind == "time":
+            if rt.is_lit or rt.is_elem and rt.is_num:
+                if rt.is_lit:
+                    self.settle(e.right, T.DINT if rt.kind == "int" else T.ELEMENTARY["LREAL"])
+                return T.TIME
+            self.fail(e.pos, f"TIME {op} {rt}: the right operand must be a number")
+        if op in ("+", "-") and lt.is_elem and lt.kind == "time":
+            if rt.is_elem and rt.kind == "time":
+                return T.TIME
+            self.fail(e.pos, f"TIME {op} {rt}: both operands must be TIME (write e.g. T#5ms)")
+        if lt.is_lit and rt.is_lit:
+            if op in self._CMP:
+                k = "real" if "real" in (lt.kind, rt.kind) else "int"
+                base = T.ELEMENTARY["LREAL"] if k == "real" else T.LINT
+                self.settle(e.left, base)
+                self.settle(e.right, base)
+                return T.BOOL
+            if op in self._LOGIC:
+                self.fail(e.pos, f"{op} between untyped literals: write typed literals like WORD#16#FF")
+            return T.LIT_REAL if "real" in (lt.kind, rt.kind) else T.LIT_INT
+        if lt.is_lit:
+            self.coerce(e.left, lt, rt, None, soft=True)
+            lt = rt
+        elif rt.is_lit:
+            self.coerce(e.right, rt, lt, None, soft=True)
+            rt = lt
+        if not T.same_type(lt, rt):
+            self.fail(e.pos, f"'{op}' between {lt} and {rt}: IEC strict typing needs the same "
+                      f"type on both sides; convert explicitly (e.g. {_conv_hint(rt, lt)})")
+        t = lt
+        if op in self._CMP:
+            if t.is_array or t.is_struct or t.is_fb:
+                self.fail(e.pos, f"cannot compare values of type {t}")
+            if t.is_enum and op not in ("=", "<>"):
+                self.fail(e.pos, f"'{op}' on enumerated type {t}: only = and <> are allowed")
+            return T.BOOL
+        if op in self._LOGIC:
+            if not (t.is_elem and t.is_anybit):
+                self.fail(e.pos, f"{op} needs BOOL or a bit string type (BYTE/WORD/DWORD/LWORD), "
+                          f"not {t}")
+            return t
+        # arithmetic
+        if not t.is_elem:
+            self.fail(e.pos, f"'{op}' on {t}")
+        if op == "MOD":
+            if not t.is_int:
+                self.fail(e.pos, f"MOD needs an integer type, not {t}")
+            return t
+        if op == "**":
+            if t.kind != "real":
+                self.fail(e.pos, f"'**' needs REAL or LREAL, not {t}")
+            return t
+        if t.kind == "time":
+            if op in ("+", "-"):
+                return t
+            self.fail(e.pos, f"TIME {op} TIME is not defined")
+        if not t.is_num:
+            self.fail(e.pos, f"arithmetic '{op}' on {t} is not allowed (matiec rejects it: "
+                      f"{t.name} is a bit string): convert first, e.g. {t.name}_TO_UINT(x) {op} 1")
+        return t
+
+    def coerce(self, e, from_t, to_t, what, soft=False):
+        """Check that a value of from_t can be stored in to_t; settle literals."""
+        if from_t.is_lit:
+            if to_t.is_lit:
+                return
+            if from_t.kind == "int":
+                if to_t.is_elem and (to_t.is_int or to_t.kind in ("bit", "real", "bool")):
+                    v = self.const_value(e)
+                    if v is not None and to_t.kind != "real" and not _lit_fits(v, to_t):
+                        self.fail(e.pos, f"value {v} is out of range of {to_t}")
+                    self.settle(e, to_t)
+                    return
+            elif from_t.kind == "real":
+                if to_t.is_elem and to_t.kind == "real":
+                    self.settle(e, to_t)
+                    return
+            if soft:
+                return
+            self.fail(e.pos, f"{what}: {from_t} cannot be {to_t}")
+        if soft:
+            return
+        if T.same_type(from_t, to_t):
+            return
+        self.fail(e.pos, f"{what}: type {from_t} cannot be assigned to {to_t} without explicit "
+                  f"conversion (IEC strict typing): use {_conv_hint(from_t, to_t)}")
+
+    def settle(self, e, t):
+        """Give untyped literal expression e the concrete type t (recursively)."""
+        if e.ty is not None and not e.ty.is_lit:
+            return
+        e.ty = t
+        if isinstance(e, S.Paren):
+            self.settle(e.inner, t)
+        elif isinstance(e, S.UnOp):
+            self.settle(e.operand, t)
+        elif isinstance(e, S.BinOp):
+            self.settle(e.left, t)
+            self.settle(e.right, t)
+
+    def const_value(self, e):
+        """Integer value of a constant integer expression, or None."""
+        if isinstance(e, S.IntLit):
+            return e.value
+        if isinstance(e, S.TypedLit) and e.kind == "int":
+            return e.value
+        if isinstance(e, S.Paren):
+            return self.const_value(e.inner)
+        if isinstance(e, S.UnOp) and e.op == "-":
+            v = self.const_value(e.operand)
+            return -v if v is not None else None
+        if isinstance(e, S.UnOp) and e.op == "+":
+            return self.const_value(e.operand)
+        return None
+
+    # ---- calls
+    def call(self, c, statement, expected=None):
+        name = c.name
+        v = self.scope.get(name)
+        if v is not None:
+            if not v.type.is_fb:
+                self.fail(c.pos, f"'{name}' is a variable of type {v.type}, not a function block "
+                          "instance")
+            if not statement:
+                self.fail(c.pos, f"function block instance '{name}' cannot be called in an "
+                          f"expression: call it as a statement and read {name}.Q")
+            c.kind = "fb"
+            c.var = v
+            self.bind_args(c, v.type.pou, fb=True)
+            return None
+        if name in T.STD_FBS or (name in self.p.pous and self.p.pous[name].kind == "function_block"):
+            self.fail(c.pos, f"'{name}' is a function block type: declare an instance and call that")
+        if name in self.p.pous:
+            pou = self.p.pous[name]
+            if pou.kind != "function":
+                self.fail(c.pos, f"'{name}' is a {pou.kind.replace('_', ' ').upper()}, which cannot be called")
+            if self.cur is not None and pou is self.cur:
+                self.fail(c.pos, "recursion is not allowed in IEC 61131-3")
+            c.kind = "func"
+            c.pou = pou
+            self.bind_args(c, pou, fb=False)
+            if statement:
+                return None
+            return pou.rtype
+        conv = _conversion(name)
+        if conv is not None:
+            return self.conversion(c, conv)
+        if name in T.STD_FUNCS:
+            return self.std_func(c, expected)
+        if name.startswith("TO_") or name in ("TRUNC", "DINT_TRUNC"):
+            self.fail(c.pos, f"generic conversion {name} is not portable (matiec rejects it): "
+                      "use a typed conversion like INT_TO_UINT")
+        self.fail(c.pos, f"unknown function '{name}'")
+
+    def bind_args(self, c, pou, fb):
+        params = [v for v in pou.vars.values() if v.kind in ("VAR_INPUT", "VAR_OUTPUT", "VAR_IN_OUT")]
+        inputs = [v for v in params if v.kind in ("VAR_INPUT", "VAR_IN_OUT")]
+        bound = {}
+        outs = []
+        positional = [a for a in c.args if isinstance(a, S.ArgPos)]
+        named = [a for a in c.args if not isinstance(a, S.ArgPos)]
+        if positional and named:
+            self.fail(c.pos, "mixing positional and named (:=) arguments is not allowed")
+        if positional:
+            if fb:
+                self.fail(c.pos, "function block calls need named arguments (IN := ...)")
+            if len(positional) > len(inputs):
+                self.fail(c.pos, f"{pou.name} takes {len(inputs)} inputs, got {len(positional)}")
+            for a, p in zip(positional, inputs):
+                bound[p.name] = a.value
+        for a in named:
+            p = pou.vars.get(a.name)
+            if p is None or p.kind not in ("VAR_INPUT", "VAR_OUTPUT", "VAR_IN_OUT"):
+                self.err(a.pos, f"{pou.name} has no parameter '{a.name}'")
+                continue
+            if isinstance(a, S.ArgIn):
+                if p.kind == "VAR_OUTPUT":
+                    self.err(a.pos, f"'{a.name}' is an output of {pou.name}: use {a.name} => variable")
+                    continue
+                if a.name in bound:
+                    self.err(a.pos, f"parameter '{a.name}' given twice")
+                bound[a.name] = a.value
+            else:
+                if p.kind != "VAR_OUTPUT":
+                    self.err(a.pos, f"'{a.name}' is not an output of {pou.name}: use {a.name} := value")
+                    continue
+                if a.negate:
+                    self.err(a.pos, "NOT x => y is not supported: negate afterwards")
+                    continue
+                tt = self.lvalue(a.target, "assign to")
+                if not T.same_type(p.type, tt):
+                    self.err(a.target.pos, f"output {a.name} is {p.type} but '=> ' target is {tt}")
+                outs.append((p, a.target))
+        c.bound = {}
+        for p in inputs:
+            e = bound.get(p.name)
+            if e is None:
+                if p.kind == "VAR_IN_OUT":
+                    self.err(c.pos, f"VAR_IN_OUT '{p.name}' of {pou.name} must be passed")
+                continue
+            try:
+                if p.kind == "VAR_IN_OUT":
+                    t = self.lvalue(e, "pass as VAR_IN_OUT")
+                    if not _is_variable(e):
+                        self.fail(e.pos, f"VAR_IN_OUT '{p.name}' needs a variable")
+                    if not T.same_type(t, p.type):
+                        self.fail(e.pos, f"VAR_IN_OUT '{p.name}' is {p.type}, got {t}")
+                else:
+                    t = self.expr(e, p.type)
+                    self.coerce(e, t, p.type, f"input {p.name} of {pou.name}")
+                c.bound[p.name] = e
+            except CompileError:
+                pass
+        c.outs = outs
+
+    def conversion(self, c, conv):
+        src, dst = conv
+        args = c.args
+        if len(args) != 1 or not isinstance(args[0], S.ArgPos):
+            self.fail(c.pos, f"{c.name} takes one argument")
+        a = args[0].value
+        st = T.ELEMENTARY[src]
+        t = self.expr(a, st)
+        self.coerce(a, t, st, f"argument of {c.name}")
+        c.kind = "conv"
+        c.conv = (T.ELEMENTARY[src], T.ELEMENTARY[dst])
+        return T.ELEMENTARY[dst]
+
+    def std_func(self, c, expected):
+        n = c.name
+        c.kind = "std"
+        args = []
+        for a in c.args:
+            if not isinstance(a, S.ArgPos):
+                if isinstance(a, S.ArgIn):
+                    args.append(a.value)
+                    continue
+                self.fail(a.pos, f"{n} has no outputs")
+            args.append(a.value)
+        c.argv = args
+
+        def need(k):
+            if len(args) != k:
+                self.fail(c.pos, f"{n} takes {k} arguments, got {len(args)}")
+
+        def same(es, hint):
+            ts = [self.expr(x, hint) for x in es]
+            conc = [t for t in ts if not t.is_lit]
+            if not conc:
+                t0 = hint if hint is not None and hint.is_elem else (
+                    T.ELEMENTARY["LREAL"] if any(t.kind == "real" for t in ts) else T.DINT)
+            else:
+                t0 = conc[0]
+            for x, t in zip(es, ts):
+                if t.is_lit:
+                    self.coerce(x, t, t0, f"argument of {n}")
+                elif not T.same_type(t, t0):
+                    self.fail(x.pos, f"{n}: arguments must all have the same type ({t0}), got {t}; "
+                              "convert explicitly")
+            return t0
+
+        if n in ("SHL", "SHR", "ROL", "ROR"):
+            need(2)
+            t = self.expr(args[0], expected)
+            if t.is_lit:
+                self.fail(args[0].pos, f"{n} of an untyped literal: write a typed literal like WORD#16#FF")
+            if not (t.is_elem and t.kind == "bit"):
+                self.fail(args[0].pos, f"{n} needs BYTE, WORD, DWORD or LWORD, not {t}")
+            nt = self.expr(args[1], None)
+            if nt.is_lit:
+                self.settle(args[1], T.DINT)
+            elif not (nt.is_elem and nt.is_int):
+                self.fail(args[1].pos, f"{n}: shift count must be an integer, not {nt}")
+            return t
+        if n in ("ABS",):
+            need(1)
+            t = same(args, expected)
+            if not (t.is_elem and t.is_num):
+                self.fail(c.pos, f"ABS needs a numeric type, not {t}")
+            return t
+        if n in ("SQRT",):
+            need(1)
+            t = same(args, expected if expected is not None and expected.is_elem and expected.kind == "real" else T.ELEMENTARY["LREAL"])
+            if not (t.is_elem and t.kind == "real"):
+                self.fail(c.pos, f"SQRT needs REAL or LREAL, not {t}")
+            return t
+        if n in ("MOVE",):
+            need(1)
+            return same(args, expected)
+        if n in ("MIN", "MAX"):
+            if len(args) < 2:
+                self.fail(c.pos, f"{n} takes at least 2 arguments")
+            t = same(args, expected)
+            if not t.is_elem:
+                self.fail(c.pos, f"{n} needs an elementary type, not {t}")
+            return t
+        if n == "LIMIT":
+            need(3)
+            t = same(args, expected)
+            if not t.is_elem:
+                self.fail(c.pos, f"LIMIT needs an elementary type, not {t}")
+            return t
+        if n == "SEL":
+            need(3)
+            self.cond(args[0], "SEL selector")
+            t = same(args[1:], expected)
+            if t.is_fb:
+                self.fail(c.pos, "SEL of function blocks")
+            return t
+        if n == "MUX":
+            if len(args) < 2:
+                self.fail(c.pos, "MUX takes a selector and at least one input")
+            kt = self.expr(args[0], None)
+            if kt.is_lit:
+                self.settle(args[0], T.DINT)
+            elif not (kt.is_elem and kt.is_int):
+                self.fail(args[0].pos, f"MUX selector must be an integer, not {kt}")
+            t = same(args[1:], expected)
+            if t.is_fb:
+                self.fail(c.pos, "MUX of function blocks")
+            return t
+        if n in ("ADD", "SUB", "MUL", "DIV"):
+            need(2)
+            op = {"ADD": "+", "SUB": "-", "MUL": "*", "DIV": "/"}[n]
+            b = S.BinOp(c.pos, op, args[0], args[1])
+            t = self.binop(b, expected)
+            b.ty = t
+            c.kind = "binop"
+            c.binop = b
+            return t
+        if n == "EXPT":
+            need(2)
+            t = same(args[:1], expected)
+            if not (t.is_elem and t.kind == "real"):
+                self.fail(c.pos, f"EXPT needs REAL or LREAL, not {t}")
+            et = self.expr(args[1], None)
+            if et.is_lit:
+                self.settle(args[1], t if et.kind == "real" else T.DINT)
+            return t
+        self.fail(c.pos, f"standard function {n} is not supported by stc")
+
+
+def _is_variable(e):
+    return isinstance(e, (S.Name, S.Field, S.Index))
+
+
+def _conversion(name):
+    if "_TO_" not in name:
+        return None
+    a, _, b = name.partition("_TO_")
+    if a in T.CONVERTIBLE and b in T.CONVERTIBLE and a != b:
+        return (a, b)
+    return None
+
+
+def _conv_hint(f, t):
+    if f.is_elem and t.is_elem and f.name in T.CONVERTIBLE and t.name in T.CONVERTIBLE:
+        return f"{f.name}_TO_{t.name}(...)"
+    return "an explicit conversion"
+
+
+def _addr_text(v):
+    area, size, parts = v.location
+    return "%" + area + size + ".".join(str(p) for p in parts)
