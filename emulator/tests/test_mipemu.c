@@ -536,6 +536,111 @@ static void t_slot_timing(void)
     mipemu_net_free(n);
 }
 
+/* collects the radio lines of a trace as (kind, station, t0, t, regs, lost) */
+typedef struct { char kind; int st; uint64_t t0, t; int regs, lost, r0; } tel_t;
+
+static int radio_lines(const sink_t *s, tel_t *out, int max)
+{
+    int n = 0;
+    for (const char *p = s->buf; p && p < s->buf + s->len && n < max; p = strchr(p, '\n'), p = p ? p + 1 : NULL) {
+        if (!line_has(p, "\"ev\":\"radio\""))
+            continue;
+        tel_t *x = &out[n++];
+        x->kind = line_has(p, "\"poll\"") ? 'P' : line_has(p, "\"answer\"") ? 'A' : 'K';
+        x->st = (int)field(p, "st");
+        x->t0 = field(p, "t0");
+        x->t = field(p, "t");
+        x->regs = (int)field(p, "regs");
+        x->r0 = line_has(p, "\"r0\"") ? (int)field(p, "r0") : -1;
+        x->lost = line_has(p, "\"lost\":true");
+    }
+    return n;
+}
+
+static void t_lost_poll_timing(void)
+{
+    /* a lost poll: the MDP waits as long as an empty answer would take, then polls the next */
+    mipemu_config c;
+    mipemu_config_default(&c);
+    c.stations = 2;
+    c.loss_down = 1.0;
+    mipemu_net *n = mipemu_net_new(&c, NULL, 0);
+    sink_t s = { 0 };
+    mipemu_net_set_trace(n, sink_fn, &s);
+    mipemu_net_advance(n, 1000000000ULL);
+    tel_t x[8];
+    int k = radio_lines(&s, x, 8);
+    uint64_t t0 = mipemu_telegram_ns(&c, 0), g = c.slot_gap_ns;
+    CHECK_EQ(k, 8);
+    for (int i = 0; i < k; i++) {
+        CHECK_EQ(x[i].kind, 'P');                       /* never an answer */
+        CHECK_EQ(x[i].st, 1 + i % 2);
+        CHECK(x[i].lost);
+        CHECK_EQ(x[i].t0, (uint64_t)i * (t0 + g + t0 + g));
+        CHECK_EQ(x[i].t - x[i].t0, t0);
+    }
+    free(s.buf);
+    mipemu_net_free(n);
+}
+
+static void t_replace_before_and_after_send(void)
+{
+    mipemu_net *n = mk(2, MIPEMU_DYNAMIC, 0, 0, 1);
+    sink_t s = { 0 };
+    mipemu_net_set_trace(n, sink_fn, &s);
+    uint16_t a[4] = { 1, 11, 12, 13 }, b[2] = { 2, 21 }, c3[3] = { 3, 31, 32 };
+    /* station 2 is polled after station 1's slot: two writes now, only the second goes on air */
+    CHECK_EQ(wr16(n, 0, 2, 10, 4, a), 0);
+    CHECK_EQ(wr16(n, 0, 2, 10, 2, b), 0);
+    CHECK(wait_reg(n, 0, 2, 2, 0x10, 0, 5000000000ULL));
+    tel_t x[64];
+    int k = radio_lines(&s, x, 64);
+    int seen = 0;
+    for (int i = 0; i < k; i++)
+        if (x[i].kind == 'P' && x[i].regs > 0) {
+            CHECK_EQ(x[i].regs, 2);
+            CHECK_EQ(x[i].r0, 2);
+            seen++;
+        }
+    CHECK_EQ(seen, 1);
+    CHECK_EQ(reg1(n, 2, 1, 2199), 2);
+    mipemu_net_free(n);
+    free(s.buf);
+
+    /* sent but unconfirmed (answer lost), then a new write: the new block replaces the repeat */
+    mipemu_config cf;
+    mipemu_config_default(&cf);
+    cf.loss_up = 1.0;          /* no answer ever arrives: nothing is confirmed */
+    n = mipemu_net_new(&cf, NULL, 0);
+    s.buf = NULL; s.len = s.cap = 0;
+    mipemu_net_set_trace(n, sink_fn, &s);
+    mipemu_net_advance(n, mipemu_net_next_event(n));   /* past the first (empty) slot start */
+    CHECK_EQ(wr16(n, 0, 1, 10, 4, a), 0);
+    CHECK(wait_reg(n, 0, 1, 2, 0x12, 0x10, 5000000000ULL)); /* sent, unconfirmed */
+    CHECK_EQ(reg1(n, 0, 1, 1) & MIPEMU_ST_DOWN_RESEND, 0);
+    mipemu_net_advance(n, mipemu_net_now(n) + 200000000ULL); /* repeated meanwhile */
+    CHECK_EQ(reg1(n, 0, 1, 1) & MIPEMU_ST_DOWN_RESEND, MIPEMU_ST_DOWN_RESEND);
+    CHECK_EQ(wr16(n, 0, 1, 10, 3, c3), 0);
+    CHECK_EQ(reg1(n, 0, 1, 2), 0x12);
+    CHECK_EQ(reg1(n, 0, 1, 9), 3);
+    mipemu_net_advance(n, mipemu_net_now(n) + 1000000000ULL);
+    k = radio_lines(&s, x, 64);
+    int last_a = -1, first_c = -1;
+    for (int i = 0; i < k; i++) {
+        if (x[i].kind != 'P' || x[i].regs == 0)
+            continue;
+        if (x[i].r0 == 1) last_a = i;
+        if (x[i].r0 == 3 && first_c < 0) first_c = i;
+    }
+    CHECK(last_a >= 0 && first_c > last_a);
+    for (int i = first_c; i >= 0 && i < k; i++)   /* once replaced, the old block never returns */
+        if (x[i].kind == 'P')
+            CHECK_EQ(x[i].r0, 3);
+    CHECK_EQ(reg1(n, 0, 1, 2), 0x10);
+    mipemu_net_free(n);
+    free(s.buf);
+}
+
 static void t_duplicates(void)
 {
     /* uplink lossy only: a lost answer means the downlink block was delivered but unconfirmed,
@@ -692,6 +797,8 @@ int main(int argc, char **argv)
     run("loss_rates", t_loss_rates);
     run("burst_loss", t_burst_loss);
     run("slot_timing", t_slot_timing);
+    run("lost_poll_timing", t_lost_poll_timing);
+    run("replace_before_and_after_send", t_replace_before_and_after_send);
     run("duplicates", t_duplicates);
     run("unreachable", t_unreachable);
     run("determinism", t_determinism);
