@@ -377,12 +377,13 @@ typedef struct { char *buf; size_t len, cap; } sink_t;
 static void sink_fn(void *user, const char *line, size_t len)
 {
     sink_t *s = user;
-    if (s->len + len > s->cap) {
+    if (s->len + len + 1 > s->cap) {
         s->cap = (s->len + len) * 2 + 4096;
         s->buf = realloc(s->buf, s->cap);
     }
     memcpy(s->buf + s->len, line, len);
     s->len += len;
+    s->buf[s->len] = 0; /* the tests search it as a string */
 }
 
 static void t_loss_rates(void)
