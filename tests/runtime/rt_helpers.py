@@ -25,3 +25,96 @@ needs_matiec = pytest.mark.skipif(
     reason="iec2c not on PATH (set PATH and MATIEC_LIB to run the matiec tests)")
 
 
+
+
+def compiler_param(name):
+    """A pytest param for a compiler, skipped with the reason when this machine lacks it."""
+    if name == "stc":
+        return pytest.param("stc", marks=pytest.mark.skipif(
+            not stc_works(), reason="stc (.venv/bin/stc) is not installed: run `make venv`"))
+    return pytest.param("matiec", marks=needs_matiec)
+
+
+COMPILERS = [compiler_param("stc"), compiler_param("matiec")]
+
+
+class ModbusServer:
+    """A small Modbus TCP server on 127.0.0.1 (thread per connection) for the master's tests:
+    holding and input registers, FC 3/4/6/16, a log of (function, address, count)."""
+
+    def __init__(self, size=1000):
+        import socketserver
+        import struct
+        import threading
+
+        self.holding = [0] * size
+        self.input = [0] * size
+        self.log = []
+        self.lock = threading.Lock()
+        outer = self
+
+        class Handler(socketserver.BaseRequestHandler):
+            def handle(self):
+                sock = self.request
+                while True:
+                    head = _recv_exact(sock, 7)
+                    if not head:
+                        return
+                    tid, pid, length, unit = struct.unpack(">HHHB", head)
+                    pdu = _recv_exact(sock, length - 1)
+                    if pdu is None:
+                        return
+                    reply = outer._handle(pdu)
+                    sock.sendall(struct.pack(">HHHB", tid, 0, len(reply) + 1, unit) + reply)
+
+        class Server(socketserver.ThreadingTCPServer):
+            allow_reuse_address = True
+            daemon_threads = True
+
+        self._server = Server(("127.0.0.1", 0), Handler)
+        self.port = self._server.server_address[1]
+        self._thread = threading.Thread(target=self._server.serve_forever, daemon=True)
+        self._thread.start()
+
+    def _handle(self, pdu):
+        import struct
+        fc = pdu[0]
+        with self.lock:
+            if fc in (3, 4):
+                addr, count = struct.unpack(">HH", pdu[1:5])
+                self.log.append((fc, addr, count))
+                table = self.holding if fc == 3 else self.input
+                if addr + count > len(table):
+                    return bytes([fc | 0x80, 2])
+                return bytes([fc, 2 * count]) + struct.pack(f">{count}H", *table[addr:addr + count])
+            if fc == 16:
+                addr, count, nbytes = struct.unpack(">HHB", pdu[1:6])
+                self.log.append((fc, addr, count))
+                if addr + count > len(self.holding):
+                    return bytes([fc | 0x80, 2])
+                self.holding[addr:addr + count] = struct.unpack(f">{count}H", pdu[6:6 + 2 * count])
+                return pdu[:5]
+            if fc == 6:
+                addr, value = struct.unpack(">HH", pdu[1:5])
+                self.log.append((fc, addr, 1))
+                self.holding[addr] = value
+                return pdu[:5]
+            return bytes([fc | 0x80, 1])
+
+    def count(self, fc):
+        with self.lock:
+            return sum(1 for e in self.log if e[0] == fc)
+
+    def close(self):
+        self._server.shutdown()
+        self._server.server_close()
+
+
+def _recv_exact(sock, n):
+    buf = b""
+    while len(buf) < n:
+        chunk = sock.recv(n - len(buf))
+        if not chunk:
+            return None
+        buf += chunk
+    return buf

@@ -374,6 +374,9 @@ def _build_into(sources, out: Path, compiler: str, cflags):
         if not (gen / "SYMBOLS.tsv").is_file():
             raise BuildError(f"stc: {gen}/SYMBOLS.tsv missing: the program does not match the ABI")
         symbols, decls = read_symbols_tsv(gen / "SYMBOLS.tsv")
+        # the #decl lines name the program types of POUS.h
+        if (gen / "POUS.h").is_file():
+            decls.insert(0, '#include "POUS.h"')
         programs = _programs_from_sources(sources)
         if (gen / "SOURCES.txt").is_file():
             prog_c = [gen / l.strip() for l in (gen / "SOURCES.txt").read_text().splitlines()

@@ -173,6 +173,9 @@ class Plc:
             ("plcrt_tick_ns", ctypes.c_uint64, [ctypes.c_void_p]),
             ("plcrt_scan_count", ctypes.c_uint64, [ctypes.c_void_p]),
             ("plcrt_scan", ctypes.c_int, [ctypes.c_void_p, ctypes.c_uint64]),
+            ("plcrt_run_realtime", ctypes.c_int, [ctypes.c_void_p, ctypes.c_uint64,
+                                                  ctypes.c_void_p]),
+            ("plcrt_rt_stats", None, [ctypes.c_void_p, ctypes.c_void_p]),
             ("plcrt_load_config", ctypes.c_int, [ctypes.c_void_p, ctypes.c_char_p]),
             ("plcrt_force", ctypes.c_int, [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_char_p,
                                            ctypes.c_size_t]),
@@ -337,6 +340,18 @@ class Plc:
             raise PlcError("scan count must be >= 0")
         if self._lib.plcrt_scan(self._rt, n) != 0:
             raise PlcError(self._err())
+
+    def run_realtime(self, n: int) -> dict:
+        """Run n scans in real time (absolute deadlines on the monotonic clock, the Modbus
+        master in its own thread). After this the Plc cannot go back to virtual scans.
+        Returns {"scans", "overruns", "max_late_ns", "max_scan_ns"}."""
+        if n < 1:
+            raise PlcError("real-time scan count must be >= 1")
+        if self._lib.plcrt_run_realtime(self._rt, n, None) != 0:
+            raise PlcError(self._err())
+        stats = (ctypes.c_uint64 * 4)()
+        self._lib.plcrt_rt_stats(self._rt, stats)
+        return dict(zip(("scans", "overruns", "max_late_ns", "max_scan_ns"), stats))
 
     def run_for(self, ns: int):
         """Scan until at least ns nanoseconds of virtual time have passed."""

@@ -1,0 +1,171 @@
+"""The plcharness API (docs/dev/interfaces.md §5) on programs built by stc and by matiec."""
+import pytest
+
+from plcharness import BuildError, Plc, PlcError
+from rt_helpers import COMPILERS, compiler_param
+
+PROG = """
+TYPE E_State : (ST_IDLE, ST_BUSY); END_TYPE
+FUNCTION_BLOCK FB_Count
+VAR_INPUT xIn : BOOL; END_VAR
+VAR_OUTPUT xBusy : BOOL; cnt : UINT; tEt : TIME; END_VAR
+VAR eState : E_State; tDelay : TON; END_VAR
+IF xIn THEN cnt := cnt + 1; eState := ST_BUSY; ELSE eState := ST_IDLE; END_IF;
+tDelay(IN := xIn, PT := T#50ms);
+xBusy := tDelay.Q;
+tEt := tDelay.ET;
+END_FUNCTION_BLOCK
+PROGRAM MAIN
+VAR inw AT %IW100 : WORD; outw AT %QW100 : WORD; bit AT %QX0.1 : BOOL; flag AT %IX2.3 : BOOL; END_VAR
+VAR sender : FB_Count; run : BOOL; x : INT; big : DINT; tElapsed : TIME; END_VAR
+sender(xIn := run);
+x := x + 1;
+outw := inw;
+bit := sender.xBusy;
+IF flag THEN big := big + 100000; END_IF;
+tElapsed := sender.tEt;
+END_PROGRAM
+CONFIGURATION Config0
+RESOURCE Res0 ON PLC
+TASK task0(INTERVAL := T#10ms, PRIORITY := 0);
+PROGRAM instance0 WITH task0 : MAIN;
+END_RESOURCE
+END_CONFIGURATION
+"""
+
+
+@pytest.fixture(params=COMPILERS)
+def plc(request, st_file, tmp_path):
+    return Plc.build([st_file(PROG)], workdir=tmp_path, compiler=request.param)
+
+
+def test_scan_advances_virtual_time_by_the_task_tick(plc):
+    assert plc.time_ns == 0
+    plc.scan()
+    assert plc.time_ns == 10_000_000
+    plc.scan(99)
+    assert plc.time_ns == 1_000_000_000
+    assert plc["MAIN.x"] == 100
+
+
+def test_paths_are_case_insensitive_and_rooted_at_type_or_instance(plc):
+    plc.scan(3)
+    assert plc["MAIN.x"] == plc["main.X"] == plc["instance0.x"] == 3
+    assert plc["CONFIG0.RES0.INSTANCE0.X"] == 3
+
+
+def test_located_addresses_read_and_write_the_image(plc):
+    plc["%IW100"] = 0xBEEF
+    plc["%IX2.3"] = True
+    plc.scan()
+    assert plc["%QW100"] == 0xBEEF
+    assert plc["MAIN.outw"] == 0xBEEF
+    assert plc["MAIN.big"] == 100000
+    assert plc["MAIN.flag"] is True
+
+
+def test_fb_outputs_timers_and_enums(plc):
+    plc["MAIN.run"] = True
+    plc.scan(5)
+    assert plc["MAIN.sender.xBusy"] is False
+    assert plc["MAIN.sender.eState"] == 1  # ST_BUSY
+    plc.scan(2)
+    assert plc["MAIN.sender.xBusy"] is True
+    assert plc["%QX0.1"] is True
+    assert plc["MAIN.tElapsed"] == 50_000_000  # TIME reads as int ns
+    assert plc["MAIN.sender.cnt"] == 7
+
+
+def test_write_takes_effect_next_scan_and_program_may_overwrite(plc):
+    plc.scan()
+    plc["MAIN.x"] = 1000
+    assert plc["MAIN.x"] == 1000
+    plc.scan()
+    assert plc["MAIN.x"] == 1001
+
+
+def test_force_holds_until_unforced(plc):
+    plc.force("MAIN.x", 5)
+    plc.scan(10)
+    assert plc["MAIN.x"] == 5
+    plc.force("%IW100", 7)
+    plc["%IW100"] = 1
+    plc.scan()
+    assert plc["%QW100"] == 7
+    plc.unforce("MAIN.x")
+    plc.unforce("%IW100")
+    plc.scan()
+    assert plc["MAIN.x"] == 6
+    with pytest.raises(PlcError, match="not forced"):
+        plc.unforce("MAIN.x")
+
+
+def test_bad_names_and_values_are_clear_errors(plc):
+    with pytest.raises(PlcError, match="no variable 'MAIN.nothing'"):
+        plc["MAIN.nothing"]
+    with pytest.raises(PlcError, match="outside the image"):
+        plc["%IW1024"]
+    with pytest.raises(PlcError, match="out of range for INT"):
+        plc["MAIN.x"] = 40000
+    with pytest.raises(PlcError, match="out of range for WORD"):
+        plc["%QW100"] = -1
+    with pytest.raises(PlcError, match="BOOL"):
+        plc["MAIN.run"] = 2
+
+
+def test_real_time_scans_run_the_program(plc):
+    stats = plc.run_realtime(5)
+    assert stats["scans"] == 5
+    assert plc["MAIN.x"] == 5
+    with pytest.raises(PlcError, match="real-time"):
+        plc.scan()
+
+
+ARRAYS = """
+TYPE T_Buf : ARRAY[0..3] OF WORD; END_TYPE
+PROGRAM MAIN
+VAR buf : T_Buf; grid : ARRAY[1..2, 1..3] OF INT; sum : UINT; i : INT; END_VAR
+sum := 0;
+FOR i := 0 TO 3 DO sum := sum + WORD_TO_UINT(buf[i]); END_FOR;
+grid[2, 3] := grid[2, 3] + 1;
+END_PROGRAM
+CONFIGURATION Config0
+RESOURCE Res0 ON PLC
+TASK task0(INTERVAL := T#20ms, PRIORITY := 0);
+PROGRAM instance0 WITH task0 : MAIN;
+END_RESOURCE
+END_CONFIGURATION
+"""
+
+
+@pytest.mark.parametrize("compiler", [compiler_param("stc")])
+def test_arrays_read_as_lists_and_by_element(compiler, st_file, tmp_path):
+    plc = Plc.build([st_file(ARRAYS)], workdir=tmp_path, compiler=compiler)
+    plc["MAIN.buf"] = [1, 2, 3, 4]
+    plc["MAIN.buf[3]"] = 40
+    plc.scan(2)
+    assert plc["MAIN.buf"] == [1, 2, 3, 40]
+    assert plc["MAIN.sum"] == 46
+    assert plc["MAIN.grid"] == [[0, 0, 0], [0, 0, 2]]
+    assert plc["MAIN.grid[2,3]"] == 2
+    with pytest.raises(PlcError, match="index 4 outside 0..3"):
+        plc["MAIN.buf[4]"]
+    assert plc.time_ns == 40_000_000
+
+
+@pytest.mark.parametrize("compiler", COMPILERS)
+def test_two_plcs_of_one_program_do_not_share_state(compiler, st_file, tmp_path):
+    src = st_file(PROG)
+    a = Plc.build([src], workdir=tmp_path / "a", compiler=compiler)
+    b = Plc.build([src], workdir=tmp_path / "b", compiler=compiler)
+    a.scan(3)
+    b.scan(1)
+    assert (a["MAIN.x"], b["MAIN.x"]) == (3, 1)
+
+
+@pytest.mark.parametrize("compiler", COMPILERS)
+def test_translation_error_is_reported(compiler, st_file, tmp_path):
+    src = st_file("PROGRAM MAIN\nVAR x : INT; END_VAR\nx := x + UINT#1;\nEND_PROGRAM\n", "bad.st")
+    with pytest.raises(BuildError) as ei:
+        Plc.build([src], workdir=tmp_path, compiler=compiler)
+    assert f"{src}:3:" in str(ei.value)
