@@ -12,6 +12,25 @@
 
 typedef struct { long tv_sec; long tv_nsec; } stc_time;
 
+/* C storage type of each IEC type name that can appear in LOCATED_VARIABLES.h, so a runtime
+ * can define the located storage with an X-macro:
+ *   #define __LOCATED_VAR(type, name, ...) stc_ctype_##type name##_store, *name = &name##_store; */
+typedef uint8_t stc_ctype_BOOL;
+typedef uint8_t stc_ctype_BYTE;
+typedef uint16_t stc_ctype_WORD;
+typedef uint32_t stc_ctype_DWORD;
+typedef uint64_t stc_ctype_LWORD;
+typedef int8_t stc_ctype_SINT;
+typedef int16_t stc_ctype_INT;
+typedef int32_t stc_ctype_DINT;
+typedef int64_t stc_ctype_LINT;
+typedef uint8_t stc_ctype_USINT;
+typedef uint16_t stc_ctype_UINT;
+typedef uint32_t stc_ctype_UDINT;
+typedef uint64_t stc_ctype_ULINT;
+typedef float stc_ctype_REAL;
+typedef double stc_ctype_LREAL;
+
 static inline int64_t stc_time_ns(stc_time t)
 {
     return (int64_t)t.tv_sec * 1000000000 + (int64_t)t.tv_nsec;

@@ -1,0 +1,109 @@
+"""Helpers for the translator tests: run stc, build the generated C with a test main, run scans."""
+import os
+import re
+import shutil
+import subprocess
+import sys
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
+HERE = os.path.dirname(os.path.abspath(__file__))
+CFLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-O0"]
+
+
+def stc_cmd():
+    exe = os.path.join(ROOT, ".venv", "bin", "stc")
+    if os.path.exists(exe):
+        return [exe]
+    return [sys.executable, "-m", "stc.cli"]
+
+
+def run_stc(args, cwd=None):
+    return subprocess.run(stc_cmd() + list(args), capture_output=True, text=True, cwd=cwd)
+
+
+def symtab_c(outdir):
+    """C table {path, type, address} generated from SYMBOLS.tsv (the harness's view)."""
+    decls, rows = [], []
+    with open(os.path.join(outdir, "SYMBOLS.tsv")) as f:
+        for line in f:
+            line = line.rstrip("\n")
+            if line.startswith("#decl\t"):
+                decls.append(line.split("\t", 1)[1])
+            elif line.startswith("#") or line.startswith("path\t") or not line:
+                continue
+            else:
+                path, typ, kind, ref = line.split("\t")
+                rows.append((path, typ, ref))
+    out = ['#include "POUS.h"'] + decls
+    out.append("struct stc_sym { const char *path; const char *type; void *addr; };")
+    out.append("const struct stc_sym stc_symtab[] = {")
+    for path, typ, ref in rows:
+        out.append(f'    {{"{path}", "{typ}", (void *)&({ref})}},')
+    out.append('    {0, 0, 0}')
+    out.append("};")
+    out.append(f"const int stc_symtab_len = {len(rows)};")
+    return "\n".join(out) + "\n"
+
+
+def build(st_files, workdir, cc=None):
+    """Translate and compile; returns path of the executable. Raises AssertionError with the
+    compiler output on failure."""
+    outdir = os.path.join(workdir, "gen")
+    r = run_stc(["-o", outdir] + list(st_files))
+    assert r.returncode == 0, f"stc failed ({r.returncode}):\n{r.stderr}"
+    with open(os.path.join(outdir, "stc_symtab.c"), "w") as f:
+        f.write(symtab_c(outdir))
+    with open(os.path.join(outdir, "SOURCES.txt")) as f:
+        srcs = [os.path.join(outdir, x.strip()) for x in f if x.strip()]
+    exe = os.path.join(workdir, "prog")
+    cmd = [cc or os.environ.get("CC", "cc")] + CFLAGS + ["-I", outdir, "-o", exe] + srcs + [
+        os.path.join(outdir, "stc_symtab.c"), os.path.join(HERE, "stc_test_main.c")]
+    p = subprocess.run(cmd, capture_output=True, text=True)
+    assert p.returncode == 0, f"C compile failed:\n{' '.join(cmd)}\n{p.stderr}"
+    return exe
+
+
+def run(exe, scans, sets=()):
+    p = subprocess.run([exe, str(scans)] + [f"{k}={v}" for k, v in sets],
+                       capture_output=True, text=True, timeout=60)
+    assert p.returncode == 0, f"program failed ({p.returncode}): {p.stderr}"
+    values = {}
+    for line in p.stdout.splitlines():
+        k, _, v = line.partition("=")
+        values[k] = v
+    return values
+
+
+def lookup(values, path):
+    """Value by full path or by a unique suffix (e.g. 'MAIN0.X'), case-insensitive."""
+    path = path.upper()
+    if path in values:
+        return values[path]
+    hits = [k for k in values if k.endswith("." + path)]
+    assert len(hits) == 1, f"{path}: {'ambiguous' if hits else 'no such symbol'} ({hits[:5]})"
+    return values[hits[0]]
+
+
+_SCANS = re.compile(r"\(\*\s*SCANS\s+(\d+)\s*\*\)", re.I)
+_EXPECT = re.compile(r"\(\*\s*EXPECT\s+(\S+)\s*=\s*(.*?)\s*\*\)", re.I)
+_SET = re.compile(r"\(\*\s*SET\s+(\S+)\s*=\s*(\S+)\s*\*\)", re.I)
+_ERROR = re.compile(r"\(\*\s*ERROR\s+(\d+):(\d+):\s*(.*?)\s*\*\)", re.I)
+
+
+def expectations(text):
+    m = _SCANS.search(text)
+    scans = int(m.group(1)) if m else 1
+    return scans, _EXPECT.findall(text), _SET.findall(text)
+
+
+def expected_errors(text):
+    return [(int(a), int(b), msg) for a, b, msg in _ERROR.findall(text)]
+
+
+def find_iec2c():
+    exe = os.environ.get("IEC2C") or shutil.which("iec2c")
+    lib = os.environ.get("MATIEC_LIB")
+    if exe and not lib:
+        cand = os.path.join(os.path.dirname(os.path.realpath(exe)), "lib")
+        lib = cand if os.path.isdir(cand) else None
+    return exe, lib
