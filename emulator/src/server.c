@@ -107,7 +107,10 @@ typedef struct conn {
     uint8_t *out;
     size_t out_len, out_off, out_cap;
     uint32_t events;
+    struct conn *prev, *next;     /* open connections, freed at exit */
 } conn_t;
+
+static conn_t *g_conns;
 
 static volatile sig_atomic_t g_stop;
 static void on_signal(int sig) { (void)sig; g_stop = 1; }
@@ -134,6 +137,12 @@ static void trace_to_file(void *user, const char *line, size_t len)
 
 static void conn_close(conn_t *c)
 {
+    if (c->prev)
+        c->prev->next = c->next;
+    else
+        g_conns = c->next;
+    if (c->next)
+        c->next->prev = c->prev;
     epoll_ctl(g_epfd, EPOLL_CTL_DEL, c->fd, NULL);
     close(c->fd);
     free(c->out);
@@ -293,6 +302,10 @@ static void on_accept(conn_t *l)
             free(c);
             continue;
         }
+        c->next = g_conns;
+        if (g_conns)
+            g_conns->prev = c;
+        g_conns = c;
         g_clients++;
     }
 }
@@ -482,6 +495,13 @@ int main(int argc, char **argv)
         if (g_trace)
             fflush(g_trace);
     }
+    while (g_conns)
+        conn_close(g_conns);
+    for (int i = 0; i < nlisten; i++)
+        close(listeners[i].fd);
+    free(listeners);
+    free(ports);
+    close(g_epfd);
     if (g_trace && g_trace != stdout)
         fclose(g_trace);
     else if (g_trace)
