@@ -88,7 +88,10 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             size_t off = 0;
             for (;;) {
                 long fl = mipemu_frame_length(s->buf + off, s->len - off);
-                if (fl < 0) {            /* malformed: the connection closes */
+                if (fl < 0) {            /* malformed: the core traces it, the connection closes */
+                    uint8_t out[MIPEMU_RESPONSE_MAX];
+                    if (mipemu_handle(net, ep, s->buf + off, s->len - off, out, sizeof out) != -1)
+                        abort();
                     s->len = off = 0;
                     break;
                 }

@@ -93,7 +93,8 @@ long mipemu_frame_length(const uint8_t *buf, size_t len);
 
 /* One Modbus TCP request (a whole frame) to endpoint ep (MIPEMU_EP_MDP or a station 1..N).
  * Writes the response frame into out (out_cap >= MIPEMU_RESPONSE_MAX) and returns its length;
- * returns -1 when the connection must be closed (malformed frame, bad endpoint). */
+ * returns -1 when the connection must be closed (malformed frame, bad endpoint). A malformed
+ * frame is traced as a "modbus" line with "close"; pass what was received to get that line. */
 long mipemu_handle(mipemu_net *net, int ep, const uint8_t *req, size_t req_len,
                    uint8_t *out, size_t out_cap);
 

@@ -580,8 +580,13 @@ long mipemu_handle(mipemu_net *net, int ep, const uint8_t *req, size_t len, uint
 {
     if (!net || !req || !out || out_cap < MIPEMU_RESPONSE_MAX || ep < 0 || ep > net->cfg.stations)
         return -1;
-    if (len < 8 || mipemu_frame_length(req, len) != (long)len)
+    if (len < 8 || mipemu_frame_length(req, len) != (long)len) {
+        /* traced too, so a dropped connection shows in the sequence diagram */
+        unsigned u = len >= 7 ? req[6] : 0;
+        emit(net, net->now, "\"ev\":\"modbus\",\"ep\":\"%s\",\"st\":%u,\"close\":\"malformed frame\",\"len\":%zu",
+             ep == MIPEMU_EP_MDP ? "mdp" : "trm", ep == MIPEMU_EP_MDP ? u : (unsigned)ep, len);
         return -1;
+    }
     const mipemu_config *c = &net->cfg;
     unsigned unit = req[6];
     unsigned tid = get16(req);

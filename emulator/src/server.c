@@ -207,8 +207,13 @@ static int process_frames(conn_t *c)
     int advanced = 0;
     while (off < c->in_len) {
         long fl = mipemu_frame_length(c->in + off, c->in_len - off);
-        if (fl < 0)
+        if (fl < 0) {
+            /* let the core see (and trace) the bad frame; it answers "close" */
+            uint8_t resp[MIPEMU_RESPONSE_MAX];
+            advance_now();
+            mipemu_handle(g_net, c->ep, c->in + off, c->in_len - off, resp, sizeof resp);
             return -1;
+        }
         if (fl == 0 || (size_t)fl > c->in_len - off)
             break;
         if (!advanced) {

@@ -138,6 +138,10 @@ def test_answers_before_a_malformed_frame_still_go_out(emu):
     assert recv_frame(s) == (1, 1, bytes([3, 2, 0, 0]))
     assert closed_by_peer(s)
     s.close()
+    assert emu.stop() == 0
+    mb = [x for x in emu.trace() if x["ev"] == "modbus"]
+    assert mb[0]["tid"] == 1 and mb[0]["exc"] == 0
+    assert mb[1]["close"] == "malformed frame" and mb[1]["ep"] == "mdp" and mb[1]["len"] == 12
 
 
 def test_client_that_vanishes_mid_frame(emu):
