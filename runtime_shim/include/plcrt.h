@@ -90,6 +90,11 @@ typedef struct plcrt_rt_stats {
 int plcrt_run_realtime(plcrt_t *rt, uint64_t max_scans, volatile int *stop);
 void plcrt_rt_stats(const plcrt_t *rt, plcrt_rt_stats_t *out);
 
+/* Writes the cycle / change write ranges now, with the outputs of the last scan, so that
+ * the final state reaches the devices at the end of a run (plcrt_run_realtime does this
+ * itself when it returns). */
+int plcrt_flush_outputs(plcrt_t *rt);
+
 /* Forces: the bytes are written to addr after the I/O phase and after the program,
  * every scan, until unforced. size <= 16. */
 int plcrt_force(plcrt_t *rt, void *addr, const void *value, size_t size);

@@ -240,7 +240,23 @@ int plcrt_run_realtime(plcrt_t *rt, uint64_t max_scans, volatile int *stop)
     }
     rt->time_ns = ts_ns(&deadline) - t0;
     if (rt->master) plcrt_master_stop_thread(rt->master);
+    plcrt_flush_outputs(rt);
     plcrt_slave_stop_thread(rt);
+    return 0;
+}
+
+int plcrt_flush_outputs(plcrt_t *rt)
+{
+    if (!rt->master) return 0;
+    if (rt->master->thread_running) {
+        plcrt_seterr(rt, "plcrt_flush_outputs: the real-time run is still going");
+        return -1;
+    }
+    pthread_mutex_lock(&rt->image_lock);
+    plcrt_master_exchange_out(rt, rt->master);
+    pthread_mutex_unlock(&rt->image_lock);
+    plcrt_master_flush(rt, rt->master,
+                       rt->mode == PLCRT_REALTIME ? plcrt_monotonic_ns() : rt->time_ns);
     return 0;
 }
 

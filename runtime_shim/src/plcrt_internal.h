@@ -49,6 +49,8 @@ void plcrt_master_exchange_out(plcrt_t *rt, struct plcrt_master *m);
 void plcrt_master_exchange_in(plcrt_t *rt, struct plcrt_master *m);
 /* performs the requests that are due at time now_ns (virtual or monotonic) */
 void plcrt_master_step(plcrt_t *rt, struct plcrt_master *m, uint64_t now_ns);
+/* writes the cycle/change ranges now (end of a real-time run) */
+void plcrt_master_flush(plcrt_t *rt, struct plcrt_master *m, uint64_t now_ns);
 int plcrt_master_start_thread(plcrt_t *rt, struct plcrt_master *m);
 void plcrt_master_stop_thread(struct plcrt_master *m);
 int plcrt_master_is_empty(const struct plcrt_master *m);

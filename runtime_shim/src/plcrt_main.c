@@ -105,6 +105,7 @@ int main(int argc, char **argv)
         rc = 0;
         for (unsigned long long i = 0; i < scans && !stop_requested && rc == 0; i++)
             rc = plcrt_scan(rt, 1);
+        if (rc == 0) rc = plcrt_flush_outputs(rt);
         fprintf(stderr, "plcrt: virtual: %llu scans, virtual time %.3f s\n",
                 (unsigned long long)plcrt_scan_count(rt), plcrt_time_ns(rt) / 1e9);
     }

@@ -283,11 +283,12 @@ static int function_code(const plcrt_range_t *r)
     }
 }
 
-void plcrt_master_step(plcrt_t *rt, struct plcrt_master *m, uint64_t now)
+static void step(plcrt_t *rt, struct plcrt_master *m, uint64_t now, int writes_only)
 {
     static __thread request_t q; /* large: keep it off the stack */
     for (int i = 0; i < m->n_ranges; i++) {
         plcrt_range_t *r = &m->ranges[i];
+        if (writes_only && (!r->is_write || r->policy == POLICY_TRIGGER)) continue;
         plcrt_device_t *d = &m->devices[r->dev];
         pthread_mutex_lock(&m->lock);
         int go = 0;
@@ -346,6 +347,8 @@ void plcrt_master_step(plcrt_t *rt, struct plcrt_master *m, uint64_t now)
     }
 }
 
+void plcrt_master_step(plcrt_t *rt, struct plcrt_master *m, uint64_t now) { step(rt, m, now, 0); }
+
 /* ------------------------------------------------------------------ real-time thread */
 
 static void *master_thread(void *arg)
@@ -398,6 +401,16 @@ void plcrt_master_stop_thread(struct plcrt_master *m)
     pthread_mutex_unlock(&m->lock);
     pthread_join(m->thread, NULL);
     m->thread_running = 0;
+}
+
+void plcrt_master_flush(plcrt_t *rt, struct plcrt_master *m, uint64_t now)
+{
+    /* the outputs of the last scan reach the devices even if their period had not come */
+    pthread_mutex_lock(&m->lock);
+    for (int i = 0; i < m->n_ranges; i++)
+        if (m->ranges[i].is_write && m->ranges[i].policy != POLICY_TRIGGER) m->ranges[i].next_due = 0;
+    pthread_mutex_unlock(&m->lock);
+    step(rt, m, now, 1);
 }
 
 /* ------------------------------------------------------------------ public API */

@@ -1,0 +1,145 @@
+"""The Modbus master seen from an ST program (docs/dev/interfaces.md §4), driven by the
+harness in virtual time against a Modbus TCP server on 127.0.0.1."""
+import pytest
+
+from plcharness import Plc, PlcError
+from rt_helpers import COMPILERS, ModbusServer, compiler_param
+
+HANDSHAKE = """
+PROGRAM MAIN
+VAR
+  xTrig AT %QX10.0 : BOOL;
+  xDone AT %IX10.0 : BOOL;
+  xErr AT %IX10.1 : BOOL;
+  wStatus AT %IW60 : WORD;
+  wErrors AT %IW61 : WORD;
+  wLen AT %QW250 : WORD;
+  wOut0 AT %QW200 : WORD;
+  wOut1 AT %QW201 : WORD;
+  wOut2 AT %QW202 : WORD;
+  wIn0 AT %IW300 : WORD;
+END_VAR
+VAR
+  xStart : BOOL;
+  nDone : UINT;
+  nErr : UINT;
+  wLastStatus : WORD;
+END_VAR
+IF xStart AND NOT xTrig THEN
+  xTrig := TRUE;
+  xStart := FALSE;
+ELSIF xTrig AND (xDone OR xErr) THEN
+  IF xDone THEN nDone := nDone + 1; ELSE nErr := nErr + 1; END_IF;
+  wLastStatus := wStatus;
+  xTrig := FALSE;
+END_IF;
+END_PROGRAM
+CONFIGURATION Config0
+RESOURCE Res0 ON PLC
+TASK task0(INTERVAL := T#10ms, PRIORITY := 0);
+PROGRAM instance0 WITH task0 : MAIN;
+END_RESOURCE
+END_CONFIGURATION
+"""
+
+CONFIG = """
+[master]
+polling_period = 100ms
+timeout = 1s
+
+[device modem]
+host = 127.0.0.1
+port = {port}
+unit_id = 1
+errors = %IW61
+
+[write block]
+device = modem
+start = 10
+size = 3
+image = %QW200
+policy = trigger
+trigger = %QX10.0
+done = %IX10.0
+error = %IX10.1
+status = %IW60
+length = %QW250
+
+[read status]
+device = modem
+table = input
+start = 5
+size = 1
+image = %IW300
+policy = cycle
+"""
+
+
+@pytest.fixture
+def server():
+    srv = ModbusServer()
+    yield srv
+    srv.close()
+
+
+@pytest.mark.parametrize("compiler", COMPILERS)
+def test_st_handshake_writes_one_request_per_trigger(compiler, server, st_file, tmp_path):
+    cfg = tmp_path / "plc.conf"
+    cfg.write_text(CONFIG.format(port=server.port))
+    plc = Plc.build([st_file(HANDSHAKE)], workdir=tmp_path, compiler=compiler, config=cfg)
+    plc["MAIN.wOut0"] = 11
+    plc["MAIN.wOut1"] = 22
+    plc["MAIN.wOut2"] = 33
+    plc["MAIN.wLen"] = 2
+    plc.scan(20)
+    assert server.count(16) == 0          # no trigger, no write
+    plc["MAIN.xStart"] = True
+    plc.scan(5)
+    assert plc["MAIN.nDone"] == 1
+    assert plc["MAIN.nErr"] == 0
+    assert server.count(16) == 1
+    assert server.log[[e[0] for e in server.log].index(16)] == (16, 10, 2)  # length word
+    assert server.holding[10:13] == [11, 22, 0]
+    # again, all three registers
+    plc["MAIN.wLen"] = 3
+    plc["MAIN.xStart"] = True
+    plc.scan(5)
+    assert plc["MAIN.nDone"] == 2
+    assert server.holding[10:13] == [11, 22, 33]
+
+
+@pytest.mark.parametrize("compiler", COMPILERS)
+def test_st_handshake_reports_errors_and_status(compiler, server, st_file, tmp_path):
+    cfg = tmp_path / "plc.conf"
+    cfg.write_text(CONFIG.format(port=server.port).replace("start = 10", "start = 999"))
+    plc = Plc.build([st_file(HANDSHAKE)], workdir=tmp_path, compiler=compiler, config=cfg)
+    plc["MAIN.wLen"] = 3
+    plc["MAIN.xStart"] = True
+    plc.scan(5)
+    assert plc["MAIN.nErr"] == 1
+    assert plc["MAIN.wLastStatus"] == 2      # exception: illegal data address
+    assert plc["MAIN.wErrors"] == 1          # the device's error counter
+    assert plc.device_stats()["modem"]["errors"] == 1
+
+
+@pytest.mark.parametrize("compiler", COMPILERS)
+def test_cycle_reads_run_in_virtual_time(compiler, server, st_file, tmp_path):
+    server.input[5] = 4711
+    cfg = tmp_path / "plc.conf"
+    cfg.write_text(CONFIG.format(port=server.port))
+    plc = Plc.build([st_file(HANDSHAKE)], workdir=tmp_path, compiler=compiler, config=cfg)
+    plc.scan()
+    assert plc["MAIN.wIn0"] == 4711
+    plc.scan(49)  # 500 ms of virtual time with a 100 ms polling period
+    assert server.count(4) == 5
+
+
+@pytest.mark.parametrize("compiler", [compiler_param("stc")])
+def test_bad_config_is_one_line_naming_file_and_line(compiler, st_file, tmp_path):
+    cfg = tmp_path / "bad.conf"
+    cfg.write_text("[device modem]\nhost = 127.0.0.1\nspeed = 9600\n")
+    with pytest.raises(PlcError) as ei:
+        Plc.build([st_file(HANDSHAKE)], workdir=tmp_path, compiler=compiler, config=cfg)
+    msg = str(ei.value)
+    assert msg.startswith(f"{cfg}:3: error: unknown key 'speed'")
+    assert "\n" not in msg
