@@ -12,9 +12,10 @@ BUILD_TARGETS += $(EMU_BUILD)/mip-emulator $(EMU_BUILD)/libmipemu.a
 C_TESTS       += emulator-unit emulator-fuzz
 PYTEST_DEPS   += $(EMU_BUILD)/mip-emulator
 
+# -fPIC: the co-simulation may link the core into a shared object
 $(EMU_BUILD)/mipemu.o: $(EMU_CORE_SRC) $(EMU_HDR)
 	@mkdir -p $(@D)
-	$(CC) $(EMU_CFLAGS) -c -o $@ $<
+	$(CC) $(EMU_CFLAGS) -fPIC -c -o $@ $<
 
 $(EMU_BUILD)/libmipemu.a: $(EMU_BUILD)/mipemu.o
 	rm -f $@ && ar rcs $@ $^

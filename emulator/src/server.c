@@ -107,6 +107,7 @@ typedef struct conn {
     uint8_t *out;
     size_t out_len, out_off, out_cap;
     uint32_t events;
+    int eof;                      /* the client shut down its side: drain the answers, close */
     struct conn *prev, *next;     /* open connections, freed at exit */
 } conn_t;
 
@@ -240,7 +241,13 @@ static void on_readable(conn_t *c)
             break; /* the client does not read: wait until it does */
         ssize_t n = recv(c->fd, c->in + c->in_len, sizeof c->in - c->in_len, 0);
         if (n == 0) {
-            conn_close(c);
+            /* the client finished sending: answers to what it sent still go out, then close */
+            if (flush_out(c) < 0 || c->out_len == c->out_off) {
+                conn_close(c);
+                return;
+            }
+            c->eof = 1;
+            set_events(c, EPOLLOUT);
             return;
         }
         if (n < 0) {
@@ -269,10 +276,12 @@ static void on_readable(conn_t *c)
 
 static void on_writable(conn_t *c)
 {
-    if (flush_out(c) < 0) {
+    if (flush_out(c) < 0 || (c->eof && c->out_len == c->out_off)) {
         conn_close(c);
         return;
     }
+    if (c->eof)
+        return;
     if (c->out_len - c->out_off <= OUT_HIGH_WATER) {
         set_events(c, EPOLLIN | (c->out_len > c->out_off ? EPOLLOUT : 0));
         on_readable(c); /* data may be waiting that we stopped reading */

@@ -144,6 +144,32 @@ def test_answers_before_a_malformed_frame_still_go_out(emu):
     assert mb[1]["close"] == "malformed frame" and mb[1]["ep"] == "mdp" and mb[1]["len"] == 12
 
 
+def test_half_closed_client_still_gets_its_answers(emu):
+    s = connect(emu.mdp_port)
+    s.sendall(b"".join(frame(i, 1, read_pdu(198, 100)) for i in range(20)))
+    s.shutdown(socket.SHUT_WR)
+    assert [recv_frame(s)[0] for _ in range(20)] == list(range(20))
+    assert closed_by_peer(s)
+    s.close()
+
+
+def test_client_that_never_reads_does_not_block_others(emu):
+    hog = connect(emu.mdp_port)
+    hog.setblocking(False)
+    req = frame(1, 1, read_pdu(198, 125)) * 1000   # 12 kB in, 257 kB of answers out
+    sent = 0
+    for _ in range(200):                           # as much as the kernel takes, never reading
+        try:
+            sent += hog.send(req)
+        except BlockingIOError:
+            break
+    assert sent > 0
+    for _ in range(3):
+        assert still_serves(emu)
+    hog.close()
+    assert still_serves(emu)
+
+
 def test_client_that_vanishes_mid_frame(emu):
     s = connect(emu.mdp_port)
     s.sendall(frame(1, 1, fc16_pdu(10, [1] * 50))[:30])
