@@ -91,6 +91,7 @@ typedef struct slot {
     int up_len;              /* registers in the uplink block of this slot, -1 none */
     uint32_t up_gen;
     int down_ok, up_ok;
+    uint8_t fs_down;         /* what the station measured on this poll; reported in its answer */
     uint16_t blk[AREA];      /* the block in flight (copied when the telegram starts) */
 } slot_t;
 
@@ -379,7 +380,7 @@ static void step(mipemu_net *net)
             return;
         }
         sl->down_ok = 1;
-        s->fs_down = measure(net, s->base_down_dbm);
+        sl->fs_down = measure(net, s->base_down_dbm);
         if (sl->down_len >= 0)
             deliver(&s->trm, sl->blk, sl->down_len, sl->down_gen, &s->st.blocks_down, &s->st.dup_down);
         /* the station answers with its pending block, if any */
@@ -409,13 +410,12 @@ static void step(mipemu_net *net)
         }
         sl->up_ok = 1;
         s->fails = 0;
-        if (!(s->status & MIPEMU_ST_ANSWERED) || (s->status & MIPEMU_ST_UNREACHABLE)) {
-            if (s->status & MIPEMU_ST_UNREACHABLE)
-                emit(net, sl->t_end, "\"ev\":\"station\",\"st\":%d,\"state\":\"reachable\"", sl->station + 1);
-        }
+        if (s->status & MIPEMU_ST_UNREACHABLE)
+            emit(net, sl->t_end, "\"ev\":\"station\",\"st\":%d,\"state\":\"reachable\"", sl->station + 1);
         s->status |= MIPEMU_ST_ANSWERED | MIPEMU_ST_EVER_ANSWERED;
         s->status &= (uint16_t)~MIPEMU_ST_UNREACHABLE;
         s->fs_up = measure(net, s->base_up_dbm);
+        s->fs_down = sl->fs_down;
         if (sl->down_len >= 0) {
             confirm(net, &s->mdp, sl->down_gen, &s->st.confirmed_down);
             s->status &= (uint16_t)~MIPEMU_ST_DOWN_RESEND;

@@ -386,6 +386,8 @@ static void sink_fn(void *user, const char *line, size_t len)
     s->buf[s->len] = 0; /* the tests search it as a string */
 }
 
+static int line_has(const char *p, const char *needle);
+
 static void t_loss_rates(void)
 {
     const double ps[] = { 0.0, 0.05, 0.2, 0.5 };
@@ -687,6 +689,42 @@ static void t_unreachable(void)
     CHECK_EQ(reg1(n, 0, 1, 1), MIPEMU_ST_UNREACHABLE);
     CHECK_EQ(reg1(n, 0, 2, 1), MIPEMU_ST_UNREACHABLE);
     CHECK_EQ(reg1(n, 0, 1, 0), 0);   /* never heard: no field strength */
+    mipemu_net_free(n);
+    /* polls arrive, answers never: the station's report of its level never reaches the MDP */
+    n = mk(1, MIPEMU_DYNAMIC, 0.0, 1.0, 5);
+    mipemu_net_advance(n, 10000000000ULL);
+    CHECK_EQ(reg1(n, 0, 1, 1), MIPEMU_ST_UNREACHABLE);
+    CHECK_EQ(reg1(n, 0, 1, 0), 0);
+    mipemu_net_free(n);
+    /* long outages: unreachable, then reachable again, each traced once per change */
+    mipemu_config c;
+    mipemu_config_default(&c);
+    c.loss_down = 0.5;
+    c.burst = 40;
+    c.seed = 11;
+    n = mipemu_net_new(&c, NULL, 0);
+    sink_t tr = { 0 };
+    mipemu_net_set_trace(n, sink_fn, &tr);
+    int saw_unreach = 0, saw_back = 0;
+    for (int i = 0; i < 3000; i++) {
+        mipemu_net_advance(n, mipemu_net_next_event(n));
+        uint16_t v = reg1(n, 0, 1, 1);
+        if (v & MIPEMU_ST_UNREACHABLE) {
+            saw_unreach = 1;
+            CHECK_EQ(v & MIPEMU_ST_ANSWERED, 0);
+        } else if (saw_unreach && (v & MIPEMU_ST_ANSWERED)) {
+            saw_back = 1;
+        }
+    }
+    CHECK(saw_unreach && saw_back);
+    int downs = 0, ups = 0;
+    for (char *p = tr.buf; (p = strstr(p, "\"ev\":\"station\"")) != NULL; p++) {
+        downs += line_has(p, "\"unreachable\"");
+        ups += line_has(p, "\"reachable\"") && !line_has(p, "\"unreachable\"");
+    }
+    CHECK(downs > 0);
+    CHECK(ups == downs || ups == downs - 1);   /* strictly alternating */
+    free(tr.buf);
     mipemu_net_free(n);
     n = mk(2, MIPEMU_DYNAMIC, 0.0, 0.0, 5);
     mipemu_net_advance(n, 10000000000ULL);
