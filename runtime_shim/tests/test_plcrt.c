@@ -16,6 +16,8 @@
 extern uint32_t fake_fast_count, fake_slow_count;
 extern uint64_t fake_time_seen[64];
 extern int16_t fake_counter;
+extern long fake_sleep_ns;
+extern unsigned long fake_last_tick;
 
 static char log_buf[8192];
 static void capture_log(void *user, const char *line)
@@ -281,6 +283,20 @@ TEST(realtime_runs_scans_with_the_program)
     CHECK_EQ(fake_fast_count, 5);
     CHECK(plcrt_time_ns(rt) >= 50000000ull); /* deadlines are absolute: 5 ticks passed */
     CHECK_EQ(plcrt_scan(rt, 1), -1);          /* no virtual scans after real time */
+    plcrt_free(rt);
+}
+
+TEST(realtime_counts_overruns_and_skips_missed_deadlines)
+{
+    plcrt_t *rt = new_rt();
+    fake_sleep_ns = 25000000; /* every scan takes >= 25 ms of a 10 ms tick */
+    CHECK_EQ(plcrt_run_realtime(rt, 3, NULL), 0);
+    plcrt_rt_stats_t st;
+    plcrt_rt_stats(rt, &st);
+    CHECK_EQ(st.scans, 3);
+    CHECK_EQ(st.overruns, 3);
+    CHECK(st.max_scan_ns >= 25000000ull);
+    CHECK(fake_last_tick >= 4); /* ticks of the skipped deadlines are not run */
     plcrt_free(rt);
 }
 

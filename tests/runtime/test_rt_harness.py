@@ -169,3 +169,12 @@ def test_translation_error_is_reported(compiler, st_file, tmp_path):
     with pytest.raises(BuildError) as ei:
         Plc.build([src], workdir=tmp_path, compiler=compiler)
     assert f"{src}:3:" in str(ei.value)
+
+
+@pytest.mark.parametrize("compiler", COMPILERS)
+def test_program_without_a_task_is_a_clear_error(compiler, st_file, tmp_path):
+    src = st_file("PROGRAM MAIN\nVAR x : INT; END_VAR\nx := x + 1;\nEND_PROGRAM\n")
+    with pytest.raises((BuildError, PlcError)) as ei:
+        Plc.build([src], workdir=tmp_path, compiler=compiler)
+    msg = str(ei.value)
+    assert "ABI" in msg or "no task" in msg, msg

@@ -280,6 +280,26 @@ def _compile(cmd, what):
     _run(cmd, what)
 
 
+ABI_SYMBOLS = {"config_init__": "T", "config_run__": "T", "common_ticktime__": "D"}
+
+
+def _check_abi(objs, compiler):
+    """The program's objects must define the matiec ABI entry points (interfaces.md §1)."""
+    try:
+        proc = subprocess.run(["nm", "--defined-only", *map(str, objs)], capture_output=True,
+                              text=True)
+    except OSError:
+        return  # no nm: the linker will complain instead
+    if proc.returncode != 0:
+        return
+    defined = {line.split()[-1] for line in proc.stdout.splitlines() if len(line.split()) >= 3}
+    missing = [name for name in ABI_SYMBOLS if name not in defined]
+    if missing:
+        raise BuildError(f"{compiler}: the program does not match the ABI: "
+                         f"{', '.join(missing)} not defined (a CONFIGURATION with a RESOURCE, "
+                         "a TASK and a PROGRAM instance is needed)")
+
+
 def _hash_inputs(sources, compiler, extra):
     h = hashlib.sha256()
     h.update(BUILD_FORMAT.encode())
@@ -405,6 +425,7 @@ def _build_into(sources, out: Path, compiler: str, cflags):
         _compile([cc, "-std=gnu99", "-w", *base, *include, "-c", str(c), "-o", str(o)],
                  f"compiling {c.name}")
         objs.append(o)
+    _check_abi(objs, compiler)
     o = out / "plcrt_symbols.o"
     _compile([cc, "-std=gnu99", "-w", *base, *include, "-c", str(out / "plcrt_symbols.c"),
               "-o", str(o)], "compiling the symbol table (c_ref of SYMBOLS.tsv)")

@@ -2,6 +2,7 @@
  * C unit tests: two tasks (every tick and every 5th tick), located I/O, a time log. */
 #include <stddef.h>
 #include <stdint.h>
+#include <time.h>
 
 extern uint16_t *__IW100, *__QW100;
 extern uint8_t *__IX0_0, *__QX0_1;
@@ -13,11 +14,14 @@ unsigned long long common_ticktime__ = 10000000ULL; /* 10 ms */
 uint32_t fake_fast_count, fake_slow_count;
 uint64_t fake_time_seen[64]; /* __CURRENT_TIME in ns as seen by the first 64 runs */
 int16_t fake_counter;        /* a symbol for the accessor table */
+long fake_sleep_ns;          /* > 0: every run takes at least this long (overrun tests) */
+unsigned long fake_last_tick;
 
 void config_init__(void)
 {
     fake_fast_count = fake_slow_count = 0;
     fake_counter = 0;
+    fake_sleep_ns = 0;
     *__QW100 = 0;
 }
 
@@ -29,6 +33,12 @@ void config_run__(unsigned long tick)
     fake_fast_count++;
     if (tick % 5 == 0) fake_slow_count++;
     fake_counter++;
+    fake_last_tick = tick;
+    if (fake_sleep_ns > 0) {
+        struct timespec ts = {fake_sleep_ns / 1000000000L, fake_sleep_ns % 1000000000L};
+        while (nanosleep(&ts, &ts) != 0) {
+        }
+    }
     *__QW100 = (uint16_t)(*__IW100 + 1);
     *__QX0_1 = *__IX0_0;
     *__MD5 = fake_fast_count;
