@@ -435,3 +435,43 @@ class Uni:
         self.plc_c = self.bench.restart(self.plc_c, [self.rcv], ALL, self.workdir)
         self.sink.current = []
         self.configure_receiver()
+
+
+class Bi:
+    """Bidirectional (note 2.2): MIP_Link `lo` on the outstation PLC, `lc` on the central PLC."""
+
+    def __init__(self, workdir, data_o=(), data_c=(), polled=False, static_n=0, timeout_ms=300,
+                 read_every=2, read_mode="trigger", fate=None, chunk=123, poll_scans=5):
+        self.workdir = workdir
+        self.plc_o = build(ALL, workdir)
+        self.plc_c = build(ALL, workdir)
+        self.lo, self.lc = Fb(self.plc_o, "lo"), Fb(self.plc_c, "lc")
+        self.mo, self.mc = Modem(static_n), Modem(static_n)
+        self.radio = Radio(self.mo, self.mc, fate)
+        self.src_o, self.src_c = ChunkSource(self.lo, data_o), ChunkSource(self.lc, data_c)
+        self.sink_o, self.sink_c = RecordSink(self.lo), RecordSink(self.lc)
+        self.port_o = Port(self.lo, self.mo, read_every, read_mode)
+        self.port_c = Port(self.lc, self.mc, read_every, read_mode)
+        self.bench = Bench([self.plc_o, self.plc_c],
+                           [self.src_o, self.src_c, self.port_o, self.port_c,
+                            self.sink_o, self.sink_c], self.radio, poll_scans,
+                           [(self.lo, PLCOPEN_LINK_S), (self.lo, PLCOPEN_LINK_R),
+                            (self.lc, PLCOPEN_LINK_S), (self.lc, PLCOPEN_LINK_R)])
+        for fb, central in ((self.lo, False), (self.lc, True)):
+            fb["xCentral"] = central
+            fb["xPolled"], fb["xStatic"] = polled, bool(static_n)
+            fb["tTimeout"] = timeout_ms * MS
+            fb["uChunkSize"] = chunk
+            fb["xEnable"] = True
+
+    def send_both(self, limit=8000):
+        for fb in (self.lo, self.lc):
+            fb["xExecute"] = True
+        ok = self.bench.run_until(lambda: all(fb["xSendDone"] or fb["xSendError"]
+                                              for fb in (self.lo, self.lc)), limit)
+        assert ok, "transfers neither done nor failed"
+        res = ["done" if fb["xSendDone"] else "error" for fb in (self.lo, self.lc)]
+        for fb in (self.lo, self.lc):
+            fb["xExecute"] = False
+        self.bench.step(2)
+        return res
