@@ -22,7 +22,7 @@ BUILD_TARGETS += $(RT_BUILD)/libplcrt.a
 # linked with the core and the per-program glue; a libmodbus test server on 127.0.0.1.
 RT_TEST_DIR := runtime_shim/tests
 $(RT_BUILD)/test_plcrt: $(RT_TEST_DIR)/test_plcrt.c $(RT_TEST_DIR)/fakeprog/fakeprog.c \
-		$(RT_TEST_DIR)/fakeprog/LOCATED_VARIABLES.h $(RT_TEST_DIR)/minitest.h \
+		$(RT_TEST_DIR)/fakeprog/LOCATED_VARIABLES.h $(RT_TEST_DIR)/minitest.h $(RT_TEST_DIR)/testserver.h \
 		$(RT_SRC)/plcrt_glue.c $(RT_BUILD)/libplcrt.a $(RT_HEADERS)
 	$(CC) $(RT_CFLAGS) -Wno-missing-field-initializers -I$(RT_TEST_DIR)/fakeprog -I$(RT_TEST_DIR) -o $@ \
 		$(RT_TEST_DIR)/test_plcrt.c $(RT_TEST_DIR)/fakeprog/fakeprog.c $(RT_SRC)/plcrt_glue.c \
@@ -35,3 +35,15 @@ runtime-c-tests: $(RT_BUILD)/test_plcrt
 	$(RT_BUILD)/test_plcrt --junit $(RESULTS)/runtime_shim.xml
 
 PYTEST_DEPS += $(RT_BUILD)/libplcrt.a
+
+# Benchmark figures (printed): `make bench`, BENCH_QUICK=1 for a short run.
+$(RT_BUILD)/bench_plcrt: $(RT_TEST_DIR)/bench_plcrt.c $(RT_TEST_DIR)/fakeprog/fakeprog.c \
+		$(RT_TEST_DIR)/testserver.h $(RT_SRC)/plcrt_glue.c $(RT_BUILD)/libplcrt.a $(RT_HEADERS)
+	$(CC) $(RT_CFLAGS) -I$(RT_TEST_DIR)/fakeprog -I$(RT_TEST_DIR) -o $@ \
+		$(RT_TEST_DIR)/bench_plcrt.c $(RT_TEST_DIR)/fakeprog/fakeprog.c $(RT_SRC)/plcrt_glue.c \
+		$(RT_BUILD)/libplcrt.a $(RT_LIBS)
+
+.PHONY: runtime-bench
+bench: runtime-bench
+runtime-bench: $(RT_BUILD)/bench_plcrt
+	$(RT_BUILD)/bench_plcrt
