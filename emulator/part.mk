@@ -8,9 +8,9 @@ EMU_HDR    := $(EMU_DIR)/include/mipemu.h
 FUZZ_CC    ?= clang
 EMU_FUZZ_RUNS ?= 20000
 
-BUILD_TARGETS += $(EMU_BUILD)/mip-emulator $(EMU_BUILD)/libmipemu.a
+BUILD_TARGETS += $(EMU_BUILD)/mip-emulator $(EMU_BUILD)/mipemu-sim $(EMU_BUILD)/libmipemu.a
 C_TESTS       += emulator-unit emulator-fuzz
-PYTEST_DEPS   += $(EMU_BUILD)/mip-emulator
+PYTEST_DEPS   += $(EMU_BUILD)/mip-emulator $(EMU_BUILD)/mipemu-sim
 
 # -fPIC: the co-simulation may link the core into a shared object
 $(EMU_BUILD)/mipemu.o: $(EMU_CORE_SRC) $(EMU_HDR)
@@ -21,6 +21,9 @@ $(EMU_BUILD)/libmipemu.a: $(EMU_BUILD)/mipemu.o
 	rm -f $@ && ar rcs $@ $^
 
 $(EMU_BUILD)/mip-emulator: $(EMU_DIR)/src/server.c $(EMU_BUILD)/libmipemu.a $(EMU_HDR)
+	$(CC) $(EMU_CFLAGS) -o $@ $< $(EMU_BUILD)/libmipemu.a
+
+$(EMU_BUILD)/mipemu-sim: $(EMU_DIR)/src/sim.c $(EMU_BUILD)/libmipemu.a $(EMU_HDR)
 	$(CC) $(EMU_CFLAGS) -o $@ $< $(EMU_BUILD)/libmipemu.a
 
 $(EMU_BUILD)/test_mipemu: $(EMU_DIR)/tests/test_mipemu.c $(EMU_BUILD)/libmipemu.a $(EMU_HDR)
