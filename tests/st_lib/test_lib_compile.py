@@ -1,0 +1,144 @@
+"""st_lib compiles with stc, and with matiec's iec2c (plain flags and OpenPLC's flags) where
+iec2c is installed; every block carries the documentation header the docs generator reads."""
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from stlib_sim import LIB, LIB_FILES, LIB_PATHS
+
+ALL_BLOCKS = ["MIP_Status", "MIP_Sender", "MIP_Receiver", "MIP_Link", "MIP_BufferSender"]
+USE_ALL = """
+PROGRAM CompileCheck
+VAR
+  st : MIP_Status;
+  snd : MIP_Sender;
+  rcv : MIP_Receiver;
+  link : MIP_Link;
+  bsnd : MIP_BufferSender;
+  buf : MIP_T_Buffer;
+END_VAR
+st();
+snd();
+rcv();
+link();
+bsnd(aBuffer := buf);
+END_PROGRAM
+
+CONFIGURATION Config0
+  RESOURCE Res0 ON PLC
+    TASK tMain(INTERVAL := T#10ms, PRIORITY := 0);
+    PROGRAM inst0 WITH tMain : CompileCheck;
+  END_RESOURCE
+END_CONFIGURATION
+"""
+OPENPLC_FLAGS = ["-f", "-l", "-p", "-r", "-R", "-a"]
+
+
+def _iec2c():
+    exe = os.environ.get("IEC2C") or shutil.which("iec2c")
+    if not exe:
+        return None, None
+    lib = os.environ.get("MATIEC_LIB") or str(Path(exe).resolve().parent / "lib")
+    return exe, lib
+
+
+def _combined(tmp_path):
+    text = "".join(Path(p).read_text() + "\n" for p in LIB_PATHS) + USE_ALL
+    f = tmp_path / "st_lib_all.st"
+    f.write_text(text)
+    return f
+
+
+@pytest.mark.parametrize("flags", [[], OPENPLC_FLAGS], ids=["plain", "openplc-flags"])
+def test_matiec_compiles_st_lib(tmp_path, flags):
+    exe, lib = _iec2c()
+    if not exe:
+        pytest.skip("iec2c not found on PATH or in $IEC2C: matiec check not run "
+                    "(set PATH and MATIEC_LIB to run it)")
+    src = _combined(tmp_path)
+    out = tmp_path / "gen"
+    out.mkdir()
+    proc = subprocess.run([exe, *flags, "-I", lib, "-T", str(out), str(src)],
+                          capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert (out / "POUS.c").is_file()
+    cc = shutil.which("cc") or shutil.which("gcc")
+    if cc and Path(lib, "C").is_dir():
+        for c in ("Config0.c", "Res0.c"):
+            p = subprocess.run([cc, "-std=gnu99", "-w", "-c", "-I", str(Path(lib, "C")), str(out / c),
+                                "-o", str(tmp_path / (c + ".o"))], capture_output=True, text=True)
+            assert p.returncode == 0, f"{c}: {p.stderr}"
+
+
+def test_stc_compiles_st_lib(tmp_path):
+    src = _combined(tmp_path)
+    stc = Path(sys.executable).parent / "stc"
+    cmd = [str(stc)] if stc.is_file() else [sys.executable, "-m", "stc.cli"]
+    proc = subprocess.run(cmd + ["-o", str(tmp_path / "gen"), str(src)], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "warning" not in (proc.stdout + proc.stderr).lower(), proc.stdout + proc.stderr
+
+
+def test_library_through_stc_include_dir(tmp_path):
+    """`stc -I st_lib prog.st`: the library as an include directory (any file order)."""
+    prog = tmp_path / "prog.st"
+    prog.write_text(USE_ALL)
+    stc = Path(sys.executable).parent / "stc"
+    cmd = [str(stc)] if stc.is_file() else [sys.executable, "-m", "stc.cli"]
+    proc = subprocess.run(cmd + ["-o", str(tmp_path / "gen"), "-I", str(LIB), str(prog)],
+                          capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+
+
+# ---------------------------------------------------------------- dialect and layout rules
+
+def _code(text):
+    """The text without (* comments *)."""
+    return re.sub(r"\(\*.*?\*\)", " ", text, flags=re.S)
+
+
+@pytest.mark.parametrize("name", LIB_FILES)
+def test_dialect_rules(name):
+    text = (LIB / name).read_text()
+    code = _code(text)
+    assert "//" not in code and "/*" not in code, "comments must be (* *)"
+    assert not re.search(r"\b[A-Za-z_]\w*\.\d+\b", code), "no bit access w.0: use masks"
+    for m in re.finditer(r"\bTYPE\b(.*?)\bEND_TYPE\b", code, flags=re.S):
+        for tname in re.findall(r"^\s*(\w+)\s*:", m.group(1), flags=re.M):
+            assert tname.startswith(("MIP_T_", "E_MIP_")), f"type {tname} needs the MIP prefix (-p)"
+    assert not re.search(r"\(\s*\w+\s*:=\s*\d+", code), "no enum values with explicit numbers"
+    pous = re.findall(r"^\s*(FUNCTION_BLOCK|FUNCTION|PROGRAM)\s+(\w+)", code, flags=re.M)
+    assert len(pous) <= 1, f"one POU per file: {pous}"
+    if pous:
+        assert pous[0][1] + ".st" == name
+
+
+def _declared(code, sections=("VAR_INPUT", "VAR_OUTPUT", "VAR_IN_OUT")):
+    names = []
+    for sec in sections:
+        for m in re.finditer(rf"\b{sec}\b(.*?)\bEND_VAR\b", code, flags=re.S):
+            names += re.findall(r"^\s*(\w+)\s*:", m.group(1), flags=re.M)
+    return names
+
+
+@pytest.mark.parametrize("block", ALL_BLOCKS)
+def test_block_doc_header(block):
+    """The header the docs generator reads: `(*@ block NAME`, then @purpose, @interface (a
+    | table | with every input and output), @behaviour and @example sections."""
+    text = (LIB / f"{block}.st").read_text()
+    m = re.match(r"\(\*@ block (\w+)\n(.*?)\*\)", text, flags=re.S)
+    assert m and m.group(1) == block, "file must start with (*@ block NAME"
+    header = m.group(2)
+    sections = re.findall(r"^@(\w+)", header, flags=re.M)
+    assert sections == ["purpose", "interface", "behaviour", "example"]
+    table = header.split("@interface", 1)[1].split("@behaviour", 1)[0]
+    documented = set()
+    for row in re.findall(r"^\s*\|([^|]*)\|", table, flags=re.M):
+        documented |= {n.strip() for n in row.split(",")}
+    missing = [n for n in _declared(_code(text)) if n not in documented]
+    assert not missing, f"not in the interface table of {block}: {missing}"
