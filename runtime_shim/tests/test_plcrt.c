@@ -498,6 +498,45 @@ TEST(reconnects_after_the_server_comes_back)
     plcrt_free(rt);
 }
 
+TEST(timeout_is_reported_and_the_connection_renewed)
+{
+    server_t *s = server_new(1);
+    s->mute = 1;
+    plcrt_t *rt = new_rt();
+    char cfg[1024];
+    snprintf(cfg, sizeof cfg,
+             "[master]\nreconnect_min = 10ms\n[device dev]\nhost = 127.0.0.1\nport = %d\ntimeout = 100ms\n"
+             "[read r]\ndevice = dev\nstart = 0\nsize = 1\nimage = %%IW500\npolicy = trigger\n"
+             "trigger = %%QX11.0\ndone = %%IX11.0\nerror = %%IX11.1\nstatus = %%IW61\n", s->port);
+    CHECK_EQ(plcrt_load_config_text(rt, "t.cfg", cfg), 0);
+    qx(rt)[88] = 1;
+    plcrt_scan(rt, 1);
+    CHECK_EQ(ix(rt)[89], 1);
+    CHECK_EQ(plcrt_image(rt)->iw[61], 1000 + ETIMEDOUT);
+    s->mute = 0;
+    s->map->tab_registers[0] = 8;
+    qx(rt)[88] = 0;
+    plcrt_scan(rt, 2); /* 20 ms: past the 10 ms reconnect wait */
+    qx(rt)[88] = 1;
+    plcrt_scan(rt, 1);
+    CHECK_EQ(ix(rt)[88], 1);
+    CHECK_EQ(plcrt_image(rt)->iw[500], 8);
+    uint64_t errors, requests, connects;
+    plcrt_device_stats(rt, 0, &errors, &requests, &connects);
+    CHECK_EQ(connects, 2); /* a late reply must not be taken for the next request */
+    plcrt_free(rt);
+    server_free(s);
+}
+
+TEST(slave_section_starts_the_slave)
+{
+    plcrt_t *rt = new_rt();
+    CHECK_EQ(plcrt_load_config_text(rt, "s.cfg", "[slave]\nport = 0\n"), 0);
+    CHECK(plcrt_slave_port(rt) > 0);
+    CHECK_STR_CONTAINS(log_buf, "Modbus slave listening on 127.0.0.1:");
+    plcrt_free(rt);
+}
+
 /* ------------------------------------------------------------------ transport seam */
 
 typedef struct seam { server_t *srv; int fd; int calls; } seam_t;

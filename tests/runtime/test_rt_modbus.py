@@ -143,3 +143,41 @@ def test_bad_config_is_one_line_naming_file_and_line(compiler, st_file, tmp_path
     msg = str(ei.value)
     assert msg.startswith(f"{cfg}:3: error: unknown key 'speed'")
     assert "\n" not in msg
+
+
+@pytest.mark.parametrize("compiler", [compiler_param("stc")])
+def test_socketpair_seam_answers_in_lockstep(compiler, st_file, tmp_path):
+    """A peer in the same thread answers each request in the after_send hook (co-simulation)."""
+    import socket
+    import struct
+
+    peer = ModbusServer()          # only its request handler is used, not its TCP listener
+    peer.input[5] = 99
+    ours, theirs = socket.socketpair()
+    calls = []
+
+    def answer():
+        head = theirs.recv(7)
+        tid, _pid, length, unit = struct.unpack(">HHHB", head)
+        reply = peer._handle(theirs.recv(length - 1))
+        theirs.sendall(struct.pack(">HHHB", tid, 0, len(reply) + 1, unit) + reply)
+        calls.append(plc.time_ns)
+
+    cfg = tmp_path / "plc.conf"
+    cfg.write_text(CONFIG.format(port=1))   # the port is never used
+    plc = Plc.build([st_file(HANDSHAKE)], workdir=tmp_path, compiler=compiler, config=cfg)
+    with pytest.raises(PlcError, match="no device 'nosuch'"):
+        plc.set_device_fd("nosuch", ours.fileno())
+    plc.set_device_fd("modem", ours.fileno(), answer)
+    plc["MAIN.wLen"] = 1
+    plc["MAIN.wOut0"] = 5
+    plc["MAIN.xStart"] = True
+    plc.scan(30)
+    assert plc["MAIN.nDone"] == 1
+    assert peer.holding[10] == 5
+    assert plc["MAIN.wIn0"] == 99
+    # 3 polls of the read range (0, 100, 200 ms) and one triggered write, at scan times
+    assert calls == [0, 10_000_000, 100_000_000, 200_000_000]
+    peer.close()
+    ours.close()
+    theirs.close()

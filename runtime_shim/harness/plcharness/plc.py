@@ -390,6 +390,19 @@ class Plc:
             out[name] = {"errors": e.value, "requests": r.value, "connects": c.value}
         return out
 
+    _AFTER_SEND = ctypes.CFUNCTYPE(None, ctypes.c_void_p)
+
+    def set_device_fd(self, device: str, fd: int, after_send=None):
+        """Transport seam (interfaces.md §2): the config's device talks over fd (one end of a
+        socketpair) instead of TCP; after_send() is called after each request is sent, before
+        the reply is read, so an in-process peer can answer in lockstep. Call before the
+        first scan; the fd stays the caller's."""
+        cb = self._AFTER_SEND(lambda _user: after_send()) if after_send else None
+        self._keep_alive = getattr(self, "_keep_alive", []) + [cb]  # ctypes must not free it
+        cb_ptr = ctypes.cast(cb, ctypes.c_void_p) if cb else None
+        if self._lib.plcrt_device_set_fd(self._rt, device.encode(), fd, cb_ptr, None) != 0:
+            raise PlcError(self._err())
+
     def close(self):
         if getattr(self, "_rt", None):
             self._lib.plcrt_free(self._rt)
