@@ -112,6 +112,7 @@ typedef struct conn {
 } conn_t;
 
 static conn_t *g_conns;
+static int g_spare_fd = -1;       /* kept in reserve to shed clients when descriptors run out */
 
 static volatile sig_atomic_t g_stop;
 static void on_signal(int sig) { (void)sig; g_stop = 1; }
@@ -295,8 +296,22 @@ static void on_accept(conn_t *l)
         if (fd < 0) {
             if (errno == EINTR || errno == ECONNABORTED)
                 continue;
-            if (errno == EMFILE || errno == ENFILE)
-                fprintf(stderr, PROG ": warning: accept: %s\n", strerror(errno));
+            if ((errno == EMFILE || errno == ENFILE) && g_spare_fd >= 0) {
+                /* out of descriptors: shed this client instead of spinning on a readable listener */
+                static int warned;
+                if (!warned) {
+                    warned = 1;
+                    fprintf(stderr, PROG ": warning: out of file descriptors, refusing clients\n");
+                }
+                close(g_spare_fd);
+                int fd2 = accept(l->fd, NULL, NULL);
+                if (fd2 >= 0)
+                    close(fd2);
+                g_spare_fd = open("/dev/null", O_RDONLY | O_CLOEXEC);
+                if (fd2 >= 0)
+                    continue;
+                /* EMFILE comes before "nothing queued": stop when the queue is empty */
+            }
             return;
         }
         int one = 1;
@@ -449,6 +464,7 @@ int main(int argc, char **argv)
     sigaction(SIGTERM, &sa, NULL);
     signal(SIGPIPE, SIG_IGN);
 
+    g_spare_fd = open("/dev/null", O_RDONLY | O_CLOEXEC);
     g_epfd = epoll_create1(EPOLL_CLOEXEC);
     if (g_epfd < 0)
         die_sys("epoll_create1");
@@ -516,6 +532,8 @@ int main(int argc, char **argv)
     free(listeners);
     free(ports);
     close(g_epfd);
+    if (g_spare_fd >= 0)
+        close(g_spare_fd);
     if (g_trace && g_trace != stdout)
         fclose(g_trace);
     else if (g_trace)

@@ -20,14 +20,15 @@ FAST = ["--bitrate", "1000000", "--slot-gap-ms", "1"]
 
 
 class Emulator:
-    def __init__(self, *args, trace=None):
+    def __init__(self, *args, trace=None, preexec_fn=None):
         if not BINARY.exists():
             raise RuntimeError(f"{BINARY} is missing: run `make` first")
         cmd = [str(BINARY), "--mdp-port", "0", "--trm-base-port", "0", *map(str, args)]
         if trace:
             cmd += ["--trace", str(trace)]
         self.trace_path = trace
-        self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                     preexec_fn=preexec_fn)
         line = self.proc.stdout.readline()
         m = re.match(r"mip-emulator: listening mdp=([\d.]+):(\d+) trm=([\d,]+)", line)
         if not m:

@@ -213,6 +213,30 @@ def test_descriptors_beyond_1024(emu):
     assert still_serves(emu)
 
 
+def test_out_of_descriptors_sheds_clients_and_recovers():
+    def low_limit():
+        resource.setrlimit(resource.RLIMIT_NOFILE, (40, 40))
+
+    e = Emulator(*FAST, preexec_fn=low_limit)
+    try:
+        socks = [connect(e.mdp_port) for _ in range(60)]   # more than the server can hold
+        answered = refused = 0
+        for i, s in enumerate(socks):
+            try:
+                s.sendall(frame(i, 1, read_pdu(2, 1)))
+                assert recv_frame(s) == (i, 1, bytes([3, 2, 0, 0]))
+                answered += 1
+            except (ConnectionError, OSError):
+                refused += 1
+        assert answered >= 20 and refused >= 10, (answered, refused)
+        for s in socks:
+            s.close()
+        assert wait_until(lambda: still_serves(e))
+        assert e.alive()
+    finally:
+        assert e.stop() == 0
+
+
 def test_trace_file_lines(tmp_path):
     e = Emulator("--stations", 2, *FAST, trace=tmp_path / "t.jsonl")
     c = ModbusTcpClient("127.0.0.1", port=e.trm_port(2), timeout=5, retries=0)
