@@ -132,6 +132,7 @@ static void apply_forces(plcrt_t *rt)
 }
 
 size_t plcrt_symbol_count(const plcrt_t *rt) { return rt->prog->n_symbols; }
+/* (symbol_addr is only called for i < n_symbols, which is 0 without a symbol table) */
 const char *plcrt_symbol_name(const plcrt_t *rt, size_t i)
 {
     return i < rt->prog->n_symbols ? rt->prog->symbol_names[i] : NULL;

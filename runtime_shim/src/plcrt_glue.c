@@ -70,10 +70,11 @@ static int bind_located(plcrt_image_t *img, char *err, size_t errlen)
     return 0;
 }
 
-/* From the generated plcrt_symbols.c */
-extern const char *const plcrt_gen_symbol_names[];
-extern const size_t plcrt_gen_n_symbols;
-extern void *plcrt_gen_symbol_addr(size_t i);
+/* From the generated plcrt_symbols.c; weak, so that a program linked by hand without a
+ * symbol table still runs (with no symbols). */
+extern const char *const plcrt_gen_symbol_names[] __attribute__((weak));
+extern const size_t plcrt_gen_n_symbols __attribute__((weak));
+extern void *plcrt_gen_symbol_addr(size_t i) __attribute__((weak));
 
 static const plcrt_program_t program = {
     .init = config_init__,
@@ -90,6 +91,6 @@ const plcrt_program_t *plcrt_linked_program(void)
 {
     static plcrt_program_t p;
     p = program;
-    p.n_symbols = plcrt_gen_n_symbols;
+    p.n_symbols = &plcrt_gen_n_symbols && plcrt_gen_symbol_addr ? plcrt_gen_n_symbols : 0;
     return &p;
 }

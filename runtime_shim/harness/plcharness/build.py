@@ -121,7 +121,8 @@ def _translate_matiec(sources, gen, workdir):
         text.append(body)
         line += body.count("\n")
     combined.write_text("".join(text))
-    proc = subprocess.run([iec2c, "-I", lib, "-T", str(gen), str(combined)],
+    flags = os.environ.get("MATIEC_FLAGS", "").split()  # e.g. OpenPLC's: -f -l -p -r -R -a
+    proc = subprocess.run([iec2c, *flags, "-I", lib, "-T", str(gen), str(combined)],
                           capture_output=True, text=True)
     if proc.returncode != 0:
         def remap(m):
@@ -321,7 +322,7 @@ def _compiler_fingerprint(compiler):
         if not iec2c:
             raise BuildError("matiec: iec2c not found on PATH (or env IEC2C)")
         st = os.stat(iec2c)
-        return f"{iec2c}:{st.st_size}:{st.st_mtime_ns}:{lib}"
+        return f"{iec2c}:{st.st_size}:{st.st_mtime_ns}:{lib}:{os.environ.get('MATIEC_FLAGS', '')}"
     # stc: its own sources decide what it produces
     h = hashlib.sha256()
     stc_dir = REPO_ROOT / "translator" / "stc"
