@@ -36,12 +36,15 @@ def symtab_c(outdir):
                 rows.append((path, typ, ref))
     out = ['#include "POUS.h"'] + decls
     out.append("struct stc_sym { const char *path; const char *type; void *addr; };")
-    out.append("const struct stc_sym stc_symtab[] = {")
-    for path, typ, ref in rows:
-        out.append(f'    {{"{path}", "{typ}", (void *)&({ref})}},')
-    out.append('    {0, 0, 0}')
-    out.append("};")
+    # filled at run time: located c_refs go through pointers the runtime sets
+    out.append(f"struct stc_sym stc_symtab[{len(rows) + 1}];")
     out.append(f"const int stc_symtab_len = {len(rows)};")
+    out.append("void stc_symtab_init(void)")
+    out.append("{")
+    for i, (path, typ, ref) in enumerate(rows):
+        out.append(f'    stc_symtab[{i}].path = "{path}"; stc_symtab[{i}].type = "{typ}"; '
+                   f'stc_symtab[{i}].addr = (void *)&({ref});')
+    out.append("}")
     return "\n".join(out) + "\n"
 
 

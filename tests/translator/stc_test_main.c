@@ -22,7 +22,8 @@ void config_init__(void);
 void config_run__(unsigned long tick);
 
 struct stc_sym { const char *path; const char *type; void *addr; };
-extern const struct stc_sym stc_symtab[];
+extern struct stc_sym stc_symtab[];
+void stc_symtab_init(void);
 extern const int stc_symtab_len;
 
 static long elem_count(const char *type, char *base, size_t base_len)
@@ -76,6 +77,7 @@ int main(int argc, char **argv)
     long scans = argc > 1 ? atol(argv[1]) : 1;
     long tick;
     int i, a;
+    stc_symtab_init();
     config_init__();
     for (a = 2; a < argc; a++) {
         char *eq = strchr(argv[a], '=');

@@ -331,14 +331,13 @@ class Gen:
         self.w(f"void {pou.name}_body__({pou.name} *data)")
         self.w("{")
         self.ind += 1
+        self.w("(void)data;")
         for v in pou.vars.values():
             if v.kind == "VAR_TEMP":
                 lv = self.acc[v.name]
                 self.w(f"memset(&{lv}, 0, sizeof {lv});")
                 self.init_storage(lv, v.type, v.init)
         self.stmts(pou.node.body)
-        if not pou.node.body:
-            self.w("(void)data;")
         self.ind -= 1
         self.w("}")
         self.w()
@@ -686,6 +685,12 @@ class Gen:
                 return self.conversion(e)
             if k == "binop":
                 return self.binop(e.binop)
+            if k == "trunc":
+                x = self.ex(e.argv[0])
+                lo, hi = t.range()
+                if t.kind == "sint":
+                    return f"(({t.ctype})stc_trunc_i64({x}, {lit(lo, T.LINT)}, {lit(hi, T.LINT)}))"
+                return f"(({t.ctype})stc_trunc_u64({x}, UINT64_C({hi})))"
             return self.std_call(e)
         raise AssertionError(f"cannot generate {e!r}")
 
@@ -721,7 +726,11 @@ class Gen:
                 return f"({a} {cop} {b})"
             return f"(({t.ctype})({a} {cop} {b}))"
         if t.kind == "time":
-            rt = e.right.ty
+            if getattr(e, "swap", False):
+                a, b = b, a
+                rt = e.left.ty
+            else:
+                rt = e.right.ty
             if op in ("+", "-"):
                 return f"((int64_t)((uint64_t){a} {op} (uint64_t){b}))"
             if rt.kind == "real":
@@ -872,6 +881,7 @@ class Gen:
             self.w(f"void {r.name}_run__(unsigned long tick)")
             self.w("{")
             self.ind += 1
+            self.w("(void)tick;")
             order = sorted(r.tasks, key=lambda tk: tk.priority)
             runs = False
             for task in order:
@@ -888,8 +898,6 @@ class Gen:
                 if i.task is None:
                     runs = True
                     self.w(f"{i.pou.name}_body__(&{r.name}__{i.name});  /* no task: every tick */")
-            if not runs or all(i.task is not None for i in r.instances):
-                self.w("(void)tick;")
             self.ind -= 1
             self.w("}")
             files[f"{r.name}.c"] = self.take()

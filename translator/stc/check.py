@@ -167,7 +167,7 @@ class Checker:
             self.err(pos, f"identifier '{name}' contains '__', which matiec rejects: use a single '_'")
         elif name.endswith("_"):
             self.err(pos, f"identifier '{name}' ends with '_', which matiec rejects")
-        elif name in T.RESERVED or _conversion(name):
+        elif name in T.RESERVED or name in _keywords() or _conversion(name):
             self.err(pos, f"'{name}' is a reserved or standard library name in matiec and cannot "
                      "be used as an identifier")
 
@@ -679,10 +679,14 @@ class Checker:
             self.for_(s)
         elif isinstance(s, S.While):
             self.cond(s.cond, "WHILE")
+            if not s.body:
+                self.err(s.pos, "empty WHILE body is not portable (matiec rejects it)")
             self.loop_depth += 1
             self.stmts(s.body)
             self.loop_depth -= 1
         elif isinstance(s, S.Repeat):
+            if not s.body:
+                self.err(s.pos, "empty REPEAT body is not portable (matiec rejects it)")
             self.loop_depth += 1
             self.stmts(s.body)
             self.loop_depth -= 1
@@ -812,6 +816,8 @@ class Checker:
             if e is not None:
                 t = self.expr(e, vt)
                 self.coerce(e, t, vt, "FOR bound")
+        if not s.body:
+            self.err(s.pos, "empty FOR body is not portable (matiec rejects it)")
         self.loop_depth += 1
         self.stmts(s.body)
         self.loop_depth -= 1
@@ -893,7 +899,7 @@ class Checker:
         e.ty = t
         if t.is_lit and expected is not None and not expected.is_lit:
             self.coerce(e, t, expected, None, soft=True)
-        return e.ty
+        return t
 
     def _expr(self, e, expected):
         if isinstance(e, S.IntLit):
@@ -1002,7 +1008,7 @@ class Checker:
                 return t
             self.fail(e.pos, f"invalid BOOL literal {e.text}")
         if t.kind == "real":
-            if e.kind not in ("int", "real"):
+            if e.kind != "real":
                 self.fail(e.pos, f"invalid {tn} literal {e.text}")
             return t
         if e.kind != "int":
@@ -1015,7 +1021,9 @@ class Checker:
         t = self.expr(e.operand, expected)
         if e.op == "NOT":
             if t.is_lit:
-                self.fail(e.pos, "NOT of an untyped literal: write a typed literal like WORD#16#FF")
+                if t.kind != "int":
+                    self.fail(e.pos, "NOT needs BOOL or a bit string type")
+                return t
             if not (t.is_elem and t.is_anybit):
                 self.fail(e.pos, f"NOT needs BOOL or a bit string type, not {t}")
             return t
@@ -1051,6 +1059,11 @@ class Checker:
                     self.settle(e.right, T.DINT if rt.kind == "int" else T.ELEMENTARY["LREAL"])
                 return T.TIME
             self.fail(e.pos, f"TIME {op} {rt}: the right operand must be a number")
+        if op == "*" and rt.is_elem and rt.kind == "time" and (lt.is_lit or lt.is_elem and lt.is_num):
+            if lt.is_lit:
+                self.settle(e.left, T.DINT if lt.kind == "int" else T.ELEMENTARY["LREAL"])
+            e.swap = True
+            return T.TIME
         if op in ("+", "-") and lt.is_elem and lt.kind == "time":
             if rt.is_elem and rt.kind == "time":
                 return T.TIME
@@ -1067,9 +1080,11 @@ class Checker:
             return T.LIT_REAL if "real" in (lt.kind, rt.kind) else T.LIT_INT
         if lt.is_lit:
             self.coerce(e.left, lt, rt, None, soft=True)
+            self.range_check(e.left, rt)
             lt = rt
         elif rt.is_lit:
             self.coerce(e.right, rt, lt, None, soft=True)
+            self.range_check(e.right, lt)
             rt = lt
         if not T.same_type(lt, rt):
             self.fail(e.pos, f"'{op}' between {lt} and {rt}: IEC strict typing needs the same "
@@ -1089,6 +1104,8 @@ class Checker:
         # arithmetic
         if not t.is_elem:
             self.fail(e.pos, f"'{op}' on {t}")
+        if op == "/" and t.is_int and self.const_value(e.right) == 0:
+            self.fail(e.right.pos, f"division by constant zero (matiec rejects it)")
         if op == "MOD":
             if not t.is_int:
                 self.fail(e.pos, f"MOD needs an integer type, not {t}")
@@ -1112,9 +1129,9 @@ class Checker:
             if to_t.is_lit:
                 return
             if from_t.kind == "int":
-                if to_t.is_elem and (to_t.is_int or to_t.kind in ("bit", "real", "bool")):
+                if to_t.is_elem and (to_t.is_int or to_t.kind in ("bit", "bool")):
                     v = self.const_value(e)
-                    if v is not None and to_t.kind != "real" and not _lit_fits(v, to_t):
+                    if v is not None and not soft and not _lit_fits(v, to_t):
                         self.fail(e.pos, f"value {v} is out of range of {to_t}")
                     self.settle(e, to_t)
                     return
@@ -1124,6 +1141,9 @@ class Checker:
                     return
             if soft:
                 return
+            if from_t.kind == "int" and to_t.is_elem and to_t.kind == "real":
+                self.fail(e.pos, f"{what}: an integer literal cannot be {to_t} (matiec rejects it): "
+                          "write a REAL literal like 1.0")
             self.fail(e.pos, f"{what}: {from_t} cannot be {to_t}")
         if soft:
             return
@@ -1131,6 +1151,12 @@ class Checker:
             return
         self.fail(e.pos, f"{what}: type {from_t} cannot be assigned to {to_t} without explicit "
                   f"conversion (IEC strict typing): use {_conv_hint(from_t, to_t)}")
+
+    def range_check(self, e, t):
+        if t.is_elem and (t.is_int or t.kind == "bit"):
+            v = self.const_value(e)
+            if v is not None and not _lit_fits(v, t):
+                self.fail(e.pos, f"value {v} is out of range of {t}")
 
     def settle(self, e, t):
         """Give untyped literal expression e the concrete type t (recursively)."""
@@ -1158,6 +1184,11 @@ class Checker:
             return -v if v is not None else None
         if isinstance(e, S.UnOp) and e.op == "+":
             return self.const_value(e.operand)
+        if isinstance(e, S.BinOp) and e.op in ("+", "-", "*"):
+            a, b = self.const_value(e.left), self.const_value(e.right)
+            if a is None or b is None:
+                return None
+            return a + b if e.op == "+" else a - b if e.op == "-" else a * b
         return None
 
     # ---- calls
@@ -1194,7 +1225,7 @@ class Checker:
             return self.conversion(c, conv)
         if name in T.STD_FUNCS:
             return self.std_func(c, expected)
-        if name.startswith("TO_") or name in ("TRUNC", "DINT_TRUNC"):
+        if name.startswith("TO_"):
             self.fail(c.pos, f"generic conversion {name} is not portable (matiec rejects it): "
                       "use a typed conversion like INT_TO_UINT")
         self.fail(c.pos, f"unknown function '{name}'")
@@ -1311,8 +1342,8 @@ class Checker:
             t = self.expr(args[0], expected)
             if t.is_lit:
                 self.fail(args[0].pos, f"{n} of an untyped literal: write a typed literal like WORD#16#FF")
-            if not (t.is_elem and t.kind == "bit"):
-                self.fail(args[0].pos, f"{n} needs BYTE, WORD, DWORD or LWORD, not {t}")
+            if not (t.is_elem and t.is_anybit):
+                self.fail(args[0].pos, f"{n} needs BOOL, BYTE, WORD, DWORD or LWORD, not {t}")
             nt = self.expr(args[1], None)
             if nt.is_lit:
                 self.settle(args[1], T.DINT)
@@ -1325,12 +1356,18 @@ class Checker:
             if not (t.is_elem and t.is_num):
                 self.fail(c.pos, f"ABS needs a numeric type, not {t}")
             return t
-        if n in ("SQRT",):
+        if n in ("SQRT", "EXPT"):
+            self.fail(c.pos, f"{n} is not supported by stc (it would need the C math library)")
+        if n == "TRUNC":
             need(1)
-            t = same(args, expected if expected is not None and expected.is_elem and expected.kind == "real" else T.ELEMENTARY["LREAL"])
+            t = self.expr(args[0], None)
             if not (t.is_elem and t.kind == "real"):
-                self.fail(c.pos, f"SQRT needs REAL or LREAL, not {t}")
-            return t
+                self.fail(args[0].pos, f"TRUNC needs REAL or LREAL, not {t}")
+            if expected is None or not (expected.is_elem and expected.is_int):
+                self.fail(c.pos, "TRUNC: the result type must come from the context (assign it to "
+                          "an integer variable) or use REAL_TO_DINT")
+            c.kind = "trunc"
+            return expected
         if n in ("MOVE",):
             need(1)
             return same(args, expected)
@@ -1385,6 +1422,17 @@ class Checker:
                 self.settle(args[1], t if et.kind == "real" else T.DINT)
             return t
         self.fail(c.pos, f"standard function {n} is not supported by stc")
+
+
+_KW = []
+
+
+def _keywords():
+    if not _KW:
+        from . import parser
+        parser._get_parser()
+        _KW.append(parser.KEYWORDS)
+    return _KW[0]
 
 
 def _is_variable(e):

@@ -95,6 +95,7 @@ STC_DIV_UNSIGNED(uint64_t, ULINT)
     static inline T stc_shr_##N(T v, int64_t n) { return (n < 0 || n >= W) ? 0 : (T)((uint64_t)v >> n); } \
     static inline T stc_rol_##N(T v, int64_t n) { n = ((n % W) + W) % W; return n == 0 ? v : (T)(((uint64_t)v << n) | ((uint64_t)v >> (W - n))); } \
     static inline T stc_ror_##N(T v, int64_t n) { n = ((n % W) + W) % W; return n == 0 ? v : (T)(((uint64_t)v >> n) | ((uint64_t)v << (W - n))); }
+STC_SHIFTS(uint8_t, BOOL, 1)
 STC_SHIFTS(uint8_t, BYTE, 8)
 STC_SHIFTS(uint16_t, WORD, 16)
 STC_SHIFTS(uint32_t, DWORD, 32)
@@ -121,6 +122,21 @@ static inline uint64_t stc_real_to_u64(double x, uint64_t hi)
     if (!(r == r) || r <= 0.0) return 0u;
     if (r >= (double)hi) return hi;
     return (uint64_t)r;
+}
+
+/* TRUNC: toward zero, saturating. */
+static inline int64_t stc_trunc_i64(double x, int64_t lo, int64_t hi)
+{
+    if (!(x == x)) return 0;
+    if (x <= (double)lo) return lo;
+    if (x >= (double)hi) return hi;
+    return (int64_t)x;
+}
+static inline uint64_t stc_trunc_u64(double x, uint64_t hi)
+{
+    if (!(x == x) || x <= 0.0) return 0u;
+    if (x >= (double)hi) return hi;
+    return (uint64_t)x;
 }
 
 /* ---- standard function blocks (IEC 61131-3 behaviour) ------------------------------- */

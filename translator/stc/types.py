@@ -184,8 +184,8 @@ STD_FUNCS = {"ABS", "MIN", "MAX", "LIMIT", "SEL", "MUX", "SHL", "SHR", "ROL", "R
 # names matiec refuses as identifiers (keywords it reserves and standard library names)
 RESERVED = {"EN", "ENO", "STEP", "END_STEP", "ACTION", "END_ACTION", "TRANSITION",
             "END_TRANSITION", "FROM", "INITIAL_STEP", "TIME", "DT", "DATE", "TOD", "DATE_AND_TIME",
-            "TIME_OF_DAY", "STRING", "WSTRING", "READ_ONLY", "READ_WRITE", "PRIORITY", "SINGLE",
-            "INTERVAL", "EXPT", "LEN", "LEFT", "RIGHT", "MID", "CONCAT", "INSERT", "DELETE",
+            "TIME_OF_DAY", "STRING", "WSTRING", "READ_ONLY", "READ_WRITE",
+            "EXPT", "LEN", "LEFT", "RIGHT", "MID", "CONCAT", "INSERT", "DELETE",
             "REPLACE", "FIND", "SQRT", "LN", "LOG", "EXP", "SIN", "COS", "TAN", "ASIN", "ACOS",
             "ATAN", "NE", "EQ", "GT", "GE", "LT", "LE", "NOT", "METHOD", "INTERFACE", "POINTER",
             "REF_TO", "REF", "NULL", "ANY", "ANY_NUM", "ANY_INT", "ANY_BIT", "ANY_REAL",
