@@ -335,7 +335,7 @@ def test_receiver_classifies_numbers(wd):
     u.bench.step(20)
     assert u.mc.write_area[0] == 2       # acknowledged again
     sr.feed(3, [33])
-    sr.feed(3, [99])                     # duplicate number: discarded
+    sr.feed(3, [33])                     # duplicate: discarded
     assert r["udiDuplicates"] == 1
     sr.feed(FFFF, [44])
     assert r["xDone"] and r["wAck"] == FFFF
@@ -427,3 +427,23 @@ def test_record_65535_after_65534(wd):
     assert u.bench.run_until(lambda: u.snd["xDone"], 3000)
     assert [n for n, _ in u.sink.records] == [1, 65534, FFFF]
     assert u.rcv["xDone"] and u.rcv["udiTransfers"] == 1
+
+
+def test_record_one_again_with_other_content_is_a_new_transfer(wd):
+    """A sender that restarts right after its first record sends record 1 again, with new
+    content, before the receiver's acknowledgement of the old one reached it: the receiver
+    tells it from a duplicate by content, reports the old transfer failed and delivers it."""
+    u = Uni(wd, [], timeout_ms=200)
+    r, sr = u.rcv, ScriptedReceiver(u)
+    u.bench.step(3)
+    sr.feed(1, [11, 12])
+    sr.feed(1, [11, 12])                 # true duplicate
+    assert r["udiDuplicates"] == 1 and r["udiFailedTransfers"] == 0
+    sr.feed(1, [21, 22])                 # same number, other content
+    assert r["udiFailedTransfers"] == 1 and r["eLastErrorId"] == E_SENDER_RESET
+    assert u.sink.records == [(1, [11, 12]), (1, [21, 22])]
+    sr.feed(2, [23])
+    sr.feed(2, [99])                     # number 2 again with other content: unexpected
+    assert r["udiUnexpected"] == 1 and r["wAck"] == 2
+    sr.feed(FFFF, [24])
+    assert u.sink.transfers == [[21, 22, 23, 24]]
