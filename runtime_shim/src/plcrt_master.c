@@ -48,6 +48,7 @@ void plcrt_master_exchange_out(plcrt_t *rt, struct plcrt_master *m)
         if (r->is_write) {
             for (int j = 0; j < r->size; j++)
                 r->out[j] = bits ? qx_bits(rt)[r->image + j] : rt->img.qw[r->image + j];
+            r->out_len = r->length >= 0 ? rt->img.qw[r->length] : r->size;
         }
         if (r->policy != POLICY_TRIGGER) continue;
         int level = qx_bits(rt)[r->trigger] != 0;
@@ -55,8 +56,7 @@ void plcrt_master_exchange_out(plcrt_t *rt, struct plcrt_master *m)
             /* rising edge: the request takes the data and length as they are now */
             r->pending = 1;
             r->result = RESULT_NONE;
-            r->req_len = r->size;
-            if (r->length >= 0) r->req_len = rt->img.qw[r->length];
+            r->req_len = r->is_write ? r->out_len : r->size;
             if (r->is_write) memcpy(r->req, r->out, sizeof r->req[0] * (size_t)r->size);
             wake = 1;
         }
@@ -145,8 +145,10 @@ static int device_connect(plcrt_t *rt, struct plcrt_master *m, plcrt_device_t *d
     if (d->connected) return 0;
     if (now < d->next_connect_ns) { *err = ENOTCONN; return -1; }
     if (modbus_connect(d->ctx) == 0) {
+        pthread_mutex_lock(&m->lock);
         d->connected = 1;
         d->n_connects++;
+        pthread_mutex_unlock(&m->lock);
         d->backoff_ns = 0;
         if (d->n_connects > 1 || d->failing)
             plcrt_log(rt, "device %s: connected to %s:%d", d->name, d->host, d->port);
@@ -242,7 +244,10 @@ static int range_request(plcrt_t *rt, struct plcrt_master *m, plcrt_range_t *r, 
     } else {
         status = do_request(d, q, &transport);
     }
+    pthread_mutex_lock(&m->lock); /* counters and state are read by the exchange */
     d->n_requests++;
+    if (status != 0) d->n_errors++;
+    pthread_mutex_unlock(&m->lock);
     if (status == 0) {
         if (d->failing)
             plcrt_log(rt, "device %s: requests succeed again (%llu errors so far)", d->name,
@@ -250,7 +255,6 @@ static int range_request(plcrt_t *rt, struct plcrt_master *m, plcrt_range_t *r, 
         d->failing = 0;
         return 0;
     }
-    d->n_errors++;
     char why[160];
     status_text(status, why, sizeof why);
     /* log transitions (and every 100th error), not every failed poll of a dead device */
@@ -263,7 +267,9 @@ static int range_request(plcrt_t *rt, struct plcrt_master *m, plcrt_range_t *r, 
     d->failing = 1;
     if (transport && d->connected && d->ext_fd < 0) {
         /* the TCP stream may hold a late answer: start over on a new connection */
+        pthread_mutex_lock(&m->lock);
         device_close(d);
+        pthread_mutex_unlock(&m->lock);
         d->backoff_ns = m->reconnect_min_ns;
         d->next_connect_ns = now + d->backoff_ns;
     } else if (transport && d->ext_fd >= 0) {
@@ -309,7 +315,7 @@ static void step(plcrt_t *rt, struct plcrt_master *m, uint64_t now, int writes_o
             go = 1;
             if (r->is_write) {
                 memcpy(q.data, r->out, sizeof q.data[0] * (size_t)r->size);
-                if (r->length >= 0) q.count = rt->img.qw[r->length];
+                q.count = r->out_len;
                 if (r->policy == POLICY_CHANGE && r->have_last &&
                     !memcmp(r->last, q.data, sizeof q.data[0] * (size_t)r->size))
                     go = 0;
@@ -320,7 +326,9 @@ static void step(plcrt_t *rt, struct plcrt_master *m, uint64_t now, int writes_o
         int status;
         if (q.count < 1 || q.count > r->size) {
             /* the length word asks for more than the range has */
+            pthread_mutex_lock(&m->lock);
             d->n_errors++;
+            pthread_mutex_unlock(&m->lock);
             plcrt_log(rt, "range %s: length word %%QW%d = %d is outside 1..%d", r->name, r->length,
                       q.count, r->size);
             status = STATUS_TRANSPORT(EINVAL);

@@ -33,6 +33,7 @@ typedef struct plcrt_range {
     int have_last;
     int fresh;           /* in[] holds new data */
     int req_len;
+    int out_len;         /* length word as of the last exchange (size without one) */
     uint64_t next_due;
     int trig_level;      /* trigger bit as of the last exchange */
     int pending;         /* a trigger edge waits for its request */

@@ -537,6 +537,26 @@ TEST(slave_section_starts_the_slave)
     plcrt_free(rt);
 }
 
+TEST(realtime_master_thread_moves_data_and_flushes_at_the_end)
+{
+    server_t *s = server_new(1);
+    s->map->tab_registers[0] = 41;
+    plcrt_t *rt = new_rt();
+    char cfg[1024];
+    snprintf(cfg, sizeof cfg,
+             "[master]\npolling_period = 10ms\n[device dev]\nhost = 127.0.0.1\nport = %d\n"
+             "[read r]\ndevice = dev\nstart = 0\nsize = 1\nimage = %%IW100\n"
+             "[write w]\ndevice = dev\nstart = 1\nsize = 1\nimage = %%QW100\npolicy = change\n", s->port);
+    CHECK_EQ(plcrt_load_config_text(rt, "rt.cfg", cfg), 0);
+    CHECK_EQ(plcrt_run_realtime(rt, 10, NULL), 0);
+    /* the program wrote %QW100 = %IW100 + 1 from what it last read; the final write
+     * went out when the run ended */
+    CHECK_EQ(s->map->tab_registers[1], (uint16_t)(plcrt_image(rt)->iw[100] + 1));
+    CHECK_EQ(plcrt_image(rt)->qw[100], s->map->tab_registers[1]);
+    plcrt_free(rt);
+    server_free(s);
+}
+
 /* ------------------------------------------------------------------ transport seam */
 
 typedef struct seam { server_t *srv; int fd; int calls; } seam_t;

@@ -408,6 +408,12 @@ class Plc:
             self._lib.plcrt_free(self._rt)
             self._rt = None
 
+    def __del__(self):
+        try:
+            self.close()
+        except Exception:  # interpreter shutdown: the library may be gone already
+            pass
+
     def __enter__(self):
         return self
 
