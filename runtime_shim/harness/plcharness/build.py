@@ -101,7 +101,15 @@ def _run(cmd, what, cwd=None):
 
 
 def _translate_stc(sources, gen):
-    _run(_stc_command() + ["-o", str(gen)] + [str(s) for s in sources], "stc")
+    cmd = _stc_command() + ["-o", str(gen)] + [str(s) for s in sources]
+    try:
+        proc = subprocess.run(cmd, capture_output=True, text=True)
+    except FileNotFoundError as e:
+        raise BuildError(f"stc: cannot run {cmd[0]}: {e.strerror}") from None
+    if proc.returncode != 0:
+        # stc's own diagnostics are FILE:LINE:COL: error: ... lines: pass them on as they are
+        msg = (proc.stderr.strip() + "\n" + proc.stdout.strip()).strip()
+        raise BuildError(msg or f"stc failed with exit status {proc.returncode}")
 
 
 def _translate_matiec(sources, gen, workdir):
@@ -131,7 +139,7 @@ def _translate_matiec(sources, gen, workdir):
             return f"{name}:{n - start + 1}:{m.group(2)}"
         out = (proc.stdout + proc.stderr)
         out = re.sub(re.escape(str(combined)) + r":(\d+)-(\d+)(?:\.\.\d+-\d+)?", remap, out)
-        raise BuildError("matiec failed:\n" + out.strip())
+        raise BuildError(out.strip() or f"iec2c failed with exit status {proc.returncode}")
     return lib
 
 
@@ -465,7 +473,7 @@ def main(argv=None):
     try:
         res = build_program(args.sources, args.outdir, args.compiler)
     except BuildError as e:
-        print(f"plcrt-build: {e}", file=sys.stderr)
+        print(e, file=sys.stderr)  # already FILE:LINE:COL: error: ... or says what failed
         return 1
     print(f"{res.executable}\n{res.library}")
     return 0
