@@ -66,9 +66,9 @@ class Peer:
                 counter = ack = data[0]
             else:
                 counter, ack = data[self._my_ack], data[self._my_counter]
-            if self.receiver is not None and counter != 0:
+            if self.receiver is not None and (counter != 0 or self.receiver.last_accepted != 0):
                 self.receiver.on_record(counter, data[self.header :])
-                record_arrived = True
+                record_arrived = counter != 0
             if self.sender is not None:
                 self.sender.on_ack(ack)
         block = self._block()

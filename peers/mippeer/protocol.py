@@ -96,7 +96,13 @@ class Receiver:
     def on_record(self, number, payload):
         """Take one received record; returns the acknowledgement to send back."""
         if number == 0:
-            return self.last_accepted
+            # Record 0 resets the receiver (the sender starts afresh, e.g. after it failed or
+            # restarted): an open transfer is reported aborted; a completed one is forgotten.
+            if self.last_accepted not in (0, LAST):
+                self.aborted.append(self.current)
+                self.current = []
+            self.last_accepted = 0
+            return 0
         if number == self.last_accepted:
             self.duplicates += 1
             return self.last_accepted

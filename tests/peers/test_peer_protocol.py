@@ -113,3 +113,19 @@ def test_exactly_once_over_a_lossy_link(layout, drive, seed):
     assert cen.receiver.transfers == [up]
     if down is not None:
         assert out.receiver.transfers == [down]
+
+
+def test_record_zero_resets_an_open_transfer_and_is_reported():
+    r = Receiver()
+    r.on_record(1, [1])
+    assert r.on_record(0, []) == 0
+    assert r.aborted == [[[1]]]
+    assert r.on_record(1, [5]) == 1 and r.current == [[5]]
+
+
+def test_record_zero_after_a_complete_transfer_only_forgets_it():
+    r = Receiver()
+    r.on_record(1, [1])
+    r.on_record(LAST, [2])
+    assert r.on_record(0, []) == 0
+    assert r.aborted == [] and r.transfers == [[[1], [2]]]
