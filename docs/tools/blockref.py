@@ -1,0 +1,250 @@
+"""Block reference (Markdown) from the doc headers of st_lib/*.st: the one source of truth.
+
+    .venv/bin/python docs/tools/blockref.py -o docs/blocks.md st_lib/*.st
+    .venv/bin/python docs/tools/blockref.py --check st_lib/*.st     # header vs declarations
+
+Every FUNCTION_BLOCK with a `(*@ block NAME ... *)` header gets a section: purpose, the
+interface table of the header, behaviour and example. Types come from the TYPE blocks and their
+comments. --check (also done on every run) compares each header's interface table with the
+VAR_INPUT / VAR_OUTPUT / VAR_IN_OUT declarations and exits 1 when they disagree.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+from stdecl import StError, parse_doc, parse_file  # noqa: E402
+
+LABEL = re.compile(r"^[A-Z][A-Za-z ()/-]{0,40}:(\s|$)")
+DIR_OF = {"VAR_INPUT": "in", "VAR_OUTPUT": "out", "VAR_IN_OUT": "in_out"}
+
+
+def one_line(s):
+    return " ".join((s or "").split())
+
+
+def anchor(name):
+    return re.sub(r"[^a-z0-9_-]", "", name.lower().replace(" ", "-"))
+
+
+def prose(lines):
+    """Header text to Markdown: '- ' items become a list, other lines join into paragraphs."""
+    out, para, item = [], [], None
+
+    def flush_para():
+        if para:
+            out.append(" ".join(x.strip() for x in para))
+            out.append("")
+            para.clear()
+
+    for line in lines:
+        if not line.strip():
+            flush_para()
+            if item is not None:
+                out.append(item)
+                item = None
+            continue
+        if line.lstrip().startswith("- "):
+            flush_para()
+            if item is not None:
+                out.append(item)
+            item = "- " + line.strip()[2:]
+        elif item is not None and line.startswith("  "):
+            item += " " + line.strip()
+        else:
+            if item is not None:
+                out.append(item)
+                out.append("")
+                item = None
+            if para and LABEL.match(line):
+                flush_para()
+            para.append(line)
+    if item is not None:
+        out.append(item)
+        out.append("")
+    flush_para()
+    return out
+
+
+def dependency_order(units):
+    """Files in an order in which every type and FB is declared before it is used."""
+    defines, uses = {}, {}
+    for u in units:
+        names = {t.name.upper() for t in u.types} | {p.name.upper() for p in u.pous}
+        defines[u.file] = names
+        used = set()
+        for p in u.pous:
+            for s in p.sections:
+                for v in s.vars:
+                    t = v.type
+                    while t.kind == "array":
+                        t = t.base
+                    if t.kind == "derived":
+                        used.add(t.name.upper())
+        for t in u.types:
+            if t.spec is not None and t.spec.kind == "derived":
+                used.add(t.spec.name.upper())
+        uses[u.file] = used - names
+    order, done = [], set()
+    pending = [u.file for u in units]
+    while pending:
+        progress = False
+        for f in list(pending):
+            needed = {g for g in pending if g != f and uses[f] & defines[g]}
+            if not needed:
+                order.append(f)
+                pending.remove(f)
+                done.add(f)
+                progress = True
+        if not progress:          # a cycle or an external name: keep the given order
+            order += pending
+            break
+    return order
+
+
+def check(units):
+    """Interface rows of each header against the declarations. Returns a list of messages."""
+    problems = []
+    for u in units:
+        for p in u.pous:
+            if not p.doc:
+                if p.kind == "FUNCTION_BLOCK":
+                    problems.append(f"{u.file}:{p.line}: {p.name}: no (*@ block ... *) header")
+                continue
+            d = parse_doc(p.doc)
+            if d["name"] != p.name:
+                problems.append(f"{u.file}:{p.line}: header names {d['name']!r}, "
+                                f"the block is {p.name}")
+            documented = {}
+            for row in d["interface"][1:]:
+                for n in row[0].split(","):
+                    documented[n.strip().upper()] = row[1] if len(row) > 1 else ""
+            declared = {}
+            for s in p.sections:
+                if s.kind in DIR_OF:
+                    for v in s.vars:
+                        declared[v.name.upper()] = (v.name, DIR_OF[s.kind])
+            for key, (name, direction) in declared.items():
+                if key not in documented:
+                    problems.append(f"{u.file}:{p.line}: {p.name}.{name} ({direction}) is not "
+                                    f"in the header's interface table")
+                elif documented[key] and documented[key] != direction:
+                    problems.append(f"{u.file}:{p.line}: {p.name}.{name}: header says "
+                                    f"{documented[key]}, declared {direction}")
+            for key in documented:
+                if key not in declared:
+                    problems.append(f"{u.file}:{p.line}: {p.name}: the header documents "
+                                    f"{key}, which is not declared")
+    return problems
+
+
+def render(units, sources_label):
+    order = dependency_order(units)
+    by_file = {u.file: u for u in units}
+    o = ["# Block reference",
+         "",
+         f"Generated by `make docs` (`docs/tools/blockref.py`) from the doc headers in "
+         f"{sources_label}; do not edit by hand: change the header in the `.st` file.",
+         "",
+         "Import the files into the PLC project in this order (each needs only the ones before "
+         "it):",
+         ""]
+    for i, f in enumerate(order, 1):
+        o.append(f"{i}. `{os.path.relpath(f, REPO) if os.path.isabs(f) else f}`")
+    o.append("")
+    blocks = [(u, p) for f in order for u in [by_file[f]] for p in u.pous if p.doc]
+    types = [t for f in order for t in by_file[f].types]
+    o.append("Contents: [types](#types)" + "".join(f", [{p.name}](#{anchor(p.name)})"
+                                                    for _, p in blocks))
+    o.append("")
+    o.append("## Types")
+    o.append("")
+    arrays = [t for t in types if t.kind in ("array", "alias")]
+    if arrays:
+        o += ["| type | definition | meaning |", "|---|---|---|"]
+        for t in arrays:
+            o.append(f"| `{t.name}` | `{t.spec.text()}` | {one_line(t.comment)} |")
+        o.append("")
+    for t in types:
+        if t.kind == "enum":
+            o.append(f"### {t.name}")
+            o.append("")
+            if t.comment:
+                o += [one_line(t.comment), ""]
+            o += ["| value | as integer | meaning |", "|---|---|---|"]
+            for i, (v, c) in enumerate(t.values):
+                o.append(f"| `{v}` | {i} | {one_line(c)} |")
+            o.append("")
+        elif t.kind == "struct":
+            o += [f"### {t.name}", "", one_line(t.comment), "",
+                  "| member | type | meaning |", "|---|---|---|"]
+            for m in t.members:
+                o.append(f"| `{m.name}` | `{m.type.text()}` | {one_line(m.comment)} |")
+            o.append("")
+    for u, p in blocks:
+        d = parse_doc(p.doc)
+        sec = d["sections"]
+        rel = os.path.relpath(u.file, REPO) if os.path.isabs(u.file) else u.file
+        o += [f"## {p.name}", "", f"`FUNCTION_BLOCK` in `{rel}`.", ""]
+        o += prose(sec.get("purpose", []))
+        rows = d["interface"]
+        if rows:
+            header, body = rows[0], rows[1:]
+            o.append("| " + " | ".join(header) + " |")
+            o.append("|" + "---|" * len(header))
+            for r in body:
+                r = r + [""] * (len(header) - len(r))
+                names = ", ".join(f"`{n.strip()}`" for n in r[0].split(","))
+                typ = f"`{r[2]}`" if len(r) > 2 and r[2] else ""
+                dflt = f"`{r[3]}`" if len(r) > 3 and r[3] else ""
+                o.append("| " + " | ".join([names, r[1], typ, dflt] + r[4:]) + " |")
+            o.append("")
+        if sec.get("behaviour"):
+            o += ["### Behaviour", ""] + prose(sec["behaviour"])
+        if sec.get("example"):
+            o += ["### Example", "", "```", *sec["example"], "```", ""]
+    while o and o[-1] == "":
+        o.pop()
+    return "\n".join(o) + "\n"
+
+
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(prog="blockref", description=__doc__.splitlines()[0])
+    ap.add_argument("files", nargs="+")
+    ap.add_argument("-o", "--output")
+    ap.add_argument("--check", action="store_true", help="only compare headers and declarations")
+    a = ap.parse_args(argv)
+    try:
+        units = [parse_file(f) for f in a.files]
+    except StError as e:
+        print(e, file=sys.stderr)
+        return 1
+    problems = check(units)
+    for p in problems:
+        print(f"{p}", file=sys.stderr)
+    if a.check:
+        return 1 if problems else 0
+    if not a.output:
+        print("blockref: error: -o FILE is required (or --check)", file=sys.stderr)
+        return 2
+    dirs = {os.path.dirname(f) or "." for f in a.files}
+    label = " ".join(f"`{d}/*.st`" for d in sorted(dirs))
+    text = render(units, label)
+    try:
+        with open(a.output, "w", encoding="utf-8") as f:
+            f.write(text)
+    except OSError as e:
+        print(f"blockref: error: {a.output}: {e.strerror}", file=sys.stderr)
+        return 1
+    return 1 if problems else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
