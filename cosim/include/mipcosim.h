@@ -1,0 +1,82 @@
+/* mipcosim: soft-PLCs (plcrt) and the emulated MIP radio network (mipemu) in one process,
+ * in lockstep virtual time.
+ *
+ * The simulation owns a mipemu network. Each PLC is a plcrt instance from its own copy of a
+ * program library; the simulation only holds function pointers into that copy (plcrt_scan,
+ * plcrt_device_set_fd), so any number of programs can run side by side. A PLC's Modbus
+ * device is wired to an emulator endpoint through a socketpair: the runtime writes the
+ * request, its after_send hook lands here, the emulator core answers on the other end, the
+ * runtime reads the answer - all in the calling thread, at the current virtual time.
+ *
+ * The run loop scans every PLC whose next tick is due and advances the radio to each tick,
+ * so a run is a pure function of the configuration, the programs and the seed.
+ * Functions returning int give 0 (or an id >= 0) on success and -1 on error
+ * (mipcosim_errmsg). */
+#ifndef MIPCOSIM_H
+#define MIPCOSIM_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "mipemu.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct mipcosim mipcosim;
+
+/* int plcrt_scan(plcrt_t *rt, uint64_t n) and plcrt_device_set_fd of one library copy. */
+typedef int (*mipcosim_scan_fn)(void *rt, uint64_t n);
+typedef void (*mipcosim_after_send_fn)(void *user);
+typedef int (*mipcosim_set_fd_fn)(void *rt, const char *device, int fd,
+                                  mipcosim_after_send_fn after_send, void *user);
+
+/* NULL if the network configuration is invalid (reason in err). */
+mipcosim *mipcosim_new(const mipemu_config *cfg, char *err, size_t errlen);
+/* The same with the config fields as arguments (for callers without the struct layout). */
+mipcosim *mipcosim_new_args(int stations, int mode, int static_registers, double loss_down,
+                            double loss_up, double burst, uint64_t seed, uint32_t bitrate,
+                            uint64_t slot_gap_ns, int overhead_bytes, char *err, size_t errlen);
+void mipcosim_free(mipcosim *sim);
+const char *mipcosim_errmsg(const mipcosim *sim);
+mipemu_net *mipcosim_net(mipcosim *sim);
+uint64_t mipcosim_now(const mipcosim *sim);
+
+/* Adds a PLC scanned every tick_ns from the current time on; returns its id. */
+int mipcosim_plc_add(mipcosim *sim, mipcosim_scan_fn scan, void *rt, uint64_t tick_ns);
+/* Replaces PLC id's instance (a restart), first scan at the current time. rt = NULL switches
+ * the PLC off (not scanned, its modem keeps running) until the next replace. Connections and
+ * taps of the old instance are dropped: wire the new one again. */
+int mipcosim_plc_replace(mipcosim *sim, int id, mipcosim_scan_fn scan, void *rt, uint64_t tick_ns);
+
+/* Wires device `device` of PLC id to endpoint ep (0 = MDP, s = TRM of station s). */
+int mipcosim_connect(mipcosim *sim, int id, mipcosim_set_fd_fn set_fd, const char *device, int ep);
+
+/* Taps: after every scan of PLC id, if the 16-bit word at seq changed, one entry is logged:
+ * the nhdr words at hdr, then min(hdr[len_index], ndata_max) words at data (len_index < 0 or
+ * data NULL: no data). tap is a slot number chosen by the caller (0..63); setting it again
+ * rebinds it (e.g. after a restart) and takes the current seq as seen. */
+int mipcosim_tap(mipcosim *sim, int tap, int id, const uint16_t *seq, const uint16_t *hdr,
+                 int nhdr, int len_index, const uint16_t *data, int ndata_max);
+void mipcosim_untap(mipcosim *sim, int tap);
+/* Moves logged entries into buf: per entry [tap, plc id, nwords, words...]; returns the number
+ * of words written (whole entries only). */
+size_t mipcosim_tap_read(mipcosim *sim, uint16_t *buf, size_t cap);
+
+/* Runs until virtual time until_ns (scans due at until_ns are not run). -1 when a scan failed
+ * (mipcosim_failed_plc names the PLC; its plcrt_errmsg tells why). */
+int mipcosim_run(mipcosim *sim, uint64_t until_ns);
+int mipcosim_failed_plc(const mipcosim *sim);
+
+/* Counters: Modbus requests answered by the emulator through the socketpairs, scans run. */
+uint64_t mipcosim_requests(const mipcosim *sim);
+uint64_t mipcosim_scans(const mipcosim *sim);
+
+/* Trace lines of the emulator go to path (NULL: off). */
+int mipcosim_trace_file(mipcosim *sim, const char *path);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

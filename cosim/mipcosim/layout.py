@@ -1,0 +1,164 @@
+"""The example programs' register layout (plc/README.md), the logger's data, runtime configs."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[2]
+PLC_DIR = REPO / "plc"
+ST_LIB = REPO / "st_lib"
+LIB_FILES = ["MIP_Types.st", "MIP_Status.st", "MIP_Sender.st", "MIP_Receiver.st",
+             "MIP_Link.st", "MIP_BufferSender.st"]
+MAX_STATIONS = 4
+WINDOW = 160
+FFFF = 0xFFFF
+
+# %MW parameters
+P_START, P_TOTAL_LO, P_TOTAL_HI, P_PER_TRANSFER, P_PAYLOAD, P_SESSION, P_STATION, P_FLAGS, \
+    P_LOG_PERIOD, P_TIMEOUT, P_CHUNK, P_TRANSFER_TIMEOUT, P_MAX_RETRIES, P_CYCLIC_WRITE = range(14)
+F_POLLED, F_STATIC, F_CYCLIC = 1, 2, 4
+
+# offsets in a peer block (%MW 100 + 200 (s-1))
+R_SEQ, R_FLAGS, R_NUMBER, R_LEN, R_ERROR, R_REC_LO, R_REC_HI, R_COM_LO, R_COM_HI, R_SUM_A, \
+    R_SUM_B, R_TRANSFERS, R_FAILED, R_DUP, R_UNEXP = range(15)
+S_BASE = 20
+S_SEQ, S_FLAGS, S_ERROR, S_LOG_LO, S_LOG_HI, S_OUT_LO, S_OUT_HI, S_DONE, S_FAILED, S_RETRANS, \
+    S_ALL = range(S_BASE, S_BASE + 11)
+W_BASE = 40
+
+ERRORS = ["NONE", "CHUNK_SIZE", "CHUNK_LEN", "NO_ACK", "PEER_RESET", "TOO_MANY_RECORDS",
+          "ABORTED", "SENDER_RESET", "TRANSFER_TIMEOUT", "BUFFER_LEN"]
+
+
+def error_name(code):
+    return ERRORS[code] if 0 <= code < len(ERRORS) else f"#{code}"
+
+
+def peer_base(s):
+    return 100 + 200 * (s - 1)
+
+
+def read_image(s):
+    return 100 + 125 * (s - 1)
+
+
+def write_image(s):
+    return 100 + 123 * (s - 1)
+
+
+def program_sources(role: str, bidi: bool):
+    name = f"{role}{'_bidi' if bidi else ''}.st"
+    return [str(ST_LIB / f) for f in LIB_FILES] + [str(PLC_DIR / "PLC_Logger.st"),
+                                                   str(PLC_DIR / name)]
+
+
+def log_value(n, j, session, station):
+    """Register j of logger record n: the same function as PLC_LogValue in plc/PLC_Logger.st."""
+    if j == 0:
+        return n % 65536
+    if j == 1:
+        return (n // 65536) % 65536
+    if j == 2:
+        return session
+    return ((n % 65536) * 7919 + j * 613 + session * 31 + station * 4099) % 65536
+
+
+def log_record(n, payload, session, station):
+    return [log_value(n, j, session, station) for j in range(payload)]
+
+
+def fletcher(words, a=0, b=0):
+    for v in words:
+        a = (a + v) % 65521
+        b = (b + a) % 65521
+    return a, b
+
+
+@dataclass
+class Params:
+    """What %MW0..13 hold (plc/README.md)."""
+    records: int = 5
+    per_transfer: int = 0
+    payload: int = 16
+    session: int = 1
+    station: int = 1
+    polled: bool = False
+    static: bool = False
+    cyclic: bool = False
+    log_period_ms: int = 0
+    timeout_ms: int = 2000
+    chunk: int = 123
+    transfer_timeout_s: int = 0
+    max_retries: int = 0
+
+    def words(self, start=True):
+        flags = (F_POLLED if self.polled else 0) | (F_STATIC if self.static else 0) | \
+                (F_CYCLIC if self.cyclic else 0)
+        return [1 if start else 0, self.records % 65536, self.records // 65536, self.per_transfer,
+                self.payload, self.session, self.station, flags, self.log_period_ms,
+                self.timeout_ms, self.chunk, self.transfer_timeout_s, self.max_retries, 0]
+
+    def effective_payload(self, bidi):
+        room = self.chunk - (2 if bidi else 1)
+        return max(1, min(self.payload, room))
+
+
+def _read_write_ranges(dev, s, read_start, write_start):
+    return f"""
+[read {dev}_read]
+device = {dev}
+start = {read_start}
+size = 125
+image = %IW{read_image(s)}
+policy = trigger
+trigger = %QX{s}.0
+done = %IX{s}.0
+error = %IX{s}.1
+status = %IW{10 + s}
+
+[write {dev}_write]
+device = {dev}
+start = {write_start}
+size = 123
+image = %QW{write_image(s)}
+policy = trigger
+trigger = %QX{s}.1
+done = %IX{s}.2
+error = %IX{s}.3
+status = %IW{20 + s}
+length = %QW{s}
+"""
+
+
+MASTER = """[master]
+timeout = 1s
+reconnect_min = 100ms
+reconnect_max = 1s
+"""
+
+
+def outstation_config(trm_port, host="127.0.0.1", comment=""):
+    return (f"# plcrt config of the outstation (plc/outstation*.st): the TRM-810 of its station.\n"
+            f"{comment}" + MASTER + f"""
+[device trm]
+host = {host}
+port = {trm_port}
+unit_id = 1
+errors = %IW30
+online = %IX9.0
+""" + _read_write_ranges("trm", 1, 2198, 2001))
+
+
+def central_config(mdp_port, stations, host="127.0.0.1", comment=""):
+    text = (f"# plcrt config of the central (plc/central*.st): the MDP-810, one device per\n"
+            f"# outstation (unit id = station address).\n{comment}" + MASTER)
+    for s in range(1, stations + 1):
+        text += f"""
+[device mdp{s}]
+host = {host}
+port = {mdp_port}
+unit_id = {s}
+errors = %IW{30 + s}
+online = %IX9.{s}
+""" + _read_write_ranges(f"mdp{s}", s, 198, 10)
+    return text

@@ -1,0 +1,314 @@
+"""Co-simulation driver: the example programs (plc/) as soft-PLCs and the emulator core, in one
+process, in lockstep virtual time (cosim/README.md)."""
+from __future__ import annotations
+
+import ctypes
+import shutil
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from plcharness import Plc
+from plcharness.build import build_program
+
+from . import layout as L
+
+REPO = L.REPO
+LIBDIR = REPO / "build" / "cosim"
+MS = 1_000_000
+SEC = 1_000_000_000
+
+
+class CosimError(RuntimeError):
+    pass
+
+
+def _lib():
+    path = LIBDIR / "libmipcosim.so"
+    if not path.is_file():
+        raise CosimError(f"{path} missing: run `make {path.relative_to(REPO)}`")
+    lib = ctypes.CDLL(str(path))
+    c = ctypes
+    for name, res, args in [
+        ("mipcosim_new_args", c.c_void_p, [c.c_int, c.c_int, c.c_int, c.c_double, c.c_double,
+                                           c.c_double, c.c_uint64, c.c_uint32, c.c_uint64,
+                                           c.c_int, c.c_char_p, c.c_size_t]),
+        ("mipcosim_free", None, [c.c_void_p]),
+        ("mipcosim_errmsg", c.c_char_p, [c.c_void_p]),
+        ("mipcosim_net", c.c_void_p, [c.c_void_p]),
+        ("mipcosim_now", c.c_uint64, [c.c_void_p]),
+        ("mipcosim_plc_add", c.c_int, [c.c_void_p, c.c_void_p, c.c_void_p, c.c_uint64]),
+        ("mipcosim_plc_replace", c.c_int, [c.c_void_p, c.c_int, c.c_void_p, c.c_void_p, c.c_uint64]),
+        ("mipcosim_connect", c.c_int, [c.c_void_p, c.c_int, c.c_void_p, c.c_char_p, c.c_int]),
+        ("mipcosim_tap", c.c_int, [c.c_void_p, c.c_int, c.c_int, c.c_void_p, c.c_void_p, c.c_int,
+                                   c.c_int, c.c_void_p, c.c_int]),
+        ("mipcosim_tap_read", c.c_size_t, [c.c_void_p, c.c_void_p, c.c_size_t]),
+        ("mipcosim_run", c.c_int, [c.c_void_p, c.c_uint64]),
+        ("mipcosim_failed_plc", c.c_int, [c.c_void_p]),
+        ("mipcosim_requests", c.c_uint64, [c.c_void_p]),
+        ("mipcosim_scans", c.c_uint64, [c.c_void_p]),
+        ("mipcosim_trace_file", c.c_int, [c.c_void_p, c.c_char_p]),
+        ("mipemu_net_stats", c.c_int, [c.c_void_p, c.c_int, c.c_void_p]),
+    ]:
+        f = getattr(lib, name)
+        f.restype, f.argtypes = res, args
+    return lib
+
+
+class _Stats(ctypes.Structure):
+    _fields_ = [(n, ctypes.c_uint64) for n in (
+        "polls", "tel_down", "lost_down", "tel_up", "lost_up", "blocks_down", "blocks_up",
+        "dup_down", "dup_up", "confirmed_down", "confirmed_up")]
+
+
+_BUILDS = {}
+
+
+def build(role, bidi, workdir: Path, compiler="stc"):
+    key = (role, bidi, compiler)
+    if key not in _BUILDS:
+        out = Path(workdir) / f"build-{role}{'-bidi' if bidi else ''}-{compiler}"
+        _BUILDS[key] = build_program(L.program_sources(role, bidi), out, compiler=compiler)
+    return _BUILDS[key]
+
+
+@dataclass
+class Event:
+    t: int
+    tap: int
+    plc: int
+    words: list
+
+
+@dataclass
+class Radio:
+    """Radio parameters of the emulator network."""
+    bitrate: int = 1_000_000        # fast: a slot of a few ms
+    slot_gap_ns: int = 1 * MS
+    overhead_bytes: int = 12
+
+    @classmethod
+    def realistic(cls):
+        return cls(9600, 20 * MS, 12)
+
+
+@dataclass
+class Setup:
+    stations: int = 1
+    static: bool = False
+    static_registers: int = 123
+    polled: bool = False
+    bidi: bool = False
+    loss: float = 0.0
+    burst: float = 0.0
+    seed: int = 1
+    records: int = 5
+    per_transfer: int = 0
+    payload: int = 16
+    timeout_ms: int = 300
+    log_period_ms: int = 0
+    transfer_timeout_s: int = 0
+    radio: Radio = field(default_factory=Radio)
+    compiler: str = "stc"
+
+    def params(self, station, session):
+        return L.Params(records=self.records, per_transfer=self.per_transfer,
+                        payload=self.payload, session=session, station=station,
+                        polled=self.polled, static=self.static,
+                        log_period_ms=self.log_period_ms, timeout_ms=self.timeout_ms,
+                        chunk=self.static_registers if self.static else 123,
+                        transfer_timeout_s=self.transfer_timeout_s)
+
+
+TICK_NS = 10 * MS
+RESTART = -1
+
+
+class Chain:
+    """Outstation PLC(s) + central PLC + emulator network in one process."""
+
+    def __init__(self, setup: Setup, workdir: Path, trace=None):
+        self.s = setup
+        self.workdir = Path(workdir)
+        self.workdir.mkdir(parents=True, exist_ok=True)
+        self.lib = _lib()
+        err = ctypes.create_string_buffer(256)
+        self.sim = self.lib.mipcosim_new_args(
+            setup.stations, 1 if setup.static else 0, setup.static_registers, setup.loss,
+            setup.loss, setup.burst, setup.seed, setup.radio.bitrate, setup.radio.slot_gap_ns,
+            setup.radio.overhead_bytes, err, len(err))
+        if not self.sim:
+            raise CosimError(err.value.decode())
+        if trace:
+            self._check(self.lib.mipcosim_trace_file(self.sim, str(trace).encode()))
+        self.out_build = build("outstation", setup.bidi, self.workdir, setup.compiler)
+        self.cen_build = build("central", setup.bidi, self.workdir, setup.compiler)
+        self.out_conf = self.workdir / "outstation.conf"
+        self.out_conf.write_text(L.outstation_config(15021))
+        self.cen_conf = self.workdir / "central.conf"
+        self.cen_conf.write_text(L.central_config(15020, setup.stations))
+        self.events: list[Event] = []
+        self.boots = {("out", s): 0 for s in range(1, setup.stations + 1)}
+        self.boots[("cen", 0)] = 0
+        self.plcs = {}       # ("out", s) / ("cen", 0) -> Plc
+        self.ids = {}
+        self.restarts = []   # (t, which)
+        self.sessions = {}   # ("out", s) -> [sessions], ("cen", 0) -> [sessions]
+        for s in range(1, setup.stations + 1):
+            self._start(("out", s))
+        self._start(("cen", 0))
+
+    # ------------------------------------------------------------------ wiring
+
+    def _check(self, rc):
+        if rc != 0:
+            raise CosimError(self.lib.mipcosim_errmsg(self.sim).decode())
+
+    def session(self, who):
+        return 1 + self.boots[who]
+
+    def _start(self, who):
+        role, s = who
+        plc = Plc(self.out_build if role == "out" else self.cen_build, self.workdir,
+                  config=self.out_conf if role == "out" else self.cen_conf)
+        old = self.plcs.get(who)
+        self.plcs[who] = plc
+        scan = ctypes.cast(plc._lib.plcrt_scan, ctypes.c_void_p)
+        set_fd = ctypes.cast(plc._lib.plcrt_device_set_fd, ctypes.c_void_p)
+        if who in self.ids:
+            self._check(self.lib.mipcosim_plc_replace(self.sim, self.ids[who], scan, plc._rt, TICK_NS))
+        else:
+            pid = self.lib.mipcosim_plc_add(self.sim, scan, plc._rt, TICK_NS)
+            self._check(0 if pid >= 0 else -1)
+            self.ids[who] = pid
+        if old is not None:
+            old.close()
+        pid = self.ids[who]
+        if role == "out":
+            self._check(self.lib.mipcosim_connect(self.sim, pid, set_fd, b"trm", s))
+        else:
+            for st in range(1, self.s.stations + 1):
+                self._check(self.lib.mipcosim_connect(self.sim, pid, set_fd, f"mdp{st}".encode(), 0))
+        session = self.session(who)
+        self.sessions.setdefault(who, []).append(session)
+        params = self.s.params(s if role == "out" else 0, session)
+        for i, w in enumerate(params.words()):
+            plc[f"%MW{i}"] = w
+        self._taps(who)
+
+    def _addr(self, plc, name):
+        return plc._lookup(name).addr
+
+    def _taps(self, who):
+        role, s = who
+        plc, pid = self.plcs[who], self.ids[who]
+        bidi = self.s.bidi
+
+        def tap(slot, base, nhdr, data_path=None):
+            seq = self._addr(plc, f"%MW{base}")
+            hdr = self._addr(plc, f"%MW{base + 1}")
+            data = self._addr(plc, data_path) if data_path else None
+            # the %MW words are contiguous in the image
+            self._check(self.lib.mipcosim_tap(self.sim, slot, pid, seq, hdr, nhdr,
+                                              2 if data else -1, data, 122))
+
+        if role == "out":
+            b = L.peer_base(1)
+            tap(20 + s, b + L.S_SEQ, 2)                       # sender events: flags, error
+            if bidi:
+                tap(30 + s, b + L.R_SEQ, 4, "OUTSTATIONBIDI.LINK.ARECORD")
+        else:
+            for st in range(1, self.s.stations + 1):
+                b = L.peer_base(st)
+                fb = f"CENTRALBIDI.LINK{st}" if bidi else f"CENTRAL.RCV{st}"
+                tap(st, b + L.R_SEQ, 4, f"{fb}.ARECORD")       # flags, number, len, error
+                if bidi:
+                    tap(10 + st, b + L.S_SEQ, 2)
+
+    # ------------------------------------------------------------------ running
+
+    @property
+    def now(self):
+        return self.lib.mipcosim_now(self.sim)
+
+    def run_until(self, t_ns):
+        rc = self.lib.mipcosim_run(self.sim, t_ns)
+        self._drain()
+        if rc != 0:
+            msg = self.lib.mipcosim_errmsg(self.sim).decode()
+            failed = self.lib.mipcosim_failed_plc(self.sim)
+            for who, pid in self.ids.items():
+                if pid == failed:
+                    msg += f": {who}: {self.plcs[who]._err()}"
+            raise CosimError(msg)
+
+    def run_for(self, ns):
+        self.run_until(self.now + ns)
+
+    def _drain(self):
+        buf = (ctypes.c_uint16 * 65536)()
+        t = self.now
+        while True:
+            n = self.lib.mipcosim_tap_read(self.sim, buf, len(buf))
+            if n == 0:
+                return
+            i = 0
+            while i < n:
+                tap, plc, k = buf[i], buf[i + 1], buf[i + 2]
+                self.events.append(Event(t, tap, plc, list(buf[i + 3:i + 3 + k])))
+                i += 3 + k
+
+    def restart(self, who, down_ns=500 * MS):
+        """A PLC restart: off for down_ns (its modem keeps running), then a fresh instance of
+        the program (all state lost) with the next session number."""
+        pid = self.ids[who]
+        self._check(self.lib.mipcosim_plc_replace(self.sim, pid, None, None, 0))
+        self.restarts.append((self.now, who))
+        self.events.append(Event(self.now, RESTART, pid, []))   # marker for the checker
+        self.run_for(down_ns)
+        self.boots[who] += 1
+        self._start(who)
+
+    def mw(self, who, addr):
+        return self.plcs[who][f"%MW{addr}"]
+
+    def finished(self):
+        """Every sender read out all its records and no transfer is open at a receiver."""
+        for s in range(1, self.s.stations + 1):
+            if self.mw(("out", s), L.peer_base(1) + L.S_ALL) != 1:
+                return False
+            if self.s.bidi and self.mw(("cen", 0), L.peer_base(s) + L.S_ALL) != 1:
+                return False
+        return True
+
+    def run_to_end(self, limit_ns, step_ns=SEC, settle_ns=3 * SEC):
+        """Run until finished() (then settle_ns more, so late duplicates show) or limit_ns."""
+        while self.now < limit_ns:
+            self.run_for(step_ns)
+            if self.finished():
+                self.run_for(settle_ns)
+                return True
+        return False
+
+    def radio_stats(self):
+        tot = {}
+        for s in range(1, self.s.stations + 1):
+            st = _Stats()
+            self.lib.mipemu_net_stats(self.lib.mipcosim_net(self.sim), s, ctypes.byref(st))
+            for name, _ in _Stats._fields_:
+                tot[name] = tot.get(name, 0) + getattr(st, name)
+        tot["requests"] = self.lib.mipcosim_requests(self.sim)
+        tot["scans"] = self.lib.mipcosim_scans(self.sim)
+        return tot
+
+    def close(self):
+        for plc in self.plcs.values():
+            plc.close()
+        if self.sim:
+            self.lib.mipcosim_free(self.sim)
+            self.sim = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()

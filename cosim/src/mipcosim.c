@@ -1,0 +1,352 @@
+/* mipcosim: lockstep co-simulation of plcrt soft-PLCs and the mipemu radio network. */
+#include "mipcosim.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#define MAX_PLCS 64
+#define MAX_CONNS 256
+#define MAX_TAPS 64
+#define NAME_MAX_LEN 64
+
+typedef struct plc {
+    int used;
+    mipcosim_scan_fn scan;
+    void *rt;                   /* NULL: switched off */
+    uint64_t tick_ns;
+    uint64_t due_ns;
+} plc_t;
+
+typedef struct conn {
+    mipcosim *sim;
+    int used;
+    int plc;
+    int ep;
+    int fd_plc, fd_emu;
+    char device[NAME_MAX_LEN];
+    uint8_t buf[MIPEMU_FRAME_MAX * 2];
+    size_t len;
+} conn_t;
+
+typedef struct tap {
+    int used;
+    int plc;
+    const uint16_t *seq, *hdr, *data;
+    int nhdr, len_index, ndata_max;
+    uint16_t last;
+} tap_t;
+
+struct mipcosim {
+    mipemu_net *net;
+    uint64_t now;
+    plc_t plcs[MAX_PLCS];
+    int nplcs;
+    conn_t *conns[MAX_CONNS];
+    tap_t taps[MAX_TAPS];
+    uint16_t *log;              /* tap entries */
+    size_t log_len, log_cap;
+    int failed_plc;
+    uint64_t requests, scans;
+    FILE *trace;
+    char err[256];
+};
+
+static int fail(mipcosim *sim, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+static int fail(mipcosim *sim, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(sim->err, sizeof sim->err, fmt, ap);
+    va_end(ap);
+    return -1;
+}
+
+mipcosim *mipcosim_new(const mipemu_config *cfg, char *err, size_t errlen)
+{
+    mipcosim *sim = calloc(1, sizeof *sim);
+    if (!sim) {
+        if (err && errlen) snprintf(err, errlen, "out of memory");
+        return NULL;
+    }
+    sim->net = mipemu_net_new(cfg, err, errlen);
+    if (!sim->net) {
+        free(sim);
+        return NULL;
+    }
+    sim->failed_plc = -1;
+    return sim;
+}
+
+mipcosim *mipcosim_new_args(int stations, int mode, int static_registers, double loss_down,
+                            double loss_up, double burst, uint64_t seed, uint32_t bitrate,
+                            uint64_t slot_gap_ns, int overhead_bytes, char *err, size_t errlen)
+{
+    mipemu_config c;
+    mipemu_config_default(&c);
+    c.stations = stations;
+    c.mode = mode;
+    c.static_registers = static_registers;
+    c.loss_down = loss_down;
+    c.loss_up = loss_up;
+    c.burst = burst;
+    c.seed = seed;
+    c.bitrate = bitrate;
+    c.slot_gap_ns = slot_gap_ns;
+    c.overhead_bytes = overhead_bytes;
+    return mipcosim_new(&c, err, errlen);
+}
+
+static void conn_close(conn_t *c)
+{
+    if (c->fd_plc >= 0) close(c->fd_plc);
+    if (c->fd_emu >= 0) close(c->fd_emu);
+    free(c);
+}
+
+void mipcosim_free(mipcosim *sim)
+{
+    if (!sim) return;
+    for (int i = 0; i < MAX_CONNS; i++)
+        if (sim->conns[i]) conn_close(sim->conns[i]);
+    if (sim->trace) fclose(sim->trace);
+    mipemu_net_free(sim->net);
+    free(sim->log);
+    free(sim);
+}
+
+const char *mipcosim_errmsg(const mipcosim *sim) { return sim->err; }
+mipemu_net *mipcosim_net(mipcosim *sim) { return sim->net; }
+uint64_t mipcosim_now(const mipcosim *sim) { return sim->now; }
+int mipcosim_failed_plc(const mipcosim *sim) { return sim->failed_plc; }
+uint64_t mipcosim_requests(const mipcosim *sim) { return sim->requests; }
+uint64_t mipcosim_scans(const mipcosim *sim) { return sim->scans; }
+
+int mipcosim_plc_add(mipcosim *sim, mipcosim_scan_fn scan, void *rt, uint64_t tick_ns)
+{
+    if (!scan || !rt) return fail(sim, "plc_add: no scan function or instance");
+    if (tick_ns == 0) return fail(sim, "plc_add: tick must be > 0");
+    if (sim->nplcs == MAX_PLCS) return fail(sim, "more than %d PLCs", MAX_PLCS);
+    int id = sim->nplcs++;
+    sim->plcs[id] = (plc_t){1, scan, rt, tick_ns, sim->now};
+    return id;
+}
+
+static void drop_plc_wiring(mipcosim *sim, int id)
+{
+    for (int i = 0; i < MAX_TAPS; i++)
+        if (sim->taps[i].used && sim->taps[i].plc == id) sim->taps[i].used = 0;
+    /* the connections stay: the new instance is wired to the same socketpair, like a PLC
+     * that reconnects to its modem; whatever half-exchanged bytes are left are dropped */
+    for (int i = 0; i < MAX_CONNS; i++) {
+        conn_t *c = sim->conns[i];
+        if (!c || c->plc != id) continue;
+        uint8_t junk[512];
+        while (recv(c->fd_plc, junk, sizeof junk, MSG_DONTWAIT) > 0) {}
+        while (recv(c->fd_emu, junk, sizeof junk, MSG_DONTWAIT) > 0) {}
+        c->len = 0;
+    }
+}
+
+int mipcosim_plc_replace(mipcosim *sim, int id, mipcosim_scan_fn scan, void *rt, uint64_t tick_ns)
+{
+    if (id < 0 || id >= sim->nplcs) return fail(sim, "plc_replace: no PLC %d", id);
+    if (rt && (!scan || tick_ns == 0)) return fail(sim, "plc_replace: no scan function or tick");
+    drop_plc_wiring(sim, id);
+    plc_t *p = &sim->plcs[id];
+    p->rt = rt;
+    if (rt) {
+        p->scan = scan;
+        p->tick_ns = tick_ns;
+        p->due_ns = sim->now;
+    }
+    return 0;
+}
+
+/* The runtime sent a request on fd_plc: answer every whole frame waiting on fd_emu. */
+static void after_send(void *user)
+{
+    conn_t *c = user;
+    mipcosim *sim = c->sim;
+    for (;;) {
+        ssize_t n = recv(c->fd_emu, c->buf + c->len, sizeof c->buf - c->len, MSG_DONTWAIT);
+        if (n <= 0) break;
+        c->len += (size_t)n;
+    }
+    while (c->len > 0) {
+        long flen = mipemu_frame_length(c->buf, c->len);
+        if (flen == 0 || (flen > 0 && (size_t)flen > c->len)) return; /* wait for more */
+        uint8_t out[MIPEMU_RESPONSE_MAX];
+        long n = flen < 0 ? -1 : mipemu_handle(sim->net, c->ep, c->buf, (size_t)flen, out, sizeof out);
+        if (n < 0) {
+            /* the emulator closes such a connection: the runtime sees no answer (its
+             * timeout) and whatever was buffered is gone */
+            c->len = 0;
+            return;
+        }
+        sim->requests++;
+        size_t off = 0;
+        while (off < (size_t)n) {
+            ssize_t w = send(c->fd_emu, out + off, (size_t)n - off, MSG_NOSIGNAL);
+            if (w <= 0) break;
+            off += (size_t)w;
+        }
+        memmove(c->buf, c->buf + flen, c->len - (size_t)flen);
+        c->len -= (size_t)flen;
+    }
+}
+
+int mipcosim_connect(mipcosim *sim, int id, mipcosim_set_fd_fn set_fd, const char *device, int ep)
+{
+    if (id < 0 || id >= sim->nplcs || !sim->plcs[id].rt) return fail(sim, "connect: no PLC %d", id);
+    if (!set_fd || !device) return fail(sim, "connect: no set_fd function or device");
+    if (ep < 0 || ep > mipemu_net_stations(sim->net))
+        return fail(sim, "connect: endpoint %d is not 0 (MDP) or a station 1..%d", ep,
+                    mipemu_net_stations(sim->net));
+    if (strlen(device) >= NAME_MAX_LEN) return fail(sim, "connect: device name too long");
+    conn_t *c = NULL;
+    int slot = -1;
+    for (int i = 0; i < MAX_CONNS; i++) {
+        conn_t *o = sim->conns[i];
+        if (o && o->plc == id && !strcmp(o->device, device)) { c = o; break; }
+        if (!o && slot < 0) slot = i;
+    }
+    if (!c) {
+        if (slot < 0) return fail(sim, "more than %d connections", MAX_CONNS);
+        c = calloc(1, sizeof *c);
+        if (!c) return fail(sim, "out of memory");
+        int sv[2];
+        if (socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, sv) != 0) {
+            free(c);
+            return fail(sim, "socketpair: %s", strerror(errno));
+        }
+        c->sim = sim;
+        c->plc = id;
+        c->fd_plc = sv[0];
+        c->fd_emu = sv[1];
+        snprintf(c->device, sizeof c->device, "%s", device);
+        sim->conns[slot] = c;
+    }
+    c->ep = ep;
+    if (set_fd(sim->plcs[id].rt, device, c->fd_plc, after_send, c) != 0)
+        return fail(sim, "connect: the runtime refused device '%s'", device);
+    return 0;
+}
+
+int mipcosim_tap(mipcosim *sim, int tap, int id, const uint16_t *seq, const uint16_t *hdr,
+                 int nhdr, int len_index, const uint16_t *data, int ndata_max)
+{
+    if (tap < 0 || tap >= MAX_TAPS) return fail(sim, "tap: slot %d outside 0..%d", tap, MAX_TAPS - 1);
+    if (id < 0 || id >= sim->nplcs) return fail(sim, "tap: no PLC %d", id);
+    if (!seq || (nhdr > 0 && !hdr) || nhdr < 0 || nhdr > 64 || ndata_max < 0 || ndata_max > 4096)
+        return fail(sim, "tap: bad addresses or sizes");
+    if (len_index >= nhdr) return fail(sim, "tap: len_index %d outside the header", len_index);
+    sim->taps[tap] = (tap_t){1, id, seq, hdr, data, nhdr, len_index, ndata_max, *seq};
+    return 0;
+}
+
+void mipcosim_untap(mipcosim *sim, int tap)
+{
+    if (tap >= 0 && tap < MAX_TAPS) sim->taps[tap].used = 0;
+}
+
+static int log_words(mipcosim *sim, size_t n)
+{
+    if (sim->log_len + n <= sim->log_cap) return 0;
+    size_t cap = sim->log_cap ? sim->log_cap * 2 : 4096;
+    while (cap < sim->log_len + n) cap *= 2;
+    uint16_t *p = realloc(sim->log, cap * sizeof *p);
+    if (!p) return fail(sim, "out of memory for the tap log");
+    sim->log = p;
+    sim->log_cap = cap;
+    return 0;
+}
+
+static int check_taps(mipcosim *sim, int id)
+{
+    for (int i = 0; i < MAX_TAPS; i++) {
+        tap_t *t = &sim->taps[i];
+        if (!t->used || t->plc != id || *t->seq == t->last) continue;
+        t->last = *t->seq;
+        int nd = 0;
+        if (t->data && t->len_index >= 0) {
+            nd = t->hdr[t->len_index];
+            if (nd > t->ndata_max) nd = t->ndata_max;
+        }
+        size_t n = 3 + (size_t)t->nhdr + (size_t)nd;
+        if (log_words(sim, n)) return -1;
+        uint16_t *w = sim->log + sim->log_len;
+        w[0] = (uint16_t)i;
+        w[1] = (uint16_t)id;
+        w[2] = (uint16_t)(t->nhdr + nd);
+        memcpy(w + 3, t->hdr, (size_t)t->nhdr * 2);
+        if (nd) memcpy(w + 3 + t->nhdr, t->data, (size_t)nd * 2);
+        sim->log_len += n;
+    }
+    return 0;
+}
+
+size_t mipcosim_tap_read(mipcosim *sim, uint16_t *buf, size_t cap)
+{
+    size_t off = 0;
+    while (off < sim->log_len) {
+        size_t n = 3 + sim->log[off + 2];
+        if (off + n > cap) break;
+        off += n;
+    }
+    memcpy(buf, sim->log, off * 2);
+    memmove(sim->log, sim->log + off, (sim->log_len - off) * 2);
+    sim->log_len -= off;
+    return off;
+}
+
+int mipcosim_run(mipcosim *sim, uint64_t until_ns)
+{
+    if (until_ns < sim->now) return fail(sim, "run: %llu lies before now (%llu)",
+                                         (unsigned long long)until_ns, (unsigned long long)sim->now);
+    for (;;) {
+        uint64_t t = until_ns;
+        for (int i = 0; i < sim->nplcs; i++)
+            if (sim->plcs[i].rt && sim->plcs[i].due_ns < t) t = sim->plcs[i].due_ns;
+        if (mipemu_net_advance(sim->net, t) != 0) return fail(sim, "emulator refused time %llu", (unsigned long long)t);
+        sim->now = t;
+        if (t >= until_ns) return 0;
+        for (int i = 0; i < sim->nplcs; i++) {
+            plc_t *p = &sim->plcs[i];
+            if (!p->rt || p->due_ns != t) continue;
+            if (p->scan(p->rt, 1) != 0) {
+                sim->failed_plc = i;
+                return fail(sim, "scan of PLC %d failed", i);
+            }
+            sim->scans++;
+            p->due_ns += p->tick_ns;
+            if (check_taps(sim, i)) return -1;
+        }
+    }
+}
+
+static void trace_line(void *user, const char *line, size_t len)
+{
+    fwrite(line, 1, len, (FILE *)user);
+}
+
+int mipcosim_trace_file(mipcosim *sim, const char *path)
+{
+    if (sim->trace) {
+        fclose(sim->trace);
+        sim->trace = NULL;
+    }
+    if (!path) {
+        mipemu_net_set_trace(sim->net, NULL, NULL);
+        return 0;
+    }
+    sim->trace = fopen(path, "w");
+    if (!sim->trace) return fail(sim, "%s: %s", path, strerror(errno));
+    mipemu_net_set_trace(sim->net, trace_line, sim->trace);
+    return 0;
+}

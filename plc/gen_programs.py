@@ -1,0 +1,315 @@
+#!/usr/bin/env python3
+"""Writes the example programs plc/{outstation,central}{,_bidi}.st.
+
+Portable ST cannot index located variables, so the copies between the located Modbus image
+and the MIP blocks' arrays are one statement per register; this script writes them. Run it
+after changing the layout (plc/README.md, "Register layout"); the outputs are committed.
+
+    .venv/bin/python plc/gen_programs.py
+"""
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+MAX_STATIONS = 4          # receivers in the central programs (devices 1..4)
+READ_REGS = 125           # one FC3 at the read-status register: status, count, 123 data
+WRITE_REGS = 123          # one FC16 at the first write register
+WINDOW = 160              # PLC_RecordStore.aWindow
+
+
+def read_image(s):        # station s (1-based): %IW of its read block
+    return 100 + READ_REGS * (s - 1)
+
+
+def write_image(s):
+    return 100 + WRITE_REGS * (s - 1)
+
+
+def peer_base(s):         # %MW block of peer s: receiver 0..19, sender 20..39, window 40..199
+    return 100 + 200 * (s - 1)
+
+
+PARAMS = """\
+  (* parameters (%MW0..%MW13), written by the demo, a test or an operator panel *)
+  pStart AT %MW0 : WORD;          (* <> 0: run *)
+  pTotalLo AT %MW1 : WORD;        (* records to log and read out (0: 5) *)
+  pTotalHi AT %MW2 : WORD;
+  pPerTransfer AT %MW3 : WORD;    (* records per transfer (0: all in one) *)
+  pPayload AT %MW4 : WORD;        (* payload registers per record (0: 16) *)
+  pSession AT %MW5 : WORD;        (* session number, part of the data *)
+  pStation AT %MW6 : WORD;        (* outstation: its address (0: 1) *)
+  pFlags AT %MW7 : WORD;          (* bit 0 polled, bit 1 static mode, bit 2 cyclic I/O (OpenPLC) *)
+  pLogPeriod AT %MW8 : WORD;      (* ms between logged records (0: all at once) *)
+  pTimeout AT %MW9 : WORD;        (* ms, tTimeout of the blocks (0: 2000) *)
+  pChunkSize AT %MW10 : WORD;     (* registers per write block incl. header (0: 123); static: the static size *)
+  pTransferTimeout AT %MW11 : WORD; (* s, receivers' tTransferTimeout (0: never) *)
+  pMaxRetries AT %MW12 : WORD;    (* sender's uMaxRetries (0: unlimited) *)
+  pCyclicWrite AT %MW13 : WORD;   (* cyclic I/O: ms after which a write counts as done (0: 300) *)
+"""
+
+PARAM_VARS = """\
+  xRun : BOOL;
+  xPolled : BOOL;
+  xStatic : BOOL;
+  xCyclic : BOOL;
+  udiTotal : UDINT;
+  uPerTransfer : UINT;
+  uPayload : UINT;
+  uChunkSize : UINT;
+  tTimeout : TIME;
+  tTransferTimeout : TIME;
+  tLogPeriod : TIME;
+  tCyclicWrite : TIME;
+"""
+
+PARAM_CODE = """\
+(* parameters; a started program keeps them *)
+IF NOT xRun THEN
+  udiTotal := WORD_TO_UDINT(pTotalLo) + WORD_TO_UDINT(pTotalHi) * 65536;
+  IF udiTotal = 0 THEN udiTotal := 5; END_IF;
+  uPerTransfer := WORD_TO_UINT(pPerTransfer);
+  uPayload := WORD_TO_UINT(pPayload);
+  IF uPayload = 0 THEN uPayload := 16; END_IF;
+  uChunkSize := WORD_TO_UINT(pChunkSize);
+  IF uChunkSize = 0 THEN uChunkSize := 123; END_IF;
+  xPolled := (pFlags AND 16#0001) <> 0;
+  xStatic := (pFlags AND 16#0002) <> 0;
+  xCyclic := (pFlags AND 16#0004) <> 0;
+  tTimeout := T#1ms * WORD_TO_DINT(pTimeout);
+  IF pTimeout = 0 THEN tTimeout := T#2s; END_IF;
+  tTransferTimeout := T#1s * WORD_TO_DINT(pTransferTimeout);
+  tLogPeriod := T#1ms * WORD_TO_DINT(pLogPeriod);
+  tCyclicWrite := T#1ms * WORD_TO_DINT(pCyclicWrite);
+  IF pCyclicWrite = 0 THEN tCyclicWrite := T#300ms; END_IF;
+  xRun := pStart <> 0;
+END_IF;
+"""
+
+
+def located_io(s, tag):
+    """Declarations of station s's located I/O (see the runtime configs)."""
+    lines = [
+        f"  (* modem {tag}: read block %IW{read_image(s)}.., write block %QW{write_image(s)}.. *)",
+        f"  rdTrig{s} AT %QX{s}.0 : BOOL;",
+        f"  rdDone{s} AT %IX{s}.0 : BOOL;",
+        f"  rdErr{s} AT %IX{s}.1 : BOOL;",
+        f"  wrTrig{s} AT %QX{s}.1 : BOOL;",
+        f"  wrDone{s} AT %IX{s}.2 : BOOL;",
+        f"  wrErr{s} AT %IX{s}.3 : BOOL;",
+        f"  wrLen{s} AT %QW{s} : WORD;",
+    ]
+    lines += [f"  r{s}_{i} AT %IW{read_image(s) + i} : WORD;" for i in range(READ_REGS)]
+    lines += [f"  w{s}_{i} AT %QW{write_image(s) + i} : WORD;" for i in range(WRITE_REGS)]
+    lines += [f"  rd{s} : MIP_T_ReadBlock;", f"  xRdValid{s} : BOOL;", f"  xWrDone{s} : BOOL;",
+              f"  tonWr{s} : TON;"]
+    return lines
+
+
+def status_vars(s, receiver=True, sender=True):
+    b = peer_base(s)
+    out = []
+    if receiver:
+        names = ["Seq", "Flags", "Number", "Len", "Error", "RecLo", "RecHi", "ComLo", "ComHi",
+                 "SumA", "SumB", "Transfers", "Failed", "Dup", "Unexp"]
+        out += [f"  mR{s}{n} AT %MW{b + i} : WORD;" for i, n in enumerate(names)]
+        out += [f"  mWin{s}_{i} AT %MW{b + 40 + i} : WORD;" for i in range(WINDOW)]
+    if sender:
+        names = ["Seq", "Flags", "Error", "LogLo", "LogHi", "OutLo", "OutHi", "Done", "Failed",
+                 "Retrans", "All"]
+        out += [f"  mS{s}{n} AT %MW{b + 20 + i} : WORD;" for i, n in enumerate(names)]
+    return out
+
+
+def io_before(s):
+    """Read handshake and read block copy, before the MIP block is called."""
+    lines = [f"(* station {s}: read handshake (trigger policy): a read every other scan *)"]
+    lines += [f"rd{s}[{i}] := r{s}_{i};" for i in range(READ_REGS)]
+    lines += [
+        f"xRdValid{s} := rdDone{s} OR xCyclic;",
+        f"rdTrig{s} := xRun AND NOT (rdDone{s} OR rdErr{s});",
+        f"tonWr{s}(IN := xCyclic AND wrTrig{s}, PT := tCyclicWrite);",
+        f"xWrDone{s} := wrDone{s} OR tonWr{s}.Q;",
+    ]
+    return lines
+
+
+def io_after(s, fb):
+    lines = [f"(* station {s}: write handshake and block *)",
+             f"wrTrig{s} := {fb}.xWriteReq;",
+             f"wrLen{s} := UINT_TO_WORD({fb}.uWriteLen);"]
+    lines += [f"w{s}_{i} := {fb}.aWrite[{i}];" for i in range(WRITE_REGS)]
+    return lines
+
+
+def store_out(s, store, extra_failed=None):
+    lines = [
+        f"mR{s}Seq := {store}.wSeq;", f"mR{s}Flags := {store}.wFlags;",
+        f"mR{s}Number := {store}.wNumber;", f"mR{s}Len := {store}.wLen;",
+        f"mR{s}Error := {store}.wError;",
+        f"mR{s}RecLo := UDINT_TO_WORD({store}.udiRecords MOD 65536);",
+        f"mR{s}RecHi := UDINT_TO_WORD({store}.udiRecords / 65536);",
+        f"mR{s}ComLo := UDINT_TO_WORD({store}.udiCommitted MOD 65536);",
+        f"mR{s}ComHi := UDINT_TO_WORD({store}.udiCommitted / 65536);",
+        f"mR{s}SumA := {store}.wSumA;", f"mR{s}SumB := {store}.wSumB;",
+        f"mR{s}Transfers := UINT_TO_WORD({store}.uTransfers);",
+        f"mR{s}Failed := UINT_TO_WORD({store}.uFailed);",
+    ]
+    lines += [f"mWin{s}_{i} := {store}.aWindow[{i}];" for i in range(WINDOW)]
+    return lines
+
+
+def source_out(s, src, retrans):
+    return [
+        f"mS{s}Seq := {src}.wSeq;", f"mS{s}Flags := {src}.wFlags;",
+        f"mS{s}Error := {src}.wLastError;",
+        f"mS{s}LogLo := UDINT_TO_WORD({src}.udiLogged MOD 65536);",
+        f"mS{s}LogHi := UDINT_TO_WORD({src}.udiLogged / 65536);",
+        f"mS{s}OutLo := UDINT_TO_WORD({src}.udiReadOut MOD 65536);",
+        f"mS{s}OutHi := UDINT_TO_WORD({src}.udiReadOut / 65536);",
+        f"mS{s}Done := UINT_TO_WORD({src}.uTransfersDone);",
+        f"mS{s}Failed := UINT_TO_WORD({src}.uTransfersFailed);",
+        f"mS{s}Retrans := UDINT_TO_WORD({retrans} MOD 65536);",
+        f"IF {src}.xAllReadOut THEN mS{s}All := 1; ELSE mS{s}All := 0; END_IF;",
+    ]
+
+
+def var_blocks(decl):
+    """Located and unlocated variables in separate VAR blocks (matiec wants that)."""
+    lines = "\n".join(decl).split("\n")
+    located = [l for l in lines if " AT %" in l]
+    plain = [l for l in lines if " AT %" not in l and l.strip()]
+    return ("VAR\n" + "\n".join(plain) + "\nEND_VAR\nVAR\n" + "\n".join(located)
+            + "\nEND_VAR\n")
+
+
+def config(prog, inst):
+    return (f"\nCONFIGURATION Config0\n  RESOURCE Res0 ON PLC\n"
+            f"    TASK tMain(INTERVAL := T#10ms, PRIORITY := 0);\n"
+            f"    PROGRAM {inst} WITH tMain : {prog};\n  END_RESOURCE\nEND_CONFIGURATION\n")
+
+
+HEADER = "(* GENERATED by plc/gen_programs.py -- edit the generator, not this file.\n{doc} *)\n"
+
+
+def outstation(bidi):
+    prog = "OutstationBidi" if bidi else "Outstation"
+    fb = "link" if bidi else "snd"
+    decl = [PARAMS, PARAM_VARS, "  src : PLC_LogSource;"]
+    decl.append("  link : MIP_Link;" if bidi else "  snd : MIP_Sender;")
+    if bidi:
+        decl += ["  store : PLC_RecordStore;", "  rtRecvErr : R_TRIG;", "  udiRecvFailed : UDINT;"]
+    decl += located_io(1, "TRM-810")
+    decl += status_vars(1, receiver=bidi, sender=True)
+    code = [PARAM_CODE]
+    code += io_before(1)
+    code.append("(* the logger: station pStation, records 1..udiTotal *)")
+    code.append(f"src(xRun := xRun, udiTotal := udiTotal, uPerTransfer := uPerTransfer, "
+                f"uPayload := uPayload,\n    wSession := pSession, wStation := pStation, "
+                f"tLogPeriod := tLogPeriod,\n"
+                + (f"    xChunkRequest := link.xChunkRequest, udiChunkIndex := link.udiChunkIndex, "
+                   f"uChunkMax := link.uChunkMax,\n    xSendDone := link.xSendDone, "
+                   f"xSendError := link.xSendError, eSendError := link.eSendErrorId);"
+                   if bidi else
+                   f"    xChunkRequest := snd.xChunkRequest, udiChunkIndex := snd.udiChunkIndex, "
+                   f"uChunkMax := snd.uChunkMax,\n    xSendDone := snd.xDone, "
+                   f"xSendError := snd.xError, eSendError := snd.eErrorId);"))
+    if bidi:
+        code.append(
+            "link(xEnable := xRun, xExecute := src.xExecute, xCentral := FALSE, xPolled := xPolled,\n"
+            "     xStatic := xStatic, uChunkSize := uChunkSize, tTimeout := tTimeout,\n"
+            "     uMaxRetries := WORD_TO_UINT(pMaxRetries), tTransferTimeout := tTransferTimeout,\n"
+            "     xChunkValid := src.xChunkValid, aChunk := src.aChunk, uChunkLen := src.uChunkLen,\n"
+            "     xChunkLast := src.xChunkLast, aRead := rd1, xReadValid := xRdValid1,\n"
+            "     xWriteDone := xWrDone1, xWriteError := wrErr1);")
+        code.append("rtRecvErr(CLK := link.xRecvError);\n"
+                    "IF rtRecvErr.Q THEN udiRecvFailed := udiRecvFailed + 1; END_IF;")
+        code.append("store(xRecordValid := link.xRecordValid, aRecord := link.aRecord,\n"
+                    "      uRecordLen := link.uRecordLen, wRecordNumber := link.wRecordNumber,\n"
+                    "      udiFailed := udiRecvFailed, eLastError := link.eRecvErrorId);")
+        code += store_out(1, "store")
+        code.append("mR1Dup := UDINT_TO_WORD(link.udiDuplicates MOD 65536);")
+        code.append("mR1Unexp := UDINT_TO_WORD(link.udiUnexpected MOD 65536);")
+        code += source_out(1, "src", "link.udiRetransmissions")
+    else:
+        code.append(
+            "snd(xExecute := src.xExecute, uChunkSize := uChunkSize, xPolled := xPolled,\n"
+            "    xStatic := xStatic, tTimeout := tTimeout, uMaxRetries := WORD_TO_UINT(pMaxRetries),\n"
+            "    xChunkValid := src.xChunkValid, aChunk := src.aChunk, uChunkLen := src.uChunkLen,\n"
+            "    xChunkLast := src.xChunkLast, xWriteDone := xWrDone1, xWriteError := wrErr1,\n"
+            "    aRead := rd1, xReadValid := xRdValid1);")
+        code += source_out(1, "src", "snd.udiRetransmissions")
+    code += io_after(1, fb)
+    doc = ("    The outstation: a data logger read out over the TRM-810 "
+           + ("with MIP_Link (both directions: it also receives and stores the central's stream)."
+              if bidi else "with MIP_Sender."))
+    return (HEADER.format(doc=doc) + f"PROGRAM {prog}\n" + var_blocks(decl) + "\n".join(code) + "\nEND_PROGRAM\n" + config(prog, "out0"))
+
+
+def central(bidi):
+    prog = "CentralBidi" if bidi else "Central"
+    decl = [PARAMS, PARAM_VARS]
+    code = [PARAM_CODE]
+    for s in range(1, MAX_STATIONS + 1):
+        decl.append(f"  (* ---- station {s} (MDP-810 unit id {s}) *)")
+        decl.append(f"  store{s} : PLC_RecordStore;")
+        if bidi:
+            decl += [f"  link{s} : MIP_Link;", f"  src{s} : PLC_LogSource;",
+                     f"  rtRecvErr{s} : R_TRIG;", f"  udiRecvFailed{s} : UDINT;"]
+        else:
+            decl.append(f"  rcv{s} : MIP_Receiver;")
+        decl += located_io(s, f"MDP-810 unit {s}")
+        decl += status_vars(s, receiver=True, sender=bidi)
+        code += io_before(s)
+        if bidi:
+            code.append(
+                f"(* the central's own stream to station {s}: session pSession + 16#8000 *)\n"
+                f"src{s}(xRun := xRun, udiTotal := udiTotal, uPerTransfer := uPerTransfer, "
+                f"uPayload := uPayload,\n    wSession := pSession XOR 16#8000, wStation := {s}, "
+                f"tLogPeriod := tLogPeriod,\n"
+                f"    xChunkRequest := link{s}.xChunkRequest, udiChunkIndex := link{s}.udiChunkIndex,"
+                f" uChunkMax := link{s}.uChunkMax,\n    xSendDone := link{s}.xSendDone, "
+                f"xSendError := link{s}.xSendError, eSendError := link{s}.eSendErrorId);")
+            code.append(
+                f"link{s}(xEnable := xRun, xExecute := src{s}.xExecute, xCentral := TRUE, "
+                f"xPolled := xPolled,\n     xStatic := xStatic, uChunkSize := uChunkSize, "
+                f"tTimeout := tTimeout,\n     uMaxRetries := WORD_TO_UINT(pMaxRetries), "
+                f"tTransferTimeout := tTransferTimeout,\n     xChunkValid := src{s}.xChunkValid, "
+                f"aChunk := src{s}.aChunk, uChunkLen := src{s}.uChunkLen,\n"
+                f"     xChunkLast := src{s}.xChunkLast, aRead := rd{s}, xReadValid := xRdValid{s},\n"
+                f"     xWriteDone := xWrDone{s}, xWriteError := wrErr{s});")
+            code.append(f"rtRecvErr{s}(CLK := link{s}.xRecvError);\n"
+                        f"IF rtRecvErr{s}.Q THEN udiRecvFailed{s} := udiRecvFailed{s} + 1; END_IF;")
+            code.append(f"store{s}(xRecordValid := link{s}.xRecordValid, aRecord := link{s}.aRecord,\n"
+                        f"      uRecordLen := link{s}.uRecordLen, wRecordNumber := link{s}.wRecordNumber,\n"
+                        f"      udiFailed := udiRecvFailed{s}, eLastError := link{s}.eRecvErrorId);")
+            code += store_out(s, f"store{s}")
+            code.append(f"mR{s}Dup := UDINT_TO_WORD(link{s}.udiDuplicates MOD 65536);")
+            code.append(f"mR{s}Unexp := UDINT_TO_WORD(link{s}.udiUnexpected MOD 65536);")
+            code += source_out(s, f"src{s}", f"link{s}.udiRetransmissions")
+            code += io_after(s, f"link{s}")
+        else:
+            code.append(
+                f"rcv{s}(xEnable := xRun, xPolled := xPolled, xStatic := xStatic, tTimeout := tTimeout,\n"
+                f"     tTransferTimeout := tTransferTimeout, aRead := rd{s}, xReadValid := xRdValid{s},\n"
+                f"     xWriteDone := xWrDone{s}, xWriteError := wrErr{s});")
+            code.append(f"store{s}(xRecordValid := rcv{s}.xRecordValid, aRecord := rcv{s}.aRecord,\n"
+                        f"      uRecordLen := rcv{s}.uRecordLen, wRecordNumber := rcv{s}.wRecordNumber,\n"
+                        f"      udiFailed := rcv{s}.udiFailedTransfers, eLastError := rcv{s}.eLastErrorId);")
+            code += store_out(s, f"store{s}")
+            code.append(f"mR{s}Dup := UDINT_TO_WORD(rcv{s}.udiDuplicates MOD 65536);")
+            code.append(f"mR{s}Unexp := UDINT_TO_WORD(rcv{s}.udiUnexpected MOD 65536);")
+            code += io_after(s, f"rcv{s}")
+    doc = (f"    The central: one {'MIP_Link' if bidi else 'MIP_Receiver'} per outstation "
+           f"(MDP-810 unit ids 1..{MAX_STATIONS}),\n    each with a PLC_RecordStore"
+           + (" and a logger of its own sent down to the station." if bidi else "."))
+    return (HEADER.format(doc=doc) + f"PROGRAM {prog}\n" + var_blocks(decl) + "\n".join(code) + "\nEND_PROGRAM\n" + config(prog, "cen0"))
+
+
+def main():
+    for name, text in [("outstation.st", outstation(False)), ("central.st", central(False)),
+                       ("outstation_bidi.st", outstation(True)), ("central_bidi.st", central(True))]:
+        (HERE / name).write_text(text)
+        print(f"wrote plc/{name}")
+
+
+if __name__ == "__main__":
+    main()
