@@ -1,0 +1,352 @@
+#!/usr/bin/env python3
+"""The chain demo (`make run`): a data logger read out over the emulated MIP radio network.
+
+Starts mip-emulator (1 MDP-810 + N TRM-810 on 127.0.0.1, free ports), one outstation soft-PLC
+per station (plc/outstation.st) and the central soft-PLC (plc/central.st) in real time, shows
+the read-out, checks that the central holds the logger's data register for register, stops
+every process it started and prints one last line `result: ok ...` (exit 0) or
+`result: FAIL ...` (exit 1).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "cosim"))          # mipcosim.layout, also without `make venv`
+
+from mipcosim import layout as L                 # noqa: E402
+
+
+class DemoError(Exception):
+    pass
+
+
+def parse_args(argv):
+    p = argparse.ArgumentParser(prog="demo", description=__doc__.splitlines()[0])
+    p.add_argument("--records", type=int, default=5, help="logger records per station (default 5)")
+    p.add_argument("--stations", type=int, default=1, help=f"outstations, 1..{L.MAX_STATIONS}")
+    p.add_argument("--loss", type=float, default=0.1,
+                   help="probability a telegram is lost, each direction (default 0.1)")
+    p.add_argument("--seed", type=int, default=1, help="seed of the radio (default 1)")
+    p.add_argument("--payload", type=int, default=16, help="registers per record (1..122)")
+    p.add_argument("--per-transfer", type=int, default=0,
+                   help="records per transfer (default: all in one)")
+    p.add_argument("--log-period-ms", type=int, default=100,
+                   help="the logger writes a record every this many ms (default 100)")
+    p.add_argument("--realistic", action="store_true",
+                   help="realistic radio timing (9600 bit/s, 20 ms gaps) instead of fast")
+    p.add_argument("--polled", action="store_true", help="polled drive instead of spontaneous")
+    p.add_argument("--timeout", type=float, default=0,
+                   help="give up after this many seconds (default: from the radio timing)")
+    p.add_argument("--keep", action="store_true", help="keep the run directory's logs")
+    a = p.parse_args(argv)
+    if not 1 <= a.stations <= L.MAX_STATIONS:
+        p.error(f"--stations must be 1..{L.MAX_STATIONS}")
+    if not 1 <= a.records <= 10_000_000:
+        p.error("--records must be 1..10000000")
+    if not 0 <= a.loss < 1:
+        p.error("--loss must be in 0..1 (exclusive)")
+    if not 1 <= a.payload <= 122:
+        p.error("--payload must be 1..122")
+    if a.per_transfer < 0 or a.per_transfer > 65534:
+        p.error("--per-transfer must be 0..65534")
+    if a.per_transfer == 0 and a.records > 65534:
+        p.error("more than 65534 records: give --per-transfer")
+    return a
+
+
+def free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+class Slave:
+    """Reads and writes a soft-PLC's %MW through its Modbus slave (holding 1024 + n)."""
+
+    def __init__(self, port):
+        from pymodbus.client import ModbusTcpClient
+        import logging
+        logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
+        self.port = port
+        self.c = ModbusTcpClient("127.0.0.1", port=port, timeout=2, retries=1)
+
+    def connect(self, deadline):
+        while time.monotonic() < deadline:
+            if self.c.connect():
+                return
+            time.sleep(0.05)
+        raise DemoError(f"the soft-PLC's slave on port {self.port} did not come up")
+
+    def read(self, mw, n):
+        out = []
+        while n > 0:
+            k = min(n, 125)
+            rr = self.c.read_holding_registers(1024 + mw, count=k)
+            if rr.isError():
+                raise DemoError(f"reading %MW{mw} from port {self.port}: {rr}")
+            out += rr.registers
+            mw, n = mw + k, n - k
+        return out
+
+    def write(self, mw, words):
+        wr = self.c.write_registers(1024 + mw, list(words))
+        if wr.isError():
+            raise DemoError(f"writing %MW{mw} on port {self.port}: {wr}")
+
+    def close(self):
+        self.c.close()
+
+
+def build_programs(outdir):
+    from plcharness.build import BuildError, build_program
+    res = {}
+    for role in ("outstation", "central"):
+        try:
+            res[role] = build_program(L.program_sources(role, False), outdir / role)
+        except BuildError as e:
+            raise DemoError(f"building plc/{role}.st: {e}") from None
+    return res
+
+
+class Procs:
+    """Every process the demo starts; stop() ends them all (SIGTERM, then SIGKILL)."""
+
+    def __init__(self):
+        self.procs = []
+
+    def start(self, name, cmd, log, **kw):
+        f = open(log, "w")
+        p = subprocess.Popen(cmd, stdout=kw.pop("stdout", f), stderr=f, stdin=subprocess.DEVNULL,
+                             start_new_session=True, **kw)
+        self.procs.append((name, p, f, log))
+        return p
+
+    def check_alive(self):
+        for name, p, _, log in self.procs:
+            if p.poll() is not None:
+                tail = Path(log).read_text().strip().splitlines()[-3:]
+                raise DemoError(f"{name} exited with {p.returncode}: {' | '.join(tail)}")
+
+    def stop(self):
+        for _, p, _, _ in self.procs:
+            if p.poll() is None:
+                p.send_signal(signal.SIGTERM)
+        deadline = time.monotonic() + 5
+        for _, p, f, _ in self.procs:
+            try:
+                p.wait(timeout=max(0.1, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+            f.close()
+        self.procs = []
+
+
+class TraceStats:
+    """Link statistics from the emulator's JSON-lines trace, read as it grows."""
+
+    def __init__(self, path):
+        self.path, self.pos, self.buf = path, 0, ""
+        self.polls = self.lost = self.telegrams = self.blocks = self.blocks_lost = 0
+
+    def update(self):
+        try:
+            with open(self.path) as f:
+                f.seek(self.pos)
+                data = f.read()
+                self.pos = f.tell()
+        except FileNotFoundError:
+            return
+        self.buf += data
+        *lines, self.buf = self.buf.split("\n")
+        for line in lines:
+            if '"radio"' not in line:
+                continue
+            ev = json.loads(line)
+            self.telegrams += 1
+            self.polls += ev["kind"] == "poll"
+            self.lost += ev["lost"]
+            if ev["regs"]:
+                self.blocks += 1
+                self.blocks_lost += ev["lost"]
+
+
+def bar(done, total, width=30):
+    k = int(width * done / total) if total else width
+    return "[" + "#" * k + "." * (width - k) + f"] {done}/{total}"
+
+
+def run(a):
+    t_start = time.monotonic()
+    rundir = REPO / "build" / "plc" / "run"
+    rundir.mkdir(parents=True, exist_ok=True)
+    for f in rundir.glob("*"):
+        f.unlink()
+    print(f"demo: building plc/outstation.st and plc/central.st ...", flush=True)
+    progs = build_programs(REPO / "build" / "plc")
+    emu = REPO / "build" / "emulator" / "mip-emulator"
+    if not emu.is_file():
+        raise DemoError(f"{emu} missing: run make")
+    radio = (["--bitrate", "9600", "--slot-gap-ms", "20"] if a.realistic
+             else ["--bitrate", "1000000", "--slot-gap-ms", "1"])
+    procs = Procs()
+    slaves = []
+    try:
+        trace = rundir / "emulator-trace.jsonl"
+        p = procs.start("mip-emulator",
+                        [str(emu), "--mdp-port", "0", "--trm-base-port", "0",
+                         "--stations", str(a.stations), "--loss-up", str(a.loss),
+                         "--loss-down", str(a.loss), "--seed", str(a.seed), "--trace", str(trace)]
+                        + radio, rundir / "emulator.log", stdout=subprocess.PIPE, text=True)
+        line = p.stdout.readline().strip()
+        if not line.startswith("mip-emulator: listening"):
+            procs.check_alive()
+            raise DemoError(f"mip-emulator did not start: {line!r}")
+        fields = dict(kv.split("=", 1) for kv in line.split()[2:])
+        mdp_port = int(fields["mdp"].rsplit(":", 1)[1])
+        trm_ports = [int(x) for x in fields["trm"].split(",")]
+        print(f"demo: {line}", flush=True)
+        timeout_ms = 3000 if a.realistic else 300
+        params = L.Params(records=a.records, per_transfer=a.per_transfer, payload=a.payload,
+                          polled=a.polled, log_period_ms=a.log_period_ms, timeout_ms=timeout_ms)
+        # central first, so the outstations find it listening
+        cen_conf = rundir / "central.conf"
+        cen_conf.write_text(L.central_config(mdp_port, a.stations))
+        cen_port = free_port()
+        procs.start("central soft-PLC", [str(progs["central"].executable), "-c", str(cen_conf),
+                                         "-s", f"127.0.0.1:{cen_port}"], rundir / "central.log")
+        out_ports = []
+        for s in range(1, a.stations + 1):
+            conf = rundir / f"outstation{s}.conf"
+            conf.write_text(L.outstation_config(trm_ports[s - 1]))
+            port = free_port()
+            out_ports.append(port)
+            procs.start(f"outstation {s} soft-PLC", [str(progs["outstation"].executable), "-c",
+                                                     str(conf), "-s", f"127.0.0.1:{port}"],
+                        rundir / f"outstation{s}.log")
+        deadline = time.monotonic() + 10
+        central = Slave(cen_port)
+        central.connect(deadline)
+        slaves.append(central)
+        outs = []
+        for port in out_ports:
+            sl = Slave(port)
+            sl.connect(deadline)
+            slaves.append(sl)
+            outs.append(sl)
+        central.write(0, L.Params(polled=a.polled, timeout_ms=timeout_ms).words())
+        for s, sl in enumerate(outs, 1):
+            params.station = s
+            sl.write(0, params.words())
+        print(f"demo: {a.stations} outstation(s) logging {a.records} records of {a.payload} "
+              f"registers, read out over a {'realistic' if a.realistic else 'fast'} radio "
+              f"with {a.loss:.0%} loss (seed {a.seed})", flush=True)
+        total = a.records * a.stations
+        limit = a.timeout or (30 + a.records * a.stations * (6.0 if a.realistic else 0.5)
+                              / (1 - a.loss) ** 2 + a.records * a.log_period_ms / 1000)
+        stats = TraceStats(trace)
+        tty = sys.stdout.isatty()
+        last_print = 0.0
+        t_run = time.monotonic()
+        while True:
+            procs.check_alive()
+            stats.update()
+            done = sum(sl.read(L.peer_base(1) + L.S_OUT_LO, 2)[0]
+                       + (sl.read(L.peer_base(1) + L.S_OUT_HI, 1)[0] << 16) for sl in outs)
+            finished = all(sl.read(L.peer_base(1) + L.S_ALL, 1)[0] == 1 for sl in outs)
+            retrans = sum(sl.read(L.peer_base(1) + L.S_RETRANS, 1)[0] for sl in outs)
+            dups = sum(central.read(L.peer_base(s) + L.R_DUP, 1)[0]
+                       for s in range(1, a.stations + 1))
+            now = time.monotonic()
+            line1 = f"read-out {bar(done, total)}"
+            line2 = (f"link: polls={stats.polls} telegrams={stats.telegrams} lost={stats.lost} "
+                     f"blocks={stats.blocks} blocks_lost={stats.blocks_lost} "
+                     f"retransmissions={retrans} duplicates={dups} t={now - t_run:.1f}s")
+            if tty:
+                sys.stdout.write(f"\r\033[K{line1}\n\033[K{line2}\033[F")
+                sys.stdout.flush()
+            elif now - last_print >= 1 or finished:
+                print(f"{line1}  {line2}", flush=True)
+                last_print = now
+            if finished:
+                break
+            if now - t_run > limit:
+                if tty:
+                    print("\n")
+                raise DemoError(f"timeout after {limit:.0f} s: {done} of {total} records read out")
+            time.sleep(0.1)
+        if tty:
+            print("\n")
+        time.sleep(0.5)      # let late duplicates show
+        stats.update()
+        # the check, register for register
+        problems = []
+        registers = 0
+        for s in range(1, a.stations + 1):
+            b = L.peer_base(s)
+            blk = central.read(b, 40)
+            win = central.read(b + L.W_BASE, L.WINDOW)
+            stream = []
+            for n in range(1, a.records + 1):
+                stream += L.log_record(n, a.payload, params.session, s)
+            committed = blk[L.R_COM_LO] + (blk[L.R_COM_HI] << 16)
+            registers += committed
+            if committed != len(stream):
+                problems.append(f"station {s}: central holds {committed} registers, "
+                                f"the logger wrote {len(stream)}")
+            want_a, want_b = L.fletcher(stream)
+            if (blk[L.R_SUM_A], blk[L.R_SUM_B]) != (want_a, want_b):
+                problems.append(f"station {s}: checksum {blk[L.R_SUM_A]}/{blk[L.R_SUM_B]}, "
+                                f"want {want_a}/{want_b}")
+            for pos in range(max(0, len(stream) - L.WINDOW), min(committed, len(stream))):
+                if win[pos % L.WINDOW] != stream[pos]:
+                    problems.append(f"station {s}: register {pos} is {win[pos % L.WINDOW]}, "
+                                    f"want {stream[pos]}")
+                    break
+            if blk[L.R_FAILED]:
+                problems.append(f"station {s}: {blk[L.R_FAILED]} failed transfer(s) reported, "
+                                f"last {L.error_name(blk[L.R_ERROR])}")
+        return problems, dict(records=total, registers=registers, polls=stats.polls,
+                              retransmissions=retrans, duplicates=dups,
+                              seconds=round(time.monotonic() - t_start, 1),
+                              lost_telegrams=stats.lost, lost_block_telegrams=stats.blocks_lost)
+    finally:
+        for sl in slaves:
+            sl.close()
+        procs.stop()
+
+
+def main(argv=None):
+    a = parse_args(argv)
+    # Ctrl-C and SIGTERM end the run through the finally clauses (every process stopped)
+    signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
+    try:
+        problems, r = run(a)
+    except KeyboardInterrupt:
+        print("\nresult: FAIL interrupted")
+        return 1
+    except DemoError as e:
+        print(f"\nresult: FAIL {e}")
+        return 1
+    print(f"demo: radio lost {r['lost_telegrams']} telegrams, {r['lost_block_telegrams']} of "
+          f"them carrying a record or an acknowledgement")
+    if problems:
+        print("result: FAIL " + "; ".join(problems))
+        return 1
+    print(f"result: ok records={r['records']} registers={r['registers']} polls={r['polls']} "
+          f"retransmissions={r['retransmissions']} duplicates={r['duplicates']} "
+          f"seconds={r['seconds']}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
