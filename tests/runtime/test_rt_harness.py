@@ -138,8 +138,9 @@ END_CONFIGURATION
 """
 
 
-@pytest.mark.parametrize("compiler", [compiler_param("stc")])
+@pytest.mark.parametrize("compiler", COMPILERS)
 def test_arrays_read_as_lists_and_by_element(compiler, st_file, tmp_path):
+    # (with matiec the array rows come from stc's table of the same sources)
     plc = Plc.build([st_file(ARRAYS)], workdir=tmp_path, compiler=compiler)
     plc["MAIN.buf"] = [1, 2, 3, 4]
     plc["MAIN.buf[3]"] = 40
@@ -178,3 +179,36 @@ def test_program_without_a_task_is_a_clear_error(compiler, st_file, tmp_path):
         Plc.build([src], workdir=tmp_path, compiler=compiler)
     msg = str(ei.value)
     assert "ABI" in msg or "no task" in msg, msg
+
+
+STRUCTS = """
+TYPE S_Point : STRUCT x : INT; tags : ARRAY[1..2] OF WORD; END_STRUCT; END_TYPE
+FUNCTION_BLOCK FB_Hold
+VAR_INPUT pIn : S_Point; END_VAR
+VAR_OUTPUT pOut : S_Point; hist : ARRAY[0..2] OF INT; END_VAR
+pOut := pIn;
+hist[2] := hist[1]; hist[1] := hist[0]; hist[0] := pIn.x;
+END_FUNCTION_BLOCK
+PROGRAM MAIN
+VAR p : S_Point; h : FB_Hold; END_VAR
+p.x := p.x + 1;
+h(pIn := p);
+END_PROGRAM
+CONFIGURATION Config0
+RESOURCE Res0 ON PLC
+TASK task0(INTERVAL := T#10ms, PRIORITY := 0);
+PROGRAM instance0 WITH task0 : MAIN;
+END_RESOURCE
+END_CONFIGURATION
+"""
+
+
+@pytest.mark.parametrize("compiler", COMPILERS)
+def test_struct_members_and_fb_arrays(compiler, st_file, tmp_path):
+    plc = Plc.build([st_file(STRUCTS)], workdir=tmp_path, compiler=compiler)
+    plc["MAIN.p.tags"] = [7, 8]
+    plc.scan(3)
+    assert plc["MAIN.p.x"] == 3
+    assert plc["MAIN.h.pOut.x"] == 3
+    assert plc["MAIN.h.pOut.tags"] == [7, 8]
+    assert plc["MAIN.h.hist"] == [3, 2, 1]

@@ -200,6 +200,7 @@ def read_variables_csv(gen: Path):
             cname = f"{parts[1]}__{parts[2]}"
             decls.append(f"extern {ptype} {cname};")
             declared.add(cname)
+    fb_paths = {path for kind, path, typ in rows if kind == "FB"}
     for kind, path, typ in rows:
         if kind == "FB":
             continue
@@ -229,7 +230,47 @@ def read_variables_csv(gen: Path):
                 declared.add(base)
         c_ref = f"(*{lv})" if pointer else lv
         symbols.append(Symbol(path, sym_type, kind_names.get(kind, "VAR"), c_ref))
-    return symbols, decls, programs
+    return symbols, decls, programs, fb_paths
+
+
+def matiec_arrays_via_stc(sources, workdir: Path, known, fb_paths, programs):
+    """matiec's VARIABLES.csv has no arrays or structs. When stc translates the same sources,
+    its SYMBOLS.tsv gives their paths and types (with the array bounds); the C lvalue follows
+    matiec's layout: variables wrapped as {value, flags}, FB instances as plain structs,
+    struct members plain, arrays as {table[...]}. Returns extra Symbols (may be empty)."""
+    gen = workdir / "stc-types"
+    try:
+        _translate_stc(sources, gen)
+        rows, _ = read_symbols_tsv(gen / "SYMBOLS.tsv")
+    except (BuildError, OSError):
+        return []
+    extra = []
+    for row in rows:
+        if row.path in known or row.kind in ("LOCATED", "VAR_EXTERNAL", "VAR_IN_OUT"):
+            continue
+        parts = row.path.split(".")
+        inst = ".".join(parts[:3])
+        if inst not in programs or len(parts) < 4:
+            continue  # globals: matiec's C type name of an array global is not known here
+        ref = f"{parts[1]}__{parts[2]}"
+        prefix = inst
+        wrapped = False
+        for comp in parts[3:]:
+            prefix = f"{prefix}.{comp}"
+            if wrapped:
+                ref += f".{comp}"           # a member of a STRUCT value
+            elif prefix in fb_paths:
+                ref += f".{comp}"           # an FB instance: a plain struct
+            else:
+                ref += f".{comp}.value"     # a variable: {value, flags}
+                wrapped = True
+        base, dims = row.type, 0
+        if "[" in row.type:
+            base = row.type[:row.type.index("[")]
+            dims = row.type.count(",") + 1
+            ref += ".table" + "[0]" * dims
+        extra.append(Symbol(row.path, row.type, row.kind, ref))
+    return extra
 
 
 def _programs_from_sources(sources):
@@ -330,7 +371,9 @@ def _compiler_fingerprint(compiler):
         if not iec2c:
             raise BuildError("matiec: iec2c not found on PATH (or env IEC2C)")
         st = os.stat(iec2c)
-        return f"{iec2c}:{st.st_size}:{st.st_mtime_ns}:{lib}:{os.environ.get('MATIEC_FLAGS', '')}"
+        # stc too: it supplies the arrays and structs of a matiec build
+        return (f"{iec2c}:{st.st_size}:{st.st_mtime_ns}:{lib}:{os.environ.get('MATIEC_FLAGS', '')}"
+                f":{_compiler_fingerprint('stc')}")
     # stc: its own sources decide what it produces
     h = hashlib.sha256()
     stc_dir = REPO_ROOT / "translator" / "stc"
@@ -403,6 +446,7 @@ def _build_into(sources, out: Path, compiler: str, cflags):
         if not (gen / "SYMBOLS.tsv").is_file():
             raise BuildError(f"stc: {gen}/SYMBOLS.tsv missing: the program does not match the ABI")
         symbols, decls = read_symbols_tsv(gen / "SYMBOLS.tsv")
+        extra_symbols = []
         # the #decl lines name the program types of POUS.h
         if (gen / "POUS.h").is_file():
             decls.insert(0, '#include "POUS.h"')
@@ -415,13 +459,14 @@ def _build_into(sources, out: Path, compiler: str, cflags):
     else:
         lib = _translate_matiec(sources, gen, out)
         include.append(f"-I{Path(lib) / 'C'}")
-        symbols, decls, programs = read_variables_csv(gen)
+        symbols, decls, programs, fb_paths = read_variables_csv(gen)
+        extra_symbols = matiec_arrays_via_stc(sources, out, {s.path for s in symbols},
+                                              fb_paths, programs)
         prog_c = [gen / "Config0.c"] + sorted(gen.glob("Res*.c"))
     for f in prog_c + [gen / "LOCATED_VARIABLES.h"]:
         if not f.is_file():
             raise BuildError(f"{compiler}: {f.name} missing in the translator output: "
                              "the program does not match the ABI")
-    _write_symbols_c(out / "plcrt_symbols.c", symbols, decls)
     cc = _cc()
     mb_cflags, mb_libs = _modbus_flags()
     core_inc = f"-I{RUNTIME_DIR / 'include'}"
@@ -436,8 +481,17 @@ def _build_into(sources, out: Path, compiler: str, cflags):
         objs.append(o)
     _check_abi(objs, compiler)
     o = out / "plcrt_symbols.o"
-    _compile([cc, "-std=gnu99", "-w", *base, *include, "-c", str(out / "plcrt_symbols.c"),
-              "-o", str(o)], "compiling the symbol table (c_ref of SYMBOLS.tsv)")
+    sym_cmd = [cc, "-std=gnu99", "-w", *base, *include, "-c", str(out / "plcrt_symbols.c"),
+               "-o", str(o)]
+    if extra_symbols:
+        # the arrays and structs found through stc are a bonus: drop them if they do not fit
+        _write_symbols_c(out / "plcrt_symbols.c", symbols + extra_symbols, decls)
+        if subprocess.run(sym_cmd, capture_output=True).returncode == 0:
+            symbols = symbols + extra_symbols
+            extra_symbols = []
+    if not o.is_file() or extra_symbols:
+        _write_symbols_c(out / "plcrt_symbols.c", symbols, decls)
+        _compile(sym_cmd, "compiling the symbol table (c_ref of SYMBOLS.tsv)")
     objs.append(o)
     o = out / "plcrt_glue.o"
     _compile([cc, "-std=gnu11", "-Wall", *base, core_inc, f"-I{gen}", "-c",
