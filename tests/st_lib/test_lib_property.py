@@ -8,7 +8,7 @@ import random
 from pathlib import Path
 
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from stlib_sim import Bi, Uni
@@ -114,6 +114,9 @@ def test_unidirectional_exactly_once(wd, s):
         u.snd["xExecute"] = False
         u.bench.step(2)
     u.bench.step(200)                      # let late duplicates arrive
+    for _, r in attempts:
+        event(f"sender result: {r}")
+    event(f"receiver failed transfers: {min(u.rcv['udiFailedTransfers'], 2)}")
     check_exactly_once(attempts, u.sink.transfers)
     if not s["restarts"]:
         # without restarts and with unlimited retries every transfer completes
@@ -181,6 +184,9 @@ def test_bidirectional_exactly_once(wd, s):
         total += 1
         assert total < 3 * ATTEMPT_LIMIT, f"stuck: {bi.lo['eSendState']} {bi.lc['eSendState']}"
     bi.bench.step(200)
+    for side in "OC":
+        for _, r in attempts[side]:
+            event(f"sender result: {r}")
     check_exactly_once(attempts["O"], bi.sink_c.transfers)
     check_exactly_once(attempts["C"], bi.sink_o.transfers)
     if not s["restarts"]:
