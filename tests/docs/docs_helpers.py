@@ -1,0 +1,26 @@
+"""Shared paths and a runner for the documentation tools (tests/docs/)."""
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[2]
+TOOLS = REPO / "docs" / "tools"
+PY = sys.executable
+ST_LIB = sorted(str(p) for p in (REPO / "st_lib").glob("*.st"))
+XSD = REPO / "build" / "docs" / "tc6_xml_v201.xsd"
+EMU_SO = REPO / "build" / "docs" / "libmipemu.so"
+
+if str(TOOLS) not in sys.path:
+    sys.path.insert(0, str(TOOLS))
+
+
+def tool(name, *args, cwd=REPO):
+    """Runs docs/tools/<name>.py; returns the CompletedProcess (text)."""
+    return subprocess.run([PY, str(TOOLS / f"{name}.py"), *map(str, args)], cwd=cwd,
+                          capture_output=True, text=True, timeout=600)
+
+
+def rel(paths):
+    return [str(Path(p).relative_to(REPO)) for p in paths]

@@ -1,0 +1,74 @@
+"""The traces behind the diagrams come from st_lib itself (two soft PLCs, the emulator core,
+virtual time). Running the scenarios again must give the checked-in bytes, so the pictures
+always show what the code does; and the scenarios must show what the guide says they show."""
+import json
+
+import pytest
+
+from docs_helpers import EMU_SO, REPO, tool
+
+TRACES = REPO / "docs" / "traces"
+
+
+@pytest.fixture(scope="module")
+def fresh(tmp_path_factory):
+    assert EMU_SO.exists(), f"{EMU_SO} missing: run `make {EMU_SO.relative_to(REPO)}`"
+    out = tmp_path_factory.mktemp("traces")
+    r = tool("gen_traces", "-o", out)
+    assert r.returncode == 0, r.stderr
+    return out
+
+
+@pytest.mark.parametrize("name", ["note-2-1-1", "bidirectional", "restart"])
+def test_trace_is_what_the_code_does_now(fresh, name):
+    assert (fresh / f"{name}.jsonl").read_text() == (TRACES / f"{name}.jsonl").read_text(), \
+        f"docs/traces/{name}.jsonl differs from a new run: run `make docs-traces docs-diagrams`"
+
+
+def load(name):
+    return [json.loads(x) for x in (TRACES / f"{name}.jsonl").read_text().splitlines()]
+
+
+def test_trace_is_ordered_and_numbered():
+    for name in ("note-2-1-1", "bidirectional", "restart"):
+        ev = load(name)
+        assert [e["seq"] for e in ev] == list(range(len(ev)))
+        assert all(a["t"] <= b["t"] for a, b in zip(ev, ev[1:]))
+
+
+def delivered(ev, side):
+    return [e["value"] for e in ev if e["ev"] == "plc" and e["side"] == side
+            and e["what"] == "deliver"]
+
+
+def test_note_scenario_every_record_once_in_order_despite_the_loss():
+    ev = load("note-2-1-1")
+    assert delivered(ev, "central") == [1, 2, 3, 4, 65535]
+    ups = [e for e in ev if e["ev"] == "radio" and e["dir"] == "up" and e["regs"]]
+    first2 = next(e for e in ups if e["r0"] == 2)
+    assert first2["lost"] and first2["regs"] == 123
+    last = [e for e in ups if e["r0"] == 65535]
+    assert last and last[-1]["regs"] == 50          # the note's 50-register last record
+
+
+def test_bidirectional_both_streams_complete():
+    ev = load("bidirectional")
+    assert delivered(ev, "central")[-1] == 65535 and delivered(ev, "outstation")[-1] == 65535
+    done = {e["side"] for e in ev if e["ev"] == "plc" and e["what"] == "done"}
+    assert done == {"outstation", "central"}
+
+
+def test_restart_breaks_one_transfer_and_completes_the_next():
+    ev = load("restart")
+    assert delivered(ev, "central") == [1, 2, 1, 2, 65535]
+    errors = [e["text"] for e in ev if e["ev"] == "plc" and e["what"] == "error"]
+    assert errors == ["xError: MIP_ERR_SENDER_RESET"]
+
+
+def test_throughput_data_reproduce():
+    """One point of docs/data/throughput-vs-loss.json, run again (20 records, no loss)."""
+    data = json.loads((REPO / "docs" / "data" / "throughput-vs-loss.json").read_text())
+    import gen_lossdata
+    rate, _ = gen_lossdata.run(0.0, "spontaneous", 1, data["records"])
+    point = next(p for p in data["series"]["spontaneous"] if p["loss"] == 0.0)
+    assert round(rate, 1) == point["regs_per_s"][0]
