@@ -231,6 +231,10 @@ int plcrt_run_realtime(plcrt_t *rt, uint64_t max_scans, volatile int *stop)
             /* Overrun: the scan ended after the next deadline. Skip the missed
              * deadlines rather than running a burst of late scans. */
             rt->stats.overruns++;
+            if (rt->stats.overruns == 1 || rt->stats.overruns % 1000 == 0)
+                plcrt_log(rt, "overrun: scan %llu took %.3f ms of a %.3f ms tick (%llu overruns so far)",
+                          (unsigned long long)rt->stats.scans, (end - start) / 1e6,
+                          rt->tick_ns / 1e6, (unsigned long long)rt->stats.overruns);
             while (ts_ns(&deadline) < end) {
                 add_ns(&deadline, rt->tick_ns);
                 rt->tick++;

@@ -180,6 +180,7 @@ TEST(realtime_counts_overruns_and_skips_missed_deadlines)
     CHECK_EQ(st.overruns, 3);
     CHECK(st.max_scan_ns >= 25000000ull);
     CHECK(fake_last_tick >= 4); /* ticks of the skipped deadlines are not run */
+    CHECK_STR_CONTAINS(log_buf, "overrun: scan 1 took");
     plcrt_free(rt);
 }
 
