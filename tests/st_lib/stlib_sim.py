@@ -219,6 +219,8 @@ class Port:
         self.fb, self.modem = fb, modem
         self.read_every, self.read_mode = read_every, read_mode
         self.write_fail = 0               # fail the next n writes
+        self.fail_rate = 0.0              # and each write with this probability
+        self.rng = random.Random(0)
         self.writes: list[list] = []
         self._done = self._err = False
         self._k = 0
@@ -241,8 +243,8 @@ class Port:
         fb = self.fb
         req = fb["xWriteReq"]
         if req and not (self._done or self._err):
-            if self.write_fail > 0:
-                self.write_fail -= 1
+            if self.write_fail > 0 or (self.fail_rate and self.rng.random() < self.fail_rate):
+                self.write_fail = max(0, self.write_fail - 1)
                 self._err = True
             else:
                 block = fb.write_block()

@@ -60,6 +60,7 @@ schedule = st.fixed_dictionaries({
     "p_drop": st.sampled_from([0.0, 0.1, 0.2]),
     "chunk": st.sampled_from([3, 16, 64, 123]),
     "transfers": st.integers(1, 3),
+    "write_errors": st.sampled_from([0.0, 0.0, 0.15]),
     "restarts": st.lists(st.tuples(st.integers(10, 1500), st.sampled_from("OC")), max_size=2),
 })
 
@@ -85,6 +86,8 @@ def test_unidirectional_exactly_once(wd, s):
     u = Uni(wd, [], polled=s["polled"], read_mode=s["read_mode"], read_every=s["read_every"],
             fate=radio_fate(s["seed"], s["p_lost"], s["p_dup"], s["p_drop"]),
             chunk=s["chunk"], timeout_ms=200)
+    for k, port in enumerate((u.port_o, u.port_c)):
+        port.fail_rate, port.rng = s["write_errors"], random.Random(s["seed"] + k)
     run = Runner(u.bench, s["restarts"])
     attempts = []
     state = {"abandoned": False}
@@ -131,6 +134,8 @@ def test_bidirectional_exactly_once(wd, s):
     bi = Bi(wd, [], [], polled=s["polled"], read_mode=s["read_mode"], read_every=s["read_every"],
             fate=radio_fate(s["seed"], s["p_lost"], s["p_dup"], s["p_drop"]), chunk=chunk,
             timeout_ms=200)
+    for k, port in enumerate((bi.port_o, bi.port_c)):
+        port.fail_rate, port.rng = s["write_errors"], random.Random(s["seed"] + k)
     run = Runner(bi.bench, s["restarts"])
     sides = {"O": (bi.lo, bi.src_o, bi.sink_c), "C": (bi.lc, bi.src_c, bi.sink_o)}
     attempts = {"O": [], "C": []}
