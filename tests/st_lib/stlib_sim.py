@@ -477,3 +477,27 @@ class Bi:
             fb["xExecute"] = False
         self.bench.step(2)
         return res
+
+
+class CyclicPort(Port):
+    """OpenPLC's cyclic master: every `read_every` scans it writes the whole write image
+    (whatever the block shows, request or not) and reads the read block; there is no done
+    signal, so the program counts a write request as done after `done_scans` scans (as
+    plc/ does with a TON)."""
+
+    def __init__(self, fb, modem, read_every=3, done_scans=4):
+        super().__init__(fb, modem, read_every, "cyclic")
+        self.done_scans = done_scans
+        self._held = 0
+
+    def after_scan(self):
+        fb = self.fb
+        if self._k % self.read_every == 0:
+            n = self.modem.static_n or 123
+            block = fb.write_block(n)
+            self.writes.append(block)
+            self.modem.write(block)
+        req = fb["xWriteReq"]
+        self._held = self._held + 1 if req else 0
+        fb["xWriteDone"] = req and self._held >= self.done_scans
+        fb["xWriteError"] = False

@@ -194,3 +194,20 @@ def test_buffer_sender_empty_and_too_long(wd):
     u.bench.step(3)
     assert u.snd["xError"] and u.snd["eErrorId"] == E_BUFFER_LEN
     assert not u.snd["xBusy"]
+
+
+def test_static_mode_with_cyclic_io_like_openplc(wd):
+    """Static mode wired to a cyclic master (OpenPLC): the write image goes out every cycle,
+    done is a timer, reads are continuous. Equal content is not re-sent by the modem."""
+    from stlib_sim import CyclicPort
+    data = pattern(4 * 122 + 9, seed=51)
+    u = Uni(wd, data, static_n=123, timeout_ms=500,
+            fate=lambda src, block, r=random.Random(52): r.choice(["ok", "ok", "lost", "dup"]))
+    for attr, fb, modem in (("port_o", u.snd, u.mo), ("port_c", u.rcv, u.mc)):
+        new = CyclicPort(fb, modem)
+        u.bench.parts[u.bench.parts.index(getattr(u, attr))] = new
+        setattr(u, attr, new)
+    u.bench.step(3)
+    assert u.send(limit=10000) == "done"
+    assert u.sink.transfers == [data + [0] * (5 * 122 - len(data))]
+    assert len(u.port_o.writes) > 3 * len([t for t in u.radio.log if t.src == "O"])
