@@ -396,6 +396,21 @@ def _cache_root():
         return None
 
 
+CACHE_KEEP = 400  # entries (about 1 MB each); the oldest go first
+
+
+def _prune_cache(cache: Path):
+    try:
+        entries = [e for e in cache.iterdir() if e.is_dir() and not e.name.startswith("plcrt-build-")]
+        if len(entries) <= CACHE_KEEP:
+            return
+        entries.sort(key=lambda e: e.stat().st_mtime)
+        for e in entries[:len(entries) - CACHE_KEEP]:
+            shutil.rmtree(e, ignore_errors=True)
+    except OSError:
+        pass  # another process pruned at the same time
+
+
 def build_program(sources, outdir, compiler="auto", cflags=None) -> BuildResult:
     """Translate and link ST sources; the result lands in outdir (created)."""
     sources = [Path(s).resolve() for s in sources]
@@ -407,10 +422,14 @@ def build_program(sources, outdir, compiler="auto", cflags=None) -> BuildResult:
     key = _hash_inputs(sources, compiler, _compiler_fingerprint(compiler) + repr(cflags))
     cache = _cache_root()
     if cache and (cache / key / "symbols.json").is_file():
-        if outdir.exists() and outdir != cache / key:
-            shutil.rmtree(outdir)
-        shutil.copytree(cache / key, outdir)
-        return _load_result(outdir)
+        try:
+            os.utime(cache / key)  # recently used: pruned last
+            if outdir.exists():
+                shutil.rmtree(outdir)
+            shutil.copytree(cache / key, outdir)
+            return _load_result(outdir)
+        except (OSError, shutil.Error, ValueError):
+            pass  # pruned meanwhile by another process: build it again
     tmp = Path(tempfile.mkdtemp(prefix="plcrt-build-", dir=cache if cache else None))
     try:
         _build_into(sources, tmp, compiler, cflags or [])
@@ -423,6 +442,7 @@ def build_program(sources, outdir, compiler="auto", cflags=None) -> BuildResult:
                 tmp = None
             except OSError:
                 pass
+            _prune_cache(cache)
     finally:
         if tmp is not None:
             shutil.rmtree(tmp, ignore_errors=True)
