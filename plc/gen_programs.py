@@ -29,7 +29,7 @@ def peer_base(s):         # %MW block of peer s: receiver 0..19, sender 20..39, 
 
 
 PARAMS = """\
-  (* parameters (%MW0..%MW13), written by the demo, a test or an operator panel *)
+  (* parameters (%MW0..%MW15), written by the demo, a test or an operator panel *)
   pStart AT %MW0 : WORD;          (* <> 0: run *)
   pTotalLo AT %MW1 : WORD;        (* records to log and read out (0: 5) *)
   pTotalHi AT %MW2 : WORD;
@@ -44,6 +44,8 @@ PARAMS = """\
   pTransferTimeout AT %MW11 : WORD; (* s, receivers' tTransferTimeout (0: never) *)
   pMaxRetries AT %MW12 : WORD;    (* sender's uMaxRetries (0: unlimited) *)
   pCyclicWrite AT %MW13 : WORD;   (* cyclic I/O: ms after which a write counts as done (0: 300) *)
+  pStartLo AT %MW14 : WORD;       (* records already read out (resume after a restart) *)
+  pStartHi AT %MW15 : WORD;
 """
 
 PARAM_VARS = """\
@@ -59,6 +61,7 @@ PARAM_VARS = """\
   tTransferTimeout : TIME;
   tLogPeriod : TIME;
   tCyclicWrite : TIME;
+  udiStart : UDINT;
 """
 
 PARAM_CODE = """\
@@ -80,6 +83,7 @@ IF NOT xRun THEN
   tLogPeriod := T#1ms * WORD_TO_DINT(pLogPeriod);
   tCyclicWrite := T#1ms * WORD_TO_DINT(pCyclicWrite);
   IF pCyclicWrite = 0 THEN tCyclicWrite := T#300ms; END_IF;
+  udiStart := WORD_TO_UDINT(pStartLo) + WORD_TO_UDINT(pStartHi) * 65536;
   xRun := pStart <> 0;
 END_IF;
 """
@@ -204,7 +208,7 @@ def outstation(bidi):
     code.append("(* the logger: station pStation, records 1..udiTotal *)")
     code.append(f"src(xRun := xRun, udiTotal := udiTotal, uPerTransfer := uPerTransfer, "
                 f"uPayload := uPayload,\n    wSession := pSession, wStation := pStation, "
-                f"tLogPeriod := tLogPeriod,\n"
+                f"tLogPeriod := tLogPeriod, udiStart := udiStart,\n"
                 + (f"    xChunkRequest := link.xChunkRequest, udiChunkIndex := link.udiChunkIndex, "
                    f"uChunkMax := link.uChunkMax,\n    xSendDone := link.xSendDone, "
                    f"xSendError := link.xSendError, eSendError := link.eSendErrorId);"
@@ -264,7 +268,7 @@ def central(bidi):
                 f"(* the central's own stream to station {s}: session pSession + 16#8000 *)\n"
                 f"src{s}(xRun := xRun, udiTotal := udiTotal, uPerTransfer := uPerTransfer, "
                 f"uPayload := uPayload,\n    wSession := pSession XOR 16#8000, wStation := {s}, "
-                f"tLogPeriod := tLogPeriod,\n"
+                f"tLogPeriod := tLogPeriod, udiStart := udiStart,\n"
                 f"    xChunkRequest := link{s}.xChunkRequest, udiChunkIndex := link{s}.udiChunkIndex,"
                 f" uChunkMax := link{s}.uChunkMax,\n    xSendDone := link{s}.xSendDone, "
                 f"xSendError := link{s}.xSendError, eSendError := link{s}.eSendErrorId);")

@@ -44,16 +44,14 @@ def _sender_attempts(events, pid, taps, total, per_transfer, sessions):
     """[(session, first, count, outcome)] from the sender taps of one PLC id."""
     attempts = []
     sess_iter = iter(sessions)
-    session = next(sess_iter)
-    pointer = 0
+    session, pointer = next(sess_iter)
     for ev in events:
         if ev.plc != pid:
             continue
         if ev.tap == RESTART:
             if pointer < total:
                 attempts.append((session, pointer + 1, _count(total, pointer, per_transfer), "cut"))
-            session = next(sess_iter, session)
-            pointer = 0
+            session, pointer = next(sess_iter, (session, pointer))
             continue
         if ev.tap not in taps:
             continue
@@ -73,14 +71,15 @@ def _count(total, pointer, per_transfer):
 
 
 def check_stream(chain: Chain, name, sender, sender_tap, receiver, receiver_tap, station,
-                 session_of):
-    """session_of(sender session) -> the session word in the data."""
+                 session_of, resumes):
+    """session_of(sender session) -> the session word in the data. resumes: a restarted sender
+    continues the same logger (a record is then the same record in every session)."""
     st = chain.s
     rep = StreamReport(name)
     payload = st.params(station, 1).effective_payload(st.bidi)
     total = st.records
     s_pid, r_pid = chain.ids[sender], chain.ids[receiver]
-    sessions = [session_of(x) for x in chain.sessions[sender]]
+    sessions = [(session_of(x), start) for x, start in chain.sessions[sender]]
     attempts, pointer = _sender_attempts(chain.events, s_pid, {sender_tap}, total,
                                          st.per_transfer, sessions)
     rep.attempts = len(attempts)
@@ -138,7 +137,7 @@ def check_stream(chain: Chain, name, sender, sender_tap, receiver, receiver_tap,
         if ns and any(ns[i][1] != ns[0][1] + i or ns[i][0] != ns[0][0] for i in range(len(ns))):
             rep.problems.append(f"{name}: transfer not consecutive: {ns[:4]}...")
         for k in ns:
-            seen[k] += 1
+            seen[k[1] if resumes else k] += 1
         rep.registers += sum(len(r) for r in tr)
         keys.append((ns[0][0], ns[0][1], len(ns)) if ns else (None, 0, 0))
     rep.transfers = len(complete)
@@ -147,14 +146,17 @@ def check_stream(chain: Chain, name, sender, sender_tap, receiver, receiver_tap,
     # match complete transfers to attempts
     used = [False] * len(attempts)
     for key in keys:
-        for i, a in enumerate(attempts):
-            if not used[i] and a[:3] == key:
-                used[i] = True
-                if a[3] != "done":
-                    rep.delivered_after_failure += 1
-                break
-        else:
+        # a range is done at most once (the read-out pointer then moves on); earlier failed
+        # attempts of the same range may have arrived too (the failure was on the way back)
+        cands = [i for i, a in enumerate(attempts) if not used[i] and a[:3] == key]
+        done = [i for i in cands if attempts[i][3] == "done"]
+        if not cands:
             rep.problems.append(f"{name}: complete transfer {key} matches no attempt of the sender")
+            continue
+        i = done[0] if done else cands[0]
+        used[i] = True
+        if attempts[i][3] != "done":
+            rep.delivered_after_failure += 1
     for i, a in enumerate(attempts):
         if a[3] == "done":
             rep.done += 1
@@ -181,10 +183,10 @@ def check(chain: Chain):
     reps = []
     for s in range(1, chain.s.stations + 1):
         reps.append(check_stream(chain, f"station {s} -> central", ("out", s), 20 + s,
-                                 ("cen", 0), s, s, lambda x: x))
+                                 ("cen", 0), s, s, lambda x: x, True))
         if chain.s.bidi:
             reps.append(check_stream(chain, f"central -> station {s}", ("cen", 0), 10 + s,
-                                     ("out", s), 30 + s, s, lambda x: x ^ 0x8000))
+                                     ("out", s), 30 + s, s, lambda x: x ^ 0x8000, False))
     return reps
 
 

@@ -15,7 +15,8 @@ FFFF = 0xFFFF
 
 # %MW parameters
 P_START, P_TOTAL_LO, P_TOTAL_HI, P_PER_TRANSFER, P_PAYLOAD, P_SESSION, P_STATION, P_FLAGS, \
-    P_LOG_PERIOD, P_TIMEOUT, P_CHUNK, P_TRANSFER_TIMEOUT, P_MAX_RETRIES, P_CYCLIC_WRITE = range(14)
+    P_LOG_PERIOD, P_TIMEOUT, P_CHUNK, P_TRANSFER_TIMEOUT, P_MAX_RETRIES, P_CYCLIC_WRITE, \
+    P_START_LO, P_START_HI = range(16)
 F_POLLED, F_STATIC, F_CYCLIC = 1, 2, 4
 
 # offsets in a peer block (%MW 100 + 200 (s-1))
@@ -90,13 +91,15 @@ class Params:
     chunk: int = 123
     transfer_timeout_s: int = 0
     max_retries: int = 0
+    start: int = 0          # records already read out (a restarted outstation resumes there)
 
     def words(self, start=True):
         flags = (F_POLLED if self.polled else 0) | (F_STATIC if self.static else 0) | \
                 (F_CYCLIC if self.cyclic else 0)
         return [1 if start else 0, self.records % 65536, self.records // 65536, self.per_transfer,
                 self.payload, self.session, self.station, flags, self.log_period_ms,
-                self.timeout_ms, self.chunk, self.transfer_timeout_s, self.max_retries, 0]
+                self.timeout_ms, self.chunk, self.transfer_timeout_s, self.max_retries, 0,
+                self.start % 65536, self.start // 65536]
 
     def effective_payload(self, bidi):
         room = self.chunk - (2 if bidi else 1)

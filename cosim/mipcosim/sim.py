@@ -110,8 +110,8 @@ class Setup:
     radio: Radio = field(default_factory=Radio)
     compiler: str = "stc"
 
-    def params(self, station, session):
-        return L.Params(records=self.records, per_transfer=self.per_transfer,
+    def params(self, station, session, start=0):
+        return L.Params(start=start, records=self.records, per_transfer=self.per_transfer,
                         payload=self.payload, session=session, station=station,
                         polled=self.polled, static=self.static,
                         log_period_ms=self.log_period_ms, timeout_ms=self.timeout_ms,
@@ -166,7 +166,7 @@ class Chain:
     def session(self, who):
         return 1 + self.boots[who]
 
-    def _start(self, who):
+    def _start(self, who, start=0):
         role, s = who
         plc = Plc(self.out_build if role == "out" else self.cen_build, self.workdir,
                   config=self.out_conf if role == "out" else self.cen_conf)
@@ -189,8 +189,8 @@ class Chain:
             for st in range(1, self.s.stations + 1):
                 self._check(self.lib.mipcosim_connect(self.sim, pid, set_fd, f"mdp{st}".encode(), 0))
         session = self.session(who)
-        self.sessions.setdefault(who, []).append(session)
-        params = self.s.params(s if role == "out" else 0, session)
+        self.sessions.setdefault(who, []).append((session, start))
+        params = self.s.params(s if role == "out" else 0, session, start)
         for i, w in enumerate(params.words()):
             plc[f"%MW{i}"] = w
         self._taps(who)
@@ -261,12 +261,18 @@ class Chain:
         """A PLC restart: off for down_ns (its modem keeps running), then a fresh instance of
         the program (all state lost) with the next session number."""
         pid = self.ids[who]
+        # an outstation's logger keeps its data and read-out pointer (retained memory); the
+        # central's own stream (bidirectional) starts over in a new session
+        start = 0
+        if who[0] == "out":
+            b = L.peer_base(1)
+            start = self.mw(who, b + L.S_OUT_LO) + (self.mw(who, b + L.S_OUT_HI) << 16)
         self._check(self.lib.mipcosim_plc_replace(self.sim, pid, None, None, 0))
         self.restarts.append((self.now, who))
         self.events.append(Event(self.now, RESTART, pid, []))   # marker for the checker
         self.run_for(down_ns)
         self.boots[who] += 1
-        self._start(who)
+        self._start(who, start)
 
     def mw(self, who, addr):
         return self.plcs[who][f"%MW{addr}"]

@@ -1,0 +1,132 @@
+"""mip-cosim: run the chain in co-simulation from the command line; `soak` is the long run.
+
+    python -m mipcosim.cli run  [--records N] [--loss P] [--seed S] [--bidi] [--static] [--polled]
+    python -m mipcosim.cli soak [--records 100000] [--loss 0.3] [--restart-every 120] ...
+
+Both print the delivery counts and end with one line `result: ok ...` (exit 0) or
+`result: FAIL ...` (exit 1).
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from .check import check, summary
+from . import layout as L
+from .sim import SEC, Chain, CosimError, Radio, Setup
+
+
+def parse(argv):
+    p = argparse.ArgumentParser(prog="mip-cosim", description=__doc__.splitlines()[0])
+    p.add_argument("what", choices=["run", "soak"])
+    p.add_argument("--records", type=int, help="records per sender (run: 5, soak: 100000)")
+    p.add_argument("--per-transfer", type=int, help="records per transfer (run: all, soak: 500)")
+    p.add_argument("--loss", type=float, help="telegram loss per direction (run: 0.1, soak: 0.3)")
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--stations", type=int, default=1)
+    p.add_argument("--payload", type=int, default=16)
+    p.add_argument("--bidi", action="store_true")
+    p.add_argument("--static", action="store_true")
+    p.add_argument("--polled", action="store_true")
+    p.add_argument("--realistic", action="store_true", help="9600 bit/s, 20 ms gaps")
+    p.add_argument("--restart-every", type=float,
+                   help="virtual seconds between PLC restarts, alternating outstation / central "
+                        "(run: none, soak: 120)")
+    p.add_argument("--limit", type=float, default=0, help="virtual seconds before giving up")
+    p.add_argument("--trace", help="emulator trace (JSON lines) to this file")
+    p.add_argument("--workdir", help="build and scratch directory (default: a temp dir)")
+    a = p.parse_args(argv)
+    soak = a.what == "soak"
+    a.records = a.records if a.records is not None else (100_000 if soak else 5)
+    a.per_transfer = a.per_transfer if a.per_transfer is not None else (500 if soak else 0)
+    a.loss = a.loss if a.loss is not None else (0.3 if soak else 0.1)
+    a.restart_every = a.restart_every if a.restart_every is not None else (120 if soak else 0)
+    if a.per_transfer == 0 and a.records > 65534:
+        p.error("more than 65534 records need --per-transfer")
+    if not 0 <= a.loss < 1:
+        p.error("--loss must be in 0..1 (exclusive)")
+    return a
+
+
+def main(argv=None):
+    a = parse(argv)
+    st = Setup(stations=a.stations, static=a.static, polled=a.polled, bidi=a.bidi, loss=a.loss,
+               seed=a.seed, records=a.records, per_transfer=a.per_transfer, payload=a.payload,
+               radio=Radio.realistic() if a.realistic else Radio(),
+               timeout_ms=3000 if a.realistic else 300)
+    workdir = Path(a.workdir or tempfile.mkdtemp(prefix="mipcosim-"))
+    limit = a.limit or (60 + a.records * a.stations * (8 if a.realistic else 0.5)
+                        / (1 - a.loss) ** 2)
+    t0 = time.monotonic()
+    try:
+        with Chain(st, workdir, trace=a.trace) as ch:
+            print(f"mip-cosim: {a.what}: {a.stations} station(s), {a.records} records each, "
+                  f"loss {a.loss:.0%}, seed {a.seed}, {'bidirectional' if a.bidi else 'uni'}, "
+                  f"{'static' if a.static else 'dynamic'}, {'polled' if a.polled else 'spontaneous'}"
+                  f"{f', a restart every {a.restart_every:g} s' if a.restart_every else ''}",
+                  flush=True)
+            next_restart = a.restart_every * SEC if a.restart_every else None
+            k = 0
+            finished = False
+            last_report = 0.0
+            while ch.now < limit * SEC:
+                ch.run_for(SEC)
+                if next_restart is not None and ch.now >= next_restart and not ch.finished():
+                    who = ("out", 1 + (k // 2) % a.stations) if k % 2 == 0 else ("cen", 0)
+                    ch.restart(who)
+                    k += 1
+                    next_restart += a.restart_every * SEC
+                if time.monotonic() - last_report > 10:
+                    b = L.peer_base(1)
+                    out = sum(ch.mw(("out", s), b + L.S_OUT_LO) + (ch.mw(("out", s), b + L.S_OUT_HI) << 16)
+                              for s in range(1, a.stations + 1))
+                    print(f"  t={ch.now / SEC:.0f}s virtual, {time.monotonic() - t0:.0f}s wall: "
+                          f"{out}/{a.records * a.stations} records read out, {k} restarts",
+                          flush=True)
+                    last_report = time.monotonic()
+                if ch.finished():
+                    ch.run_for(3 * SEC)
+                    finished = True
+                    break
+            reps = check(ch)
+            tot = summary(reps)
+            radio = ch.radio_stats()
+            wall = time.monotonic() - t0
+            for r in reps:
+                print(f"  {r.name}: transfers={r.transfers} records={r.records} "
+                      f"done={r.done} failed_reported={dict(r.failed)} cut_by_restart={r.cut} "
+                      f"receiver_reported={dict(r.receiver_failures)} "
+                      f"delivered_after_failure={r.delivered_after_failure} "
+                      f"duplicated={r.duplicated_records} lost={r.lost}")
+                for p in r.problems[:10]:
+                    print(f"    problem: {p}")
+            print(f"  radio: polls={radio['polls']} telegrams={radio['tel_up'] + radio['tel_down']} "
+                  f"lost={radio['lost_up'] + radio['lost_down']} link duplicates="
+                  f"{radio['dup_up'] + radio['dup_down']}; {radio['scans']} scans, "
+                  f"{radio['requests']} Modbus requests; {ch.now / SEC:.0f} s virtual in "
+                  f"{wall:.0f} s wall")
+            line = (f"records={tot.get('records', 0)} lost={tot.get('lost', 0)} "
+                    f"duplicated={tot.get('duplicated', 0)} "
+                    f"failed_and_reported={tot.get('failed_reported', 0) + tot.get('cut_by_restart', 0)} "
+                    f"restarts={k} seconds={wall:.0f}")
+            if not finished:
+                print(f"result: FAIL not finished within {limit:.0f} virtual seconds; {line}")
+                return 1
+            if tot.get("problems"):
+                print(f"result: FAIL {tot['problems']} problem(s); {line}")
+                return 1
+            print(f"result: ok {line}")
+            return 0
+    except CosimError as e:
+        print(f"result: FAIL {e}")
+        return 1
+    except KeyboardInterrupt:
+        print("result: FAIL interrupted")
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
