@@ -212,3 +212,14 @@ def test_struct_members_and_fb_arrays(compiler, st_file, tmp_path):
     assert plc["MAIN.h.pOut.x"] == 3
     assert plc["MAIN.h.pOut.tags"] == [7, 8]
     assert plc["MAIN.h.hist"] == [3, 2, 1]
+
+
+@pytest.mark.parametrize("compiler", [compiler_param("stc")])
+def test_c_level_access_for_cosimulation(compiler, st_file, tmp_path):
+    import ctypes
+    plc = Plc.build([st_file(PROG)], workdir=tmp_path, compiler=compiler)
+    ctypes.c_int16.from_address(plc.address("MAIN.x")).value = 41
+    lib = plc.library
+    lib.plcrt_scan(plc.handle, 1)
+    assert plc["MAIN.x"] == 42
+    assert plc.address("%QW100") != plc.address("%IW100")

@@ -297,6 +297,21 @@ class Plc:
         type_name = {"X": "BOOL", "B": "BYTE", "W": "WORD", "D": "DWORD", "L": "LWORD"}[size]
         return _Var(m.group(0), type_name, addr)
 
+    def address(self, name) -> int:
+        """C address of a variable or located address in this process (for C code that
+        reads it directly, e.g. a co-simulation); valid while the Plc is open."""
+        return self._lookup(name).addr
+
+    @property
+    def library(self) -> ctypes.CDLL:
+        """This Plc's own copy of the program library (plcrt_* functions)."""
+        return self._lib
+
+    @property
+    def handle(self) -> int:
+        """The plcrt_t * of this Plc, for calling the C API (include/plcrt.h) directly."""
+        return self._rt
+
     def variables(self):
         """Full IEC paths of every variable the harness can read."""
         return sorted(self._vars)
