@@ -28,14 +28,23 @@ FB = {1: "snd", 2: "rcv", 3: "lnk"}
 _BUILD = {}
 
 
+class ChainError(RuntimeError):
+    """The PLC program could not be built or loaded (one line, for the command line)."""
+
+
 def build_plc(workdir: Path):
     """Builds st_lib + the chain program once per process, then loads a fresh PLC each call."""
     from plcharness import Plc
+    from plcharness.build import BuildError
     key = str(workdir)
     if key not in _BUILD:
         workdir.mkdir(parents=True, exist_ok=True)
-        plc = Plc.build([str(REPO / "st_lib" / f) for f in LIB_FILES] + [str(PROGRAM)],
-                        workdir=workdir, compiler="stc")
+        try:
+            plc = Plc.build([str(REPO / "st_lib" / f) for f in LIB_FILES] + [str(PROGRAM)],
+                            workdir=workdir, compiler="stc")
+        except BuildError as e:
+            first = str(e).strip().splitlines()[0] if str(e).strip() else "build failed"
+            raise ChainError(f"building st_lib + {PROGRAM.name} failed: {first}") from None
         _BUILD[key] = plc.build_result
         return plc
     return Plc(_BUILD[key], workdir)

@@ -18,7 +18,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from chainsim import MS, Chain, Side  # noqa: E402
+from chainsim import MS, Chain, ChainError, Side  # noqa: E402
+from mipemu_ctypes import EmuError  # noqa: E402
 from gen_traces import WORK, logger_data  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
@@ -54,7 +55,11 @@ def main(argv=None):
         for p in LOSSES:
             rates = []
             for seed in range(1, a.seeds + 1):
-                r, _ = run(p, drive, seed, a.records)
+                try:
+                    r, _ = run(p, drive, seed, a.records)
+                except (ChainError, EmuError) as e:
+                    print(f"gen_lossdata: error: {e}", file=sys.stderr)
+                    return 1
                 rates.append(round(r, 1))
             pts.append({"loss": p, "regs_per_s": rates})
             print(f"gen_lossdata: {drive} p={p}: {rates} registers/s", flush=True)

@@ -15,7 +15,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from chainsim import FFFF, Chain, Side  # noqa: E402
+from chainsim import FFFF, Chain, ChainError, Side  # noqa: E402
+from mipemu_ctypes import EmuError  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
 WORK = REPO / "build" / "docs" / "plc"
@@ -121,7 +122,11 @@ def main(argv=None):
     out = Path(a.outdir)
     out.mkdir(parents=True, exist_ok=True)
     for name in [a.only] if a.only else SCENARIOS:
-        lines, info = scenario(name)
+        try:
+            lines, info = scenario(name)
+        except (ChainError, EmuError) as e:
+            print(f"gen_traces: error: {e}", file=sys.stderr)
+            return 1
         (out / f"{name}.jsonl").write_text("\n".join(lines) + "\n")
         print(f"gen_traces: {name}: {len(lines)} lines, {info}")
     return 0
