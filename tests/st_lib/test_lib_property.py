@@ -8,7 +8,7 @@ import random
 from pathlib import Path
 
 import pytest
-from hypothesis import HealthCheck, event, given, settings
+from hypothesis import HealthCheck, event, example, given, settings
 from hypothesis import strategies as st
 
 from stlib_sim import Bi, Uni
@@ -79,6 +79,11 @@ class Runner:
         self.bench.step()
 
 
+# found by a random hunt: the outstation PLC restarts right after writing record 1; the new
+# sender must not take the old record's acknowledgement for its own (fixed by the quiet wait)
+@example(s={"seed": 0, "polled": False, "read_mode": "trigger", "read_every": 3, "p_lost": 0.0,
+            "p_dup": 0.0, "p_drop": 0.0, "chunk": 3, "transfers": 2, "write_errors": 0.0,
+            "restarts": [(10, "O")]})
 @settings(max_examples=30 * SCALE, **SETTINGS)
 @given(s=schedule)
 def test_unidirectional_exactly_once(wd, s):

@@ -49,7 +49,10 @@ def test_note_example_counter_by_counter(wd):
     u = Uni(wd, data, polled=True, timeout_ms=1000, enable=False,
             fate=drop_first("O", 2))
     u.snd["xExecute"] = True
-    u.bench.step(2)
+    # after its start the sender waits tTimeout for quiet (nothing of an older transfer on
+    # the way), takes its first chunk and then waits for the central's request
+    assert u.bench.run_until(lambda: u.snd["eState"] == S_WAIT_REQUEST, 300)
+    assert u.radio.log == []
     u.rcv["xEnable"] = True          # the central starts asking: acknowledgement 0
     assert u.bench.run_until(lambda: u.snd["xDone"], 3000)
     log = until_last_ack(u.radio.log)
