@@ -123,7 +123,7 @@ def main(argv=None):
     caption = [f"Source: {data.get('source', '?')}.",
                f"{data.get('records', '?')} records of {data.get('payload_per_record', '?')} "
                f"payload registers per transfer; radio: {data.get('radio', '?')};",
-               f"PLC: {data.get('plc', '?')}."]
+               f"PLC: {data.get('plc', '?')}; measured from the {data.get('measured', 'start to the end')}."]
     svg = render(data, caption)
     try:
         with open(a.output, "w", encoding="utf-8") as f:

@@ -15,6 +15,7 @@ arrived unchanged, 1 otherwise, 2 for bad options.
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 from pathlib import Path
 
@@ -63,6 +64,8 @@ def parse(argv):
 
 
 def main(argv=None):
+    if hasattr(signal, "SIGPIPE"):
+        signal.signal(signal.SIGPIPE, signal.SIG_DFL)    # `mipsim ... | head -1` stays quiet
     a = parse(argv)
     role = "link" if a.bidirectional else None
     chunk = a.payload + (2 if a.bidirectional else 1)
