@@ -192,19 +192,29 @@ def cosim_available():
 
 
 def goodput_cosim(p, records, seed, workdir):
+    """Polls and payload registers of the window from the 5th record (past the start-up: the
+    sender's quiet wait before record 1) to the sender's last acknowledgement."""
+    import mipcosim.layout as L
     import mipcosim.sim as S
     s = S.Setup(stations=1, records=records, payload=PAYLOAD, loss=p, seed=seed,
                 radio=S.Radio.realistic())
+    warm = 5
     with S.Chain(s, workdir) as ch:
-        step = 100 * MS
+        step = 50 * MS
         limit = records * 60 * SEC
+        got = lambda: ch.mw(("cen", 0), L.peer_base(1) + L.R_REC_LO)  # noqa: E731
+        polls0 = rec0 = None
         while not ch.finished():
             if ch.now > limit:
                 raise BenchError(f"transfer of {records} records at {p:.0%} loss not finished "
                                  f"after {ch.now / SEC:.0f} virtual s")
             ch.run_for(step)
-        st = ch.radio_stats()
-    return st["polls"], records * PAYLOAD
+            if polls0 is None and got() >= warm:
+                polls0, rec0 = ch.radio_stats()["polls"], got()
+        polls1 = ch.radio_stats()["polls"]
+    if polls0 is None or polls1 <= polls0:
+        raise BenchError(f"no measurement window ({records} records)")
+    return polls1 - polls0, (records - rec0) * PAYLOAD
 
 
 def goodput_fallback(p, records, seed):
@@ -215,7 +225,7 @@ def goodput_fallback(p, records, seed):
 
 def fig_goodput(quick, workdir):
     ok, why = cosim_available()
-    records = {0.0: 40, 0.1: 60, 0.3: 60} if quick else {0.0: 300, 0.1: 600, 0.3: 600}
+    records = {0.0: 150, 0.1: 200, 0.3: 200} if quick else {0.0: 1000, 0.1: 1500, 0.3: 1500}
     seeds = [1] if quick else [1, 2, 3]
     for p in (0.0, 0.1, 0.3):
         name = f"goodput_{int(p * 100)}pct"
@@ -245,18 +255,18 @@ def fig_goodput(quick, workdir):
             how = (f"FALLBACK, not the ST blocks ({why}): scripted C sender/receiver over "
                    "libmipemu, 9600 bit/s, 10 ms scans")
         g = payload / polls
-        n = records[p] * len(seeds)
+        n = payload // PAYLOAD
         if p == 0:
             bound = PAYLOAD / 2
             r = g / bound
             line(name, f"{r:.3f} of bound ({g:.2f} of {bound:.1f} payload registers per poll, "
-                 f"{n} records, {polls} polls; {how}; target >= 0.95)",
+                 f"{n} records in {polls} polls, {len(seeds)} seed(s); {how}; target >= 0.95)",
                  "OK" if r >= 0.95 else "MISSED")
         else:
             m = goodput_model(p)
             r = g / m
             line(name, f"{r:.3f} of model ({g:.2f} vs {m:.2f} payload registers per poll, "
-                 f"{n} records, {polls} polls; {how}; target 0.90..1.10)",
+                 f"{n} records in {polls} polls, {len(seeds)} seed(s); {how}; target 0.90..1.10)",
                  "OK" if 0.9 <= r <= 1.1 else "MISSED")
 
 
@@ -273,7 +283,9 @@ def build_pair(compiler, env=None):
     return Path(run([PY, "-c", code, compiler, out, *ST_LIB, PAIR_ST], env=env).strip())
 
 
-def callgrind_per_scan(exe, scans):
+def callgrind_total(exe, scans):
+    """Instructions executed inside config_run__ (the generated code and what it calls) over
+    `scans` virtual scans of the plc executable; deterministic."""
     with tempfile.TemporaryDirectory(dir=BUILD) as d:
         outf = Path(d) / "callgrind.out"
         run(["valgrind", "--tool=callgrind", "--toggle-collect=config_run__",
@@ -281,7 +293,34 @@ def callgrind_per_scan(exe, scans):
         m = re.search(r"^(?:summary|totals):\s*(\d+)", outf.read_text(), re.M)
         if not m:
             raise BenchError("no totals in the callgrind output")
-        return int(m.group(1)) / scans
+        return int(m.group(1))
+
+
+WARM = 100      # scans before the measured window: start-up, the sender's quiet wait (200 ms)
+
+
+def per_scan(exe, scans):
+    """Steady-state instructions per scan: (cost of WARM + scans) - (cost of WARM), / scans."""
+    return (callgrind_total(exe, WARM + scans) - callgrind_total(exe, WARM)) / scans
+
+
+PAIR_RECORDS = """\
+import sys
+from plcharness import Plc
+compiler, warm, scans, workdir, *sources = sys.argv[1:]
+plc = Plc.build(sources, workdir=workdir, compiler=compiler)
+plc.scan(int(warm))
+a = plc["BENCHPAIR.udiRecords"]
+plc.scan(int(scans))
+print(plc["BENCHPAIR.udiRecords"] - a)
+"""
+
+
+def pair_records(compiler, scans, env=None):
+    """Records the receiver delivered in the measured window, through plcharness."""
+    with tempfile.TemporaryDirectory(dir=BUILD) as d:
+        return int(run([PY, "-c", PAIR_RECORDS, compiler, WARM, scans, d, *ST_LIB, PAIR_ST],
+                       env=env).strip())
 
 
 def fig_scan_cost(quick):
@@ -291,21 +330,31 @@ def fig_scan_cost(quick):
         error(name, "valgrind not installed (Debian package valgrind)")
         return None
     try:
-        stc = callgrind_per_scan(build_pair("stc"), scans)
-    except (BenchError, subprocess.SubprocessError, OSError) as e:
+        stc = per_scan(build_pair("stc"), scans)
+        rec_stc = pair_records("stc", scans)
+        if rec_stc == 0:
+            raise BenchError("bench_pair.st delivered no record in the measured window")
+    except (BenchError, subprocess.SubprocessError, OSError, ValueError) as e:
         error(name, str(e))
         return None
     env = matiec_env()
-    what = (f"instructions per scan of config_run__ (callgrind, {scans} scans of "
-            "bench/st/bench_pair.st: 1 MIP_Sender + 1 MIP_Receiver, -O2)")
+    what = (f"instructions per scan in config_run__, callgrind, scans {WARM}..{WARM + scans} "
+            f"of bench/st/bench_pair.st (1 MIP_Sender + 1 MIP_Receiver back to back, "
+            f"{rec_stc} records in the window), -O2")
     if env is None:
         line(name, f"stc {stc:.0f} {what}; matiec figure skipped: iec2c not on PATH and not in "
-             "/opt/src/matiec (not installed on this machine); target stc <= matiec", "SKIPPED")
+             "/opt/src/matiec (matiec is not installed on this machine); target stc <= matiec",
+             "SKIPPED")
         return None
     try:
-        mat = callgrind_per_scan(build_pair("matiec", env), scans)
-    except (BenchError, subprocess.SubprocessError, OSError) as e:
+        mat = per_scan(build_pair("matiec", env), scans)
+        rec_mat = pair_records("matiec", scans, env)
+    except (BenchError, subprocess.SubprocessError, OSError, ValueError) as e:
         error(name, f"stc {stc:.0f}; matiec build or run failed: {e}")
+        return None
+    if rec_mat != rec_stc:
+        error(name, f"stc and matiec builds behave differently ({rec_stc} vs {rec_mat} records "
+              "in the window): the comparison would be meaningless")
         return None
     r = stc / mat
     line(name, f"{r:.3f} of matiec (stc {stc:.0f}, matiec {mat:.0f} {what}; target <= 1.00)",

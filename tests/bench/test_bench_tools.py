@@ -1,0 +1,75 @@
+"""The bench's own tools: the goodput model against the emulator core, and bad input handling."""
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+BUILD = REPO / "build" / "bench"
+sys.path.insert(0, str(REPO / "bench"))
+import run_bench  # noqa: E402
+
+
+def test_model_at_no_loss_is_the_bound():
+    assert run_bench.goodput_model(0.0) == pytest.approx(run_bench.PAYLOAD / 2)
+
+
+def test_model_decreases_with_loss():
+    g = [run_bench.goodput_model(p / 10) for p in range(0, 9)]
+    assert all(a > b for a, b in zip(g, g[1:]))
+
+
+@pytest.mark.parametrize("p", [0.0, 0.1, 0.3])
+def test_model_matches_the_emulator_core(p):
+    """2000 records through libmipemu with scripted ends (bench/goodput_sim.c): the measured
+    payload per poll is within 5 % of the model (the model assumes the ends react between
+    two polls, which 10 ms scans at 9600 bit/s do)."""
+    out = subprocess.run([BUILD / "goodput_sim", str(p), "7", "2000"], capture_output=True,
+                         text=True, check=True).stdout
+    f = dict(kv.split("=") for kv in out.split())
+    g = int(f["payload"]) / int(f["polls"])
+    assert g == pytest.approx(run_bench.goodput_model(p), rel=0.05)
+
+
+@pytest.mark.parametrize("args", [["abc", "1", "10"], ["0.1", "1", "0"], ["0.1"]])
+def test_goodput_sim_bad_arguments(args):
+    p = subprocess.run([BUILD / "goodput_sim", *args], capture_output=True, text=True)
+    assert p.returncode == 2
+    assert len(p.stderr.strip().splitlines()) == 1 and "Traceback" not in p.stderr
+
+
+@pytest.mark.parametrize("prog,args", [("mb_client", ["127.0.0.1", "0", "1", "0", "125", "10"]),
+                                       ("mb_client", ["127.0.0.1", "502", "1", "0", "126", "10"]),
+                                       ("mb_bare_server", ["x"]),
+                                       ("rss_run", [])])
+def test_c_tools_bad_arguments(prog, args):
+    p = subprocess.run([BUILD / prog, *args], capture_output=True, text=True, timeout=10)
+    assert p.returncode == 2
+    assert len(p.stderr.strip().splitlines()) == 1
+
+
+def test_mb_client_connection_refused():
+    port = run_bench.free_port()      # nobody listens there
+    p = subprocess.run([BUILD / "mb_client", "127.0.0.1", str(port), "1", "0", "125", "10"],
+                       capture_output=True, text=True, timeout=10)
+    assert p.returncode == 1 and "connect" in p.stderr and len(p.stderr.strip().splitlines()) == 1
+
+
+def test_run_bench_unknown_figure():
+    p = subprocess.run([sys.executable, REPO / "bench" / "run_bench.py", "--only", "nonsense"],
+                       capture_output=True, text=True, timeout=60)
+    assert p.returncode == 2
+    assert p.stderr.strip().splitlines() == [p.stderr.strip()] and "unknown figure" in p.stderr
+    assert "Traceback" not in p.stderr
+
+
+def test_generated_st_has_5000_lines_and_translates(tmp_path):
+    text = run_bench.gen_st(5000)
+    n = text.count("\n")
+    assert 5000 <= n <= 5500
+    src = tmp_path / "gen.st"
+    src.write_text(text)
+    p = subprocess.run([REPO / ".venv" / "bin" / "stc", "-o", tmp_path / "out", src],
+                       capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr
