@@ -46,7 +46,8 @@ def parse_args(argv):
     p.add_argument("--polled", action="store_true", help="polled drive instead of spontaneous")
     p.add_argument("--timeout", type=float, default=0,
                    help="give up after this many seconds (default: from the radio timing)")
-    p.add_argument("--keep", action="store_true", help="keep the run directory's logs")
+    p.add_argument("--rundir", default=str(REPO / "build" / "plc" / "run"),
+                   help="configs, logs and the emulator trace go here (default build/plc/run)")
     a = p.parse_args(argv)
     if not 1 <= a.stations <= L.MAX_STATIONS:
         p.error(f"--stations must be 1..{L.MAX_STATIONS}")
@@ -187,7 +188,7 @@ def bar(done, total, width=30):
 
 def run(a):
     t_start = time.monotonic()
-    rundir = REPO / "build" / "plc" / "run"
+    rundir = Path(a.rundir)
     rundir.mkdir(parents=True, exist_ok=True)
     for f in rundir.glob("*"):
         f.unlink()

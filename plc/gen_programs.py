@@ -43,7 +43,7 @@ PARAMS = """\
   pChunkSize AT %MW10 : WORD;     (* registers per write block incl. header (0: 123); static: the static size *)
   pTransferTimeout AT %MW11 : WORD; (* s, receivers' tTransferTimeout (0: never) *)
   pMaxRetries AT %MW12 : WORD;    (* sender's uMaxRetries (0: unlimited) *)
-  pCyclicWrite AT %MW13 : WORD;   (* cyclic I/O: ms after which a write counts as done (0: 300) *)
+  pCyclicWrite AT %MW13 : WORD;   (* cyclic I/O: ms after which a write counts as done (0: the next scan) *)
   pStartLo AT %MW14 : WORD;       (* records already read out (resume after a restart) *)
   pStartHi AT %MW15 : WORD;
 """
@@ -82,7 +82,6 @@ IF NOT xRun THEN
   tTransferTimeout := T#1s * WORD_TO_DINT(pTransferTimeout);
   tLogPeriod := T#1ms * WORD_TO_DINT(pLogPeriod);
   tCyclicWrite := T#1ms * WORD_TO_DINT(pCyclicWrite);
-  IF pCyclicWrite = 0 THEN tCyclicWrite := T#300ms; END_IF;
   udiStart := WORD_TO_UDINT(pStartLo) + WORD_TO_UDINT(pStartHi) * 65536;
   xRun := pStart <> 0;
 END_IF;

@@ -1,0 +1,120 @@
+"""Real mode: the demo (`make run`) end to end, its failure path, and the programs with
+OpenPLC's mbconfig.cfg (cycle policy: written and read every polling period) against the
+emulator in static mode, as in a stock OpenPLC v3."""
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(REPO / "plc"))
+import demo  # noqa: E402
+from mipcosim import layout as L  # noqa: E402
+
+EMU = REPO / "build" / "emulator" / "mip-emulator"
+if not EMU.is_file():
+    pytest.skip("build/emulator/mip-emulator not built (run make)", allow_module_level=True)
+
+
+def run_demo(tmp_path, *args, timeout=300):
+    return subprocess.run([sys.executable, str(REPO / "plc" / "demo.py"), "--rundir",
+                           str(tmp_path / "run"), *args], capture_output=True, text=True,
+                          timeout=timeout)
+
+
+def leftover(rundir):
+    """Processes still running with a file of rundir on their command line."""
+    out = subprocess.run(["pgrep", "-f", str(rundir)], capture_output=True, text=True).stdout
+    return [int(x) for x in out.split()]
+
+
+def test_chain_demo_defaults_end_ok(tmp_path):
+    p = run_demo(tmp_path)
+    last = p.stdout.strip().splitlines()[-1]
+    assert p.returncode == 0, p.stdout + p.stderr
+    assert last.startswith("result: ok records=5 registers=80 polls=")
+    fields = dict(kv.split("=") for kv in last.split()[2:])
+    assert set(fields) == {"records", "registers", "polls", "retransmissions", "duplicates",
+                           "seconds"}
+    assert int(fields["polls"]) > 0
+    assert "read-out [" in p.stdout and "link: polls=" in p.stdout
+    assert leftover(tmp_path / "run") == []
+
+
+def test_chain_demo_two_stations_lossy(tmp_path):
+    p = run_demo(tmp_path, "--stations", "2", "--records", "12", "--loss", "0.3", "--seed",
+                 "5", "--per-transfer", "5", "--log-period-ms", "20")
+    assert p.returncode == 0, p.stdout + p.stderr
+    assert p.stdout.strip().splitlines()[-1].startswith("result: ok records=24 registers=384 ")
+
+
+def test_chain_demo_failure_is_reported_and_cleaned_up(tmp_path):
+    # 1 s is far too short for 400 records: the demo must say so and stop everything
+    p = run_demo(tmp_path, "--records", "400", "--timeout", "1")
+    assert p.returncode == 1
+    assert p.stdout.strip().splitlines()[-1].startswith("result: FAIL timeout after 1 s")
+    assert leftover(tmp_path / "run") == []
+
+
+def test_chain_demo_bad_option_one_line(tmp_path):
+    p = run_demo(tmp_path, "--stations", "9")
+    assert p.returncode == 2
+    assert "--stations must be 1..4" in p.stderr and "Traceback" not in p.stderr
+
+
+def test_chain_openplc_mbconfig_static_mode(tmp_path):
+    """The committed plc/openplc/*.cfg, ports changed, with the cyclic-I/O flag."""
+    progs = demo.build_programs(tmp_path / "build")
+    procs = demo.Procs()
+    slaves = []
+    try:
+        p = procs.start("mip-emulator", [str(EMU), "--mdp-port", "0", "--trm-base-port", "0",
+                                         "--mode", "static", "--static-registers", "123",
+                                         "--bitrate", "1000000", "--slot-gap-ms", "1",
+                                         "--loss-up", "0.1", "--loss-down", "0.1"],
+                        tmp_path / "emu.log", stdout=subprocess.PIPE, text=True)
+        fields = dict(kv.split("=", 1) for kv in p.stdout.readline().split()[2:])
+        mdp, trm = fields["mdp"].rsplit(":", 1)[1], fields["trm"]
+        cfg_out = (REPO / "plc/openplc/outstation-mbconfig.cfg").read_text().replace("15021", trm)
+        cfg_cen = (REPO / "plc/openplc/central-mbconfig.cfg").read_text().replace("15020", mdp)
+        (tmp_path / "out.cfg").write_text(cfg_out)
+        (tmp_path / "cen.cfg").write_text(cfg_cen)
+        ports = {}
+        for role, cfg in (("central", "cen.cfg"), ("outstation", "out.cfg")):
+            ports[role] = demo.free_port()
+            procs.start(role, [str(progs[role].executable), "-c", str(tmp_path / cfg), "-s",
+                               f"127.0.0.1:{ports[role]}"], tmp_path / f"{role}.log")
+        cen, out = demo.Slave(ports["central"]), demo.Slave(ports["outstation"])
+        slaves = [cen, out]
+        for sl in slaves:
+            sl.connect(time.monotonic() + 10)
+        cyc = L.Params(records=6, payload=30, static=True, cyclic=True, timeout_ms=1500)
+        cen.write(0, cyc.words())
+        out.write(0, cyc.words())
+        deadline = time.monotonic() + 120
+        while out.read(L.peer_base(1) + L.S_ALL, 1)[0] != 1:
+            procs.check_alive()
+            assert time.monotonic() < deadline, "read-out did not finish"
+            time.sleep(0.1)
+        time.sleep(0.5)
+        blk = cen.read(L.peer_base(1), 40)
+        win = cen.read(L.peer_base(1) + L.W_BASE, L.WINDOW)
+        # static mode: every record is the whole static block (122 registers after the
+        # counter), the logger's 30 registers then zeros
+        stream = []
+        for n in range(1, 7):
+            stream += L.log_record(n, 30, 1, 1) + [0] * 92
+        committed = blk[L.R_COM_LO] + (blk[L.R_COM_HI] << 16)
+        assert committed >= len(stream)
+        # the last record may be followed by the one-record transfer's empty 16#FFFF block
+        assert blk[L.R_TRANSFERS] == 1 and blk[L.R_FAILED] == 0
+        got = [win[p % L.WINDOW] for p in range(committed - L.WINDOW, committed)]
+        full = stream + [0] * (committed - len(stream))
+        assert got == full[-L.WINDOW:]
+    finally:
+        for sl in slaves:
+            sl.close()
+        procs.stop()
