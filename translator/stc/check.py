@@ -464,7 +464,7 @@ class Checker:
     def _located(self, v, loc, pou):
         text, pos = loc
         if pou is not None and pou.kind != "program":
-            self.err(pos, f"located variables in a {pou.kind.replace('_', ' ').upper()} are not "
+            self.err(pos, f"located variables in a {pou.kind.upper()} are not "
                      "portable (matiec rejects them): declare them in the PROGRAM and pass them "
                      "as inputs/outputs")
             return
@@ -1216,6 +1216,9 @@ class Checker:
                 self.fail(c.pos, "recursion is not allowed in IEC 61131-3")
             c.kind = "func"
             c.pou = pou
+            if not c.args:
+                self.fail(c.pos, f"calling a FUNCTION without arguments ({name}()) is not portable "
+                          "(matiec rejects it): give it a VAR_INPUT")
             self.bind_args(c, pou, fb=False)
             if statement:
                 return None

@@ -386,6 +386,17 @@ _TOKEN_TEXT = {
 KEYWORDS = None  # filled from the grammar at load time
 
 
+_KEYWORD_TYPES = {"ON", "AT", "TASK", "WITH", "CONTINUE", "EXIT", "RETURN", "BY", "TO", "DO", "OF",
+                  "CONSTANT", "RETAIN", "NON_RETAIN", "THEN", "ELSE", "ELSIF", "UNTIL", "TYPE",
+                  "ARRAY", "STRUCT", "PROGRAM", "FUNCTION", "FUNCTION_BLOCK", "RESOURCE",
+                  "CONFIGURATION", "VAR", "IF", "CASE", "FOR", "WHILE", "REPEAT", "MOD", "NOT",
+                  "AND", "OR", "XOR", "TRUE", "FALSE"}
+
+
+_NAMEY = {"ON", "AT", "TASK", "WITH", "BY", "TO", "DO", "OF", "CONTINUE", "EXIT", "RETURN",
+          "CONSTANT", "RETAIN", "NON_RETAIN", "TYPE", "MOD", "STRUCT", "ARRAY"}
+
+
 def _describe(tok_type):
     if tok_type in _TOKEN_TEXT:
         return _TOKEN_TEXT[tok_type]
@@ -394,6 +405,13 @@ def _describe(tok_type):
 
 _parser = None
 _comment_sink = [None]
+_last = [None, None]     # [previous token, current token] seen by the lexer
+
+
+def _track(tok):
+    _last[0] = _last[1]
+    _last[1] = tok
+    return tok
 
 
 def _on_slash_comment(tok):
@@ -407,9 +425,13 @@ def _get_parser():
     if _parser is None:
         with open(_GRAMMAR) as f:
             text = f.read()
-        _parser = Lark(text, parser="lalr", lexer="contextual", transformer=_Build(),
-                       maybe_placeholders=True, cache=False,
-                       lexer_callbacks={"SLASH_COMMENT": _on_slash_comment})
+        probe = Lark(text, parser="lalr", lexer="basic", maybe_placeholders=True)
+        callbacks = {t.name: _track for t in probe.terminals}
+        callbacks["SLASH_COMMENT"] = _on_slash_comment
+        for name in ("WS", "COMMENT", "PRAGMA"):
+            callbacks.pop(name, None)
+        _parser = Lark(text, parser="lalr", lexer="basic", transformer=_Build(),
+                       maybe_placeholders=True, cache=False, lexer_callbacks=callbacks)
         KEYWORDS = {t.name for t in _parser.terminals
                     if t.pattern.type == "str" and t.pattern.value.isalpha() or
                     (t.pattern.type == "str" and "_" in t.pattern.value)}
@@ -424,32 +446,37 @@ class _Recovery:
 
     def __init__(self, report):
         self.report = report
-        self.armed = True
-        self.semis = 0
-        self.last_semis = -1
+        self.last_line = 0
+        self.skipping = False
 
-    def on_semi(self, tok):
-        self.semis += 1
-        return tok
+    def _new(self, line):
+        # one message per line: the tokens dropped while recovering do not cascade
+        if line > self.last_line:
+            self.last_line = line
+            return True
+        return False
 
     def __call__(self, e):
         if isinstance(e, UnexpectedCharacters):
-            if self.semis != self.last_semis:
+            if self._new(e.line):
                 ch = e.char
                 if ch == "'" or ch == '"':
                     msg = "string literals are not supported"
                 else:
                     msg = f"unexpected character {ch!r}"
                 self.report((e.line, e.column), msg)
-                self.last_semis = self.semis
             return True
         if isinstance(e, UnexpectedToken):
             tok = e.token
-            if self.semis != self.last_semis:
-                self.report(_tok_pos(tok, e), _unexpected_message(e))
-                self.last_semis = self.semis
+            pos = _tok_pos(tok, e)
+            if tok.type == "$END" or self._new(pos[0]):
+                self.report(pos, _unexpected_message(e))
             if tok.type == "$END":
                 return False
+            if self.skipping:
+                if tok.type == "SEMI":
+                    self.skipping = False
+                return True
             # a missing ';' is the commonest slip: insert one when it lets the parser go on
             if "SEMI" in e.expected and tok.type != "SEMI":
                 ip = e.interactive_parser
@@ -463,6 +490,30 @@ class _Recovery:
                     ip.feed_token(Token("SEMI", ";", 0, tok.line, tok.column, tok.line, tok.column, 0))
                     ip.feed_token(tok)
                     return True
+            # panic mode: abandon the statement (or declaration) being parsed and skip to the
+            # next ';'
+            ps = e.interactive_parser.parser_state
+            states = ps.parse_conf.parse_table.states
+            stack = ps.state_stack
+            depth = len(stack)
+            while depth > 1:
+                acts = states[stack[depth - 1]]
+                if tok.type in acts or "IF" in acts or "END_VAR" in acts:
+                    break
+                depth -= 1
+            if depth > 1:
+                drop = len(stack) - depth
+                if drop:
+                    del stack[depth:]
+                    del ps.value_stack[len(ps.value_stack) - drop:]
+                if tok.type in states[stack[-1]]:
+                    try:
+                        e.interactive_parser.feed_token(tok)
+                    except UnexpectedInput:
+                        pass
+                    return True
+                if tok.type != "SEMI":
+                    self.skipping = True
             return True
         return False
 
@@ -475,15 +526,39 @@ def _tok_pos(tok, e):
     return (line, col)
 
 
+_END_ORDER = ["END_IF", "END_CASE", "END_FOR", "END_WHILE", "END_REPEAT", "END_VAR", "END_STRUCT",
+              "END_TYPE", "END_FUNCTION", "END_FUNCTION_BLOCK", "END_PROGRAM", "END_RESOURCE",
+              "END_CONFIGURATION"]
+_STMT_START = {"IDENT", "IF", "CASE", "FOR", "WHILE", "REPEAT", "EXIT", "CONTINUE", "RETURN"}
+
+
 def _unexpected_message(e):
     tok = e.token
     exp = set(e.expected)
+    prev = None
+    try:
+        top = e.interactive_parser.parser_state.value_stack[-1]
+        if isinstance(top, Token):
+            prev = top
+        elif isinstance(top, S.NamedType) and tok.type in ("IDENT", "TO"):
+            prev = Token("IDENT", top.name)
+    except (AttributeError, IndexError):
+        pass
     if tok.type == "$END":
-        if exp:
-            ends = sorted(x for x in exp if x.startswith("END_"))
-            if ends:
-                return f"unexpected end of file: missing {ends[0]}"
+        for x in ("END_PROGRAM", "END_FUNCTION_BLOCK", "END_FUNCTION"):
+            if x in exp:
+                return f"unexpected end of file: missing {x}"
+        for x in _END_ORDER:
+            if x in exp:
+                return f"unexpected end of file: missing {x}"
         return "unexpected end of file"
+    if prev is not None and prev.type == "IDENT" and str(prev).upper() in ("POINTER", "REF_TO", "REF"):
+        return f"{str(prev).upper()} is not portable (matiec rejects pointers and references)"
+    if prev is not None and str(prev).upper() == "METHOD" or tok.type == "IDENT" and str(tok).upper() == "METHOD":
+        return "METHOD is not portable (matiec rejects it): use a separate FUNCTION_BLOCK or FUNCTION"
+    if (prev is not None and prev.type in _KEYWORD_TYPES and tok.type in ("COLON", "ASSIGN", "COMMA")
+            and prev.type not in ("END_IF", "END_CASE", "END_FOR", "END_WHILE", "END_REPEAT")):
+        return f"'{prev}' is a reserved keyword and cannot be used as an identifier"
     text = str(tok)
     if tok.type == "IDENT":
         what = f"identifier '{text}'"
@@ -491,12 +566,15 @@ def _unexpected_message(e):
         what = f"'{text}'"
     else:
         what = f"'{text}'"
-        if "IDENT" in exp and text.isidentifier():
+        if "IDENT" in exp and tok.type in _NAMEY:
             return (f"'{text}' is a reserved keyword and cannot be used as an identifier"
                     if tok.type not in ("TRUE", "FALSE") else f"unexpected {what}")
-    prev = getattr(e.interactive_parser, "_stc_prev", None)
-    if "SEMI" in exp and len(exp) <= 3:
+    if "SEMI" in exp and (len(exp) <= 3 or tok.type in _STMT_START):
+        if prev is not None and prev.type in ("END_IF", "END_CASE", "END_FOR", "END_WHILE", "END_REPEAT"):
+            return f"missing ';' after {prev.type} (matiec requires it) before {what}"
         return f"expected ';' before {what}"
+    if {"INTEGER", "IDENT", "LPAR"} <= exp:
+        return f"unexpected {what}, expected an expression"
     if tok.type == "COLON" and "ASSIGN" in exp:
         return f"unexpected ':' (did you mean ':='?)"
     shown = sorted(_describe(x) for x in exp)
@@ -518,6 +596,21 @@ def parse(text, filename, diags):
     _comment_sink[0] = lambda tok: report(
         _pos(tok), ("//" if tok.startswith("//") else "/* */")
         + " comments are not portable (matiec rejects them): use (* ... *)")
+    if "(*" in text:
+        for m in _COMMENT.finditer(text):
+            inner = m.group(0).find("(*", 2)
+            if inner >= 0:
+                # nested only if a stray '*)' follows before the next comment opens
+                close = text.find("*)", m.end())
+                opening = text.find("(*", m.end())
+                if close < 0 or 0 <= opening < close:
+                    continue
+                off = m.start() + inner
+                line = text.count("\n", 0, off) + 1
+                col = off - (text.rfind("\n", 0, off) + 1) + 1
+                report((line, col), "nested comments are not portable (matiec rejects them "
+                       "without -n): close the outer comment first")
+                rec.last_line = max(rec.last_line, text.count("\n", 0, m.end()) + 1)
     try:
         tree = p.parse(text, on_error=rec)
     except UnexpectedInput as e:
@@ -531,3 +624,6 @@ def parse(text, filename, diags):
     return tree
 
 
+
+
+_COMMENT = re.compile(r"\(\*.*?\*\)", re.S)
