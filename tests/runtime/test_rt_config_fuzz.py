@@ -1,0 +1,103 @@
+"""The config parser on mangled input: always exit 0 (valid) or 2 with exactly one line
+FILE:LINE: error: ..., never a crash."""
+import random
+import re
+import subprocess
+
+import pytest
+
+from plcharness import build_program
+from rt_helpers import compiler_param
+
+PROG = """
+PROGRAM MAIN
+VAR x : INT; END_VAR
+x := x + 1;
+END_PROGRAM
+CONFIGURATION Config0
+RESOURCE Res0 ON PLC
+TASK task0(INTERVAL := T#10ms, PRIORITY := 0);
+PROGRAM instance0 WITH task0 : MAIN;
+END_RESOURCE
+END_CONFIGURATION
+"""
+
+GOOD = """[master]
+polling_period = 100ms
+timeout = 1s
+[device d]
+host = 127.0.0.1
+port = 5020
+unit_id = 3
+errors = %IW90
+[read r]
+device = d
+table = input
+start = 0
+size = 10
+image = %IW100
+[write w]
+device = d
+start = 100
+size = 123
+image = %QW100
+policy = trigger
+trigger = %QX10.0
+done = %IX10.0
+error = %IX10.1
+status = %IW60
+length = %QW99
+"""
+
+MBCONFIG = """Num_Devices = "1"
+Polling_Period = "100"
+Timeout = "1000"
+device0.name = "m"
+device0.slave_id = "1"
+device0.protocol = "TCP"
+device0.address = "127.0.0.1"
+device0.IP_Port = "502"
+device0.Holding_Registers_Read_Start = "0"
+device0.Holding_Registers_Read_Size = "8"
+device0.Holding_Registers_Start = "0"
+device0.Holding_Registers_Size = "8"
+"""
+
+TOKENS = ["[", "]", "=", "%", "%IW", "%QX1.", "..", "#", '"', "-1", "99999999999999999999",
+          "0x10", "1e9s", " ", "\t", "\n", "ms", "[read", "[device", "policy = trigger",
+          "size = 0", "image = %IW1023", "device = d", "\x00", "é", "device0.", "Num_Devices ="]
+
+
+def mangle(text, rng):
+    chars = list(text)
+    for _ in range(rng.randint(1, 6)):
+        op = rng.randrange(3)
+        pos = rng.randrange(len(chars) + 1)
+        if op == 0 and chars:
+            del chars[pos:pos + rng.randint(1, 8)]
+        elif op == 1:
+            chars[pos:pos] = list(rng.choice(TOKENS))
+        else:
+            src = rng.randrange(len(chars) or 1)
+            chars[pos:pos] = chars[src:src + rng.randint(1, 20)]
+    return "".join(chars)
+
+
+@pytest.mark.parametrize("compiler", [compiler_param("stc")])
+def test_mangled_configs_never_crash(compiler, st_file, tmp_path):
+    exe = build_program([st_file(PROG)], tmp_path / "out", compiler=compiler).executable
+    rng = random.Random(1234)
+    cfg = tmp_path / "fuzz.conf"
+    outcomes = {0: 0, 2: 0}
+    for i in range(150):
+        text = mangle(GOOD if i % 2 else MBCONFIG, rng)
+        cfg.write_bytes(text.encode("utf-8", "surrogateescape"))
+        proc = subprocess.run([str(exe), "--check", "-c", str(cfg)], capture_output=True,
+                              timeout=30)
+        assert proc.returncode in (0, 2), (proc.returncode, text, proc.stderr)
+        outcomes[proc.returncode] += 1
+        if proc.returncode == 2:
+            lines = proc.stderr.decode(errors="replace").splitlines()
+            assert len(lines) == 1, (text, lines)
+            assert re.match(re.escape(str(cfg)) + r":\d+: error: ", lines[0]), (text, lines)
+    assert outcomes[2] > 0  # the mangling does produce errors
