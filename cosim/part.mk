@@ -19,3 +19,14 @@ run: all
 # >= 10^5 records at 30 % loss with restarts, in co-simulation (not part of `make test`).
 soak: all
 	@$(PY) -m mipcosim.cli soak $(SOAK_ARGS)
+
+# C unit tests of the library with scripted fake PLCs.
+C_TESTS += cosim-unit
+$(COSIM_BUILD)/test_mipcosim: cosim/tests/test_mipcosim.c $(COSIM_BUILD)/libmipcosim.so cosim/include/mipcosim.h
+	$(CC) -std=c11 -D_GNU_SOURCE -O1 -g -Wall -Wextra -Icosim/include -Iemulator/include -o $@ $< \
+	  -L$(COSIM_BUILD) -lmipcosim -Wl,-rpath,$(abspath $(COSIM_BUILD))
+
+.PHONY: cosim-unit
+cosim-unit: $(COSIM_BUILD)/test_mipcosim
+	@mkdir -p $(RESULTS)
+	$(COSIM_BUILD)/test_mipcosim --junit $(RESULTS)/cosim-unit.xml

@@ -1,0 +1,291 @@
+/* Unit tests of libmipcosim with scripted fake PLCs (no plcrt): each fake "scan" sends one
+ * Modbus request through its socketpair, lets the hook answer, and reads the answer. */
+#include "mipcosim.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/socket.h>
+#include <time.h>
+#include <unistd.h>
+
+static int g_pass, g_fail;
+static FILE *g_junit;
+static char g_cases[65536];
+static size_t g_cases_len;
+static const char *g_test;
+static int g_test_failed;
+
+#define CHECK(cond)                                                                      \
+    do {                                                                                 \
+        if (!(cond)) {                                                                   \
+            fprintf(stderr, "%s:%d: %s: check failed: %s\n", __FILE__, __LINE__, g_test, \
+                    #cond);                                                              \
+            g_test_failed = 1;                                                           \
+            return;                                                                      \
+        }                                                                                \
+    } while (0)
+
+/* A fake PLC: scans count, every scan writes a request (FC3 or FC16) and reads the answer. */
+typedef struct fake {
+    int fd;
+    mipcosim_after_send_fn hook;
+    void *user;
+    int scans;
+    uint64_t *log_time;          /* virtual time of each scan, filled by the test */
+    mipcosim *sim;
+    int fc16_every;              /* 0: reads only */
+    uint16_t seq;                /* tapped word */
+    uint16_t hdr[3];
+    uint16_t data[8];
+    uint8_t last_resp[300];
+    long last_len;
+    int fail_at;                 /* scan number that returns -1 (0: never) */
+} fake_t;
+
+static int fake_set_fd(void *rt, const char *device, int fd, mipcosim_after_send_fn hook, void *user)
+{
+    (void)device;
+    fake_t *f = rt;
+    f->fd = fd;
+    f->hook = hook;
+    f->user = user;
+    return 0;
+}
+
+static int fake_scan(void *rt, uint64_t n)
+{
+    fake_t *f = rt;
+    (void)n;
+    f->scans++;
+    if (f->fail_at && f->scans == f->fail_at) return -1;
+    if (f->log_time) f->log_time[f->scans - 1] = mipcosim_now(f->sim);
+    if (f->fd < 0) return 0;
+    uint8_t req[300];
+    size_t len;
+    if (f->fc16_every && f->scans % f->fc16_every == 0) {
+        /* FC16 of 3 registers at TRM 2001: 42, scan, 7 */
+        uint8_t r[] = {0, 1, 0, 0, 0, 13, 1, 16, 0x07, 0xD1, 0, 3, 6, 0, 42, 0, (uint8_t)f->scans, 0, 7};
+        memcpy(req, r, sizeof r);
+        len = sizeof r;
+    } else {
+        /* FC3 of 5 at TRM 2198 (status, count, 3 data) */
+        uint8_t r[] = {0, 2, 0, 0, 0, 6, 1, 3, 0x08, 0x96, 0, 5};
+        memcpy(req, r, sizeof r);
+        len = sizeof r;
+    }
+    if (send(f->fd, req, len, 0) != (ssize_t)len) return -1;
+    f->hook(f->user);
+    f->last_len = recv(f->fd, f->last_resp, sizeof f->last_resp, MSG_DONTWAIT);
+    if (f->last_len <= 0) return -1;
+    f->seq++;
+    f->hdr[0] = (uint16_t)f->scans;
+    f->hdr[1] = 3;
+    for (int i = 0; i < 3; i++) f->data[i] = (uint16_t)(f->scans * 10 + i);
+    return 0;
+}
+
+static mipcosim *new_sim(int stations, double loss, uint64_t seed)
+{
+    char err[128];
+    mipcosim *sim = mipcosim_new_args(stations, 0, 148, loss, loss, 0, seed, 1000000, 1000000, 12,
+                                      err, sizeof err);
+    if (!sim) fprintf(stderr, "mipcosim_new: %s\n", err);
+    return sim;
+}
+
+static void fake_init(fake_t *f, mipcosim *sim)
+{
+    memset(f, 0, sizeof *f);
+    f->fd = -1;
+    f->sim = sim;
+}
+
+/* ------------------------------------------------------------------ tests */
+
+static void test_ticks_in_lockstep(void)
+{
+    mipcosim *sim = new_sim(1, 0, 1);
+    CHECK(sim);
+    fake_t a, b;
+    uint64_t ta[200], tb[200];
+    fake_init(&a, sim);
+    fake_init(&b, sim);
+    a.log_time = ta;
+    b.log_time = tb;
+    CHECK(mipcosim_plc_add(sim, fake_scan, &a, 10000000) == 0);
+    CHECK(mipcosim_plc_add(sim, fake_scan, &b, 25000000) == 1);
+    CHECK(mipcosim_run(sim, 100000000) == 0);   /* 0..90 ms: 10 scans; 0, 25, 50, 75: 4 */
+    CHECK(a.scans == 10 && b.scans == 4);
+    CHECK(ta[9] == 90000000 && tb[3] == 75000000);
+    CHECK(mipcosim_now(sim) == 100000000);
+    CHECK(mipcosim_scans(sim) == 14);
+    CHECK(mipcosim_run(sim, 50000000) == -1);   /* backwards */
+    CHECK(strstr(mipcosim_errmsg(sim), "before now"));
+    mipcosim_free(sim);
+}
+
+static void test_requests_answered_by_the_emulator(void)
+{
+    mipcosim *sim = new_sim(2, 0, 1);
+    CHECK(sim);
+    fake_t a;
+    fake_init(&a, sim);
+    a.fc16_every = 5;
+    int id = mipcosim_plc_add(sim, fake_scan, &a, 10000000);
+    CHECK(mipcosim_connect(sim, id, fake_set_fd, "trm", 2) == 0);
+    CHECK(mipcosim_connect(sim, id, fake_set_fd, "x", 3) == -1);   /* no station 3 */
+    CHECK(strstr(mipcosim_errmsg(sim), "endpoint 3"));
+    CHECK(mipcosim_run(sim, 20000000) == 0);
+    /* the answer to FC3: unit 1, fc 3, 10 bytes */
+    CHECK(a.last_len == 9 + 10 && a.last_resp[7] == 3 && a.last_resp[8] == 10);
+    CHECK(mipcosim_run(sim, 60000000) == 0);   /* scan 5 wrote a block */
+    CHECK(mipcosim_requests(sim) == 6);
+    mipemu_stats st;
+    CHECK(mipemu_net_stats(mipcosim_net(sim), 2, &st) == 0);
+    CHECK(st.blocks_up == 1);                 /* the radio carried it to the MDP */
+    mipcosim_free(sim);
+}
+
+static void test_taps_log_each_change_once(void)
+{
+    mipcosim *sim = new_sim(1, 0, 1);
+    CHECK(sim);
+    fake_t a;
+    fake_init(&a, sim);
+    int id = mipcosim_plc_add(sim, fake_scan, &a, 10000000);
+    CHECK(mipcosim_connect(sim, id, fake_set_fd, "trm", 1) == 0);
+    CHECK(mipcosim_tap(sim, 5, id, &a.seq, a.hdr, 2, 1, a.data, 8) == 0);
+    CHECK(mipcosim_tap(sim, 64, id, &a.seq, a.hdr, 2, 1, a.data, 8) == -1);
+    CHECK(mipcosim_run(sim, 30000000) == 0);  /* 3 scans, 3 changes */
+    uint16_t buf[64];
+    size_t n = mipcosim_tap_read(sim, buf, 64);
+    CHECK(n == 3 * (3 + 2 + 3));
+    CHECK(buf[0] == 5 && buf[1] == id && buf[2] == 5 && buf[3] == 1 && buf[5] == 10);
+    CHECK(buf[8 + 3] == 2 && buf[8 + 5] == 20 && buf[8 + 7] == 22);
+    CHECK(mipcosim_tap_read(sim, buf, 64) == 0);
+    /* a buffer too small for one entry gets none, and nothing is lost */
+    CHECK(mipcosim_run(sim, 40000000) == 0);
+    CHECK(mipcosim_tap_read(sim, buf, 4) == 0);
+    CHECK(mipcosim_tap_read(sim, buf, 64) == 8);
+    mipcosim_untap(sim, 5);
+    CHECK(mipcosim_run(sim, 60000000) == 0);
+    CHECK(mipcosim_tap_read(sim, buf, 64) == 0);
+    mipcosim_free(sim);
+}
+
+static void test_replace_switches_off_and_restarts(void)
+{
+    mipcosim *sim = new_sim(1, 0, 1);
+    CHECK(sim);
+    fake_t a, b;
+    fake_init(&a, sim);
+    fake_init(&b, sim);
+    int id = mipcosim_plc_add(sim, fake_scan, &a, 10000000);
+    CHECK(mipcosim_connect(sim, id, fake_set_fd, "trm", 1) == 0);
+    int fd_first = a.fd;
+    CHECK(mipcosim_run(sim, 50000000) == 0);
+    CHECK(a.scans == 5);
+    CHECK(mipcosim_plc_replace(sim, id, NULL, NULL, 0) == 0);     /* off */
+    CHECK(mipcosim_run(sim, 100000000) == 0);
+    CHECK(a.scans == 5);
+    CHECK(mipcosim_plc_replace(sim, id, fake_scan, &b, 10000000) == 0);
+    CHECK(mipcosim_connect(sim, id, fake_set_fd, "trm", 1) == 0);
+    CHECK(b.fd == fd_first);                                       /* same socketpair */
+    CHECK(mipcosim_run(sim, 130000000) == 0);                      /* 100, 110, 120 */
+    CHECK(b.scans == 3 && a.scans == 5);
+    CHECK(b.last_len == 19);
+    mipcosim_free(sim);
+}
+
+static void test_failed_scan_stops_the_run(void)
+{
+    mipcosim *sim = new_sim(1, 0, 1);
+    CHECK(sim);
+    fake_t a;
+    fake_init(&a, sim);
+    a.fail_at = 3;
+    int id = mipcosim_plc_add(sim, fake_scan, &a, 10000000);
+    CHECK(mipcosim_run(sim, 100000000) == -1);
+    CHECK(mipcosim_failed_plc(sim) == id);
+    CHECK(mipcosim_now(sim) == 20000000);
+    mipcosim_free(sim);
+}
+
+static void trace_run(uint64_t seed, char *out, size_t cap)
+{
+    char path[] = "/tmp/mipcosim-trace-XXXXXX";
+    int fd = mkstemp(path);
+    close(fd);
+    mipcosim *sim = new_sim(1, 0.3, seed);
+    fake_t a;
+    fake_init(&a, sim);
+    a.fc16_every = 3;
+    int id = mipcosim_plc_add(sim, fake_scan, &a, 10000000);
+    mipcosim_connect(sim, id, fake_set_fd, "trm", 1);
+    mipcosim_trace_file(sim, path);
+    mipcosim_run(sim, 2000000000ull);
+    mipcosim_free(sim);
+    FILE *f = fopen(path, "r");
+    size_t n = f ? fread(out, 1, cap - 1, f) : 0;
+    out[n] = 0;
+    if (f) fclose(f);
+    unlink(path);
+}
+
+static void test_same_seed_same_trace(void)
+{
+    static char t1[1 << 20], t2[1 << 20], t3[1 << 20];
+    trace_run(9, t1, sizeof t1);
+    trace_run(9, t2, sizeof t2);
+    trace_run(10, t3, sizeof t3);
+    CHECK(strlen(t1) > 10000);
+    CHECK(strcmp(t1, t2) == 0);
+    CHECK(strcmp(t1, t3) != 0);
+    CHECK(strstr(t1, "\"lost\":true"));
+}
+
+/* ------------------------------------------------------------------ runner */
+
+static void run(const char *name, void (*fn)(void))
+{
+    g_test = name;
+    g_test_failed = 0;
+    struct timespec t0, t1;
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    fn();
+    clock_gettime(CLOCK_MONOTONIC, &t1);
+    double s = (double)(t1.tv_sec - t0.tv_sec) + (t1.tv_nsec - t0.tv_nsec) / 1e9;
+    if (g_test_failed) g_fail++;
+    else g_pass++;
+    g_cases_len += (size_t)snprintf(g_cases + g_cases_len, sizeof g_cases - g_cases_len,
+                                    "  <testcase classname=\"cosim\" name=\"%s\" time=\"%.3f\">%s</testcase>\n",
+                                    name, s, g_test_failed ? "<failure message=\"check failed (see stderr)\"/>" : "");
+    printf("%s %s\n", g_test_failed ? "FAIL" : "ok  ", name);
+}
+
+int main(int argc, char **argv)
+{
+    const char *junit = NULL;
+    for (int i = 1; i < argc; i++)
+        if (!strcmp(argv[i], "--junit") && i + 1 < argc) junit = argv[++i];
+    run("ticks_in_lockstep", test_ticks_in_lockstep);
+    run("requests_answered_by_the_emulator", test_requests_answered_by_the_emulator);
+    run("taps_log_each_change_once", test_taps_log_each_change_once);
+    run("replace_switches_off_and_restarts", test_replace_switches_off_and_restarts);
+    run("failed_scan_stops_the_run", test_failed_scan_stops_the_run);
+    run("same_seed_same_trace", test_same_seed_same_trace);
+    printf("cosim-unit: %d passed, %d failed\n", g_pass, g_fail);
+    if (junit) {
+        g_junit = fopen(junit, "w");
+        if (!g_junit) {
+            fprintf(stderr, "cannot write %s\n", junit);
+            return 1;
+        }
+        fprintf(g_junit, "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
+                         "<testsuite name=\"cosim-unit\" tests=\"%d\" failures=\"%d\">\n%s</testsuite>\n",
+                g_pass + g_fail, g_fail, g_cases);
+        fclose(g_junit);
+    }
+    return g_fail ? 1 : 0;
+}
