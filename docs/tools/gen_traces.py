@@ -46,8 +46,9 @@ def note_211(seed, loss_up=0.2, burst=4):
 
 
 def wanted_211(lines):
-    """Record 2's first telegram lost, every other record's telegrams through, and the central
-    asked again with acknowledgement 1 (the note's picture)."""
+    """Record 2's first telegram lost, every other record's telegrams through, the central
+    asked again with acknowledgement 1 (the note's picture), a record arrived twice and the MDP
+    reported the station unreachable for a while (both explained in docs/protocol.md)."""
     rs = radio(lines)
     blocks = [r for r in rs if r["regs"]]
     first2 = next((r for r in blocks if r["dir"] == "up" and r.get("r0") == 2), None)
@@ -56,7 +57,11 @@ def wanted_211(lines):
     lost_other = [r for r in rs if r["lost"] and r["regs"] and r.get("r0") != 2]
     acks1 = [x for x in lines if '"what":"write"' in x and '"side":"central"' in x
              and '"value":[1]' in x]
-    return not lost_other and len(acks1) >= 2
+    # docs/protocol.md also points out a duplicate and the MDP's "unreachable" in this picture
+    arrived = [r.get("r0") for r in blocks if r["dir"] == "up" and not r["lost"]]
+    duplicate = len(arrived) > len(set(arrived))
+    unreachable = any('"state":"unreachable"' in x for x in lines)
+    return not lost_other and len(acks1) >= 2 and duplicate and unreachable
 
 
 def bidirectional():

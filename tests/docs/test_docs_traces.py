@@ -49,6 +49,13 @@ def test_note_scenario_every_record_once_in_order_despite_the_loss():
     assert first2["lost"] and first2["regs"] == 123
     last = [e for e in ups if e["r0"] == 65535]
     assert last and last[-1]["regs"] == 50          # the note's 50-register last record
+    # what docs/protocol.md says about this picture
+    acks1 = [e for e in ev if e["ev"] == "plc" and e["side"] == "central"
+             and e["what"] == "write" and e["value"] == [1]]
+    assert len(acks1) >= 2, "the central does not repeat its request with acknowledgement 1"
+    arrived = [e["r0"] for e in ups if not e["lost"]]
+    assert len(arrived) > len(set(arrived)), "no record reaches the central twice"
+    assert any(e["ev"] == "station" and e["state"] == "unreachable" for e in ev)
 
 
 def test_bidirectional_both_streams_complete():
@@ -63,6 +70,10 @@ def test_restart_breaks_one_transfer_and_completes_the_next():
     assert delivered(ev, "central") == [1, 2, 1, 2, 65535]
     errors = [e["text"] for e in ev if e["ev"] == "plc" and e["what"] == "error"]
     assert errors == ["xError: MIP_ERR_SENDER_RESET"]
+    restart = next(i for i, e in enumerate(ev) if e["ev"] == "plc" and e["what"] == "restart")
+    first = next(e for e in ev[restart:] if e["ev"] == "plc" and e["what"] == "write"
+                 and e["side"] == "outstation")
+    assert first["value"] == [0], "the restarted sender does not begin with the reset record"
 
 
 def test_throughput_data_reproduce():
