@@ -404,13 +404,19 @@ def _describe(tok_type):
 
 
 _parser = None
-_comment_sink = [None]
+_comment_sink = [None, None]
 _last = [None, None]     # [previous token, current token] seen by the lexer
 
 
 def _track(tok):
     _last[0] = _last[1]
     _last[1] = tok
+    return tok
+
+
+def _on_pragma(tok):
+    if _comment_sink[1] is not None:
+        _comment_sink[1](tok)
     return tok
 
 
@@ -428,7 +434,8 @@ def _get_parser():
         probe = Lark(text, parser="lalr", lexer="basic", maybe_placeholders=True)
         callbacks = {t.name: _track for t in probe.terminals}
         callbacks["SLASH_COMMENT"] = _on_slash_comment
-        for name in ("WS", "COMMENT", "PRAGMA"):
+        callbacks["PRAGMA"] = _on_pragma
+        for name in ("WS", "COMMENT"):
             callbacks.pop(name, None)
         _parser = Lark(text, parser="lalr", lexer="basic", transformer=_Build(),
                        maybe_placeholders=True, cache=False, lexer_callbacks=callbacks)
@@ -596,6 +603,9 @@ def parse(text, filename, diags):
     _comment_sink[0] = lambda tok: report(
         _pos(tok), ("//" if tok.startswith("//") else "/* */")
         + " comments are not portable (matiec rejects them): use (* ... *)")
+    _comment_sink[1] = lambda tok: report(
+        _pos(tok), "{ ... } pragmas are not portable (matiec pastes them into its C output): "
+        "remove it or make it a (* comment *)")
     if "(*" in text:
         for m in _COMMENT.finditer(text):
             inner = m.group(0).find("(*", 2)
