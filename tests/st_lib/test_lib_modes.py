@@ -211,3 +211,29 @@ def test_static_mode_with_cyclic_io_like_openplc(wd):
     assert u.send(limit=10000) == "done"
     assert u.sink.transfers == [data + [0] * (5 * 122 - len(data))]
     assert len(u.port_o.writes) > 3 * len([t for t in u.radio.log if t.src == "O"])
+
+
+def test_bidirectional_abort_and_send_again(wd):
+    """The outstation aborts its transfer mid-way while the central keeps sending: the
+    central's receiving side reports the open transfer failed when the outstation resets it,
+    the outstation's next transfer arrives whole, and the central's transfer is unaffected."""
+    old, new, b = pattern(5 * 121, seed=53), pattern(2 * 121 + 3, seed=54), pattern(4 * 121, seed=55)
+    bi = Bi(wd, old, b)
+    bi.bench.step(3)
+    bi.lo["xExecute"] = True
+    bi.lc["xExecute"] = True
+    assert bi.bench.run_until(lambda: bi.lc["udiRecordsReceived"] >= 2, 3000)
+    bi.lo["xAbort"] = True
+    bi.bench.step()
+    assert bi.lo["xSendError"] and bi.lo["eSendErrorId"] == E_ABORTED
+    bi.lo["xAbort"] = False
+    bi.lo["xExecute"] = False
+    bi.bench.step(2)
+    bi.src_o.data = new
+    bi.lo["xExecute"] = True
+    assert bi.bench.run_until(lambda: bi.lo["xSendDone"] and bi.lc["xSendDone"], 8000)
+    assert bi.sink_c.transfers == [new]
+    assert bi.sink_o.transfers == [b]
+    assert bi.lc["xRecvDone"] and not bi.lc["xRecvError"]
+    # the aborted transfer was reported by the central's receiving side
+    assert bi.lc["udiFailedTransfers"] == 1
