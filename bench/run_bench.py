@@ -73,8 +73,10 @@ def first_line(cmd):
 # ---------------------------------------------------------------- machine
 
 def matiec_env():
-    """PATH/MATIEC_LIB for iec2c, or None when it is not installed (CI)."""
+    """PATH/MATIEC_LIB for iec2c, or None when it is not installed (CI) or BENCH_MATIEC=off."""
     env = dict(os.environ)
+    if env.get("BENCH_MATIEC") == "off":
+        return None
     if not shutil.which("iec2c", path=env.get("PATH")) and Path("/opt/src/matiec/iec2c").is_file():
         env["PATH"] = "/opt/src/matiec:" + env.get("PATH", "")
         env.setdefault("MATIEC_LIB", "/opt/src/matiec/lib")
@@ -342,8 +344,9 @@ def fig_scan_cost(quick):
             f"of bench/st/bench_pair.st (1 MIP_Sender + 1 MIP_Receiver back to back, "
             f"{rec_stc} records in the window), -O2")
     if env is None:
-        line(name, f"stc {stc:.0f} {what}; matiec figure skipped: iec2c not on PATH and not in "
-             "/opt/src/matiec (matiec is not installed on this machine); target stc <= matiec",
+        why = ("BENCH_MATIEC=off" if os.environ.get("BENCH_MATIEC") == "off" else
+               "iec2c not on PATH and not in /opt/src/matiec (matiec is not installed here)")
+        line(name, f"stc {stc:.0f} {what}; matiec figure skipped: {why}; target stc <= matiec",
              "SKIPPED")
         return None
     try:
@@ -633,26 +636,31 @@ def main(argv=None):
         print(f"run_bench: error: unknown figure {bad[0]!r} (one of {', '.join(FIGURES)})",
               file=sys.stderr)
         return 2
+    if os.environ.get("BENCH_MATIEC") not in (None, "", "off"):
+        print("run_bench: error: BENCH_MATIEC must be 'off' or unset", file=sys.stderr)
+        return 2
     BUILD.mkdir(parents=True, exist_ok=True)
     print(f"bench: {'quick' if a.quick else 'full'} run, {time.strftime('%Y-%m-%d %H:%M:%S UTC', time.gmtime())}",
           flush=True)
     machine()
     t0 = time.perf_counter()
+    took = []
     with tempfile.TemporaryDirectory(dir=BUILD, prefix="work-") as work:
         work = Path(work)
-        if "goodput" in only:
-            fig_goodput(a.quick, work / "goodput")
-        if "scan_cost" in only:
-            fig_scan_cost(a.quick)
-        if "emu_throughput" in only:
-            fig_emulator_throughput(a.quick)
-        if "cosim_speed" in only:
-            fig_cosim_speed(a.quick, work / "speed")
-        if "translator" in only:
-            fig_translator(a.quick)
-        if "memory" in only:
-            fig_memory(a.quick)
-    print(f"bench: done in {time.perf_counter() - t0:.1f} s"
+        steps = {
+            "goodput": lambda: fig_goodput(a.quick, work / "goodput"),
+            "scan_cost": lambda: fig_scan_cost(a.quick),
+            "emu_throughput": lambda: fig_emulator_throughput(a.quick),
+            "cosim_speed": lambda: fig_cosim_speed(a.quick, work / "speed"),
+            "translator": lambda: fig_translator(a.quick),
+            "memory": lambda: fig_memory(a.quick),
+        }
+        for fig in FIGURES:
+            if fig in only:
+                t = time.perf_counter()
+                steps[fig]()
+                took.append(f"{fig} {time.perf_counter() - t:.1f}")
+    print(f"bench: done in {time.perf_counter() - t0:.1f} s (builds included: {', '.join(took)})"
           + (f"; not measured: {', '.join(ERRORS)}" if ERRORS else ""), flush=True)
     return 1 if ERRORS else 0
 

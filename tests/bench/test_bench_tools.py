@@ -73,3 +73,17 @@ def test_generated_st_has_5000_lines_and_translates(tmp_path):
     p = subprocess.run([REPO / ".venv" / "bin" / "stc", "-o", tmp_path / "out", src],
                        capture_output=True, text=True, timeout=300)
     assert p.returncode == 0, p.stderr
+
+
+def test_scan_cost_without_matiec_says_why():
+    """As in CI, where iec2c is absent: the stc figure is measured, the comparison skipped with
+    the reason (BENCH_MATIEC=off stands in for a machine without matiec)."""
+    import os
+    env = dict(os.environ, BENCH_MATIEC="off")
+    p = subprocess.run([sys.executable, REPO / "bench" / "run_bench.py", "--quick", "--only",
+                        "scan_cost"], capture_output=True, text=True, timeout=600, env=env)
+    assert p.returncode == 0, p.stdout + p.stderr
+    l = next(l for l in p.stdout.splitlines() if l.startswith("scan_cost:"))
+    assert l.endswith("SKIPPED") and "matiec figure skipped: BENCH_MATIEC=off" in l, l
+    import re
+    assert int(re.search(r"stc (\d+) instructions", l).group(1)) > 0, l
