@@ -498,8 +498,10 @@ def fig_cosim_speed(quick, workdir):
         return
     r = virt / wall
     rc = virt / cpu if cpu > 0 else float("inf")
+    ru = virt / (cpu - sys_cpu) if cpu > sys_cpu else float("inf")
     line(name, f"{r:.0f} x real time ({virt} virtual s in {wall:.3f} wall s; per CPU second "
-         f"{rc:.0f} x, {sys_cpu / cpu if cpu else 0:.0%} of it in the kernel; 8 outstation + 2 "
+         f"{rc:.0f} x, {sys_cpu / cpu if cpu else 0:.0%} of it in the kernel, per user CPU "
+         f"second {ru:.0f} x; 8 outstation + 2 "
          f"central soft-PLCs, 100 ms scans, 9600 bit/s; {scans} scans, {reqs} Modbus requests "
          f"over socketpairs, {polls} polls, {blocks} records up; target >= 1000)",
          "OK" if r >= 1000 else "MISSED")
@@ -547,6 +549,8 @@ def fig_translator(quick):
     src.write_text(text)
     nlines = text.count("\n")
     try:
+        with tempfile.TemporaryDirectory(dir=BUILD) as d:
+            run([STC, "-o", d, src])       # warm-up, untimed: stc's grammar cache, page cache
         times = []
         for _ in range(reps):
             with tempfile.TemporaryDirectory(dir=BUILD) as d:
@@ -558,8 +562,9 @@ def fig_translator(quick):
         return
     t = min(times)
     r = nlines / t
-    line(name, f"{r:.0f} lines/s ({nlines} lines in {t:.2f} s wall, stc process incl. Python "
-         f"start-up, best of {reps}; {r / 5000:.2f} of target >= 5000 lines/s)",
+    line(name, f"{r:.0f} lines/s ({nlines} lines in {t:.2f} s wall, the whole stc process "
+         f"incl. Python start-up, after one untimed warm-up run, best of {reps}; "
+         f"{r / 5000:.2f} of target >= 5000 lines/s)",
          "OK" if r >= 5000 else "MISSED")
 
 
