@@ -426,19 +426,33 @@ def _on_slash_comment(tok):
     return tok
 
 
+def _cache_path():
+    """Where lark keeps the analysed grammar (3x faster start); in the user's own cache
+    directory, never a shared /tmp (the cache is a pickle)."""
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    d = os.path.join(base, "stc")
+    try:
+        os.makedirs(d, mode=0o700, exist_ok=True)
+    except OSError:
+        return False
+    if not os.access(d, os.W_OK):
+        return False
+    return os.path.join(d, "st-grammar.lark-cache")
+
+
 def _get_parser():
     global _parser, KEYWORDS
     if _parser is None:
         with open(_GRAMMAR) as f:
             text = f.read()
-        probe = Lark(text, parser="lalr", lexer="basic", maybe_placeholders=True)
-        callbacks = {t.name: _track for t in probe.terminals}
+        names = re.findall(r"^([A-Z][A-Z0-9_]*)(?:\.\d+)?\s*:", text, re.M)
+        callbacks = {name: _track for name in names}
         callbacks["SLASH_COMMENT"] = _on_slash_comment
         callbacks["PRAGMA"] = _on_pragma
         for name in ("WS", "COMMENT"):
             callbacks.pop(name, None)
         _parser = Lark(text, parser="lalr", lexer="basic", transformer=_Build(),
-                       maybe_placeholders=True, cache=False, lexer_callbacks=callbacks)
+                       maybe_placeholders=True, cache=_cache_path(), lexer_callbacks=callbacks)
         KEYWORDS = {t.name for t in _parser.terminals
                     if t.pattern.type == "str" and t.pattern.value.isalpha() or
                     (t.pattern.type == "str" and "_" in t.pattern.value)}
