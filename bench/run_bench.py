@@ -14,6 +14,7 @@ import argparse
 import os
 import platform
 import re
+import select
 import shutil
 import signal
 import socket
@@ -130,6 +131,10 @@ class Server:
         t_end = time.monotonic() + timeout
         self.first = ""
         while time.monotonic() < t_end:
+            # wait for a line without blocking past the deadline (a hung server is an error)
+            ready_fds, _, _ = select.select([self.p.stdout], [], [], max(0.0, t_end - time.monotonic()))
+            if not ready_fds:
+                break
             l = self.p.stdout.readline()
             if not l:
                 break
@@ -148,13 +153,15 @@ class Server:
             except subprocess.TimeoutExpired:
                 self.p.kill()
                 self.p.wait()
+        for f in (self.p.stdout, self.p.stderr):
+            if f:
+                f.close()
 
     def __enter__(self):
         return self
 
     def __exit__(self, *exc):
         self.stop()
-
 
 
 RSS_RUN = BUILD / "rss_run"
