@@ -108,9 +108,11 @@ def machine():
     iec2c = "absent"
     if menv:
         iec2c = shutil.which("iec2c", path=menv["PATH"])
+        iec2c = f"{first_line([iec2c, '-v'])} ({iec2c})"
     print(f"machine: cc={first_line([cc, '--version'])!r} python={platform.python_version()} "
           f"valgrind={first_line(['valgrind', '--version'])} "
-          f"libmodbus={first_line(['pkg-config', '--modversion', 'libmodbus'])} iec2c={iec2c}",
+          f"libmodbus={first_line(['pkg-config', '--modversion', 'libmodbus'])} "
+          f"stc={first_line([STC, '--version'])!r} iec2c={iec2c!r}",
           flush=True)
 
 
@@ -692,3 +694,6 @@ if __name__ == "__main__":
         sys.exit(main())
     except KeyboardInterrupt:
         sys.exit(130)
+    except BrokenPipeError:          # output cut short (| head): stop quietly, servers are gone
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        sys.exit(141)
