@@ -2,6 +2,7 @@
 outstation soft-PLC against the Python central, and the Python outstation against the st_lib
 central, both over the real mip-emulator in real time on 127.0.0.1."""
 import json
+import socket
 import subprocess
 import sys
 import time
@@ -40,6 +41,21 @@ class Net:
         self.mdp = int(fields["mdp"].rsplit(":", 1)[1])
         self.trm = int(fields["trm"])
         self.slaves = []
+        for port in (self.mdp, self.trm):
+            self._wait_accepting(port)
+
+    def _wait_accepting(self, port):
+        # the peer connects once, with no retry: make sure the emulator is there first
+        deadline = time.monotonic() + 10
+        while True:
+            self.procs.check_alive()
+            try:
+                socket.create_connection(("127.0.0.1", port), timeout=2).close()
+                return
+            except OSError as e:
+                if time.monotonic() > deadline:
+                    raise AssertionError(f"mip-emulator does not accept on {port}: {e}")
+                time.sleep(0.1)
 
     def plc(self, exe, conf_text, name):
         conf = self.tmp / f"{name}.conf"
