@@ -418,7 +418,7 @@ class Gen:
         elif isinstance(s, S.If):
             first = True
             for cond, body in s.branches:
-                self.w(f"{'if' if first else '} else if'} ({self.ex(cond)}) {{")
+                self.w(f"{'if' if first else '} else if'} ({self.cond(cond)}) {{")
                 first = False
                 self.ind += 1
                 self.stmts(body)
@@ -434,7 +434,7 @@ class Gen:
         elif isinstance(s, S.For):
             self.for_(s)
         elif isinstance(s, S.While):
-            self.w(f"while ({self.ex(s.cond)}) {{")
+            self.w(f"while ({self.cond(s.cond)}) {{")
             self.ind += 1
             self.stmts(s.body)
             self.ind -= 1
@@ -455,6 +455,13 @@ class Gen:
             else:
                 self.w("return;")
 
+    def cond(self, e):
+        """A condition without redundant outer parentheses (clang warns on `if ((a == b))`)."""
+        c = self.ex(e)
+        while c.startswith("(") and c.endswith(")") and _balanced(c[1:-1]):
+            c = c[1:-1]
+        return c
+
     def case(self, s):
         st = s.sel_type
         sel = self.new_tmp("sel")
@@ -467,11 +474,13 @@ class Gen:
             conds = []
             for lo, hi in labels.labels:
                 a = self.label_value(lo, st)
+                fam = "u" if ctype == "uint64_t" else "i"
                 if hi is None:
                     conds.append(f"{sel} == {self.case_lit(a, ctype)}")
                 else:
                     b = self.label_value(hi, st)
-                    conds.append(f"({sel} >= {self.case_lit(a, ctype)} && {sel} <= {self.case_lit(b, ctype)})")
+                    conds.append(f"(stc_ge_{fam}({sel}, {self.case_lit(a, ctype)}) && "
+                                 f"stc_le_{fam}({sel}, {self.case_lit(b, ctype)}))")
             self.w(f"{'if' if first else '} else if'} ({' || '.join(conds)}) {{")
             first = False
             self.ind += 1
@@ -711,7 +720,7 @@ class Gen:
             return f"(({t.ctype})-{x})"
         return f"(({t.ctype})(0u - ({_wide(t)}){x}))"
 
-    _COP = {"=": "==", "<>": "!=", "<": "<", ">": ">", "<=": "<=", ">=": ">="}
+    _COP = {"=", "<>", "<", ">", "<=", ">="}
 
     def binop(self, e):
         op = e.op
@@ -719,7 +728,11 @@ class Gen:
         a = self.ex(e.left)
         b = self.ex(e.right)
         if op in self._COP:
-            return f"({a} {self._COP[op]} {b})"
+            ot = e.left.ty
+            fam = "f" if ot.is_elem and ot.kind == "real" else \
+                "u" if ot.is_elem and ot.kind in ("uint", "bit") and ot.bits == 64 else "i"
+            name = {"=": "eq", "<>": "ne", "<": "lt", ">": "gt", "<=": "le", ">=": "ge"}[op]
+            return f"stc_{name}_{fam}({a}, {b})"
         if op in ("AND", "OR", "XOR"):
             cop = {"AND": "&", "OR": "|", "XOR": "^"}[op]
             if t.kind == "bool":
@@ -805,9 +818,11 @@ class Gen:
         # nested conditional expressions; arguments are evaluated more than once, which is
         # harmless because ST expressions (without FB calls) have no side effects except
         # function outputs, and those functions are called through temporaries below.
+        fam = "f" if t.kind == "real" else "u" if t.kind in ("uint", "bit") and t.bits == 64 else "i"
+        fn = f"stc_{'lt' if cmp == '<' else 'gt'}_{fam}"
         out = xs[0]
         for x in xs[1:]:
-            out = f"({out} {cmp} {x} ? {out} : {x})"
+            out = f"({fn}({out}, {x}) ? {out} : {x})"
         return out
 
     # ---- configuration: Config0.c and one file per resource
@@ -993,6 +1008,18 @@ class Gen:
                     self.sym_rows(rows, f"{path}[{ip}]", et, kind, cr)
         elif t.is_fb:
             self.pou_rows(rows, path, t.pou, ref)
+
+
+def _balanced(s):
+    depth = 0
+    for ch in s:
+        if ch == "(":
+            depth += 1
+        elif ch == ")":
+            depth -= 1
+            if depth < 0:
+                return False
+    return depth == 0
 
 
 def _const(e):

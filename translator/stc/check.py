@@ -10,6 +10,10 @@ from . import types as T
 from .diag import CompileError
 
 _IDENT_RE = re.compile(r"^[A-Z_][A-Z0-9_]*$")
+# macros of <stdint.h>/<string.h> that an upper-case IEC name would collide with in the C output
+_C_MACROS = re.compile(r"^(U?INT(8|16|32|64|MAX|PTR)_(MIN|MAX|C)|U?INT_(LEAST|FAST)(8|16|32|64)_(MIN|MAX)"
+                       r"|SIZE_MAX|PTRDIFF_(MIN|MAX)|SIG_ATOMIC_(MIN|MAX)|WCHAR_(MIN|MAX)|WINT_(MIN|MAX)"
+                       r"|NULL)$")
 
 
 class Var:
@@ -167,6 +171,8 @@ class Checker:
             self.err(pos, f"identifier '{name}' contains '__', which matiec rejects: use a single '_'")
         elif name.endswith("_"):
             self.err(pos, f"identifier '{name}' ends with '_', which matiec rejects")
+        elif _C_MACROS.match(name):
+            self.err(pos, f"identifier '{name}' is a C macro name in the generated code: rename it")
         elif name in T.RESERVED or name in _keywords() or _conversion(name):
             self.err(pos, f"'{name}' is a reserved or standard library name in matiec and cannot "
                      "be used as an identifier")
@@ -537,6 +543,8 @@ class Checker:
         names = set()
         for r in resources:
             ri = ResourceInfo(r.name)
+            if r.name in self.p.pous or r.name in self.p.types:
+                self.err(r.pos, f"resource '{r.name}' has the name of a POU or type")
             if r.name in names:
                 self.err(r.pos, f"resource '{r.name}' is declared twice")
             names.add(r.name)
@@ -1081,10 +1089,12 @@ class Checker:
         if lt.is_lit:
             self.coerce(e.left, lt, rt, None, soft=True)
             self.range_check(e.left, rt)
+            self.need_settled(e.left, rt)
             lt = rt
         elif rt.is_lit:
             self.coerce(e.right, rt, lt, None, soft=True)
             self.range_check(e.right, lt)
+            self.need_settled(e.right, lt)
             rt = lt
         if not T.same_type(lt, rt):
             self.fail(e.pos, f"'{op}' between {lt} and {rt}: IEC strict typing needs the same "
@@ -1151,6 +1161,13 @@ class Checker:
             return
         self.fail(e.pos, f"{what}: type {from_t} cannot be assigned to {to_t} without explicit "
                   f"conversion (IEC strict typing): use {_conv_hint(from_t, to_t)}")
+
+    def need_settled(self, e, t):
+        if e.ty is None or e.ty.is_lit:
+            if e.ty is not None and e.ty.kind == "int" and t.is_elem and t.kind == "real":
+                self.fail(e.pos, f"an integer literal cannot be used as {t} (matiec rejects it): "
+                          "write a REAL literal like 1.0")
+            self.fail(e.pos, f"{e.ty or 'this value'} cannot be used as {t}")
 
     def range_check(self, e, t):
         if t.is_elem and (t.is_int or t.kind == "bit"):

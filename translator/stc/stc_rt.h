@@ -139,6 +139,20 @@ static inline uint64_t stc_trunc_u64(double x, uint64_t hi)
     return (uint64_t)x;
 }
 
+/* Comparisons go through these functions so that comparisons which are constant for the C
+ * compiler (x >= 0 on an unsigned, x = x, masks compared with out-of-range constants) are not
+ * warnings under -Wall -Wextra -Werror: ST allows them. */
+#define STC_CMP(S, T) \
+    static inline int stc_eq_##S(T a, T b) { return a == b; } \
+    static inline int stc_ne_##S(T a, T b) { return a != b; } \
+    static inline int stc_lt_##S(T a, T b) { return a < b; } \
+    static inline int stc_gt_##S(T a, T b) { return a > b; } \
+    static inline int stc_le_##S(T a, T b) { return a <= b; } \
+    static inline int stc_ge_##S(T a, T b) { return a >= b; }
+STC_CMP(i, int64_t)
+STC_CMP(u, uint64_t)
+STC_CMP(f, double)
+
 /* ---- standard function blocks (IEC 61131-3 behaviour) ------------------------------- */
 
 typedef struct { uint8_t IN; stc_time PT; uint8_t Q; stc_time ET; uint8_t running; int64_t start; } TON;
