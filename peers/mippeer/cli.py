@@ -82,7 +82,9 @@ def main(argv=None):
                        "duplicates": peer.receiver.duplicates}, f)
     print(f"mip-peer: {a.role} done: sent={'yes' if records else 'nothing'} "
           f"received_transfers={len(peer.receiver.transfers) if peer.receiver else 0} "
-          f"writes={peer.writes}")
+          f"writes={peer.writes} "
+          f"aborted_transfers={len(peer.receiver.aborted) if peer.receiver else 0} "
+          f"peer_resets={peer.sender.peer_resets if peer.sender else 0}")
     return 0
 
 

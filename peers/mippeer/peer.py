@@ -67,8 +67,10 @@ class Peer:
             else:
                 counter, ack = data[self._my_ack], data[self._my_counter]
             if self.receiver is not None and (counter != 0 or self.receiver.last_accepted != 0):
+                # A record, or the reset record 0 while we still acknowledge something: both
+                # must be answered (the reset with acknowledgement 0).
                 self.receiver.on_record(counter, data[self.header :])
-                record_arrived = counter != 0
+                record_arrived = True
             if self.sender is not None:
                 self.sender.on_ack(ack)
         block = self._block()

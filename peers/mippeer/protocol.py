@@ -44,7 +44,7 @@ class Sender:
         self._numbers = numbers_for(len(records))
         self._records = records
         self.index = 0  # the record being sent
-        self.restarts = 0  # times the receiver restarted and the rest went as a new transfer
+        self.peer_resets = 0  # times the receiver restarted and the transfer began again
 
     @property
     def done(self):
@@ -61,13 +61,11 @@ class Sender:
         if self.done:
             return False
         if ack == 0 and self.index > 0:
-            # The receiver restarted and forgot the transfer. Records before `index` were
-            # acknowledged, so it processed them: send only the rest, as a new transfer.
-            self.restarts += 1
-            rest = self._records[self.index:]
-            if len(rest) == 1:
-                rest.append([])
-            self._records, self._numbers, self.index = rest, numbers_for(len(rest)), 0
+            # The receiver restarted and forgot the open transfer; it keeps only complete
+            # transfers, so what it accepted before is gone too. Report it and send the whole
+            # transfer again from record 1 (as st_lib's MIP_ERR_PEER_RESET plus a new execute).
+            self.peer_resets += 1
+            self.index = 0
             return True
         if ack != self._numbers[self.index]:
             return False

@@ -60,13 +60,21 @@ def test_sender_restart_mid_transfer_is_reported_not_merged():
     assert r.current == [[9]]
 
 
-def test_receiver_restart_sends_the_rest_as_a_new_transfer():
+def test_receiver_restart_sends_the_whole_transfer_again_and_counts_it():
     s = Sender([[1], [2], [3], [4]])
     assert s.on_ack(1) and s.on_ack(2)
-    assert s.on_ack(0)  # receiver forgot everything
-    assert s.current() == (1, [3]) and s.restarts == 1
-    assert s.on_ack(1)
+    assert s.on_ack(0)  # receiver forgot everything, also what it accepted before
+    assert s.current() == (1, [1]) and s.peer_resets == 1
+    assert s.on_ack(1) and s.on_ack(2) and s.on_ack(3)
     assert s.current() == (LAST, [4])
+
+
+def test_central_answers_the_reset_record_with_zero():
+    """Uni layout, spontaneous: a restarted sender's record 0 must be acknowledged at once."""
+    cen = Peer("central", layout="uni", drive="spontaneous")
+    assert cen.step(0.0, [1, 2, 1, 11]) == [1]
+    assert cen.step(0.1, [1, 1, 0]) == [0]
+    assert cen.receiver.aborted == [[[11]]]
 
 
 class LossyLink:
