@@ -261,8 +261,12 @@ def run(a):
         while True:
             procs.check_alive()
             stats.update()
-            done = sum(sl.read(L.peer_base(1) + L.S_OUT_LO, 2)[0]
-                       + (sl.read(L.peer_base(1) + L.S_OUT_HI, 1)[0] << 16) for sl in outs)
+            # progress: records the central has received (a transfer counts as read out
+            # only when its last record arrived; the bar moves record by record)
+            done = 0
+            for s in range(1, a.stations + 1):
+                lo, hi = central.read(L.peer_base(s) + L.R_REC_LO, 2)
+                done += min(a.records, lo + (hi << 16))
             finished = all(sl.read(L.peer_base(1) + L.S_ALL, 1)[0] == 1 for sl in outs)
             retrans = sum(sl.read(L.peer_base(1) + L.S_RETRANS, 1)[0] for sl in outs)
             dups = sum(central.read(L.peer_base(s) + L.R_DUP, 1)[0]

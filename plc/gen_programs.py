@@ -29,7 +29,7 @@ def peer_base(s):         # %MW block of peer s: receiver 0..19, sender 20..39, 
 
 
 PARAMS = """\
-  (* parameters (%MW0..%MW15), written by the demo, a test or an operator panel *)
+  (* parameters (%MW0..%MW23), written by the demo, a test or an operator panel *)
   pStart AT %MW0 : WORD;          (* <> 0: run *)
   pTotalLo AT %MW1 : WORD;        (* records to log and read out (0: 5) *)
   pTotalHi AT %MW2 : WORD;
@@ -46,6 +46,15 @@ PARAMS = """\
   pCyclicWrite AT %MW13 : WORD;   (* cyclic I/O: ms after which a write counts as done (0: the next scan) *)
   pStartLo AT %MW14 : WORD;       (* records already read out (resume after a restart) *)
   pStartHi AT %MW15 : WORD;
+  (* the central's own streams (bidirectional): records already read out, per station *)
+  pDownStart1Lo AT %MW16 : WORD;
+  pDownStart1Hi AT %MW17 : WORD;
+  pDownStart2Lo AT %MW18 : WORD;
+  pDownStart2Hi AT %MW19 : WORD;
+  pDownStart3Lo AT %MW20 : WORD;
+  pDownStart3Hi AT %MW21 : WORD;
+  pDownStart4Lo AT %MW22 : WORD;
+  pDownStart4Hi AT %MW23 : WORD;
 """
 
 PARAM_VARS = """\
@@ -267,7 +276,8 @@ def central(bidi):
                 f"(* the central's own stream to station {s}: session pSession + 16#8000 *)\n"
                 f"src{s}(xRun := xRun, udiTotal := udiTotal, uPerTransfer := uPerTransfer, "
                 f"uPayload := uPayload,\n    wSession := pSession XOR 16#8000, wStation := {s}, "
-                f"tLogPeriod := tLogPeriod, udiStart := udiStart,\n"
+                f"tLogPeriod := tLogPeriod,\n    udiStart := WORD_TO_UDINT(pDownStart{s}Lo) + "
+                f"WORD_TO_UDINT(pDownStart{s}Hi) * 65536,\n"
                 f"    xChunkRequest := link{s}.xChunkRequest, udiChunkIndex := link{s}.udiChunkIndex,"
                 f" uChunkMax := link{s}.uChunkMax,\n    xSendDone := link{s}.xSendDone, "
                 f"xSendError := link{s}.xSendError, eSendError := link{s}.eSendErrorId);")

@@ -79,7 +79,8 @@ def check_stream(chain: Chain, name, sender, sender_tap, receiver, receiver_tap,
     payload = st.params(station, 1).effective_payload(st.bidi)
     total = st.records
     s_pid, r_pid = chain.ids[sender], chain.ids[receiver]
-    sessions = [(session_of(x), start) for x, start in chain.sessions[sender]]
+    sessions = [(session_of(x), start if isinstance(start, int) else start.get(station, 0))
+                for x, start in chain.sessions[sender]]
     attempts, pointer = _sender_attempts(chain.events, s_pid, {sender_tap}, total,
                                          st.per_transfer, sessions)
     rep.attempts = len(attempts)
@@ -186,7 +187,7 @@ def check(chain: Chain):
                                  ("cen", 0), s, s, lambda x: x, True))
         if chain.s.bidi:
             reps.append(check_stream(chain, f"central -> station {s}", ("cen", 0), 10 + s,
-                                     ("out", s), 30 + s, s, lambda x: x ^ 0x8000, False))
+                                     ("out", s), 30 + s, s, lambda x: x ^ 0x8000, True))
     return reps
 
 

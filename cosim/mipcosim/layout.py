@@ -92,6 +92,7 @@ class Params:
     transfer_timeout_s: int = 0
     max_retries: int = 0
     start: int = 0          # records already read out (a restarted outstation resumes there)
+    down_start: tuple = (0, 0, 0, 0)   # the same for the central's own streams, per station
 
     def words(self, start=True):
         flags = (F_POLLED if self.polled else 0) | (F_STATIC if self.static else 0) | \
@@ -99,7 +100,8 @@ class Params:
         return [1 if start else 0, self.records % 65536, self.records // 65536, self.per_transfer,
                 self.payload, self.session, self.station, flags, self.log_period_ms,
                 self.timeout_ms, self.chunk, self.transfer_timeout_s, self.max_retries, 0,
-                self.start % 65536, self.start // 65536]
+                self.start % 65536, self.start // 65536] + \
+            [w for d in self.down_start for w in (d % 65536, d // 65536)]
 
     def effective_payload(self, bidi):
         room = self.chunk - (2 if bidi else 1)

@@ -111,7 +111,11 @@ class Setup:
     compiler: str = "stc"
 
     def params(self, station, session, start=0):
-        return L.Params(start=start, records=self.records, per_transfer=self.per_transfer,
+        down = (0, 0, 0, 0)
+        if isinstance(start, dict):       # the central: one start per station
+            down = tuple(start.get(s, 0) for s in range(1, 5))
+            start = 0
+        return L.Params(start=start, down_start=down, records=self.records, per_transfer=self.per_transfer,
                         payload=self.payload, session=session, station=station,
                         polled=self.polled, static=self.static,
                         log_period_ms=self.log_period_ms, timeout_ms=self.timeout_ms,
@@ -166,7 +170,7 @@ class Chain:
     def session(self, who):
         return 1 + self.boots[who]
 
-    def _start(self, who, start=0):
+    def _start(self, who, start=None):
         role, s = who
         plc = Plc(self.out_build if role == "out" else self.cen_build, self.workdir,
                   config=self.out_conf if role == "out" else self.cen_conf)
@@ -188,6 +192,8 @@ class Chain:
         else:
             for st in range(1, self.s.stations + 1):
                 self._check(self.lib.mipcosim_connect(self.sim, pid, set_fd, f"mdp{st}".encode(), 0))
+        if start is None:
+            start = 0 if role == "out" else {}
         session = self.session(who)
         self.sessions.setdefault(who, []).append((session, start))
         params = self.s.params(s if role == "out" else 0, session, start)
@@ -261,12 +267,16 @@ class Chain:
         """A PLC restart: off for down_ns (its modem keeps running), then a fresh instance of
         the program (all state lost) with the next session number."""
         pid = self.ids[who]
-        # an outstation's logger keeps its data and read-out pointer (retained memory); the
-        # central's own stream (bidirectional) starts over in a new session
-        start = 0
+        # a logger keeps its data and read-out pointer (retained memory): the restarted
+        # program resumes there, in a new session
         if who[0] == "out":
             b = L.peer_base(1)
             start = self.mw(who, b + L.S_OUT_LO) + (self.mw(who, b + L.S_OUT_HI) << 16)
+        else:
+            start = {}
+            for s in range(1, self.s.stations + 1):
+                b = L.peer_base(s)
+                start[s] = self.mw(who, b + L.S_OUT_LO) + (self.mw(who, b + L.S_OUT_HI) << 16)
         self._check(self.lib.mipcosim_plc_replace(self.sim, pid, None, None, 0))
         self.restarts.append((self.now, who))
         self.events.append(Event(self.now, RESTART, pid, []))   # marker for the checker
