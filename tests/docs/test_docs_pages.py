@@ -59,3 +59,11 @@ def test_register_addresses_match_the_emulator_readme():
     for addr in ("2000", "2001–2148", "2198", "2199", "2200–2347", "10–157", "198", "199",
                  "200–347"):
         assert f"| {addr} |" in emu and f"| {addr} |" in ours, addr
+
+
+def test_glossary_has_the_notes_terms():
+    text = (DOCS / "protocol.md").read_text()
+    glossary = text[text.index("Glossary"):]
+    for term in ("Datensatzzähler", "Bestätigungszähler", "Lesestatus", "Schreibdaten unbestätigt",
+                 "Schreibdaten warten", "Neue Lesedaten", "Außenstation", "Zentrale"):
+        assert f"| {term}" in glossary, term
