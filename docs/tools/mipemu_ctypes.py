@@ -1,8 +1,7 @@
 """The emulator core (emulator/include/mipemu.h) loaded through ctypes, in virtual time.
 
-The shared object is linked by `make docs-emu-so` (docs/part.mk) from the emulator's own
-position-independent object build/emulator/mipemu.o, so this is the same code the
-mip-emulator server runs.
+The shared object build/docs/libmipemu.so is built by `make` (docs/part.mk) from the emulator's
+own source emulator/src/mipemu.c, so this is the same code the mip-emulator server runs.
 """
 from __future__ import annotations
 
@@ -37,7 +36,7 @@ class EmuError(RuntimeError):
 
 def _lib():
     if not SO.exists():
-        raise EmuError(f"{SO.relative_to(REPO)} missing: run `make docs-emu-so` first")
+        raise EmuError(f"{SO.relative_to(REPO)} missing: run `make {SO.relative_to(REPO)}` (or `make`)")
     lib = ctypes.CDLL(str(SO))
     lib.mipemu_config_default.argtypes = [ctypes.POINTER(Config)]
     lib.mipemu_net_new.restype = ctypes.c_void_p
