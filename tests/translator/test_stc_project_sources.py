@@ -1,0 +1,40 @@
+"""The project's own ST (st_lib/, plc/) must translate with stc and its C must compile with
+-std=c99 -Wall -Wextra -Werror."""
+import glob
+import os
+import subprocess
+
+import pytest
+
+import stc_harness as H
+
+STLIB = os.path.join(H.ROOT, "st_lib")
+PLC = os.path.join(H.ROOT, "plc")
+PROGRAMS = sorted(p for p in glob.glob(os.path.join(PLC, "*.st"))
+                  if os.path.basename(p) != "PLC_Logger.st")
+
+
+def _compile(outdir):
+    with open(os.path.join(outdir, "SOURCES.txt")) as f:
+        for c in f.read().split():
+            p = subprocess.run(["cc"] + H.CFLAGS + ["-c", "-o", os.devnull, os.path.join(outdir, c)],
+                               capture_output=True, text=True)
+            assert p.returncode == 0, f"{c}:\n{p.stderr}"
+
+
+@pytest.mark.skipif(not glob.glob(os.path.join(STLIB, "*.st")), reason="st_lib/ has no .st files yet")
+def test_st_lib_translates_and_compiles(tmp_path):
+    out = str(tmp_path / "o")
+    r = H.run_stc(["-o", out] + sorted(glob.glob(os.path.join(STLIB, "*.st"))))
+    assert r.returncode == 0, r.stderr
+    _compile(out)
+
+
+@pytest.mark.skipif(not PROGRAMS, reason="plc/ has no programs yet")
+@pytest.mark.parametrize("prog", PROGRAMS, ids=os.path.basename)
+def test_plc_program_translates_and_compiles(prog, tmp_path):
+    out = str(tmp_path / "o")
+    extra = [os.path.join(PLC, "PLC_Logger.st")] if os.path.exists(os.path.join(PLC, "PLC_Logger.st")) else []
+    r = H.run_stc(["-I", STLIB, "-o", out] + extra + [prog])
+    assert r.returncode == 0, r.stderr
+    _compile(out)
