@@ -334,6 +334,7 @@ def main(argv=None):
     a = parse_args(argv)
     # Ctrl-C and SIGTERM end the run through the finally clauses (every process stopped)
     signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
+    signal.signal(signal.SIGINT, signal.default_int_handler)   # also when started in background
     try:
         problems, r = run(a)
     except KeyboardInterrupt:

@@ -2,6 +2,7 @@
 OpenPLC's mbconfig.cfg (cycle policy: written and read every polling period) against the
 emulator in static mode, as in a stock OpenPLC v3."""
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -57,6 +58,27 @@ def test_chain_demo_failure_is_reported_and_cleaned_up(tmp_path):
     assert p.returncode == 1
     assert p.stdout.strip().splitlines()[-1].startswith("result: FAIL timeout after 1 s")
     assert leftover(tmp_path / "run") == []
+
+
+@pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM"])
+def test_chain_demo_interrupted_stops_everything(tmp_path, sig):
+    rundir = tmp_path / "run"
+    p = subprocess.Popen([sys.executable, str(REPO / "plc" / "demo.py"), "--rundir", str(rundir),
+                          "--records", "5000"], stdout=subprocess.PIPE, text=True)
+    try:
+        for line in p.stdout:
+            if line.startswith("read-out ["):
+                break
+        assert leftover(rundir), "the demo's processes should be running now"
+        p.send_signal(getattr(signal, sig))
+        out = p.stdout.read()
+        assert p.wait(timeout=30) == 1
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    assert out.strip().splitlines()[-1] == "result: FAIL interrupted"
+    assert leftover(rundir) == []
 
 
 def test_chain_demo_bad_option_one_line(tmp_path):
