@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 TOKEN = re.compile(r"""
     (?P<comment>\(\*.*?\*\))
+  | (?P<opencomment>\(\*)
   | (?P<ws>\s+)
   | (?P<string>'(?:[^'$]|\$.)*'|"(?:[^"$]|\$.)*")
   | (?P<located>%[IQM][XBWDL]?[0-9]+(?:\.[0-9]+)*|%[IQM]\*)
@@ -123,6 +124,9 @@ def tokenize(text, path):
                           f"{text[pos]!r}")
         kind = m.lastgroup
         s = m.group()
+        if kind == "opencomment":
+            raise StError(f"{path}:{line}:{pos - line_start + 1}: error: comment '(*' is not "
+                          f"closed")
         if kind == "comment" or kind == "ws" or kind == "string":
             pass
         if kind != "ws":
@@ -132,8 +136,6 @@ def tokenize(text, path):
             line += nl
             line_start = pos + s.rindex("\n") + 1
         pos = m.end()
-    if text.count("(*") > text.count("*)"):
-        raise StError(f"{path}: error: a comment '(*' is not closed")
     return toks
 
 
