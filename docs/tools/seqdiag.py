@@ -45,7 +45,7 @@ def load(path):
     try:
         f = sys.stdin if path == "-" else open(path, encoding="utf-8")
     except OSError as e:
-        raise TraceError(f"{path}: {e.strerror}")
+        raise TraceError(f"seqdiag: error: {path}: {e.strerror}")
     with f:
         for n, line in enumerate(f, 1):
             line = line.strip()
@@ -57,6 +57,10 @@ def load(path):
                 raise TraceError(f"{path}:{n}:{e.colno}: error: not a JSON line: {e.msg}")
             if not isinstance(d, dict) or "t" not in d or "ev" not in d:
                 raise TraceError(f"{path}:{n}:1: error: a trace line needs \"t\" and \"ev\"")
+            if not isinstance(d["t"], int) or isinstance(d["t"], bool) or d["t"] < 0:
+                raise TraceError(f"{path}:{n}:1: error: \"t\" must be a non-negative integer "
+                                 f"(ns)")
+            d["_line"] = n
             events.append(d)
     return events
 
@@ -269,10 +273,15 @@ def main(argv=None):
     try:
         events = load(a.trace)
     except TraceError as e:
-        print(f"seqdiag: {e}" if not str(e).startswith(a.trace) else str(e), file=sys.stderr)
+        print(e, file=sys.stderr)
         return 1
     t_to = a.to_ms * 1_000_000 if a.to_ms is not None else 1 << 62
-    rows = rows_from(events, a.station, a.from_ms * 1_000_000, t_to)
+    try:
+        rows = rows_from(events, a.station, a.from_ms * 1_000_000, t_to)
+    except (TypeError, ValueError, KeyError, AttributeError) as e:
+        print(f"seqdiag: error: {a.trace}: a trace line has a field of the wrong type ({e})",
+              file=sys.stderr)
+        return 1
     caption = a.caption or ("From the trace " + a.trace.split("/")[-1]
                             + "; empty polls/answers and PLC reads without new data omitted.")
     svg = render(rows, a.title, caption)

@@ -90,3 +90,11 @@ def test_plot_rejects_a_file_that_is_not_throughput_data(tmp_path):
     assert r.returncode == 1
     assert r.stderr.startswith(f"lossplot: error: {bad}: not a throughput data file")
     assert len(r.stderr.strip().splitlines()) == 1
+
+
+def test_a_trace_line_with_a_bad_time_is_reported(tmp_path):
+    bad = tmp_path / "t.jsonl"
+    bad.write_text('{"t":"soon","seq":0,"ev":"radio"}\n')
+    r = tool("seqdiag", bad, "-o", tmp_path / "o.svg")
+    assert r.returncode == 1
+    assert r.stderr.strip() == f'{bad}:1:1: error: "t" must be a non-negative integer (ns)'
