@@ -129,8 +129,12 @@ def main(argv=None):
            "radio": "9600 bit/s, 20 ms gap, 12 bytes overhead, independent losses up = down",
            "plc": plc, "measured": "first telegram of record 1 to the end of the transfer",
            "series": series}
-    Path(a.output).parent.mkdir(parents=True, exist_ok=True)
-    Path(a.output).write_text(json.dumps(out, indent=1) + "\n")
+    try:
+        Path(a.output).parent.mkdir(parents=True, exist_ok=True)
+        Path(a.output).write_text(json.dumps(out, indent=1) + "\n")
+    except OSError as e:
+        print(f"gen_lossdata: error: {a.output}: {e.strerror}", file=sys.stderr)
+        return 1
     return 0
 
 

@@ -125,7 +125,11 @@ def main(argv=None):
     ap.add_argument("--only", choices=SCENARIOS)
     a = ap.parse_args(argv)
     out = Path(a.outdir)
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        print(f"gen_traces: error: {out}: {e.strerror}", file=sys.stderr)
+        return 1
     for name in [a.only] if a.only else SCENARIOS:
         try:
             lines, info = scenario(name)

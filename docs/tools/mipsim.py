@@ -94,7 +94,12 @@ def main(argv=None):
         ch.step()
     ch.run_until(lambda: False, 300)
     if a.trace:
-        Path(a.trace).write_text("\n".join(ch.trace()) + "\n")
+        try:
+            Path(a.trace).write_text("\n".join(ch.trace()) + "\n")
+        except OSError as e:
+            print(f"mipsim: error: {a.trace}: {e.strerror}", file=sys.stderr)
+            ch.close()
+            return 2
     st = ch.net.stats(1)
     ok = finished()
     print(f"mipsim: {'complete' if ok else 'NOT complete'} after {ch.t / 1e9:.2f} s virtual time")
