@@ -587,6 +587,29 @@ def fig_translator(quick):
          "OK" if r >= 5000 else "MISSED")
 
 
+def fig_translator_inprocess(quick):
+    """The translator's own benchmark (translator/bench_stc.py: its generated ~5,000-line file,
+    in-process, grammar loaded once), reported next to the whole-process figure above."""
+    name = "translator_speed_inprocess"
+    script = REPO / "translator" / "bench_stc.py"
+    if not script.is_file():
+        line(name, "skipped: translator/bench_stc.py not present", "SKIPPED")
+        return
+    try:
+        out = run([PY, script, "--repeat", 1 if quick else 3])
+    except (BenchError, subprocess.SubprocessError, OSError) as e:
+        error(name, str(e))
+        return
+    m = re.search(r"([\d,]+) lines/s", out)
+    if not m:
+        line(name, f"skipped: no 'N lines/s' in the output of translator/bench_stc.py "
+             f"({out.strip()[:80]!r})", "SKIPPED")
+        return
+    r = float(m.group(1).replace(",", ""))
+    line(name, f"{r:.0f} lines/s (translator/bench_stc.py: {out.strip()}; "
+         f"{r / 5000:.2f} of target >= 5000 lines/s)", "OK" if r >= 5000 else "MISSED")
+
+
 def fig_memory(quick):
     try:
         floor = run_rss(["/bin/true"])
@@ -676,7 +699,7 @@ def main(argv=None):
             "scan_cost": lambda: fig_scan_cost(a.quick),
             "emu_throughput": lambda: fig_emulator_throughput(a.quick),
             "cosim_speed": lambda: fig_cosim_speed(a.quick, work / "speed"),
-            "translator": lambda: fig_translator(a.quick),
+            "translator": lambda: (fig_translator(a.quick), fig_translator_inprocess(a.quick)),
             "memory": lambda: fig_memory(a.quick),
         }
         for fig in FIGURES:
