@@ -11,6 +11,7 @@ the next scan. The emulator's trace is kept as is; the driver adds lines with "e
 from __future__ import annotations
 
 import json
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -20,6 +21,9 @@ REPO = Path(__file__).resolve().parents[2]
 LIB_FILES = ["MIP_Types.st", "MIP_Status.st", "MIP_Sender.st", "MIP_Receiver.st",
              "MIP_Link.st", "MIP_BufferSender.st"]
 PROGRAM = Path(__file__).with_name("chain_main.st")
+# MIP_STLIB_DIR: take the blocks from another directory (e.g. an export of the last commit while
+# st_lib/ has work in progress); default st_lib/ of this checkout.
+LIB_DIR = Path(os.environ.get("MIP_STLIB_DIR") or REPO / "st_lib")
 MS = 1_000_000
 FFFF = 0xFFFF
 ROLE = {"sender": 1, "receiver": 2, "link": 3}
@@ -40,7 +44,7 @@ def build_plc(workdir: Path):
     if key not in _BUILD:
         workdir.mkdir(parents=True, exist_ok=True)
         try:
-            plc = Plc.build([str(REPO / "st_lib" / f) for f in LIB_FILES] + [str(PROGRAM)],
+            plc = Plc.build([str(LIB_DIR / f) for f in LIB_FILES] + [str(PROGRAM)],
                             workdir=workdir, compiler="stc")
         except BuildError as e:
             first = str(e).strip().splitlines()[0] if str(e).strip() else "build failed"
@@ -62,6 +66,10 @@ class Side:
     read_ms: int = 100
     read_phase_ms: int = 0
     start_ms: int = 0          # xExecute rises at this time (sending sides)
+    static: bool = False       # static MIP mode (xStatic; the modems must be static too)
+    cyclic_ms: int = 0         # > 0: OpenPLC-style master: read and write every cyclic_ms,
+                               # xReadValid always TRUE, a write "done" after
+    cyclic_done_periods: float = 1.5   # ... this many periods of xWriteReq
 
     def attach(self, plc, net: Net, emit):
         self.plc, self.net, self.emit = plc, net, emit
@@ -73,6 +81,9 @@ class Side:
         p["MAIN.role"] = ROLE[self.role]
         p["MAIN.central"] = central
         p["MAIN.polled"] = self.polled
+        p["MAIN.static"] = self.static
+        self._req_since = None
+        self._last_cyclic = None
         p["MAIN.tmo"] = self.timeout_ms * MS
         p["MAIN.chunkSize"] = self.chunk
         self.wr_done = False
@@ -90,7 +101,8 @@ class Side:
     def before_scan(self, t_ns):
         p = self.plc
         t_ms = t_ns // MS
-        if (t_ms - self.read_phase_ms) % self.read_ms == 0:
+        period = self.cyclic_ms or self.read_ms
+        if (t_ms - self.read_phase_ms) % period == 0:
             regs, exc = self.net.read(self.ep, self.unit, self.rd_addr, 125)
             p["MAIN.rd"] = regs
             p["MAIN.rdValid"] = True
@@ -99,7 +111,7 @@ class Side:
                           f"read: new data, {self.label(regs[2:2 + min(regs[1], 2)], True)}",
                           regs[2])
         else:
-            p["MAIN.rdValid"] = False
+            p["MAIN.rdValid"] = bool(self.cyclic_ms)
         if self.role in ("sender", "link") and self.data:
             p["MAIN.execute"] = self.execute(t_ms)
             if self.fbv("xChunkRequest"):
@@ -159,6 +171,9 @@ class Side:
         if done and not self._last_done:
             self.emit(t_ns, self.name, "done", "xDone: last record acknowledged", 1)
         self._last_done = done
+        if self.cyclic_ms:
+            self._cyclic_write(t_ns)
+            return
         if self.fbv("xWriteReq"):
             if not self.wr_done:
                 n = self.fbv("uWriteLen")
@@ -174,6 +189,30 @@ class Side:
             self.wr_done = False
             p["MAIN.wrDone"] = False
             p["MAIN.wrError"] = False
+
+    def _cyclic_write(self, t_ns):
+        """OpenPLC's master: the write range is written every period, whatever it holds; the
+        program counts a request as done when it has been up for cyclic_done_periods."""
+        p = self.plc
+        t_ms = t_ns // MS
+        n = self.chunk                      # the fixed write range (the static length)
+        block = self.fbv("aWrite")[:n]
+        if (t_ms - self.read_phase_ms) % self.cyclic_ms == self.cyclic_ms // 2:
+            hdr = block[:2 if self.role == "link" else 1]
+            last = self._last_cyclic if self._last_cyclic is not None else [0] * n  # modem starts at 0
+            same = ", unchanged" if block == last else ""
+            self.emit(t_ns, self.name, "write", f"write {self.label(hdr)} ({n} regs{same})", hdr)
+            self.net.write(self.ep, self.unit, self.wr_addr, block)
+            self._last_cyclic = block
+        if self.fbv("xWriteReq"):
+            if self._req_since is None:
+                self._req_since = t_ns
+            done = t_ns - self._req_since >= self.cyclic_done_periods * self.cyclic_ms * MS
+        else:
+            self._req_since = None
+            done = False
+        p["MAIN.wrDone"] = done
+        p["MAIN.wrError"] = False
 
     @property
     def send_done(self):

@@ -26,6 +26,9 @@ DIAGRAMS = [
      "stream]. " + COMMON),
     ("restart", "Restart: the outstation PLC restarts in the middle of a transfer",
      "Trace docs/traces/restart.jsonl (no loss, spontaneous drive). " + COMMON),
+    ("static-openplc", "Static mode with OpenPLC-style cyclic I/O: only changed blocks go on air",
+     "Trace docs/traces/static-openplc.jsonl (static mode, 40 registers; both PLCs write their "
+     "whole range every 500 ms and count a write done after 750 ms; no loss). " + COMMON),
 ]
 
 

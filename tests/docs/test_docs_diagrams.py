@@ -14,7 +14,8 @@ def test_sequence_diagrams_are_up_to_date(tmp_path):
     r = tool("mkdiagrams", "--outdir", tmp_path)
     assert r.returncode == 0, r.stderr
     made = sorted(p.name for p in tmp_path.glob("seq-*.svg"))
-    assert made == ["seq-bidirectional.svg", "seq-note-2-1-1.svg", "seq-restart.svg"]
+    assert made == ["seq-bidirectional.svg", "seq-note-2-1-1.svg", "seq-restart.svg",
+                    "seq-static-openplc.svg"]
     for name in made:
         assert (tmp_path / name).read_bytes() == (IMG / name).read_bytes(), \
             f"docs/img/{name} is stale: run `make docs-diagrams` and commit it"

@@ -19,7 +19,10 @@ def fresh(tmp_path_factory):
     return out
 
 
-@pytest.mark.parametrize("name", ["note-2-1-1", "bidirectional", "restart"])
+NAMES = ["note-2-1-1", "bidirectional", "restart", "static-openplc"]
+
+
+@pytest.mark.parametrize("name", NAMES)
 def test_trace_is_what_the_code_does_now(fresh, name):
     assert (fresh / f"{name}.jsonl").read_text() == (TRACES / f"{name}.jsonl").read_text(), \
         f"docs/traces/{name}.jsonl differs from a new run: run `make docs-traces docs-diagrams`"
@@ -30,7 +33,7 @@ def load(name):
 
 
 def test_trace_is_ordered_and_numbered():
-    for name in ("note-2-1-1", "bidirectional", "restart"):
+    for name in NAMES:
         ev = load(name)
         assert [e["seq"] for e in ev] == list(range(len(ev)))
         assert all(a["t"] <= b["t"] for a, b in zip(ev, ev[1:]))
@@ -85,3 +88,15 @@ def test_throughput_data_reproduce():
         point = next(p for p in data["series"]["spontaneous"] if p["loss"] == loss)
         assert round(rate, 1) == point["regs_per_s"][0], \
             "docs/data/throughput-vs-loss.json is stale: run `make docs-lossdata docs-plot`"
+
+
+def test_static_mode_only_changed_blocks_go_on_air():
+    ev = load("static-openplc")
+    assert delivered(ev, "central") == [1, 2, 65535]
+    writes = [e for e in ev if e["ev"] == "plc" and e["side"] == "outstation"
+              and e["what"] == "write"]
+    changed = [w for w in writes if "unchanged" not in w["text"]]
+    assert len(writes) > 2 * len(changed), "the cyclic writes are not mostly unchanged"
+    ups = [e for e in ev if e["ev"] == "radio" and e["dir"] == "up" and e["regs"]]
+    assert all(e["regs"] == 40 for e in ups)
+    assert len(ups) == len(changed), "a radio block without a changed write, or the reverse"
