@@ -208,7 +208,7 @@ def outstation(bidi):
     decl = [PARAMS, PARAM_VARS, "  src : PLC_LogSource;"]
     decl.append("  link : MIP_Link;" if bidi else "  snd : MIP_Sender;")
     if bidi:
-        decl += ["  store : PLC_RecordStore;", "  rtRecvErr : R_TRIG;", "  udiRecvFailed : UDINT;"]
+        decl += ["  store : PLC_RecordStore;"]
     decl += located_io(1, "TRM-810")
     decl += status_vars(1, receiver=bidi, sender=True)
     code = [PARAM_CODE]
@@ -232,11 +232,9 @@ def outstation(bidi):
             "     xChunkValid := src.xChunkValid, aChunk := src.aChunk, uChunkLen := src.uChunkLen,\n"
             "     xChunkLast := src.xChunkLast, aRead := rd1, xReadValid := xRdValid1,\n"
             "     xWriteDone := xWrDone1, xWriteError := wrErr1);")
-        code.append("rtRecvErr(CLK := link.xRecvError);\n"
-                    "IF rtRecvErr.Q THEN udiRecvFailed := udiRecvFailed + 1; END_IF;")
         code.append("store(xRecordValid := link.xRecordValid, aRecord := link.aRecord,\n"
                     "      uRecordLen := link.uRecordLen, wRecordNumber := link.wRecordNumber,\n"
-                    "      udiFailed := udiRecvFailed, eLastError := link.eRecvErrorId);")
+                    "      udiFailed := link.udiFailedTransfers, eLastError := link.eRecvErrorId);")
         code += store_out(1, "store")
         code.append("mR1Dup := UDINT_TO_WORD(link.udiDuplicates MOD 65536);")
         code.append("mR1Unexp := UDINT_TO_WORD(link.udiUnexpected MOD 65536);")
@@ -264,8 +262,7 @@ def central(bidi):
         decl.append(f"  (* ---- station {s} (MDP-810 unit id {s}) *)")
         decl.append(f"  store{s} : PLC_RecordStore;")
         if bidi:
-            decl += [f"  link{s} : MIP_Link;", f"  src{s} : PLC_LogSource;",
-                     f"  rtRecvErr{s} : R_TRIG;", f"  udiRecvFailed{s} : UDINT;"]
+            decl += [f"  link{s} : MIP_Link;", f"  src{s} : PLC_LogSource;"]
         else:
             decl.append(f"  rcv{s} : MIP_Receiver;")
         decl += located_io(s, f"MDP-810 unit {s}")
@@ -289,11 +286,9 @@ def central(bidi):
                 f"aChunk := src{s}.aChunk, uChunkLen := src{s}.uChunkLen,\n"
                 f"     xChunkLast := src{s}.xChunkLast, aRead := rd{s}, xReadValid := xRdValid{s},\n"
                 f"     xWriteDone := xWrDone{s}, xWriteError := wrErr{s});")
-            code.append(f"rtRecvErr{s}(CLK := link{s}.xRecvError);\n"
-                        f"IF rtRecvErr{s}.Q THEN udiRecvFailed{s} := udiRecvFailed{s} + 1; END_IF;")
             code.append(f"store{s}(xRecordValid := link{s}.xRecordValid, aRecord := link{s}.aRecord,\n"
                         f"      uRecordLen := link{s}.uRecordLen, wRecordNumber := link{s}.wRecordNumber,\n"
-                        f"      udiFailed := udiRecvFailed{s}, eLastError := link{s}.eRecvErrorId);")
+                        f"      udiFailed := link{s}.udiFailedTransfers, eLastError := link{s}.eRecvErrorId);")
             code += store_out(s, f"store{s}")
             code.append(f"mR{s}Dup := UDINT_TO_WORD(link{s}.udiDuplicates MOD 65536);")
             code.append(f"mR{s}Unexp := UDINT_TO_WORD(link{s}.udiUnexpected MOD 65536);")

@@ -137,7 +137,10 @@ def test_chain_interop_python_outstation_to_stlib_central(net, progs, drive, rec
     assert blk[L.R_TRANSFERS] == 1 and blk[L.R_FAILED] == 0
 
 
-# ---------------------------------------------------------------- restarts: where they disagree
+# ---------------------------------------------------------------- restarts
+# Both were disagreements between st_lib and the Python peer (reset record 0 unanswered; a
+# Python sender resuming silently after a central restart); the peer now follows
+# docs/protocol.md §4 (commit 2ce4cf2), and these tests keep it that way.
 
 def _restart_plc(net, name, exe, conf_text, old_slave):
     """Stop the soft-PLC process `name` and start the same program again (all state lost)."""
@@ -162,11 +165,6 @@ def _wait(cond, seconds):
     return cond()
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "interop disagreement (reported to the lead): a restarted st_lib sender that sees an open "
-    "transfer sends the reset record 0 and waits for acknowledgement 0 (docs/protocol.md §4); "
-    "the Python central (peers/mippeer/peer.py) ignores counter 0 and never acknowledges it, "
-    "so the read-out stalls"))
 def test_chain_interop_stlib_outstation_restart_python_central(net, progs, tmp_path):
     conf = L.outstation_config(net.trm)
     out = net.plc(progs["outstation"].executable, conf, "outstation")
@@ -193,12 +191,6 @@ def test_chain_interop_stlib_outstation_restart_python_central(net, progs, tmp_p
                                                      for n in range(1, 13)]
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "interop disagreement (reported to the lead): when the st_lib central restarts mid-transfer "
-    "it acknowledges 0; st_lib senders then fail with MIP_ERR_PEER_RESET and send the whole "
-    "transfer again, but the Python sender (peers/mippeer/protocol.py Sender.on_ack) sends only "
-    "the records not yet acknowledged, as a new transfer, and reports nothing: the records the "
-    "central had accepted before its restart never reach its committed store"))
 def test_chain_interop_python_outstation_stlib_central_restart(net, progs, tmp_path):
     conf = L.central_config(net.mdp, 1)
     cen = net.plc(progs["central"].executable, conf, "central")
