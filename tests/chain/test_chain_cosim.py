@@ -109,3 +109,21 @@ def test_chain_checker_catches_a_lost_transfer(chain_workdir):
             ch.events.remove(e)
         problems = [p for r in check(ch) for p in r.problems]
     assert any("LOST" in p for p in problems)
+
+
+@pytest.mark.parametrize("radio,burst", [("realistic", 0.0), ("fast", 8.0)],
+                         ids=["realistic-timing", "burst-losses"])
+def test_chain_realistic_timing_and_burst_losses(chain_workdir, radio, burst):
+    """9600 bit/s with 20 ms gaps (tTimeout 3 s), and Gilbert-Elliott bursts of 8 telegrams
+    at 30 % loss: still exact delivery, both directions."""
+    from mipcosim.sim import Radio
+    st = Setup(loss=0.3, burst=burst, seed=4, records=15, per_transfer=6, bidi=True,
+               radio=Radio.realistic() if radio == "realistic" else Radio(),
+               timeout_ms=3000 if radio == "realistic" else 300)
+    with Chain(st, chain_workdir) as ch:
+        assert ch.run_to_end(3600 * SEC)
+        reps = check(ch)
+        stats = ch.radio_stats()
+    assert [p for r in reps for p in r.problems] == []
+    assert all(r.records == 15 and r.duplicated_records == 0 for r in reps)
+    assert stats["lost_up"] + stats["lost_down"] > 0
