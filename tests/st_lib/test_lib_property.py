@@ -57,11 +57,12 @@ schedule = st.fixed_dictionaries({
     "read_every": st.integers(1, 4),
     "p_lost": st.sampled_from([0.0, 0.1, 0.25]),
     "p_dup": st.sampled_from([0.0, 0.1, 0.25]),
-    "p_drop": st.sampled_from([0.0, 0.1, 0.2]),
+    "p_drop": st.sampled_from([0.0, 0.1, 0.2] if SCALE == 1 else [0.0, 0.2, 0.4]),
     "chunk": st.sampled_from([3, 16, 64, 123]),
-    "transfers": st.integers(1, 3),
+    "transfers": st.integers(1, 3 if SCALE == 1 else 5),
     "write_errors": st.sampled_from([0.0, 0.0, 0.15]),
-    "restarts": st.lists(st.tuples(st.integers(10, 1500), st.sampled_from("OC")), max_size=2),
+    "restarts": st.lists(st.tuples(st.integers(10, 1500), st.sampled_from("OC")),
+                         max_size=2 if SCALE == 1 else 5),
 })
 
 
@@ -84,6 +85,11 @@ class Runner:
 @example(s={"seed": 0, "polled": False, "read_mode": "trigger", "read_every": 3, "p_lost": 0.0,
             "p_dup": 0.0, "p_drop": 0.0, "chunk": 3, "transfers": 2, "write_errors": 0.0,
             "restarts": [(10, "O")]})
+# found by a wider hunt: heavy loss, drops and restarts of both sides; a receiver that had
+# nothing open did not answer the reset record (fixed: every reset is answered once)
+@example(s={"seed": 354485, "polled": False, "read_mode": "trigger", "read_every": 2,
+            "p_lost": 0.25, "p_dup": 0.25, "p_drop": 0.2, "chunk": 3, "transfers": 5,
+            "write_errors": 0.0, "restarts": [(77, "C"), (126, "C"), (157, "O"), (732, "O")]})
 @settings(max_examples=30 * SCALE, **SETTINGS)
 @given(s=schedule)
 def test_unidirectional_exactly_once(wd, s):

@@ -49,13 +49,18 @@ def test_note_example_counter_by_counter(wd):
     u = Uni(wd, data, polled=True, timeout_ms=1000, enable=False,
             fate=drop_first("O", 2))
     u.snd["xExecute"] = True
-    # after its start the sender waits tTimeout for quiet (nothing of an older transfer on
-    # the way), takes its first chunk and then waits for the central's request
-    assert u.bench.run_until(lambda: u.snd["eState"] == S_WAIT_REQUEST, 300)
-    assert u.radio.log == []
+    u.bench.step(2)
     u.rcv["xEnable"] = True          # the central starts asking: acknowledgement 0
     assert u.bench.run_until(lambda: u.snd["xDone"], 3000)
     log = until_last_ack(u.radio.log)
+    # Our sender opens a session after its start with the reset record 0 (see MIP_Sender):
+    # the central's request 0, the reset 0 with its marker, the answer 0 (and requests 0
+    # while the sender waits for quiet). Then the note's read-out follows exactly.
+    first = next(i for i, t in enumerate(log) if t.src == "O" and t.block[0] == 1) - 1
+    opening, log = log[:first], log[first:]
+    assert [t.src for t in opening][:3] == ["C", "O", "C"]
+    assert all(t.block[0] == 0 for t in opening)
+    assert all(len(t.block) == 2 and t.block[1] != 0 for t in opening if t.src == "O")
     seen = [(t.src, t.block[0], t.fate) for t in log]
     assert seen == [
         ("C", 0, "ok"), ("O", 1, "ok"), ("C", 1, "ok"),
@@ -193,8 +198,10 @@ def test_consecutive_transfers_restart_at_one(wd):
     assert u.sink.transfers == [pattern(200, seed=10), pattern(300, seed=11)]
     assert [n for n, _ in u.sink.records] == [1, FFFF, 1, 2, FFFF]
     assert u.rcv["udiTransfers"] == 2 and u.snd["udiTransfers"] == 2
-    # the second transfer needed no reset record: the receiver had closed the first
-    assert all(t.block[0] != 0 for t in u.radio.log if t.src == "O")
+    # only the first transfer after the start opened with the reset record; the second
+    # needed none: the receiver had closed the first
+    o_nums = [t.block[0] for t in u.radio.log if t.src == "O"]
+    assert 0 not in o_nums[o_nums.index(1):]
 
 
 def test_ack_by_caller_holds_the_acknowledgement(wd):
