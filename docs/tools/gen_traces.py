@@ -117,11 +117,19 @@ def static_openplc():
 
 def scenario(name):
     if name == "note-2-1-1":
+        # the first seed that shows everything the text explains in a picture of moderate
+        # length; failing that, the shortest such picture found
+        best = None
         for seed in range(1, 400):
             ok, lines = note_211(seed)
             if ok and wanted_211(lines):
-                return lines, {"seed": seed, "loss_up": 0.2, "burst": 4}
-        raise SystemExit("gen_traces: error: no seed in 1..399 shows the note's lost record 2")
+                if len(lines) <= MAX_NOTE_LINES:
+                    return lines, {"seed": seed, "loss_up": 0.2, "burst": 4}
+                if best is None or len(lines) < len(best[1]):
+                    best = (seed, lines)
+        if best is None:
+            raise SystemExit("gen_traces: error: no seed in 1..399 shows the note's lost record 2")
+        return best[1], {"seed": best[0], "loss_up": 0.2, "burst": 4}
     if name == "bidirectional":
         ok, lines = bidirectional()
     elif name == "restart":
@@ -135,6 +143,7 @@ def scenario(name):
     return lines, {"seed": 1}
 
 
+MAX_NOTE_LINES = 360
 SCENARIOS = ["note-2-1-1", "bidirectional", "restart", "static-openplc"]
 
 

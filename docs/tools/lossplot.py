@@ -11,10 +11,12 @@ import argparse
 import json
 import math
 import sys
+import textwrap
 from xml.sax.saxutils import escape
 
-W, H = 760, 500
-L, R, T, B = 80, 190, 50, 115
+W = 760
+L, R, T = 80, 190, 50
+PLOT_H = 335
 FONT = "DejaVu Sans, Verdana, Arial, sans-serif"
 COLORS = {"spontaneous": "#1f5f99", "polled": "#c0392b"}
 MARKS = {"spontaneous": "circle", "polled": "square"}
@@ -34,9 +36,12 @@ def num(v):
 
 
 def render(data, caption):
+    caption = [w for line in caption for w in textwrap.wrap(line, 125)]
+    B = 75 + 13 * len(caption)
+    H = T + PLOT_H + B
     series = data["series"]
     xs = sorted({pt["loss"] for pts in series.values() for pt in pts})
-    ymax = max(max(pt["regs_per_s"]) for pts in series.values() for pt in pts)
+    ymax = max(max(pt["regs_per_s"]) for pts in series.values() for pt in pts if pt["regs_per_s"])
     step = nice_step(ymax)
     ytop = step * math.ceil(ymax / step)
     xmax = max(xs) if xs and max(xs) > 0 else 1.0
@@ -71,6 +76,7 @@ def render(data, caption):
     for i, (name, pts) in enumerate(sorted(series.items())):
         color = COLORS.get(name, "#555")
         pts = sorted(pts, key=lambda p: p["loss"])
+        pts = [p for p in pts if p["regs_per_s"]]
         means = [(p["loss"], sum(p["regs_per_s"]) / len(p["regs_per_s"])) for p in pts]
         path = " ".join(f"{'M' if j == 0 else 'L'}{px(x)},{py(m)}" for j, (x, m) in
                         enumerate(means))
@@ -90,8 +96,8 @@ def render(data, caption):
                  f'stroke="{color}" stroke-width="2"/>')
         o.append(f'<text x="{L + pw + 46}" y="{ly + 4}" font-size="12">{escape(name)}</text>')
     ly = T + 20 + 22 * len(series) + 6
-    o.append(f'<text x="{L + pw + 16}" y="{ly}" font-size="10" fill="#666">mean of '
-             f'{data.get("seeds", "?")} seeds;</text>')
+    o.append(f'<text x="{L + pw + 16}" y="{ly}" font-size="10" fill="#666">mean of the runs '
+             f'of {data.get("seeds", "?")} seeds;</text>')
     o.append(f'<text x="{L + pw + 16}" y="{ly + 13}" font-size="10" fill="#666">bar: lowest '
              f'to highest</text>')
     for k, line in enumerate(caption):
@@ -120,10 +126,16 @@ def main(argv=None):
     except (ValueError, KeyError, TypeError) as e:
         print(f"lossplot: error: {a.data}: not a throughput data file ({e})", file=sys.stderr)
         return 1
+    stuck = [f"{name} {p['loss'] * 100:g} %: seed(s) {', '.join(map(str, p['unfinished_seeds']))}"
+             for name, pts in sorted(data["series"].items()) for p in pts
+             if p.get("unfinished_seeds")]
     caption = [f"Source: {data.get('source', '?')}.",
                f"{data.get('records', '?')} records of {data.get('payload_per_record', '?')} "
                f"payload registers per transfer; radio: {data.get('radio', '?')};",
                f"PLC: {data.get('plc', '?')}; measured from the {data.get('measured', 'start to the end')}."]
+    if stuck:
+        caption.append(f"Not finished within {data.get('limit_s', '?')} s and left out: "
+                       + "; ".join(stuck) + ".")
     svg = render(data, caption)
     try:
         with open(a.output, "w", encoding="utf-8") as f:
