@@ -176,12 +176,12 @@ class Chain:
                   config=self.out_conf if role == "out" else self.cen_conf)
         old = self.plcs.get(who)
         self.plcs[who] = plc
-        scan = ctypes.cast(plc._lib.plcrt_scan, ctypes.c_void_p)
-        set_fd = ctypes.cast(plc._lib.plcrt_device_set_fd, ctypes.c_void_p)
+        scan = ctypes.cast(plc.library.plcrt_scan, ctypes.c_void_p)
+        set_fd = ctypes.cast(plc.library.plcrt_device_set_fd, ctypes.c_void_p)
         if who in self.ids:
-            self._check(self.lib.mipcosim_plc_replace(self.sim, self.ids[who], scan, plc._rt, TICK_NS))
+            self._check(self.lib.mipcosim_plc_replace(self.sim, self.ids[who], scan, plc.handle, TICK_NS))
         else:
-            pid = self.lib.mipcosim_plc_add(self.sim, scan, plc._rt, TICK_NS)
+            pid = self.lib.mipcosim_plc_add(self.sim, scan, plc.handle, TICK_NS)
             self._check(0 if pid >= 0 else -1)
             self.ids[who] = pid
         if old is not None:
@@ -202,7 +202,7 @@ class Chain:
         self._taps(who)
 
     def _addr(self, plc, name):
-        return plc._lookup(name).addr
+        return plc.address(name)
 
     def _taps(self, who):
         role, s = who
@@ -244,7 +244,9 @@ class Chain:
             failed = self.lib.mipcosim_failed_plc(self.sim)
             for who, pid in self.ids.items():
                 if pid == failed:
-                    msg += f": {who}: {self.plcs[who]._err()}"
+                    plc = self.plcs[who]
+                    why = plc.library.plcrt_errmsg(plc.handle) or b""
+                    msg += f": {who}: {why.decode()}"
             raise CosimError(msg)
 
     def run_for(self, ns):
