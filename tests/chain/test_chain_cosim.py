@@ -127,3 +127,22 @@ def test_chain_realistic_timing_and_burst_losses(chain_workdir, radio, burst):
     assert [p for r in reps for p in r.problems] == []
     assert all(r.records == 15 and r.duplicated_records == 0 for r in reps)
     assert stats["lost_up"] + stats["lost_down"] > 0
+
+
+@pytest.mark.skipif(not __import__("plcharness.build", fromlist=["x"]).matiec_available(),
+                    reason="iec2c not on PATH (set PATH and MATIEC_LIB to run the chain on matiec)")
+@pytest.mark.parametrize("layout,mode,restart", [("uni", "dynamic", "none"),
+                                                 ("bidi", "static", "outstation"),
+                                                 ("bidi", "dynamic", "central")])
+def test_chain_programs_compiled_by_matiec(chain_workdir, layout, mode, restart):
+    """The same chain with the programs compiled by matiec instead of stc."""
+    st = Setup(static=mode == "static", polled=True, bidi=layout == "bidi", loss=0.3, seed=7,
+               records=24, per_transfer=7, log_period_ms=50, compiler="matiec")
+    with Chain(st, chain_workdir) as ch:
+        if restart != "none":
+            ch.run_for(SEC)
+            ch.restart(("out", 1) if restart == "outstation" else ("cen", 0))
+        assert ch.run_to_end(900 * SEC)
+        reps = check(ch)
+    assert [p for r in reps for p in r.problems] == []
+    assert all(r.records == 24 and r.lost == 0 for r in reps)
