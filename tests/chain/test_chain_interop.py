@@ -74,6 +74,14 @@ class Net:
         self.procs.stop()
 
 
+@pytest.fixture(scope="module")
+def progs_bidi(tmp_path_factory):
+    from plcharness.build import build_program
+    out = tmp_path_factory.mktemp("interop-build-bidi")
+    return {role: build_program(L.program_sources(role, True), out / role)
+            for role in ("outstation", "central")}
+
+
 @pytest.fixture
 def net(tmp_path):
     n = Net(tmp_path)
@@ -217,3 +225,57 @@ def test_chain_interop_python_outstation_stlib_central_restart(net, progs, tmp_p
     blk = cen.read(b, 40)
     # every logger record must be in the central's committed data (or a failure reported)
     assert blk[L.R_COM_LO] + (blk[L.R_COM_HI] << 16) == len(stream)
+
+
+# ---------------------------------------------------------------- bidirectional (note 2.2)
+
+def _store_matches(sl, stream, base=L.peer_base(1)):
+    def committed():
+        blk = sl.read(base, 40)
+        return blk[L.R_COM_LO] + (blk[L.R_COM_HI] << 16)
+    _wait(lambda: committed() >= len(stream), 15)
+    blk = sl.read(base, 40)
+    win = sl.read(base + L.W_BASE, L.WINDOW)
+    assert committed() == len(stream)
+    assert (blk[L.R_SUM_A], blk[L.R_SUM_B]) == L.fletcher(stream)
+    assert [win[p % L.WINDOW] for p in range(len(stream))] == stream
+
+
+@pytest.mark.parametrize("drive", ["spontaneous", "polled"])
+def test_chain_interop_bidirectional_stlib_outstation_python_central(net, progs_bidi, tmp_path,
+                                                                    drive):
+    out = net.plc(progs_bidi["outstation"].executable, L.outstation_config(net.trm), "outstation")
+    out.write(0, L.Params(records=5, payload=20, session=3, polled=drive == "polled",
+                          timeout_ms=500).words())
+    received = tmp_path / "received.json"
+    peer = subprocess.run(PEER + ["central", "--port", str(net.mdp), "--unit", "1", "--layout",
+                                  "bi", "--drive", drive, "--records", "6", "--record-size",
+                                  "20", "--seed", "6", "--expect", "1", "--period", "0.02",
+                                  "--retransmit", "0.5", "--request", "0.5", "--timeout", "60",
+                                  "--out", str(received)],
+                          capture_output=True, text=True, timeout=90)
+    assert peer.returncode == 0, peer.stderr + peer.stdout
+    got = json.loads(received.read_text())
+    assert [r for r in got["transfers"][0] if r] == [L.log_record(n, 20, 3, 1)
+                                                     for n in range(1, 6)]
+    _store_matches(out, [w for rec in logger_records(6, 20, 6) for w in rec])
+
+
+@pytest.mark.parametrize("drive", ["spontaneous", "polled"])
+def test_chain_interop_bidirectional_python_outstation_stlib_central(net, progs_bidi, tmp_path,
+                                                                    drive):
+    cen = net.plc(progs_bidi["central"].executable, L.central_config(net.mdp, 1), "central")
+    cen.write(0, L.Params(records=4, payload=20, session=5, polled=drive == "polled",
+                          timeout_ms=500).words())
+    received = tmp_path / "received.json"
+    peer = subprocess.run(PEER + ["outstation", "--port", str(net.trm), "--unit", "1",
+                                  "--layout", "bi", "--drive", drive, "--records", "7",
+                                  "--record-size", "20", "--seed", "8", "--expect", "1",
+                                  "--period", "0.02", "--retransmit", "0.5", "--request", "0.5",
+                                  "--timeout", "60", "--out", str(received)],
+                          capture_output=True, text=True, timeout=90)
+    assert peer.returncode == 0, peer.stderr + peer.stdout
+    got = json.loads(received.read_text())
+    assert [r for r in got["transfers"][0] if r] == [L.log_record(n, 20, 5 ^ 0x8000, 1)
+                                                     for n in range(1, 5)]
+    _store_matches(cen, [w for rec in logger_records(7, 20, 8) for w in rec])
