@@ -281,6 +281,8 @@ class Checker:
         if isinstance(spec, S.ArraySpec):
             dims = []
             for lo, hi in spec.dims:
+                if lo is None or hi is None:
+                    self.fail(spec.pos, "invalid integer in array bounds")
                 if isinstance(lo, S.ConstBound) or isinstance(hi, S.ConstBound):
                     b = lo if isinstance(lo, S.ConstBound) else hi
                     self.fail(b.pos, "array bounds from a named constant are not portable "
@@ -338,6 +340,7 @@ class Checker:
                 for count, val in init.items:
                     if count is not None and count <= 0:
                         self.err(init.pos, "repetition count must be positive")
+                        continue
                     n += count if count is not None else 1
                     if val is not None:
                         self.check_init(val, ty.elem)
@@ -767,6 +770,9 @@ class Checker:
 
     def case_label(self, lab, st):
         """Return the integer value of a case label (enum: its index)."""
+        if lab is None:
+            self.err(None, "invalid integer case label")
+            return None
         if isinstance(lab, int):
             if st is not None and st.is_enum:
                 self.err(None, "integer label in CASE on enumeration")
@@ -911,6 +917,8 @@ class Checker:
 
     def _expr(self, e, expected):
         if isinstance(e, S.IntLit):
+            if e.value is None:
+                self.fail(e.pos, f"invalid integer literal {e.text}")
             return T.LIT_INT
         if isinstance(e, S.RealLit):
             return T.LIT_REAL
@@ -998,6 +1006,8 @@ class Checker:
 
     def typed_lit(self, e):
         tn = e.type_name
+        if e.kind == "bad":
+            self.fail(e.pos, f"invalid integer literal in {e.text}")
         if tn in self.p.types and self.p.types[tn] is not None and self.p.types[tn].is_enum:
             et = self.p.types[tn]
             if e.kind != "ident" or e.value not in et.values:

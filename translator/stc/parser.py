@@ -53,11 +53,15 @@ def parse_time(text):
 
 
 def int_value(text):
+    """Value of an integer literal, None when malformed (e.g. 8#9); the checker reports it."""
     t = text.replace("_", "")
-    if "#" in t:
-        base, digits = t.split("#", 1)
-        return int(digits, int(base))
-    return int(t)
+    try:
+        if "#" in t:
+            base, digits = t.split("#", 1)
+            return int(digits, int(base))
+        return int(t)
+    except ValueError:
+        return None
 
 
 class _Build(Transformer):
@@ -127,7 +131,7 @@ class _Build(Transformer):
         if len(c) == 1:
             return int_value(c[0])
         v = int_value(c[1])
-        return -v if c[0].type == "MINUS" else v
+        return -v if c[0].type == "MINUS" and v is not None else v
 
     # ---- POUs
     def function(self, c):
@@ -179,7 +183,8 @@ class _Build(Transformer):
         return (None, c[0])
 
     def repeat_init(self, c):
-        return (int_value(c[0]), c[2])
+        n = int_value(c[0])
+        return (n if n is not None else 0, c[2])
 
     def struct_init(self, c):
         return S.StructInit(_pos(c[0]), [x for x in c[1:-1] if isinstance(x, tuple)])
@@ -339,6 +344,8 @@ class _Build(Transformer):
         neg = sign is not None and sign.type == "MINUS"
         if val.type in ("INTEGER", "BASED_INT"):
             v = int_value(val)
+            if v is None:
+                return S.TypedLit(_pos(prefix), tname, str(val), "bad", text)
             return S.TypedLit(_pos(prefix), tname, -v if neg else v, "int", text)
         if val.type == "REAL_LIT":
             v = float(str(val).replace("_", ""))

@@ -107,21 +107,26 @@ static inline int64_t stc_time_mul(int64_t t, int64_t n) { return (int64_t)((uin
 static inline int64_t stc_time_mulf(int64_t t, double n) { double r = (double)t * n; return (r >= 9.2e18 || r <= -9.2e18) ? 0 : (int64_t)r; }
 static inline int64_t stc_time_divf(int64_t t, double n) { double r = n == 0.0 ? 0.0 : (double)t / n; return (r >= 9.2e18 || r <= -9.2e18) ? 0 : (int64_t)r; }
 
-/* REAL -> integer conversion: rounds to nearest (ties away from zero) and saturates. */
+/* REAL -> integer conversion: rounds to nearest, ties to even (as matiec does), and saturates
+ * at the limits of the target type (matiec leaves overflow undefined). */
 static inline int64_t stc_real_to_i64(double x, int64_t lo, int64_t hi)
 {
     double r = x < 0 ? x - 0.5 : x + 0.5;
+    int64_t i;
     if (!(r == r)) return 0;
     if (r <= (double)lo) return lo;
     if (r >= (double)hi) return hi;
-    return (int64_t)r;
+    i = (int64_t)r;
+    return ((double)i == r) ? (i / 2) * 2 : i;
 }
 static inline uint64_t stc_real_to_u64(double x, uint64_t hi)
 {
     double r = x + 0.5;
-    if (!(r == r) || r <= 0.0) return 0u;
+    uint64_t i;
+    if (!(r == r) || x <= 0.0) return 0u;
     if (r >= (double)hi) return hi;
-    return (uint64_t)r;
+    i = (uint64_t)r;
+    return ((double)i == r) ? (i / 2u) * 2u : i;
 }
 
 /* TRUNC: toward zero, saturating. */
