@@ -1,0 +1,33 @@
+"""mip-cosim (`make soak` runs `python -m mipcosim.cli soak`): a small soak with restarts
+through the same code path, and its one-line errors."""
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def cli(*args, tmp_path):
+    env = dict(os.environ, PYTHONPATH=str(REPO / "cosim"))
+    return subprocess.run([sys.executable, "-m", "mipcosim.cli", *args, "--workdir",
+                           str(tmp_path)], capture_output=True, text=True, env=env, timeout=600)
+
+
+def test_chain_cli_small_soak_with_restarts(tmp_path):
+    p = cli("soak", "--records", "3000", "--per-transfer", "200", "--restart-every", "15",
+            "--seed", "3", tmp_path=tmp_path)
+    last = p.stdout.strip().splitlines()[-1]
+    assert p.returncode == 0, p.stdout + p.stderr
+    fields = dict(kv.split("=") for kv in last.split()[2:])
+    assert last.startswith("result: ok records=3000 ")
+    assert fields["lost"] == "0" and fields["duplicated"] == "0"
+    assert int(fields["restarts"]) >= 2 and int(fields["failed_and_reported"]) >= 1
+    assert "PEER_RESET" in p.stdout or "SENDER_RESET" in p.stdout
+
+
+def test_chain_cli_bad_option_one_line(tmp_path):
+    p = cli("soak", "--records", "70000", "--per-transfer", "0", tmp_path=tmp_path)
+    assert p.returncode == 2
+    assert "more than 65534 records need --per-transfer" in p.stderr
+    assert "Traceback" not in p.stderr
