@@ -552,7 +552,7 @@ class Gen:
         if t.is_array:
             self.w(f"memcpy(&{lv}, &{self.lv(value)}, sizeof {lv});")
         elif t.is_struct:
-            self.w(f"{lv} = {self.lv(value)};")
+            self.w(f"{lv} = {self.ex(value)};")
         elif t.is_elem and t.kind == "time":
             self.w(f"{lv} = stc_time_of({self.ex(value)});")
         else:
@@ -615,8 +615,7 @@ class Gen:
                 if t is not None:
                     args.append(f"&{self.lv(t)}")
                 else:
-                    args.append(f"&({cdecl(v.type, '')}){{0}}" if not v.type.is_array
-                                else f"&({cdecl(v.type, '')}){{{{0}}}}")
+                    args.append(f"&({cdecl(v.type, '')}){{0}}")
         return f"{pou.name}({', '.join(args)})"
 
     def default_value(self, v):

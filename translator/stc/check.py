@@ -394,6 +394,13 @@ class Checker:
                 pou.rtype = T.INT
             if pou.rtype.is_fb:
                 self.err(n.rtype.pos, "a FUNCTION cannot return a function block")
+            elif pou.rtype.is_struct:
+                self.err(n.rtype.pos, "a FUNCTION returning a STRUCT is not portable (matiec "
+                         "accepts it but its C does not compile): use a VAR_IN_OUT or a "
+                         "FUNCTION_BLOCK")
+            elif pou.rtype.is_array:
+                self.err(n.rtype.pos, "a FUNCTION returning an ARRAY is not supported: use a "
+                         "VAR_IN_OUT array")
         for blk in n.blocks:
             self._var_block(pou, blk)
 
@@ -578,6 +585,9 @@ class Checker:
                         self.err(ppos, "SINGLE (event) tasks are not supported by stc: use INTERVAL")
                     else:
                         self.err(ppos, f"unknown task parameter '{pn}'")
+                if not any(pn == "PRIORITY" for pn, _, _ in t.params):
+                    self.err(t.pos, f"task {t.name} needs PRIORITY := n (matiec rejects a TASK "
+                             "without it)")
                 if interval is not None and interval <= 0:
                     self.err(t.pos, "task INTERVAL must be positive")
                     interval = None
@@ -641,7 +651,7 @@ class Checker:
                      "stc binds externals by name, give them distinct names")
             return
         g = cands[0]
-        if not T.same_type(g.type, v.type):
+        if not T.same_type(g.type, v.type, array_names=False):
             self.err(v.pos, f"VAR_EXTERNAL '{v.name}' is {v.type} but the VAR_GLOBAL is {g.type}")
             return
         if g.constant and not v.constant:
@@ -1169,6 +1179,10 @@ class Checker:
             return
         if T.same_type(from_t, to_t):
             return
+        if from_t.is_array and to_t.is_array:
+            self.fail(e.pos, f"{what}: arrays can only be assigned or passed between variables of "
+                      "the same named array TYPE (matiec rejects anonymous ARRAY[..] types here): "
+                      "declare a TYPE and use it on both sides")
         self.fail(e.pos, f"{what}: type {from_t} cannot be assigned to {to_t} without explicit "
                   f"conversion (IEC strict typing): use {_conv_hint(from_t, to_t)}")
 
@@ -1400,7 +1414,10 @@ class Checker:
             return expected
         if n in ("MOVE",):
             need(1)
-            return same(args, expected)
+            t = same(args, expected)
+            if t.is_array:
+                self.fail(c.pos, "MOVE of an ARRAY is not supported: assign the array variable")
+            return t
         if n in ("MIN", "MAX"):
             if len(args) < 2:
                 self.fail(c.pos, f"{n} takes at least 2 arguments")
@@ -1418,8 +1435,8 @@ class Checker:
             need(3)
             self.cond(args[0], "SEL selector")
             t = same(args[1:], expected)
-            if t.is_fb:
-                self.fail(c.pos, "SEL of function blocks")
+            if t.is_fb or t.is_array:
+                self.fail(c.pos, f"SEL of {t} is not supported")
             return t
         if n == "MUX":
             if len(args) < 2:
@@ -1430,8 +1447,8 @@ class Checker:
             elif not (kt.is_elem and kt.is_int):
                 self.fail(args[0].pos, f"MUX selector must be an integer, not {kt}")
             t = same(args[1:], expected)
-            if t.is_fb:
-                self.fail(c.pos, "MUX of function blocks")
+            if t.is_fb or t.is_array:
+                self.fail(c.pos, f"MUX of {t} is not supported")
             return t
         if n in ("ADD", "SUB", "MUL", "DIV"):
             need(2)

@@ -141,13 +141,18 @@ UNSUPPORTED_TYPES = {"STRING", "WSTRING", "DATE", "TIME_OF_DAY", "TOD", "DATE_AN
                      "LTIME", "LDATE", "LTOD", "LDT", "CHAR", "WCHAR"}
 
 
-def same_type(a, b):
-    if a is b:
-        return True
+def same_type(a, b, array_names=True):
+    """IEC type equality. Arrays are equal only when both are of the same named TYPE (matiec
+    rejects assigning or passing anonymous ARRAY[..] OF .. even with identical bounds), unless
+    array_names is False (structural, used for VAR_EXTERNAL against VAR_GLOBAL)."""
     if a.is_elem and b.is_elem:
         return a.name == b.name
     if a.is_array and b.is_array:
-        return a.dims == b.dims and same_type(a.elem, b.elem)
+        if array_names:
+            return a.name is not None and a.name == b.name
+        return a.dims == b.dims and same_type(a.elem, b.elem, False)
+    if a is b:
+        return True
     if a.is_struct and b.is_struct or a.is_enum and b.is_enum or a.is_fb and b.is_fb:
         return a.name == b.name
     return False
