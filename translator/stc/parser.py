@@ -509,7 +509,7 @@ class _Recovery:
             if "SEMI" in e.expected and tok.type != "SEMI":
                 ip = e.interactive_parser
                 try:
-                    probe = ip.copy()
+                    probe = ip.copy(deepcopy_values=False)  # reductions build new nodes only
                     probe.feed_token(Token("SEMI", ";", 0, tok.line, tok.column, tok.line, tok.column, 0))
                     probe.feed_token(tok)
                 except UnexpectedInput:
