@@ -13,7 +13,7 @@ _IDENT_RE = re.compile(r"^[A-Z_][A-Z0-9_]*$")
 # macros of <stdint.h>/<string.h> that an upper-case IEC name would collide with in the C output
 _C_MACROS = re.compile(r"^(U?INT(8|16|32|64|MAX|PTR)_(MIN|MAX|C)|U?INT_(LEAST|FAST)(8|16|32|64)_(MIN|MAX)"
                        r"|SIZE_MAX|PTRDIFF_(MIN|MAX)|SIG_ATOMIC_(MIN|MAX)|WCHAR_(MIN|MAX)|WINT_(MIN|MAX)"
-                       r"|NULL)$")
+                       r"|NULL|STC_[A-Z0-9_]*)$")
 
 
 class Var:
