@@ -297,6 +297,9 @@ class Gen:
         for v in pou.vars.values():
             if v.kind in ("VAR", "VAR_TEMP"):
                 self.w(f"{cdecl(v.type, v.name)};")
+        for v in pou.vars.values():
+            if v.kind in ("VAR_INPUT", "VAR_IN_OUT", "VAR_OUTPUT"):
+                self.w(f"(void){v.name};  /* parameters may be unused */")
         self.w(f"memset(&{pou.name}__RESULT, 0, sizeof {pou.name}__RESULT);")
         self.init_storage(f"{pou.name}__RESULT", rt, None)
         for v in pou.vars.values():
