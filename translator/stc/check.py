@@ -1103,8 +1103,8 @@ class Checker:
                 self.settle(e.left, base)
                 self.settle(e.right, base)
                 return T.BOOL
-            if op in self._LOGIC:
-                self.fail(e.pos, f"{op} between untyped literals: write typed literals like WORD#16#FF")
+            if op in self._LOGIC and "real" in (lt.kind, rt.kind):
+                self.fail(e.pos, f"{op} needs BOOL or a bit string type")
             return T.LIT_REAL if "real" in (lt.kind, rt.kind) else T.LIT_INT
         if lt.is_lit:
             self.coerce(e.left, lt, rt, None, soft=True)
@@ -1207,8 +1207,17 @@ class Checker:
         if isinstance(e, S.Paren):
             self.settle(e.inner, t)
         elif isinstance(e, S.UnOp):
+            if e.op == "-" and not (t.is_elem and t.kind in ("sint", "real", "time")):
+                self.fail(e.pos, f"unary minus on a value of type {t}")
             self.settle(e.operand, t)
         elif isinstance(e, S.BinOp):
+            if e.op in self._ARITH and not (t.is_elem and t.is_num):
+                self.fail(e.pos, f"arithmetic '{e.op}' on literals used as {t} is not allowed: "
+                          "compute it in an integer type")
+            if e.op == "MOD" and not t.is_int:
+                self.fail(e.pos, f"MOD needs an integer type, not {t}")
+            if e.op in self._LOGIC and not (t.is_elem and t.is_anybit):
+                self.fail(e.pos, f"{e.op} needs BOOL or a bit string type, not {t}")
             self.settle(e.left, t)
             self.settle(e.right, t)
 
