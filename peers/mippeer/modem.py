@@ -4,6 +4,7 @@ import logging
 from dataclasses import dataclass
 
 from pymodbus.client import ModbusTcpClient
+from pymodbus.exceptions import ModbusException
 
 READ_SPAN = 125  # read status + count + a whole 123-register chunk in one consistent FC3
 
@@ -44,12 +45,19 @@ class Modem:
         self.client.close()
 
     def read(self):
-        rr = self.client.read_holding_registers(self.map.read_status, count=READ_SPAN, device_id=self.unit)
+        try:
+            rr = self.client.read_holding_registers(self.map.read_status, count=READ_SPAN,
+                                                    device_id=self.unit)
+        except ModbusException as e:  # connection lost, no answer: one line, not a traceback
+            raise ModemError(f"read at {self.map.read_status}: {e}") from None
         if rr.isError():
             raise ModemError(f"read at {self.map.read_status}: {rr}")
         return list(rr.registers)
 
     def write(self, block):
-        wr = self.client.write_registers(self.map.write_data, list(block), device_id=self.unit)
+        try:
+            wr = self.client.write_registers(self.map.write_data, list(block), device_id=self.unit)
+        except ModbusException as e:
+            raise ModemError(f"write at {self.map.write_data}: {e}") from None
         if wr.isError():
             raise ModemError(f"write of {len(block)} registers at {self.map.write_data}: {wr}")
