@@ -33,10 +33,15 @@ def parse_args(argv):
     p = argparse.ArgumentParser(prog="demo", description=__doc__.splitlines()[0])
     p.add_argument("--records", type=int, default=5, help="logger records per station (default 5)")
     p.add_argument("--stations", type=int, default=1, help=f"outstations, 1..{L.MAX_STATIONS}")
-    p.add_argument("--loss", type=float, default=0.1,
-                   help="probability a telegram is lost, each direction (default 0.1)")
+    p.add_argument("--loss", type=float, default=0.0,
+                   help="probability a telegram is lost, each direction (default 0)")
+    p.add_argument("--lose-record", type=int, default=2,
+                   help="the radio loses this record once on its way up, as in the note's "
+                        "example (default 2; 0 = off)")
     p.add_argument("--seed", type=int, default=1, help="seed of the radio (default 1)")
-    p.add_argument("--payload", type=int, default=16, help="registers per record (1..122)")
+    p.add_argument("--payload", type=int, default=122,
+                   help="registers per record (1..122, default 122: the note's 126 less the "
+                        "Modbus limit)")
     p.add_argument("--per-transfer", type=int, default=0,
                    help="records per transfer (default: all in one)")
     p.add_argument("--log-period-ms", type=int, default=100,
@@ -55,6 +60,8 @@ def parse_args(argv):
         p.error("--records must be 1..10000000")
     if not 0 <= a.loss < 1:
         p.error("--loss must be in 0..1 (exclusive)")
+    if not 0 <= a.lose_record <= 65535:
+        p.error("--lose-record must be 0..65535")
     if not 1 <= a.payload <= 122:
         p.error("--payload must be 1..122")
     if a.per_transfer < 0 or a.per_transfer > 65534:
@@ -206,7 +213,8 @@ def run(a):
         p = procs.start("mip-emulator",
                         [str(emu), "--mdp-port", "0", "--trm-base-port", "0",
                          "--stations", str(a.stations), "--loss-up", str(a.loss),
-                         "--loss-down", str(a.loss), "--seed", str(a.seed), "--trace", str(trace)]
+                         "--loss-down", str(a.loss), "--seed", str(a.seed), "--trace", str(trace),
+                         "--lose-record", str(a.lose_record)]
                         + radio, rundir / "emulator.log", stdout=subprocess.PIPE, text=True)
         line = p.stdout.readline().strip()
         if not line.startswith("mip-emulator: listening"):
@@ -250,7 +258,9 @@ def run(a):
             sl.write(0, params.words())
         print(f"demo: {a.stations} outstation(s) logging {a.records} records of {a.payload} "
               f"registers, read out over a {'realistic' if a.realistic else 'fast'} radio "
-              f"with {a.loss:.0%} loss (seed {a.seed})", flush=True)
+              f"with {a.loss:.0%} loss (seed {a.seed})"
+              + (f", record {a.lose_record} lost once on its way up" if a.lose_record else ""),
+              flush=True)
         total = a.records * a.stations
         limit = a.timeout or (30 + a.records * a.stations * (6.0 if a.realistic else 0.5)
                               / (1 - a.loss) ** 2 + a.records * a.log_period_ms / 1000)

@@ -21,7 +21,8 @@ class Config(ctypes.Structure):
                 ("loss_up", ctypes.c_double), ("burst", ctypes.c_double),
                 ("seed", ctypes.c_uint64), ("bitrate", ctypes.c_uint32),
                 ("slot_gap_ns", ctypes.c_uint64), ("overhead_bytes", ctypes.c_int),
-                ("fail_polls", ctypes.c_int), ("allow_127", ctypes.c_int)]
+                ("fail_polls", ctypes.c_int), ("allow_127", ctypes.c_int),
+                ("lose_record", ctypes.c_int)]
 
 
 class Stats(ctypes.Structure):

@@ -52,6 +52,9 @@ typedef struct mipemu_config {
     int overhead_bytes;         /* per telegram: preamble, sync, header, CRC; 1..255 */
     int fail_polls;             /* unanswered polls in a row before "not reachable", 1..255 */
     int allow_127;              /* accept up to 127 registers per request (the device's limit) */
+    int lose_record;            /* scripted fault: the first uplink block whose register 0 equals
+                                   this value is lost once per station (1..65535; 0 = off). The
+                                   note's example (record 2 lost on the way) is lose_record = 2. */
 } mipemu_config;
 
 typedef struct mipemu_net mipemu_net;

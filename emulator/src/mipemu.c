@@ -74,6 +74,7 @@ typedef struct station {
     uint8_t fs_down, fs_up;  /* last measured -dBm: station hears MDP / MDP hears station (0: none yet) */
     uint16_t status;         /* MDP register 1 */
     int fails;               /* unanswered polls in a row */
+    int record_lost;         /* the scripted lose_record fault has struck this station */
     channel_t ch_down, ch_up;
     mipemu_stats st;
 } station_t;
@@ -124,6 +125,7 @@ void mipemu_config_default(mipemu_config *c)
     c->overhead_bytes = 12;
     c->fail_polls = 3;
     c->allow_127 = 0;
+    c->lose_record = 0;
 }
 
 static int config_check(const mipemu_config *c, char *err, size_t n)
@@ -139,6 +141,7 @@ static int config_check(const mipemu_config *c, char *err, size_t n)
     if (c->slot_gap_ns > 60000000000ULL) BAD("slot gap must be at most 60 s");
     if (c->overhead_bytes < 1 || c->overhead_bytes > 255) BAD("overhead bytes must be 1..255");
     if (c->fail_polls < 1 || c->fail_polls > 255) BAD("fail polls must be 1..255");
+    if (c->lose_record < 0 || c->lose_record > 65535) BAD("lose record must be 0 (off) or 1..65535");
     return 0;
 #undef BAD
 }
@@ -395,6 +398,10 @@ static void step(mipemu_net *net)
     }
     case PH_UP: {
         int lost = lose(net, &s->ch_up, c->loss_up, net->g2b_up, net->b2g_up);
+        if (c->lose_record && !s->record_lost && sl->up_len > 0 && sl->blk[0] == (uint16_t)c->lose_record) {
+            s->record_lost = 1; /* scripted, on top of (and without disturbing) the random losses */
+            lost = 1;
+        }
         s->st.tel_up++;
         if (lost)
             s->st.lost_up++;

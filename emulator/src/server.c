@@ -49,6 +49,8 @@ static const char USAGE[] =
     "  --overhead-bytes N     bytes per telegram besides the registers (1..255, default 12)\n"
     "  --fail-polls N         unanswered polls before a station counts as not reachable (default 3)\n"
     "  --allow-127            accept up to 127 registers per request, as the device does\n"
+    "  --lose-record N        lose the first uplink block whose register 0 is N, once per\n"
+    "                         station (the note's example: --lose-record 2); default off\n"
     "                         (default: the Modbus limits 125 read / 123 FC16 / 121 FC23 write)\n"
     "  --trace FILE           write the JSON-lines trace to FILE ('-' = stdout)\n"
     "  --help                 this text\n"
@@ -370,7 +372,7 @@ int main(int argc, char **argv)
     int mdp_port = 15020, trm_base = 15021;
 
     enum { O_HOST = 256, O_MDP, O_TRM, O_STATIONS, O_MODE, O_STATIC, O_LDOWN, O_LUP, O_BURST, O_SEED,
-           O_BITRATE, O_GAP, O_OVERHEAD, O_FAILS, O_127, O_TRACE, O_HELP };
+           O_BITRATE, O_GAP, O_OVERHEAD, O_FAILS, O_127, O_LOSE_RECORD, O_TRACE, O_HELP };
     static const struct option opts[] = {
         { "host", required_argument, 0, O_HOST },
         { "mdp-port", required_argument, 0, O_MDP },
@@ -387,6 +389,7 @@ int main(int argc, char **argv)
         { "overhead-bytes", required_argument, 0, O_OVERHEAD },
         { "fail-polls", required_argument, 0, O_FAILS },
         { "allow-127", no_argument, 0, O_127 },
+        { "lose-record", required_argument, 0, O_LOSE_RECORD },
         { "trace", required_argument, 0, O_TRACE },
         { "help", no_argument, 0, O_HELP },
         { 0, 0, 0, 0 },
@@ -426,6 +429,7 @@ int main(int argc, char **argv)
         case O_OVERHEAD: cfg.overhead_bytes = (int)parse_long("--overhead-bytes", optarg, 1, 255); break;
         case O_FAILS: cfg.fail_polls = (int)parse_long("--fail-polls", optarg, 1, 255); break;
         case O_127: cfg.allow_127 = 1; break;
+        case O_LOSE_RECORD: cfg.lose_record = (int)parse_long("--lose-record", optarg, 0, 65535); break;
         case O_TRACE: trace_path = optarg; break;
         case O_HELP: fputs(USAGE, stdout); return 0;
         case ':': die_usage("option %s needs a value", argv[optind - 1]);

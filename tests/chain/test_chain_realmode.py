@@ -48,7 +48,9 @@ def test_chain_demo_defaults_end_ok(tmp_path):
     p = run_demo(tmp_path)
     last = p.stdout.strip().splitlines()[-1]
     assert p.returncode == 0, p.stdout + p.stderr
-    assert last.startswith("result: ok records=5 registers=80 polls=")
+    # the note's example: 5 records of 122 registers, record 2 lost once on its way up
+    assert last.startswith("result: ok records=5 registers=610 polls=")
+    assert "demo: radio lost 1 telegrams, 1 of them carrying a record" in p.stdout
     fields = dict(kv.split("=") for kv in last.split()[2:])
     assert set(fields) == {"records", "registers", "polls", "retransmissions", "duplicates",
                            "seconds"}
@@ -59,7 +61,7 @@ def test_chain_demo_defaults_end_ok(tmp_path):
 
 def test_chain_demo_two_stations_lossy(tmp_path):
     p = run_demo(tmp_path, "--stations", "2", "--records", "12", "--loss", "0.3", "--seed",
-                 "5", "--per-transfer", "5", "--log-period-ms", "20")
+                 "5", "--per-transfer", "5", "--log-period-ms", "20", "--payload", "16")
     assert p.returncode == 0, p.stdout + p.stderr
     assert p.stdout.strip().splitlines()[-1].startswith("result: ok records=24 registers=384 ")
 
