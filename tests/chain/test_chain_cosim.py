@@ -10,7 +10,7 @@ from mipcosim.check import check, summary
 from mipcosim.sim import SEC, Chain, Setup
 
 if not (Path(__file__).resolve().parents[2] / "build" / "cosim" / "libmipcosim.so").is_file():
-    pytest.skip("build/cosim/libmipcosim.so not built (run make)", allow_module_level=True)
+    pytest.fail("build/cosim/libmipcosim.so not built: run make first (these tests cannot run without it)", pytrace=False)
 
 MATRIX = list(itertools.product(["dynamic", "static"], ["spontaneous", "polled"],
                                 ["uni", "bidi"], [0.0, 0.1, 0.3],

@@ -19,7 +19,7 @@ from mippeer.cli import logger_records  # noqa: E402
 EMU = REPO / "build" / "emulator" / "mip-emulator"
 PEER = [sys.executable, "-m", "mippeer.cli"]
 if not EMU.is_file():
-    pytest.skip("build/emulator/mip-emulator not built (run make)", allow_module_level=True)
+    pytest.fail("build/emulator/mip-emulator not built: run make first (these tests cannot run without it)", pytrace=False)
 
 
 @pytest.fixture(scope="module")

@@ -16,7 +16,7 @@ REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO / "cosim"))
 
 if not (REPO / "build" / "cosim" / "libmipcosim.so").is_file():
-    pytest.skip("build/cosim/libmipcosim.so not built (run make)", allow_module_level=True)
+    pytest.fail("build/cosim/libmipcosim.so not built: run make first (these tests cannot run without it)", pytrace=False)
 
 from mipcosim.check import check, summary          # noqa: E402
 from mipcosim.sim import SEC, Chain, Radio, Setup  # noqa: E402
