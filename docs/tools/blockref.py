@@ -189,10 +189,11 @@ def render(units, sources_label):
         d = parse_doc(p.doc)
         sec = d["sections"]
         rel = os.path.relpath(u.file, REPO) if os.path.isabs(u.file) else u.file
-        o += [f"## {p.name}", "", f"`FUNCTION_BLOCK` in `{rel}`.", ""]
+        returns = f", returns `{p.return_type.text()}`" if p.return_type is not None else ""
+        o += [f"## {p.name}", "", f"`{p.kind}` in `{rel}`{returns}.", ""]
         o += prose(sec.get("purpose", []))
         rows = d["interface"]
-        if rows:
+        if len(rows) > 1:
             header, body = rows[0], rows[1:]
             o.append("| " + " | ".join(header) + " |")
             o.append("|" + "---|" * len(header))
