@@ -88,6 +88,8 @@ def dependency_order(units):
         for t in u.types:
             if t.spec is not None and t.spec.kind == "derived":
                 used.add(t.spec.name.upper())
+        for p in u.pous:                      # FUNCTIONs called in a body
+            used |= {w.upper() for w in re.findall(r"\b([A-Za-z_]\w*)\s*\(", p.body or "")}
         uses[u.file] = used - names
     order, done = [], set()
     pending = [u.file for u in units]

@@ -169,3 +169,19 @@ def test_missing_version_constant_is_one_line_with_the_file(tmp_path):
     assert r.returncode == 1
     assert r.stderr == ("st_lib/MIP_Version.st: error: no constant uMinor : UINT := N; "
                         "(the version is uMajor.uMinor.uPatch)\n")
+
+
+def test_a_function_called_in_a_body_is_imported_before_its_caller(tmp_path):
+    """The import order (docs/blocks.md, the archive, the one-file library) also follows
+    FUNCTION calls, not only declared types: matiec reads one file front to back."""
+    sys.path.insert(0, str(REPO / "dist"))
+    import mkdist
+    (tmp_path / "st_lib").mkdir()
+    (tmp_path / "st_lib" / "A_User.st").write_text(
+        "FUNCTION_BLOCK A_User\nVAR_OUTPUT x : UDINT; END_VAR\nx := Z_Helper(1);\n"
+        "END_FUNCTION_BLOCK\n")
+    (tmp_path / "st_lib" / "Z_Helper.st").write_text(
+        "FUNCTION Z_Helper : UDINT\nVAR_INPUT u : UINT; END_VAR\nZ_Helper := UINT_TO_UDINT(u);\n"
+        "END_FUNCTION\n")
+    order, _ = mkdist.import_order(tmp_path)
+    assert order == ["st_lib/Z_Helper.st", "st_lib/A_User.st"]
