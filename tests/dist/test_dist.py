@@ -185,3 +185,11 @@ def test_a_function_called_in_a_body_is_imported_before_its_caller(tmp_path):
         "END_FUNCTION\n")
     order, _ = mkdist.import_order(tmp_path)
     assert order == ["st_lib/Z_Helper.st", "st_lib/A_User.st"]
+
+
+def test_the_archives_are_reproducible(archive, tmp_path):
+    out, tgz, _ = archive
+    r = mkdist("-o", tmp_path)
+    assert r.returncode == 0, r.stderr
+    for name in (tgz.name, tgz.name.replace(".tar.gz", ".zip")):
+        assert (tmp_path / name).read_bytes() == (out / name).read_bytes(), name
