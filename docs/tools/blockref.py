@@ -88,6 +88,8 @@ def dependency_order(units):
         for t in u.types:
             if t.spec is not None and t.spec.kind == "derived":
                 used.add(t.spec.name.upper())
+        for p in u.pous:                      # FUNCTIONs called in a body
+            used |= {w.upper() for w in re.findall(r"\b([A-Za-z_]\w*)\s*\(", p.body or "")}
         uses[u.file] = used - names
     order, done = [], set()
     pending = [u.file for u in units]
@@ -189,10 +191,11 @@ def render(units, sources_label):
         d = parse_doc(p.doc)
         sec = d["sections"]
         rel = os.path.relpath(u.file, REPO) if os.path.isabs(u.file) else u.file
-        o += [f"## {p.name}", "", f"`FUNCTION_BLOCK` in `{rel}`.", ""]
+        returns = f", returns `{p.return_type.text()}`" if p.return_type is not None else ""
+        o += [f"## {p.name}", "", f"`{p.kind}` in `{rel}`{returns}.", ""]
         o += prose(sec.get("purpose", []))
         rows = d["interface"]
-        if rows:
+        if len(rows) > 1:
             header, body = rows[0], rows[1:]
             o.append("| " + " | ".join(header) + " |")
             o.append("|" + "---|" * len(header))

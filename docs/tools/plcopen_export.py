@@ -115,13 +115,13 @@ def var_xml(v, ind):
     return out + f"{pad}</variable>\n"
 
 
-def export(units, name, date, order=None):
+def export(units, name, date, order=None, version="1"):
     files = order or dependency_order(units)
     by_file = {u.file: u for u in units}
     o = ['<?xml version="1.0" encoding="utf-8"?>\n',
          f'<project xmlns="{NS}" xmlns:xhtml="{XHTML}">\n',
          f'  <fileHeader companyName="mip-logger project" productName="{esc(name)}" '
-         f'productVersion="1" creationDateTime="{esc(date)}" '
+         f'productVersion="{esc(version)}" creationDateTime="{esc(date)}" '
          f'contentDescription="MIP logger transfer blocks, exported from ST sources by '
          f'docs/tools/plcopen_export.py"/>\n',
          f'  <contentHeader name="{esc(name)}">\n',

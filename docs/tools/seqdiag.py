@@ -10,6 +10,11 @@ Four lifelines: outstation PLC, TRM-810, MDP-810, central PLC. Shown:
 - "station" lines of the emulator (unreachable / reachable);
 - lines with "ev":"plc" if the trace has them (added by docs/tools/chainsim.py: what the PLC
   read, delivered, finished or failed; the label of its writes).
+Marked on top of that: the reset record (record 0, orange: it opens a session, it is not an
+idle block), a record a receiving PLC read again after delivering it (the discarded duplicate),
+and gaps of JUMP_MS or more between two rows (a break across the lifelines with the time that
+passed: rows are evenly spaced, time is not). Notes get rows of their own and arrow labels a
+white halo, so nothing covers a label.
 Empty polls and answers and the PLCs' Modbus reads are left out (a note with the count of
 left-out lines would be noise; the caption says what is omitted). The output depends only on the
 trace: the same trace gives the same bytes.
@@ -18,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 import textwrap
 from xml.sax.saxutils import escape
@@ -27,13 +33,17 @@ X_TIME = 62
 X = {"outstation": 180, "trm": 410, "mdp": 630, "central": 860}
 HEAD_Y = 58
 ROW = 22
+NOTE_ROW = 28             # a note's row: its box stays clear of the labels above and below
+JUMP_MS = 400             # a gap at least this long between two rows is drawn as a break
+JUMP_H = 20
+ORANGE = "#d35400"
 FONT = "DejaVu Sans, Verdana, Arial, sans-serif"
 RED = "#c0392b"
 GREY = "#7f8c8d"
 BLUE = "#1f5f99"
 GREEN = "#1e8449"
 NOTE_FILL = {"deliver": "#e8f6ef", "done": "#d5f5e3", "error": "#fadbd8", "restart": "#fdebd0",
-             "station": "#fdebd0"}
+             "station": "#fdebd0", "duplicate": "#fef5e7"}
 
 
 class TraceError(Exception):
@@ -157,15 +167,68 @@ def rows_from(events, station, t_from, t_to):
                 rows.append((t, "mb_read", {"side": side, "text": d.get("text", "")}))
             else:
                 rows.append((t, "note", {"side": side, "what": what, "text": d.get("text", "")}))
-    return rows
+    return mark_duplicates(events, rows)
+
+
+RESET_RE = re.compile(r"\brecord 0\b")
+
+
+def mark_reset(text):
+    """'record 0' is the reset record that opens a session: say so in the label."""
+    return RESET_RE.sub("RESET record 0", text)
+
+
+def received_record(side, text):
+    """The record number a PLC's read shows of the stream it receives (None: none)."""
+    m = re.search(r"\brecord (\d+)\b", text)
+    if m:
+        return int(m.group(1))
+    m = re.search(r"\[(\d+) \| (\d+)\]", text)      # bidirectional: [outstation | central]
+    if m:
+        return int(m.group(1) if side == "central" else m.group(2))
+    return None
+
+
+def mark_duplicates(events, rows):
+    """Adds a note after every read in which a PLC sees again a record it already delivered
+    (the receiver discards it and acknowledges it again). A reset record (0) or a restart of
+    that PLC starts a new session."""
+    delivered = {"outstation": set(), "central": set()}
+    out = []
+    reads = {}
+    for d in events:
+        if d["ev"] == "plc" and d.get("what") == "deliver":
+            reads.setdefault((d.get("side"), d["t"]), []).append("deliver")
+    for row in rows:
+        out.append(row)
+        t, kind, d = row
+        side = d.get("side")
+        if kind == "note" and d.get("what") == "restart" and side in delivered:
+            delivered[side].clear()
+        if kind == "note" and d.get("what") == "deliver" and side in delivered:
+            n = received_record(side, d["text"])
+            if n is not None:
+                delivered[side].add(n)
+        if kind != "mb_read" or side not in delivered:
+            continue
+        n = received_record(side, d["text"])
+        if n == 0:
+            delivered[side].clear()
+        elif n is not None and n in delivered[side] and "deliver" not in reads.get((side, t), []):
+            out.append((t, "note", {"side": side, "what": "duplicate",
+                                    "text": f"record {n} again: discarded (already delivered)"}))
+    return out
 
 
 def plural(n):
     return f"{n} reg" if n == 1 else f"{n} regs"
 
 
-def text_el(x, y, s, anchor="middle", size=12, fill="#222", weight=None, italic=False):
+def text_el(x, y, s, anchor="middle", size=12, fill="#222", weight=None, italic=False,
+            halo=False):
     attrs = f'x="{x}" y="{y}" text-anchor="{anchor}" font-size="{size}" fill="{fill}"'
+    if halo:
+        attrs += ' stroke="#ffffff" stroke-width="3" stroke-linejoin="round" paint-order="stroke"'
     if weight:
         attrs += f' font-weight="{weight}"'
     if italic:
@@ -198,10 +261,30 @@ def note(xc, y, s, fill, width=None):
             f'stroke="#999" stroke-width="0.8"/>', text_el(x + w // 2, y + 4, s, size=11)]
 
 
+def layout(rows):
+    """y of every row and the time breaks [(y, gap_ns)]; returns (ys, breaks, height of rows)."""
+    ys, breaks, y, last_t = [], [], 0, None
+    for t, kind, _ in rows:
+        if last_t is not None and t - last_t >= JUMP_MS * 1_000_000:
+            # the difference of the row times as printed (whole ms)
+            breaks.append((y + JUMP_H // 2, (t // 1_000_000 - last_t // 1_000_000) * 1_000_000))
+            y += JUMP_H
+        h = NOTE_ROW if kind == "note" else ROW
+        ys.append(y + (h // 2 + 2 if kind == "note" else 12))
+        y += h
+        last_t = t
+    return ys, breaks, max(y, ROW)
+
+
+def fmt_gap(ns):
+    ms = ns // 1_000_000
+    return f"+{ms / 1000:.1f} s" if ms >= 10_000 else f"+{ms} ms"
+
+
 def render(rows, title, caption):
-    n = max(len(rows), 1)
     top = HEAD_Y + 34
-    h = top + n * ROW + 48 + 13 * len(textwrap.wrap(caption, 150))
+    ys, breaks, rows_h = layout(rows)
+    h = top + rows_h + 36 + 13 * len(textwrap.wrap(caption, 150))
     o = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{h}" '
          f'viewBox="0 0 {W} {h}" font-family="{FONT}">',
          f'<rect x="0" y="0" width="{W}" height="{h}" fill="#ffffff"/>',
@@ -209,13 +292,26 @@ def render(rows, title, caption):
     heads = [("outstation", "outstation PLC"), ("trm", "TRM-810"), ("mdp", "MDP-810"),
              ("central", "central PLC")]
     o.append(text_el(X_TIME - 8, HEAD_Y + 5, "time", anchor="end", size=11, fill=GREY))
+    y_end = top + rows_h + 8
     for key, label in heads:
         x = X[key]
-        o.append(f'<line x1="{x}" y1="{HEAD_Y + 12}" x2="{x}" y2="{h - 40}" stroke="#bbb" '
+        o.append(f'<line x1="{x}" y1="{HEAD_Y + 12}" x2="{x}" y2="{y_end}" stroke="#bbb" '
                  f'stroke-width="1.2"/>')
         o.append(f'<rect x="{x - 70}" y="{HEAD_Y - 12}" width="140" height="24" rx="5" '
                  f'fill="#eef3f8" stroke="{BLUE}"/>')
         o.append(text_el(x, HEAD_Y + 5, label, weight="bold"))
+    # time breaks: the lifelines interrupted by two slashes, the time that passed on the left
+    for yb, gap in breaks:
+        y = top + yb
+        o.append(f'<line x1="{X_TIME}" y1="{y}" x2="{W - 8}" y2="{y}" stroke="#d5d8dc" '
+                 f'stroke-width="1" stroke-dasharray="2,4"/>')
+        for key, _ in heads:
+            x = X[key]
+            o.append(f'<rect x="{x - 7}" y="{y - 5}" width="14" height="10" fill="#ffffff"/>')
+            o.append(f'<path d="M{x - 7},{y - 1} L{x + 3},{y - 7} M{x - 3},{y + 7} '
+                     f'L{x + 7},{y + 1}" stroke="{GREY}" stroke-width="1.2"/>')
+        o.append(text_el(X_TIME - 8, y + 4, fmt_gap(gap), anchor="end", size=10, fill=GREY,
+                         italic=True, weight="bold"))
     xr = (X["trm"] + X["mdp"]) // 2
     o.append(text_el(xr, HEAD_Y + 26, "~ radio ~", size=11, fill=GREY, italic=True))
     o.append(text_el((X["outstation"] + X["trm"]) // 2, HEAD_Y + 26, "Modbus TCP", size=11,
@@ -223,37 +319,44 @@ def render(rows, title, caption):
     o.append(text_el((X["mdp"] + X["central"]) // 2, HEAD_Y + 26, "Modbus TCP", size=11,
                      fill=GREY, italic=True))
     last_t = None
-    for i, (t, kind, d) in enumerate(rows):
-        y = top + i * ROW + 12
+    notes, fg = [], []          # notes first, arrows and their labels on top
+    for (t, kind, d), yr in zip(rows, ys):
+        y = top + yr
         if t != last_t:
-            o.append(text_el(X_TIME - 8, y + 4, fmt_ms(t), anchor="end", size=10, fill=GREY))
+            fg.append(text_el(X_TIME - 8, y + 4, fmt_ms(t), anchor="end", size=10, fill=GREY))
             last_t = t
+        reset = kind != "note" and RESET_RE.search(d.get("text", "")) is not None
+        text = mark_reset(d["text"]) if reset else d.get("text", "")
         if kind in ("mb_write", "mb_read", "mb_exc", "mb_close"):
             side = d["side"]
             plc, modem = (X["outstation"], X["trm"]) if side == "outstation" else (
                 X["central"], X["mdp"])
             if kind == "mb_read":
-                o += arrow(modem, plc, y, GREY, dashed=True, width=1.1)
-                color = GREY
+                fg += arrow(modem, plc, y, GREY, dashed=True, width=1.1)
+                color = ORANGE if reset else GREY
             else:
-                color = RED if kind != "mb_write" else BLUE
-                o += arrow(plc, modem, y, color)
-            o.append(text_el((plc + modem) // 2, y - 4, d["text"], size=11, fill=color))
+                color = RED if kind != "mb_write" else (ORANGE if reset else BLUE)
+                fg += arrow(plc, modem, y, color)
+            fg.append(text_el((plc + modem) // 2, y - 4, text, size=11, fill=color, halo=True))
         elif kind == "radio":
             x1, x2 = (X["mdp"], X["trm"]) if d["down"] else (X["trm"], X["mdp"])
             if d["lost"]:
                 color = RED
+            elif reset:
+                color = ORANGE
             elif d["regs"]:
                 color = "#222"
             else:
                 color = GREY
-            o += arrow(x1, x2, y, color, dashed=d["lost"] or not d["regs"], lost=d["lost"],
-                       width=1.8 if d["regs"] else 1.0)
-            o.append(text_el(xr, y - (7 if d["lost"] else 4), d["text"], size=11, fill=color))
+            fg += arrow(x1, x2, y, color, dashed=d["lost"] or not d["regs"], lost=d["lost"],
+                        width=1.8 if d["regs"] else 1.0)
+            fg.append(text_el(xr, y - (7 if d["lost"] else 4), text, size=11, fill=color,
+                              halo=True))
         elif kind == "note":
             xc = xr if d["side"] == "radio" else X[d["side"]]
-            o += note(xc, y, d["text"], NOTE_FILL.get(d["what"], "#f4f6f7"))
-    yb = top + n * ROW + 30
+            notes += note(xc, y, text, NOTE_FILL.get(d["what"], "#f4f6f7"))
+    o += notes + fg
+    yb = top + rows_h + 26
     for k, line in enumerate(textwrap.wrap(caption, 150)):
         o.append(text_el(12, yb + 13 * k, line, anchor="start", size=10, fill=GREY))
     o.append("</svg>")

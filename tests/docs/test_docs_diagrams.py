@@ -2,6 +2,7 @@
 up to date; the generators are deterministic and reject bad input with one line."""
 import json
 
+import pytest
 from lxml import etree
 
 from docs_helpers import REPO, tool
@@ -34,8 +35,17 @@ def svg_texts(path):
     return [t.text for t in root.iter("{http://www.w3.org/2000/svg}text")]
 
 
-def test_note_diagram_shows_the_lost_record_and_the_repeated_request():
-    texts = svg_texts(IMG / "seq-note-2-1-1.svg")
+@pytest.fixture(scope="module")
+def fresh(tmp_path_factory):
+    """The diagrams as the code draws them now (docs/img/ may wait for `make docs-diagrams`)."""
+    out = tmp_path_factory.mktemp("seq")
+    r = tool("mkdiagrams", "--outdir", out)
+    assert r.returncode == 0, r.stderr
+    return out
+
+
+def test_note_diagram_shows_the_lost_record_and_the_repeated_request(fresh):
+    texts = svg_texts(fresh / "seq-note-2-1-1.svg")
     assert "answer: record 2 (123 regs): LOST" in texts
     # the central asks again with the old acknowledgement, as in the note
     assert texts.count("write ack 1 (1 reg)") >= 2
@@ -46,11 +56,11 @@ def test_note_diagram_shows_the_lost_record_and_the_repeated_request():
     assert "xDone: last record acknowledged" in texts
 
 
-def test_restart_diagram_shows_reset_record_and_the_receiver_error():
-    texts = svg_texts(IMG / "seq-restart.svg")
+def test_restart_diagram_shows_reset_record_and_the_receiver_error(fresh):
+    texts = svg_texts(fresh / "seq-restart.svg")
     assert "PLC restarted" in texts
     i = texts.index("PLC restarted")
-    assert any(t.startswith("write record 0 (") for t in texts[i:])
+    assert any(t.startswith("write RESET record 0 (") for t in texts[i:])
     assert "xError: MIP_ERR_SENDER_RESET" in texts[i:]
 
 

@@ -91,9 +91,14 @@ def st_from_xml(path):
            "localVars": "VAR", "tempVars": "VAR_TEMP"}
     for pou in root.iterfind(".//p:pou", NS):
         k = kw[pou.get("pouType")]
-        out.append(f"{k} {pou.get('name')}")
+        ret = pou.find("p:interface/p:returnType", NS)
+        ret = f" : {elementary_or_derived(ret)}" if ret is not None else ""
+        out.append(f"{k} {pou.get('name')}{ret}")
         for vl in pou.find("p:interface", NS):
-            out.append(sec[etree.QName(vl).localname])
+            if etree.QName(vl).localname == "returnType":
+                continue
+            const = " CONSTANT" if vl.get("constant") == "true" else ""
+            out.append(sec[etree.QName(vl).localname] + const)
             for v in vl.iterfind("p:variable", NS):
                 init = v.find("p:initialValue", NS)
                 init = f" := {value_text(init)}" if init is not None else ""

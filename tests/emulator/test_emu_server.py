@@ -279,6 +279,15 @@ def test_help_documents_every_option():
         assert opt in r.stdout, opt
 
 
+def test_help_puts_each_default_under_its_option():
+    lines = run_cli("--help").stdout.splitlines()
+    i = next(k for k, t in enumerate(lines) if t.lstrip().startswith("--allow-127"))
+    assert "default: the Modbus limits 125 read" in lines[i + 1]
+    j = next(k for k, t in enumerate(lines) if t.lstrip().startswith("--lose-record"))
+    block = lines[j:next(k for k in range(j + 1, len(lines)) if lines[k].lstrip().startswith("--"))]
+    assert "default off" in " ".join(block) and "125" not in " ".join(block)
+
+
 @pytest.mark.parametrize("args", [
     ["--bogus"], ["--stations", "0"], ["--stations", "248"], ["--stations", "x"], ["--mode", "fast"],
     ["--static-registers", "149"], ["--loss-up", "1.5"], ["--loss-down", "-0.1"], ["--loss-up"],

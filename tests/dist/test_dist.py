@@ -1,0 +1,195 @@
+"""`make dist`: the release archive carries the version of MIP_Version.st in its name, holds
+the sources in import order, one concatenated .st that compiles and runs, the PLCopen XML
+valid against the TC6 schema, the block reference, LICENSE and CHANGELOG.md."""
+import re
+import shutil
+import subprocess
+import sys
+import tarfile
+import zipfile
+from pathlib import Path
+
+import pytest
+from plcharness import Plc
+
+REPO = Path(__file__).resolve().parents[2]
+XSD = REPO / "build" / "docs" / "tc6_xml_v201.xsd"
+MKDIST = REPO / "dist" / "mkdist.py"
+
+PROBE = """
+PROGRAM Probe
+VAR
+  udiAll : UDINT;
+  udiMajor : UDINT;
+  udiMinor : UDINT;
+  udiPatch : UDINT;
+END_VAR
+udiAll := MIP_Version(0);
+udiMajor := MIP_Version(1);
+udiMinor := MIP_Version(2);
+udiPatch := MIP_Version(3);
+END_PROGRAM
+CONFIGURATION Config0
+  RESOURCE Res0 ON PLC
+    TASK tMain(INTERVAL := T#10ms, PRIORITY := 0);
+    PROGRAM p0 WITH tMain : Probe;
+  END_RESOURCE
+END_CONFIGURATION
+"""
+
+
+def mkdist(*args, cwd=REPO):
+    return subprocess.run([sys.executable, str(MKDIST), *map(str, args)], cwd=cwd,
+                          capture_output=True, text=True, timeout=300)
+
+
+@pytest.fixture(scope="module")
+def archive(tmp_path_factory):
+    assert XSD.exists(), f"{XSD.relative_to(REPO)} missing: run `make {XSD.relative_to(REPO)}`"
+    out = tmp_path_factory.mktemp("dist")
+    r = mkdist("--xsd", XSD, "-o", out)
+    assert r.returncode == 0, r.stderr
+    tgz = list(out.glob("*.tar.gz"))
+    assert len(tgz) == 1, list(out.iterdir())
+    unpacked = tmp_path_factory.mktemp("unpacked")
+    with tarfile.open(tgz[0]) as t:
+        t.extractall(unpacked, filter="data")
+    (top,) = list(unpacked.iterdir())
+    return out, tgz[0], top
+
+
+def blocks_md_order():
+    text = (REPO / "docs" / "blocks.md").read_text()
+    return re.findall(r"^\d+\. `(st_lib/[^`]+)`$", text, re.M)
+
+
+def test_archive_name_carries_the_version_that_mip_version_returns(archive, tmp_path):
+    _, tgz, top = archive
+    m = re.fullmatch(r"mip-logger-(\d+)\.(\d+)\.(\d+)\.tar\.gz", tgz.name)
+    assert m, tgz.name
+    major, minor, patch = map(int, m.groups())
+    assert top.name == f"mip-logger-{major}.{minor}.{patch}"
+    # the version as a PLC program sees it, built from the archive's one-file library
+    lib = top / f"{top.name}.st"
+    prog = tmp_path / "probe.st"
+    prog.write_text(PROBE)
+    with Plc.build([lib, prog], workdir=tmp_path / "b", compiler="stc") as plc:
+        plc.scan()
+        assert (plc["Probe.udiMajor"], plc["Probe.udiMinor"], plc["Probe.udiPatch"]) == \
+            (major, minor, patch)
+        assert plc["Probe.udiAll"] == major * 10000 + minor * 100 + patch
+    r = mkdist("--version")
+    assert r.returncode == 0 and r.stdout.strip() == f"{major}.{minor}.{patch}"
+
+
+def test_archive_holds_sources_in_import_order_and_the_product_files(archive):
+    out, tgz, top = archive
+    with tarfile.open(tgz) as t:
+        names = [n[len(top.name) + 1:] for n in t.getnames()]
+    order = blocks_md_order()
+    assert sorted(order) == sorted(f"st_lib/{p.name}" for p in (REPO / "st_lib").glob("*.st"))
+    assert [n for n in names if n.startswith("st_lib/")] == order
+    for n in order:
+        assert (top / n).read_bytes() == (REPO / n).read_bytes(), n
+    for n in ("LICENSE", "CHANGELOG.md"):
+        assert (top / n).read_bytes() == (REPO / n).read_bytes(), n
+    assert (top / "blocks.md").read_text() == (REPO / "docs" / "blocks.md").read_text()
+    readme = (top / "README.txt").read_text()
+    assert [line.split(". ", 1)[1] for line in readme.splitlines()
+            if re.match(r"\s+\d+\. st_lib/", line)] == order
+    # the one-file library: the sources in import order, each complete
+    one = (top / f"{top.name}.st").read_text()
+    positions = [one.index((REPO / n).read_text().rstrip("\n")) for n in order]
+    assert positions == sorted(positions)
+    # the zip has the same members with the same bytes
+    zpath = out / tgz.name.replace(".tar.gz", ".zip")
+    with zipfile.ZipFile(zpath) as z, tarfile.open(tgz) as t:
+        assert z.namelist() == t.getnames()
+        for n in z.namelist():
+            assert z.read(n) == t.extractfile(n).read(), n
+
+
+def test_one_file_library_translates_with_stc(archive, tmp_path):
+    _, _, top = archive
+    stc = Path(sys.executable).parent / "stc"
+    r = subprocess.run([str(stc), "-o", str(tmp_path), str(top / f"{top.name}.st")],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "POUS.c").is_file()
+
+
+def test_plcopen_xml_is_valid_and_complete(archive):
+    _, _, top = archive
+    xml = top / f"{top.name}.xml"
+    r = subprocess.run([sys.executable, str(REPO / "docs/tools/plcopen_export.py"),
+                        "--validate", str(XSD), str(xml)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    text = xml.read_text()
+    version = top.name.split("-")[-1]
+    assert f'productVersion="{version}"' in text
+    for n in blocks_md_order():
+        for pou in re.findall(r"^(?:FUNCTION_BLOCK|FUNCTION) (\w+)", (REPO / n).read_text(), re.M):
+            assert f'<pou name="{pou}"' in text, pou
+
+
+def test_license_is_mit_with_the_authors():
+    text = (REPO / "LICENSE").read_text()
+    assert text.startswith("MIT License")
+    assert "the mip-logger authors" in text
+
+
+def _copy_product(tmp_path):
+    repo = tmp_path / "repo"
+    shutil.copytree(REPO / "st_lib", repo / "st_lib")
+    shutil.copytree(REPO / "docs" / "tools", repo / "docs" / "tools")
+    shutil.copytree(REPO / "dist", repo / "dist")
+    for n in ("LICENSE", "CHANGELOG.md"):
+        shutil.copy(REPO / n, repo / n)
+    return repo
+
+
+def test_version_without_changelog_entry_is_refused_in_one_line(tmp_path):
+    repo = _copy_product(tmp_path)
+    v = repo / "st_lib" / "MIP_Version.st"
+    v.write_text(re.sub(r"(uPatch : UINT := )\d+;", r"\g<1>97;", v.read_text()))
+    r2 = subprocess.run([sys.executable, str(repo / "dist" / "mkdist.py"), "-o",
+                         str(tmp_path / "out")], cwd=repo, capture_output=True, text=True)
+    assert r2.returncode == 1
+    assert r2.stderr.count("\n") == 1 and "Traceback" not in r2.stderr
+    assert "CHANGELOG.md: error: no entry '## [" in r2.stderr and ".97]" in r2.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_missing_version_constant_is_one_line_with_the_file(tmp_path):
+    repo = _copy_product(tmp_path)
+    v = repo / "st_lib" / "MIP_Version.st"
+    v.write_text(v.read_text().replace("uMinor : UINT", "uMinorX : UINT"))
+    r = subprocess.run([sys.executable, str(repo / "dist" / "mkdist.py"), "--version"],
+                       cwd=repo, capture_output=True, text=True)
+    assert r.returncode == 1
+    assert r.stderr == ("st_lib/MIP_Version.st: error: no constant uMinor : UINT := N; "
+                        "(the version is uMajor.uMinor.uPatch)\n")
+
+
+def test_a_function_called_in_a_body_is_imported_before_its_caller(tmp_path):
+    """The import order (docs/blocks.md, the archive, the one-file library) also follows
+    FUNCTION calls, not only declared types: matiec reads one file front to back."""
+    sys.path.insert(0, str(REPO / "dist"))
+    import mkdist
+    (tmp_path / "st_lib").mkdir()
+    (tmp_path / "st_lib" / "A_User.st").write_text(
+        "FUNCTION_BLOCK A_User\nVAR_OUTPUT x : UDINT; END_VAR\nx := Z_Helper(1);\n"
+        "END_FUNCTION_BLOCK\n")
+    (tmp_path / "st_lib" / "Z_Helper.st").write_text(
+        "FUNCTION Z_Helper : UDINT\nVAR_INPUT u : UINT; END_VAR\nZ_Helper := UINT_TO_UDINT(u);\n"
+        "END_FUNCTION\n")
+    order, _ = mkdist.import_order(tmp_path)
+    assert order == ["st_lib/Z_Helper.st", "st_lib/A_User.st"]
+
+
+def test_the_archives_are_reproducible(archive, tmp_path):
+    out, tgz, _ = archive
+    r = mkdist("-o", tmp_path)
+    assert r.returncode == 0, r.stderr
+    for name in (tgz.name, tgz.name.replace(".tar.gz", ".zip")):
+        assert (tmp_path / name).read_bytes() == (out / name).read_bytes(), name

@@ -1,0 +1,98 @@
+"""What the sequence diagrams mark (docs/tools/seqdiag.py), on diagrams rendered here from the
+checked-in traces: the reset record, the discarded duplicate, time jumps, and no note box
+covering an arrow label."""
+import json
+import re
+
+import pytest
+from lxml import etree
+
+from docs_helpers import tool
+
+SVG = "{http://www.w3.org/2000/svg}"
+
+
+@pytest.fixture(scope="module")
+def diagrams(tmp_path_factory):
+    out = tmp_path_factory.mktemp("seq")
+    r = tool("mkdiagrams", "--outdir", out)
+    assert r.returncode == 0, r.stderr
+    return out
+
+
+def parse(path):
+    root = etree.parse(str(path)).getroot()
+    texts = [(t.text, float(t.get("x")), float(t.get("y")), t.get("fill"), t.get("text-anchor"),
+              float(t.get("font-size"))) for t in root.iter(f"{SVG}text")]
+    notes = [tuple(float(r.get(k)) for k in ("x", "y", "width", "height"))
+             for r in root.iter(f"{SVG}rect") if r.get("rx") == "4"]
+    return texts, notes
+
+
+def test_reset_record_is_named_and_orange(diagrams):
+    texts, _ = parse(diagrams / "seq-restart.svg")
+    resets = [(s, fill) for s, _, _, fill, _, _ in texts if "RESET record 0" in s]
+    assert ("write RESET record 0 (2 regs)", "#d35400") in resets
+    assert ("answer: RESET record 0 (2 regs)", "#d35400") in resets
+    assert ("read: new data, RESET record 0", "#d35400") in resets
+    # the acknowledgement of the reset is an ordinary block
+    assert not any("RESET" in s for s, *_ in texts if s.startswith("write ack 0"))
+
+
+def test_discarded_duplicate_is_marked_once(diagrams):
+    texts, _ = parse(diagrams / "seq-note-2-1-1.svg")
+    dups = [s for s, *_ in texts if "again: discarded" in s]
+    assert dups == ["record 2 again: discarded (already delivered)"]
+    # after a restart the records 1, 2 come again in a new session: not duplicates
+    texts, _ = parse(diagrams / "seq-restart.svg")
+    assert not [s for s, *_ in texts if "again: discarded" in s]
+
+
+def test_time_jumps_are_shown(diagrams):
+    texts, _ = parse(diagrams / "seq-note-2-1-1.svg")
+    times = [(s, y) for s, _, y, _, _, _ in texts if re.fullmatch(r"\d+ ms", s)]
+    jumps = [(s, y) for s, _, y, _, _, _ in texts if re.fullmatch(r"\+\d+ ms", s)]
+    assert jumps
+    # every jump label sits between two row times that are that far apart
+    for s, y in jumps:
+        before = max((t for t in times if t[1] < y), key=lambda t: t[1])
+        after = min((t for t in times if t[1] > y), key=lambda t: t[1])
+        assert int(after[0].split()[0]) - int(before[0].split()[0]) == int(s[1:].split()[0])
+    # and no two consecutive rows JUMP_MS or more apart go without one
+    import seqdiag
+    ms = [(int(s.split()[0]), y) for s, y in times]
+    for (t1, y1), (t2, y2) in zip(ms, ms[1:]):
+        if t2 - t1 >= seqdiag.JUMP_MS:
+            assert any(y1 < y < y2 for _, y in jumps), (t1, t2)
+
+
+def test_a_long_gap_in_a_small_trace(tmp_path):
+    trace = tmp_path / "t.jsonl"
+    lines = [{"t": 0, "ev": "modbus", "ep": "trm", "st": 1, "fc": 16, "w0": 1, "wq": 3},
+             {"t": 75_000_000_000, "ev": "modbus", "ep": "trm", "st": 1, "fc": 16, "w0": 2,
+              "wq": 3}]
+    trace.write_text("\n".join(json.dumps(d) for d in lines) + "\n")
+    r = tool("seqdiag", trace, "-o", tmp_path / "t.svg")
+    assert r.returncode == 0, r.stderr
+    texts, _ = parse(tmp_path / "t.svg")
+    assert "+75.0 s" in [s for s, *_ in texts]
+
+
+@pytest.mark.parametrize("name", ["note-2-1-1", "bidirectional", "restart", "static-openplc"])
+def test_no_note_covers_an_arrow_label(diagrams, name):
+    texts, notes = parse(diagrams / f"seq-{name}.svg")
+    labels = [(s, x, y, anchor, size) for s, x, y, _, anchor, size in texts
+              if size == 11 and anchor == "middle"]
+    note_texts = set()
+    for nx, ny, nw, nh in notes:
+        for s, x, y, _, _ in labels:
+            if nx <= x <= nx + nw and ny <= y <= ny + nh:
+                note_texts.add((s, y))            # the note's own text
+    for nx, ny, nw, nh in notes:
+        for s, x, y, _, size in labels:
+            if (s, y) in note_texts:
+                continue
+            half = 0.33 * size * len(s)            # generous width of DejaVu Sans at 11 px
+            top, bottom = y - 0.8 * size, y + 0.2 * size
+            overlaps = x - half < nx + nw and x + half > nx and top < ny + nh and bottom > ny
+            assert not overlaps, f"note at y={ny} covers the label {s!r} at y={y}"
