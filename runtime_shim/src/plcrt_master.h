@@ -71,6 +71,7 @@ struct plcrt_master {
     int slave_enabled;
     char slave_host[256];
     int slave_port;
+    uint64_t slave_idle_ns, slave_byte_ns; /* 0 = default */
 
     pthread_mutex_t lock;
     pthread_cond_t wake;
