@@ -128,6 +128,9 @@ const char *plcrt_device_name(const plcrt_t *rt, int i);
 /* Counters of a device: failed requests, successful requests, reconnects. */
 int plcrt_device_stats(const plcrt_t *rt, int i, uint64_t *errors, uint64_t *requests,
                        uint64_t *connects);
+/* Replies the master dropped because their transaction id was not the one of the request
+ * (late or duplicated answers); logged the first time and every 100th. */
+uint64_t plcrt_device_dropped_replies(const plcrt_t *rt, int i);
 
 /* ---- Modbus slave (optional) ---- */
 /* Serve the image (holding 0-1023 = %QW, 1024-2047 = %MW, input registers = %IW,
@@ -154,6 +157,9 @@ typedef struct plcrt_slave_stats {
     uint64_t evicted;    /* closed to make room for a new connection */
 } plcrt_slave_stats_t;
 int plcrt_slave_stats(const plcrt_t *rt, plcrt_slave_stats_t *out);
+/* Serves an already connected stream socket (made non-blocking) as one more client, e.g.
+ * one end of a socketpair(); the slave closes it. Virtual mode only (tests, fuzzing). */
+int plcrt_slave_add_client(plcrt_t *rt, int fd);
 /* Serves pending slave requests now (virtual mode; called by plcrt_scan too). */
 int plcrt_slave_poll(plcrt_t *rt, int timeout_ms);
 

@@ -62,8 +62,6 @@ void plcrt_slave_stop_thread(plcrt_t *rt);
 /* Answers one complete Modbus TCP ADU (MBAP + PDU) into reply (260 bytes); its length, or
  * -1 when the MBAP header is not Modbus TCP. lock: take image_lock for the copy. */
 int plcrt_slave_process_adu(plcrt_t *rt, const uint8_t *adu, size_t len, uint8_t *reply, int lock);
-/* Serves an already connected stream socket (made non-blocking) as a client connection;
- * the slave closes it. -1 when the slave is not started. (Tests and the fuzz target.) */
-int plcrt_slave_add_client(plcrt_t *rt, int fd);
+
 
 #endif

@@ -58,6 +58,8 @@ typedef struct plcrt_device {
     void *after_send_user;
     uint64_t next_connect_ns, backoff_ns;
     uint64_t n_errors, n_requests, n_connects;
+    uint64_t n_stale; /* replies dropped: transaction id of an earlier request */
+    uint16_t tid;     /* transaction id of the last request */
     int failing;     /* last request failed: log only transitions */
     char last_error[160];
 } plcrt_device_t;
