@@ -5,6 +5,7 @@
 #include "plcrt_master.h"
 
 #include <errno.h>
+#include <stdarg.h>
 #include <poll.h>
 #include <sys/socket.h>
 #include <stdio.h>
@@ -112,6 +113,37 @@ void plcrt_master_exchange_in(plcrt_t *rt, struct plcrt_master *m)
     pthread_mutex_unlock(&m->lock);
 }
 
+/* ------------------------------------------------------------------ rate-limited log */
+
+enum { LOG_CONNECTED, LOG_FAILING, LOG_RECOVERED, LOG_LENGTH };
+
+/* Logs a device's transition line unless one of the same kind was logged less than
+ * PLCRT_LOG_INTERVAL_NS ago (time now: virtual or monotonic); suppressed lines are counted
+ * and the count is appended to the next line of that kind. */
+static void log_limited(plcrt_t *rt, plcrt_device_t *d, int kind, uint64_t now, const char *fmt, ...)
+    __attribute__((format(printf, 5, 6)));
+static void log_limited(plcrt_t *rt, plcrt_device_t *d, int kind, uint64_t now, const char *fmt, ...)
+{
+    if (d->log_seen[kind] && now - d->log_last_ns[kind] < PLCRT_LOG_INTERVAL_NS) {
+        d->log_suppressed[kind]++;
+        return;
+    }
+    char line[520];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(line, sizeof line, fmt, ap);
+    va_end(ap);
+    if (d->log_suppressed[kind])
+        plcrt_log(rt, "%s (and %llu such lines not logged in the last %llu s)", line,
+                  (unsigned long long)d->log_suppressed[kind],
+                  (unsigned long long)(PLCRT_LOG_INTERVAL_NS / 1000000000ull));
+    else
+        plcrt_log(rt, "%s", line);
+    d->log_seen[kind] = 1;
+    d->log_last_ns[kind] = now;
+    d->log_suppressed[kind] = 0;
+}
+
 /* ------------------------------------------------------------------ transport */
 
 static void device_close(plcrt_device_t *d)
@@ -153,7 +185,7 @@ static int device_connect(plcrt_t *rt, struct plcrt_master *m, plcrt_device_t *d
         pthread_mutex_unlock(&m->lock);
         d->backoff_ns = 0;
         if (d->n_connects > 1 || d->failing)
-            plcrt_log(rt, "device %s: connected to %s:%d", d->name, d->host, d->port);
+            log_limited(rt, d, LOG_CONNECTED, now, "device %s: connected to %s:%d", d->name, d->host, d->port);
         return 0;
     }
     *err = errno;
@@ -310,16 +342,21 @@ static int range_request(plcrt_t *rt, struct plcrt_master *m, plcrt_range_t *r, 
     pthread_mutex_unlock(&m->lock);
     if (status == 0) {
         if (d->failing)
-            plcrt_log(rt, "device %s: requests succeed again (%llu errors so far)", d->name,
-                      (unsigned long long)d->n_errors);
+            log_limited(rt, d, LOG_RECOVERED, now, "device %s: requests succeed again (%llu errors so far)",
+                        d->name, (unsigned long long)d->n_errors);
         d->failing = 0;
         return 0;
     }
     char why[160];
     status_text(status, why, sizeof why);
     /* log transitions (and every 100th error), not every failed poll of a dead device */
-    if (!d->failing || d->n_errors % 100 == 0)
+    if (d->n_errors % 100 == 0)
         plcrt_log(rt, "device %s: %s %s %d+%d (range %s) failed: %s; %llu errors", d->name,
+                  r->is_write ? "write" : "read",
+                  r->table == 'h' ? "holding" : r->table == 'i' ? "input" : r->table == 'c' ? "coils" : "discrete",
+                  q->addr, q->count, r->name, why, (unsigned long long)d->n_errors);
+    else if (!d->failing)
+        log_limited(rt, d, LOG_FAILING, now, "device %s: %s %s %d+%d (range %s) failed: %s; %llu errors", d->name,
                   r->is_write ? "write" : "read",
                   r->table == 'h' ? "holding" : r->table == 'i' ? "input" : r->table == 'c' ? "coils" : "discrete",
                   q->addr, q->count, r->name, why, (unsigned long long)d->n_errors);
@@ -389,8 +426,8 @@ static void step(plcrt_t *rt, struct plcrt_master *m, uint64_t now, int writes_o
             pthread_mutex_lock(&m->lock);
             d->n_errors++;
             pthread_mutex_unlock(&m->lock);
-            plcrt_log(rt, "range %s: length word %%QW%d = %d is outside 1..%d", r->name, r->length,
-                      q.count, r->size);
+            log_limited(rt, d, LOG_LENGTH, now, "range %s: length word %%QW%d = %d is outside 1..%d",
+                        r->name, r->length, q.count, r->size);
             status = STATUS_TRANSPORT(EINVAL);
         } else {
             status = range_request(rt, m, r, &q, now);

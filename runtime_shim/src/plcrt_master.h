@@ -9,6 +9,7 @@
 
 #define PLCRT_NAME_MAX 64
 #define PLCRT_MAX_BITS 2000 /* FC1/FC2 limit; the largest range kind */
+#define PLCRT_LOG_INTERVAL_NS 60000000000ull /* at most one line per device and kind per 60 s */
 
 enum { POLICY_CYCLE, POLICY_CHANGE, POLICY_TRIGGER };
 enum { RESULT_NONE, RESULT_OK, RESULT_ERROR };
@@ -61,6 +62,10 @@ typedef struct plcrt_device {
     uint64_t n_stale; /* replies dropped: transaction id of an earlier request */
     uint16_t tid;     /* transaction id of the last request */
     int failing;     /* last request failed: log only transitions */
+    /* rate limit of the transition lines (LOG_* in plcrt_master.c): one per kind and
+     * PLCRT_LOG_INTERVAL_NS, the others counted and reported with the next one */
+    uint64_t log_last_ns[4], log_suppressed[4];
+    unsigned char log_seen[4];
     char last_error[160];
 } plcrt_device_t;
 

@@ -8,6 +8,7 @@
 #include <errno.h>
 #include <modbus.h>
 #include <netinet/in.h>
+#include <poll.h>
 #include <pthread.h>
 #include <sys/select.h>
 #include <sys/socket.h>
@@ -916,6 +917,53 @@ TEST(slave_malformed_and_trickling_clients_do_not_slow_the_scan)
     close(bad);
     close(slow);
     close(good);
+    plcrt_free(rt);
+}
+
+/* ------------------------------------------------------------------ log rate limit */
+
+typedef struct flapper { int listen_fd; volatile int stop; int accepted; } flapper_t;
+static void *flapper_thread(void *arg) /* accepts every connection and closes it at once */
+{
+    flapper_t *f = arg;
+    while (!f->stop) {
+        struct pollfd p = {f->listen_fd, POLLIN, 0};
+        if (poll(&p, 1, 50) != 1) continue;
+        int c = accept(f->listen_fd, NULL, NULL);
+        if (c >= 0) { close(c); f->accepted++; }
+    }
+    return NULL;
+}
+
+TEST(reconnect_lines_are_rate_limited_per_device)
+{
+    flapper_t f = {socket(AF_INET, SOCK_STREAM, 0), 0, 0};
+    struct sockaddr_in a = {0};
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    CHECK_EQ(bind(f.listen_fd, (struct sockaddr *)&a, sizeof a), 0);
+    CHECK_EQ(listen(f.listen_fd, 64), 0);
+    socklen_t len = sizeof a;
+    getsockname(f.listen_fd, (struct sockaddr *)&a, &len);
+    pthread_t th;
+    pthread_create(&th, NULL, flapper_thread, &f);
+    plcrt_t *rt = new_rt();
+    char cfg[512];
+    snprintf(cfg, sizeof cfg, "[master]\nreconnect_min = 10ms\n[device dev]\nhost = 127.0.0.1\n"
+             "port = %d\ntimeout = 100ms\n[read r]\ndevice = dev\nstart = 0\nsize = 1\nimage = %%IW500\n",
+             ntohs(a.sin_port));
+    CHECK_EQ(plcrt_load_config_text(rt, "t.cfg", cfg), 0);
+    plcrt_scan(rt, 12500); /* 125 s of virtual time: a connection every poll, each one fails */
+    uint64_t connects = 0;
+    plcrt_device_stats(rt, 0, NULL, NULL, &connects);
+    CHECK(connects > 500);
+    int lines = 0;
+    for (const char *p = log_buf; (p = strstr(p, "device dev: connected to")); p++) lines++;
+    CHECK_EQ(lines, 3); /* at 0.1 s, 60.x s, 120.x s */
+    CHECK_STR_CONTAINS(log_buf, "such lines not logged in the last 60 s)");
+    f.stop = 1;
+    pthread_join(th, NULL);
+    close(f.listen_fd);
     plcrt_free(rt);
 }
 
