@@ -281,8 +281,12 @@ int plcrt_load_config_text(plcrt_t *rt, const char *name, const char *text)
     plcrt_master_free(rt->master);
     rt->master = m;
     if (m->slave_enabled && !rt->slave &&
-        plcrt_slave_start(rt, m->slave_host, m->slave_port) != 0)
+        plcrt_slave_start(rt, m->slave_host, m->slave_port) != 0) {
+        char why[sizeof rt->err];
+        snprintf(why, sizeof why, "%s", rt->err);
+        plcrt_seterr(rt, "%s: error: [slave]: %s", name, why);
         return -1;
+    }
     if (m->slave_enabled &&
         plcrt_slave_set_timeouts(rt, m->slave_idle_ns ? m->slave_idle_ns : PLCRT_SLAVE_IDLE_TIMEOUT_NS,
                                  m->slave_byte_ns ? m->slave_byte_ns : PLCRT_SLAVE_BYTE_TIMEOUT_NS) != 0)
