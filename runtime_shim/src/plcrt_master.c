@@ -1,4 +1,4 @@
-/* Modbus TCP master: one raw request per range (modbus_send_raw_request, then the
+/* Modbus TCP master: one request per range (an MBAP frame with its own transaction id, then the
  * transport seam's after_send hook, then modbus_receive_confirmation), policies cycle /
  * change / trigger, reconnect with backoff. Data meet the image only in the exchange
  * functions, which the scan loop calls between scans. */
