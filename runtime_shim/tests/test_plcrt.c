@@ -817,6 +817,25 @@ TEST(slave_inter_byte_and_idle_timeouts_close_connections)
     plcrt_free(rt);
 }
 
+TEST(slave_timeouts_come_from_the_config)
+{
+    plcrt_t *rt = new_rt();
+    CHECK_EQ(plcrt_load_config_text(rt, "s.cfg", "[slave]\nport = 0\nbyte_timeout = 0\n"), -1);
+    CHECK_STR_CONTAINS(plcrt_errmsg(rt), "s.cfg:3: error: byte_timeout must be > 0");
+    CHECK_EQ(plcrt_load_config_text(rt, "s.cfg", "[slave]\nport = 0\nidle_timeout = 250ms\n"
+                                                 "byte_timeout = 20ms\n"), 0);
+    int idle = slave_pair(rt);
+    uint64_t t0 = ms_now(), gone = 0;
+    uint8_t r[16];
+    while (!gone && ms_now() - t0 < 5000) {
+        plcrt_slave_poll(rt, 10);
+        if (recv(idle, r, sizeof r, MSG_DONTWAIT) == 0) gone = ms_now() - t0;
+    }
+    CHECK(gone >= 250);
+    close(idle);
+    plcrt_free(rt);
+}
+
 static int tcp_connect(int port)
 {
     int fd = socket(AF_INET, SOCK_STREAM, 0);
