@@ -128,3 +128,10 @@ def test_build_can_rebuild_into_its_own_output(tmp_path):
         proc = build_cli("-o", tmp_path / "out", src)
         assert proc.returncode == 0, proc.stderr
     assert (tmp_path / "out" / "plc").is_file()
+
+
+@pytest.mark.parametrize("args", [[], ["-o", "x"], ["--bogus", "-o", "x", "a.st"]])
+def test_build_bad_command_line_is_one_line(args):
+    proc = build_cli(*args)
+    assert proc.returncode == 2, proc
+    assert proc.stderr.count("\n") == 1 and proc.stderr.startswith("plcrt-build: error: "), proc.stderr

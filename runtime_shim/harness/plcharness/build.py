@@ -414,7 +414,9 @@ def _prune_cache(cache: Path):
 def _check_outdir(outdir: Path):
     """outdir is replaced by the build: refuse anything that is not an earlier build's output
     (or an empty directory) rather than delete it; one line when it cannot be written."""
-    if outdir.is_symlink() or (outdir.exists() and not outdir.is_dir()):
+    if outdir.is_symlink():
+        raise BuildError(f"{outdir}: error: is a symbolic link: give the directory it points to")
+    if outdir.exists() and not outdir.is_dir():
         raise BuildError(f"{outdir}: error: exists and is not a directory")
     if outdir.is_dir():
         if any(outdir.iterdir()) and not ((outdir / "symbols.json").is_file() or (outdir / "gen").is_dir()):
@@ -563,8 +565,15 @@ def _build_into(sources, out: Path, compiler: str, cflags):
     (out / "symbols.json").write_text(json.dumps(meta, indent=1))
 
 
+class _OneLineParser(argparse.ArgumentParser):
+    """A bad command line is one line (argparse prints the usage too)."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
+
+
 def main(argv=None):
-    ap = argparse.ArgumentParser(prog="plcrt-build", description=__doc__.split("\n\n")[0])
+    ap = _OneLineParser(prog="plcrt-build", description=__doc__.split("\n\n")[0])
     ap.add_argument("-o", "--outdir", required=True)
     ap.add_argument("--compiler", default="auto", choices=["auto", "stc", "matiec"])
     ap.add_argument("sources", nargs="+")
