@@ -302,7 +302,8 @@ static void add_conn(struct plcrt_slave *s, int fd, uint64_t now)
 
 static void accept_all(struct plcrt_slave *s, uint64_t now)
 {
-    for (;;) {
+    /* a bounded number per pass: a flood of connections cannot hold up the served clients */
+    for (int n = 0; n < 16; n++) {
         int fd = accept4(s->listen_fd, NULL, NULL, SOCK_NONBLOCK | SOCK_CLOEXEC);
         if (fd < 0) return; /* EAGAIN, or a transient error (EMFILE, ECONNABORTED): next pass */
         add_conn(s, fd, now);
