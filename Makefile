@@ -27,7 +27,8 @@ include $(sort $(wildcard */part.mk))
 
 .PHONY: all venv test c-tests py-tests run bench clean
 
-all: venv $(BUILD_TARGETS)
+# everything pytest needs too (PYTEST_DEPS: e.g. the TC6 schema of the docs tests, the bench tools)
+all: venv $(BUILD_TARGETS) $(PYTEST_DEPS)
 
 # The venv is remade when the pinned requirements or a package's metadata change.
 venv: $(VENV_ABS)/.done

@@ -47,3 +47,26 @@ $(RT_BUILD)/bench_plcrt: $(RT_TEST_DIR)/bench_plcrt.c $(RT_TEST_DIR)/fakeprog/fa
 bench: runtime-bench
 runtime-bench: $(RT_BUILD)/bench_plcrt
 	$(RT_BUILD)/bench_plcrt
+
+# libFuzzer targets (clang, ASan + UBSan): the slave's request path (a byte stream as one client
+# connection) and the config parser. `make test` runs each briefly with a fixed seed from the
+# seed corpora in runtime_shim/fuzz/ (RT_FUZZ_RUNS); run one longer by hand, e.g.
+#   build/runtime_shim/fuzz_slave -max_total_time=600 build/runtime_shim/fuzz-slave
+FUZZ_CC      ?= clang
+RT_FUZZ_RUNS ?= 20000
+RT_FUZZ_SRC  := $(foreach f,$(RT_CORE),$(RT_SRC)/$(f).c) $(RT_SRC)/plcrt_glue.c $(RT_TEST_DIR)/fakeprog/fakeprog.c
+$(RT_BUILD)/fuzz_%: runtime_shim/fuzz/fuzz_%.c $(RT_FUZZ_SRC) $(RT_HEADERS)
+	@mkdir -p $(@D)
+	$(FUZZ_CC) -std=gnu11 -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined \
+	  -Iruntime_shim/include -I$(RT_TEST_DIR)/fakeprog $(shell pkg-config --cflags libmodbus) -o $@ \
+	  $< $(RT_FUZZ_SRC) $(RT_LIBS)
+
+.PHONY: runtime-fuzz
+C_TESTS += runtime-fuzz
+runtime-fuzz: $(RT_BUILD)/fuzz_slave $(RT_BUILD)/fuzz_config
+	@mkdir -p $(RESULTS)
+	@fail=0; for t in slave config; do \
+	  rm -rf $(RT_BUILD)/fuzz-ci-$$t && mkdir -p $(RT_BUILD)/fuzz-ci-$$t && \
+	  cp runtime_shim/fuzz/corpus_$$t/* $(RT_BUILD)/fuzz-ci-$$t/ && \
+	  runtime_shim/fuzz/run-ci.sh $(RT_BUILD)/fuzz_$$t $(RT_BUILD)/fuzz-ci-$$t $(RT_FUZZ_RUNS) \
+	    $(RESULTS)/runtime-fuzz-$$t.xml runtime.fuzz_$$t || fail=1; done; exit $$fail

@@ -73,6 +73,11 @@ uint64_t plcrt_scan_count(const plcrt_t *rt);
 int plcrt_load_config(plcrt_t *rt, const char *path);
 /* Like plcrt_load_config, from a string (name is used in messages). */
 int plcrt_load_config_text(plcrt_t *rt, const char *name, const char *text);
+/* Like plcrt_load_config, from len bytes: refused when larger than PLCRT_CONFIG_MAX or
+ * when they contain a NUL byte. plcrt_load_config reads regular files only (directories,
+ * devices, FIFOs are refused before reading) and at most PLCRT_CONFIG_MAX + 1 bytes. */
+#define PLCRT_CONFIG_MAX (1 << 20)
+int plcrt_load_config_mem(plcrt_t *rt, const char *name, const void *data, size_t len);
 
 /* One scan in virtual time: I/O phase (Modbus in/out, handshakes) → forces → program
  * → forces → advance time by the tick. n scans. */
@@ -123,6 +128,9 @@ const char *plcrt_device_name(const plcrt_t *rt, int i);
 /* Counters of a device: failed requests, successful requests, reconnects. */
 int plcrt_device_stats(const plcrt_t *rt, int i, uint64_t *errors, uint64_t *requests,
                        uint64_t *connects);
+/* Replies the master dropped because their transaction id was not the one of the request
+ * (late or duplicated answers); logged the first time and every 100th. */
+uint64_t plcrt_device_dropped_replies(const plcrt_t *rt, int i);
 
 /* ---- Modbus slave (optional) ---- */
 /* Serve the image (holding 0-1023 = %QW, 1024-2047 = %MW, input registers = %IW,
@@ -131,6 +139,27 @@ int plcrt_device_stats(const plcrt_t *rt, int i, uint64_t *errors, uint64_t *req
  * phase of each scan; in real-time mode by a thread. */
 int plcrt_slave_start(plcrt_t *rt, const char *host, int port);
 int plcrt_slave_port(const plcrt_t *rt);
+/* Up to PLCRT_SLAVE_MAX_CLIENTS connections; a new one beyond replaces the connection
+ * that has been quiet longest. A connection is closed after idle_ns without a byte
+ * (no request under way) or byte_ns between two bytes of one request. */
+#define PLCRT_SLAVE_MAX_CLIENTS 128
+#define PLCRT_SLAVE_IDLE_TIMEOUT_NS 60000000000ull /* 60 s */
+#define PLCRT_SLAVE_BYTE_TIMEOUT_NS 1000000000ull  /* 1 s */
+int plcrt_slave_set_timeouts(plcrt_t *rt, uint64_t idle_ns, uint64_t byte_ns);
+typedef struct plcrt_slave_stats {
+    uint64_t clients;    /* connections open now */
+    uint64_t accepted;   /* connections accepted */
+    uint64_t requests;   /* requests answered (exceptions included) */
+    uint64_t exceptions; /* answered with a Modbus exception */
+    uint64_t closed;     /* closed by the client */
+    uint64_t timeouts;   /* closed by the idle or inter-byte timeout */
+    uint64_t bad_frames; /* closed: MBAP header not Modbus TCP (protocol id, length) */
+    uint64_t evicted;    /* closed to make room for a new connection */
+} plcrt_slave_stats_t;
+int plcrt_slave_stats(const plcrt_t *rt, plcrt_slave_stats_t *out);
+/* Serves an already connected stream socket (made non-blocking) as one more client, e.g.
+ * one end of a socketpair(); the slave closes it. Virtual mode only (tests, fuzzing). */
+int plcrt_slave_add_client(plcrt_t *rt, int fd);
 /* Serves pending slave requests now (virtual mode; called by plcrt_scan too). */
 int plcrt_slave_poll(plcrt_t *rt, int timeout_ms);
 

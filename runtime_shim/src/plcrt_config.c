@@ -294,7 +294,7 @@ static int parse_plcrt(parser_t *p, char *text)
     device_keys_t dk;
     int master_seen = 0, slave_seen = 0;
     int master_keys[4] = {0};
-    int slave_keys[2] = {0};
+    int slave_keys[4] = {0};
     uint64_t default_poll = 100000000ull, default_timeout = 1000000000ull;
     memset(&rk, 0, sizeof rk);
     memset(&dk, 0, sizeof dk);
@@ -415,8 +415,14 @@ static int parse_plcrt(parser_t *p, char *text)
                 slot = &slave_keys[1];
                 if (parse_int(p, lineno, key, val, 0, 65535, &x)) return -1;
                 m->slave_port = (int)x;
+            } else if (!strcmp(key, "idle_timeout") || !strcmp(key, "byte_timeout")) {
+                int idle = key[0] == 'i';
+                uint64_t *ns = idle ? &m->slave_idle_ns : &m->slave_byte_ns;
+                slot = &slave_keys[idle ? 2 : 3];
+                if (parse_duration(p, lineno, key, val, ns)) return -1;
+                if (*ns == 0) return perr(p, lineno, "%s must be > 0", key);
             } else
-                return perr(p, lineno, "unknown key '%s' in [slave] (host, port)", key);
+                return perr(p, lineno, "unknown key '%s' in [slave] (host, port, idle_timeout, byte_timeout)", key);
             break;
         case SEC_DEVICE:
             if (!strcmp(key, "host")) {

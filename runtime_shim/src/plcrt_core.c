@@ -6,6 +6,9 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 void plcrt_seterr(plcrt_t *rt, const char *fmt, ...)
 {
@@ -278,37 +281,91 @@ int plcrt_load_config_text(plcrt_t *rt, const char *name, const char *text)
     plcrt_master_free(rt->master);
     rt->master = m;
     if (m->slave_enabled && !rt->slave &&
-        plcrt_slave_start(rt, m->slave_host, m->slave_port) != 0)
+        plcrt_slave_start(rt, m->slave_host, m->slave_port) != 0) {
+        char why[sizeof rt->err];
+        snprintf(why, sizeof why, "%s", rt->err);
+        plcrt_seterr(rt, "%s: error: [slave]: %s", name, why);
+        return -1;
+    }
+    if (m->slave_enabled &&
+        plcrt_slave_set_timeouts(rt, m->slave_idle_ns ? m->slave_idle_ns : PLCRT_SLAVE_IDLE_TIMEOUT_NS,
+                                 m->slave_byte_ns ? m->slave_byte_ns : PLCRT_SLAVE_BYTE_TIMEOUT_NS) != 0)
         return -1;
     return 0;
 }
 
+int plcrt_load_config_mem(plcrt_t *rt, const char *name, const void *data, size_t len)
+{
+    if (len > PLCRT_CONFIG_MAX) {
+        plcrt_seterr(rt, "%s: error: larger than %d bytes: not a config file", name, PLCRT_CONFIG_MAX);
+        return -1;
+    }
+    const char *nul = memchr(data, 0, len);
+    if (nul) {
+        int line = 1;
+        for (const char *c = data; c < nul; c++) line += *c == '\n';
+        plcrt_seterr(rt, "%s:%d: error: NUL byte: not a text file", name, line);
+        return -1;
+    }
+    char *buf = malloc(len + 1);
+    if (!buf) {
+        plcrt_seterr(rt, "%s: error: out of memory", name);
+        return -1;
+    }
+    memcpy(buf, data, len);
+    buf[len] = 0;
+    int rc = plcrt_load_config_text(rt, name, buf);
+    free(buf);
+    return rc;
+}
+
 int plcrt_load_config(plcrt_t *rt, const char *path)
 {
-    FILE *f = fopen(path, "rb");
-    if (!f) {
+    /* O_NONBLOCK: opening a FIFO must not wait for a writer; only regular files are read */
+    int fd = open(path, O_RDONLY | O_CLOEXEC | O_NONBLOCK);
+    if (fd < 0) {
         plcrt_seterr(rt, "%s: error: cannot open: %s", path, strerror(errno));
         return -1;
     }
-    size_t cap = 4096, len = 0;
-    char *buf = malloc(cap);
-    size_t got;
-    while (buf && (got = fread(buf + len, 1, cap - len - 1, f)) > 0) {
-        len += got;
-        if (cap - len < 2) {
-            char *nb = realloc(buf, cap * 2);
-            if (!nb) { free(buf); buf = NULL; break; }
-            buf = nb;
-            cap *= 2;
-        }
-    }
-    fclose(f);
-    if (!buf) {
-        plcrt_seterr(rt, "%s: error: out of memory", path);
+    struct stat st;
+    if (fstat(fd, &st) != 0) {
+        plcrt_seterr(rt, "%s: error: cannot stat: %s", path, strerror(errno));
+        close(fd);
         return -1;
     }
-    buf[len] = 0;
-    int rc = plcrt_load_config_text(rt, path, buf);
+    if (!S_ISREG(st.st_mode)) {
+        plcrt_seterr(rt, "%s: error: %s, not a config file", path,
+                     S_ISDIR(st.st_mode) ? "a directory" : "not a regular file");
+        close(fd);
+        return -1;
+    }
+    if (st.st_size > PLCRT_CONFIG_MAX) {
+        plcrt_seterr(rt, "%s: error: larger than %d bytes (%lld): not a config file", path,
+                     PLCRT_CONFIG_MAX, (long long)st.st_size);
+        close(fd);
+        return -1;
+    }
+    /* read at most one byte past the limit: a file that grows meanwhile is still refused */
+    char *buf = malloc(PLCRT_CONFIG_MAX + 1);
+    if (!buf) {
+        plcrt_seterr(rt, "%s: error: out of memory", path);
+        close(fd);
+        return -1;
+    }
+    size_t len = 0;
+    for (;;) {
+        ssize_t got = read(fd, buf + len, PLCRT_CONFIG_MAX + 1 - len);
+        if (got < 0 && errno == EINTR) continue;
+        if (got < 0) {
+            plcrt_seterr(rt, "%s: error: cannot read: %s", path, strerror(errno));
+            free(buf);
+            close(fd);
+            return -1;
+        }
+        if (got == 0 || (len += (size_t)got) > PLCRT_CONFIG_MAX) break;
+    }
+    close(fd);
+    int rc = plcrt_load_config_mem(rt, path, buf, len);
     free(buf);
     return rc;
 }

@@ -59,5 +59,9 @@ int plcrt_master_is_empty(const struct plcrt_master *m);
 void plcrt_slave_free(struct plcrt_slave *s);
 int plcrt_slave_start_thread(plcrt_t *rt);
 void plcrt_slave_stop_thread(plcrt_t *rt);
+/* Answers one complete Modbus TCP ADU (MBAP + PDU) into reply (260 bytes); its length, or
+ * -1 when the MBAP header is not Modbus TCP. lock: take image_lock for the copy. */
+int plcrt_slave_process_adu(plcrt_t *rt, const uint8_t *adu, size_t len, uint8_t *reply, int lock);
+
 
 #endif

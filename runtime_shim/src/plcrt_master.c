@@ -1,10 +1,13 @@
-/* Modbus TCP master: one raw request per range (modbus_send_raw_request, then the
+/* Modbus TCP master: one request per range (an MBAP frame with its own transaction id, then the
  * transport seam's after_send hook, then modbus_receive_confirmation), policies cycle /
  * change / trigger, reconnect with backoff. Data meet the image only in the exchange
  * functions, which the scan loop calls between scans. */
 #include "plcrt_master.h"
 
 #include <errno.h>
+#include <stdarg.h>
+#include <poll.h>
+#include <sys/socket.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -110,6 +113,37 @@ void plcrt_master_exchange_in(plcrt_t *rt, struct plcrt_master *m)
     pthread_mutex_unlock(&m->lock);
 }
 
+/* ------------------------------------------------------------------ rate-limited log */
+
+enum { LOG_CONNECTED, LOG_FAILING, LOG_RECOVERED, LOG_LENGTH };
+
+/* Logs a device's transition line unless one of the same kind was logged less than
+ * PLCRT_LOG_INTERVAL_NS ago (time now: virtual or monotonic); suppressed lines are counted
+ * and the count is appended to the next line of that kind. */
+static void log_limited(plcrt_t *rt, plcrt_device_t *d, int kind, uint64_t now, const char *fmt, ...)
+    __attribute__((format(printf, 5, 6)));
+static void log_limited(plcrt_t *rt, plcrt_device_t *d, int kind, uint64_t now, const char *fmt, ...)
+{
+    if (d->log_seen[kind] && now - d->log_last_ns[kind] < PLCRT_LOG_INTERVAL_NS) {
+        d->log_suppressed[kind]++;
+        return;
+    }
+    char line[520];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(line, sizeof line, fmt, ap);
+    va_end(ap);
+    if (d->log_suppressed[kind])
+        plcrt_log(rt, "%s (and %llu such lines not logged in the last %llu s)", line,
+                  (unsigned long long)d->log_suppressed[kind],
+                  (unsigned long long)(PLCRT_LOG_INTERVAL_NS / 1000000000ull));
+    else
+        plcrt_log(rt, "%s", line);
+    d->log_seen[kind] = 1;
+    d->log_last_ns[kind] = now;
+    d->log_suppressed[kind] = 0;
+}
+
 /* ------------------------------------------------------------------ transport */
 
 static void device_close(plcrt_device_t *d)
@@ -151,7 +185,7 @@ static int device_connect(plcrt_t *rt, struct plcrt_master *m, plcrt_device_t *d
         pthread_mutex_unlock(&m->lock);
         d->backoff_ns = 0;
         if (d->n_connects > 1 || d->failing)
-            plcrt_log(rt, "device %s: connected to %s:%d", d->name, d->host, d->port);
+            log_limited(rt, d, LOG_CONNECTED, now, "device %s: connected to %s:%d", d->name, d->host, d->port);
         return 0;
     }
     *err = errno;
@@ -164,6 +198,63 @@ static int device_connect(plcrt_t *rt, struct plcrt_master *m, plcrt_device_t *d
 static void put16(uint8_t *p, int v) { p[0] = (uint8_t)(v >> 8); p[1] = (uint8_t)v; }
 static int get16(const uint8_t *p) { return (p[0] << 8) | p[1]; }
 
+/* Sends unit id + PDU with an MBAP header of our own: libmodbus's modbus_send_raw_request
+ * always sends transaction id 0, so a stale reply could not be told from the right one. */
+static int send_adu(plcrt_device_t *d, const uint8_t *req, int n, uint16_t *tid)
+{
+    uint8_t adu[MODBUS_TCP_MAX_ADU_LENGTH];
+    d->tid = (uint16_t)(d->tid + 1) ? (uint16_t)(d->tid + 1) : 1;
+    *tid = d->tid;
+    put16(adu, d->tid);
+    put16(adu + 2, 0);
+    put16(adu + 4, n);
+    memcpy(adu + 6, req, (size_t)n);
+    int fd = modbus_get_socket(d->ctx);
+    for (int off = 0; off < n + 6;) {
+        ssize_t k = send(fd, adu + off, (size_t)(n + 6 - off), MSG_NOSIGNAL);
+        if (k < 0 && errno == EINTR) continue;
+        if (k < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) {
+            struct pollfd p = {fd, POLLOUT, 0};
+            if (poll(&p, 1, (int)(d->timeout_ns / 1000000ull) + 1) == 1) continue;
+            errno = ETIMEDOUT;
+            return -1;
+        }
+        if (k <= 0) return -1;
+        off += (int)k;
+    }
+    return 0;
+}
+
+/* Receives the reply with transaction id tid within the device's timeout; replies with
+ * another id (late or duplicated answers to earlier requests) are dropped and counted. */
+static int receive_reply(struct plcrt_master *m, plcrt_device_t *d, uint16_t tid, uint8_t *rsp)
+{
+    uint64_t deadline = plcrt_monotonic_ns() + d->timeout_ns;
+    int len;
+    for (;;) {
+        len = modbus_receive_confirmation(d->ctx, rsp);
+        if (len < 2 || get16(rsp) == tid) break;
+        pthread_mutex_lock(&m->lock);
+        uint64_t n = ++d->n_stale;
+        pthread_mutex_unlock(&m->lock);
+        if (n == 1 || n % 100 == 0)
+            plcrt_log(m->rt, "device %s: dropped a reply with transaction id %d, expected %d "
+                      "(%llu dropped so far)", d->name, get16(rsp), tid, (unsigned long long)n);
+        uint64_t now = plcrt_monotonic_ns();
+        if (now >= deadline) {
+            errno = ETIMEDOUT;
+            len = -1;
+            break;
+        }
+        uint64_t left = deadline - now; /* the drops do not extend the timeout */
+        modbus_set_response_timeout(d->ctx, (uint32_t)(left / 1000000000ull),
+                                    (uint32_t)((left % 1000000000ull) / 1000));
+    }
+    modbus_set_response_timeout(d->ctx, (uint32_t)(d->timeout_ns / 1000000000ull),
+                                (uint32_t)((d->timeout_ns % 1000000000ull) / 1000));
+    return len;
+}
+
 typedef struct request {
     int fc, addr, count;
     uint16_t data[PLCRT_MAX_BITS]; /* write data in, read data out */
@@ -171,7 +262,7 @@ typedef struct request {
 
 /* One request over the device's transport. Returns 0, or the status for the program:
  * a Modbus exception code 1..255, or 1000+errno for transport errors (then *transport = 1). */
-static int do_request(plcrt_device_t *d, request_t *q, int *transport)
+static int do_request(struct plcrt_master *m, plcrt_device_t *d, request_t *q, int *transport)
 {
     uint8_t req[MODBUS_TCP_MAX_ADU_LENGTH];
     uint8_t rsp[MODBUS_TCP_MAX_ADU_LENGTH];
@@ -192,12 +283,13 @@ static int do_request(plcrt_device_t *d, request_t *q, int *transport)
             if (q->data[i]) req[n + i / 8] |= (uint8_t)(1u << (i % 8));
         n += bytes;
     }
-    if (modbus_send_raw_request(d->ctx, req, n) < 0) {
+    uint16_t tid = 0;
+    if (send_adu(d, req, n, &tid) < 0) {
         *transport = 1;
         return STATUS_TRANSPORT(errno);
     }
     if (d->after_send) d->after_send(d->after_send_user);
-    int len = modbus_receive_confirmation(d->ctx, rsp);
+    int len = receive_reply(m, d, tid, rsp);
     if (len < 0) {
         *transport = 1;
         return STATUS_TRANSPORT(errno);
@@ -242,7 +334,7 @@ static int range_request(plcrt_t *rt, struct plcrt_master *m, plcrt_range_t *r, 
         status = STATUS_TRANSPORT(err);
         transport = 1;
     } else {
-        status = do_request(d, q, &transport);
+        status = do_request(m, d, q, &transport);
     }
     pthread_mutex_lock(&m->lock); /* counters and state are read by the exchange */
     d->n_requests++;
@@ -250,16 +342,21 @@ static int range_request(plcrt_t *rt, struct plcrt_master *m, plcrt_range_t *r, 
     pthread_mutex_unlock(&m->lock);
     if (status == 0) {
         if (d->failing)
-            plcrt_log(rt, "device %s: requests succeed again (%llu errors so far)", d->name,
-                      (unsigned long long)d->n_errors);
+            log_limited(rt, d, LOG_RECOVERED, now, "device %s: requests succeed again (%llu errors so far)",
+                        d->name, (unsigned long long)d->n_errors);
         d->failing = 0;
         return 0;
     }
     char why[160];
     status_text(status, why, sizeof why);
     /* log transitions (and every 100th error), not every failed poll of a dead device */
-    if (!d->failing || d->n_errors % 100 == 0)
+    if (d->n_errors % 100 == 0)
         plcrt_log(rt, "device %s: %s %s %d+%d (range %s) failed: %s; %llu errors", d->name,
+                  r->is_write ? "write" : "read",
+                  r->table == 'h' ? "holding" : r->table == 'i' ? "input" : r->table == 'c' ? "coils" : "discrete",
+                  q->addr, q->count, r->name, why, (unsigned long long)d->n_errors);
+    else if (!d->failing)
+        log_limited(rt, d, LOG_FAILING, now, "device %s: %s %s %d+%d (range %s) failed: %s; %llu errors", d->name,
                   r->is_write ? "write" : "read",
                   r->table == 'h' ? "holding" : r->table == 'i' ? "input" : r->table == 'c' ? "coils" : "discrete",
                   q->addr, q->count, r->name, why, (unsigned long long)d->n_errors);
@@ -329,8 +426,8 @@ static void step(plcrt_t *rt, struct plcrt_master *m, uint64_t now, int writes_o
             pthread_mutex_lock(&m->lock);
             d->n_errors++;
             pthread_mutex_unlock(&m->lock);
-            plcrt_log(rt, "range %s: length word %%QW%d = %d is outside 1..%d", r->name, r->length,
-                      q.count, r->size);
+            log_limited(rt, d, LOG_LENGTH, now, "range %s: length word %%QW%d = %d is outside 1..%d",
+                        r->name, r->length, q.count, r->size);
             status = STATUS_TRANSPORT(EINVAL);
         } else {
             status = range_request(rt, m, r, &q, now);
@@ -473,4 +570,14 @@ int plcrt_device_stats(const plcrt_t *rt, int i, uint64_t *errors, uint64_t *req
     if (connects) *connects = d->n_connects;
     pthread_mutex_unlock(&m->lock);
     return 0;
+}
+
+uint64_t plcrt_device_dropped_replies(const plcrt_t *rt, int i)
+{
+    if (!rt->master || i < 0 || i >= rt->master->n_devices) return 0;
+    struct plcrt_master *m = rt->master;
+    pthread_mutex_lock(&m->lock);
+    uint64_t n = m->devices[i].n_stale;
+    pthread_mutex_unlock(&m->lock);
+    return n;
 }

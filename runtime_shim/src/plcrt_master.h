@@ -9,6 +9,7 @@
 
 #define PLCRT_NAME_MAX 64
 #define PLCRT_MAX_BITS 2000 /* FC1/FC2 limit; the largest range kind */
+#define PLCRT_LOG_INTERVAL_NS 60000000000ull /* at most one line per device and kind per 60 s */
 
 enum { POLICY_CYCLE, POLICY_CHANGE, POLICY_TRIGGER };
 enum { RESULT_NONE, RESULT_OK, RESULT_ERROR };
@@ -58,7 +59,13 @@ typedef struct plcrt_device {
     void *after_send_user;
     uint64_t next_connect_ns, backoff_ns;
     uint64_t n_errors, n_requests, n_connects;
+    uint64_t n_stale; /* replies dropped: transaction id of an earlier request */
+    uint16_t tid;     /* transaction id of the last request */
     int failing;     /* last request failed: log only transitions */
+    /* rate limit of the transition lines (LOG_* in plcrt_master.c): one per kind and
+     * PLCRT_LOG_INTERVAL_NS, the others counted and reported with the next one */
+    uint64_t log_last_ns[4], log_suppressed[4];
+    unsigned char log_seen[4];
     char last_error[160];
 } plcrt_device_t;
 
@@ -71,6 +78,7 @@ struct plcrt_master {
     int slave_enabled;
     char slave_host[256];
     int slave_port;
+    uint64_t slave_idle_ns, slave_byte_ns; /* 0 = default */
 
     pthread_mutex_t lock;
     pthread_cond_t wake;

@@ -8,9 +8,11 @@
 #include <errno.h>
 #include <modbus.h>
 #include <netinet/in.h>
+#include <poll.h>
 #include <pthread.h>
 #include <sys/select.h>
 #include <sys/socket.h>
+#include <time.h>
 #include <unistd.h>
 
 extern uint32_t fake_fast_count, fake_slow_count;
@@ -634,6 +636,353 @@ TEST(slave_exposes_the_image_like_openplc)
     CHECK_EQ(plcrt_image(rt)->mw[8], 5678);
     CHECK_EQ(job.got[0], 9);
     CHECK_EQ(job.got[1], 10);
+    plcrt_free(rt);
+}
+
+
+/* ------------------------------------------------------------------ master: transaction ids */
+
+typedef struct dup_server { int fd; int requests; int duplicate_first; } dup_server_t;
+
+/* answers each request with holding register a = 1000 + a; the first reply is sent twice */
+static void answer_with_duplicate(void *user)
+{
+    dup_server_t *t = user;
+    uint8_t q[300], r[300];
+    if (read(t->fd, q, 7) != 7) return;
+    int len = (q[4] << 8) | q[5];
+    if (read(t->fd, q + 7, (size_t)(len - 1)) != len - 1) return;
+    int addr = (q[8] << 8) | q[9], count = (q[10] << 8) | q[11];
+    memcpy(r, q, 7);
+    r[7] = 3;
+    r[8] = (uint8_t)(2 * count);
+    for (int i = 0; i < count; i++) {
+        r[9 + 2 * i] = (uint8_t)((1000 + addr + i) >> 8);
+        r[10 + 2 * i] = (uint8_t)(1000 + addr + i);
+    }
+    int n = 9 + 2 * count;
+    r[4] = 0;
+    r[5] = (uint8_t)(n - 6);
+    if (write(t->fd, r, (size_t)n) != n) return;
+    if (t->requests++ == 0 && t->duplicate_first && write(t->fd, r, (size_t)n) != n) return;
+}
+
+TEST(master_drops_a_duplicated_reply_by_its_transaction_id)
+{
+    int sv[2];
+    CHECK_EQ(socketpair(AF_UNIX, SOCK_STREAM, 0, sv), 0);
+    dup_server_t t = {sv[1], 0, 1};
+    plcrt_t *rt = new_rt();
+    CHECK_EQ(config_for(rt, 1, "[read a]\ndevice = dev\nstart = 0\nsize = 2\nimage = %IW500\n"
+                               "[read b]\ndevice = dev\nstart = 10\nsize = 2\nimage = %IW510\n"), 0);
+    CHECK_EQ(plcrt_device_set_fd(rt, "dev", sv[0], answer_with_duplicate, &t), 0);
+    plcrt_scan(rt, 1);
+    /* range b gets its own data, not the duplicate of a's reply that came first */
+    CHECK_EQ(plcrt_image(rt)->iw[500], 1000);
+    CHECK_EQ(plcrt_image(rt)->iw[501], 1001);
+    CHECK_EQ(plcrt_image(rt)->iw[510], 1010);
+    CHECK_EQ(plcrt_image(rt)->iw[511], 1011);
+    CHECK_EQ(plcrt_device_dropped_replies(rt, 0), 1);
+    uint64_t errors = 9;
+    plcrt_device_stats(rt, 0, &errors, NULL, NULL);
+    CHECK_EQ(errors, 0);
+    CHECK_STR_CONTAINS(log_buf, "device dev: dropped a reply with transaction id 1, expected 2 (1 dropped so far)");
+    plcrt_scan(rt, 10); /* next poll: in step again */
+    CHECK_EQ(plcrt_image(rt)->iw[510], 1010);
+    CHECK_EQ(plcrt_device_dropped_replies(rt, 0), 1);
+    plcrt_free(rt);
+    close(sv[0]);
+    close(sv[1]);
+}
+
+/* ------------------------------------------------------------------ slave: hostile clients */
+
+static uint64_t ms_now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (uint64_t)ts.tv_sec * 1000 + (uint64_t)ts.tv_nsec / 1000000;
+}
+
+/* a slave client over a socketpair: the test holds the other end */
+static int slave_pair(plcrt_t *rt)
+{
+    int sv[2];
+    if (socketpair(AF_UNIX, SOCK_STREAM, 0, sv) != 0) return -1;
+    if (plcrt_slave_add_client(rt, sv[0]) != 0) return -1;
+    return sv[1];
+}
+
+/* sends an ADU (unit id + PDU given), serves it, returns the reply length (0: none) */
+static int slave_ask(plcrt_t *rt, int fd, uint16_t tid, const uint8_t *pdu, int n, uint8_t *rsp)
+{
+    uint8_t q[300] = {(uint8_t)(tid >> 8), (uint8_t)tid, 0, 0, 0, (uint8_t)(n + 1), 1};
+    memcpy(q + 7, pdu, (size_t)n);
+    if (write(fd, q, (size_t)n + 7) != n + 7) return -1;
+    plcrt_slave_poll(rt, 0);
+    struct timeval tv = {0, 200000};
+    setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+    int k = (int)read(fd, rsp, 300);
+    return k < 0 ? 0 : k;
+}
+
+TEST(slave_answers_bad_requests_with_modbus_exceptions)
+{
+    plcrt_t *rt = new_rt();
+    CHECK_EQ(plcrt_slave_start(rt, "127.0.0.1", 0), 0);
+    int fd = slave_pair(rt);
+    CHECK(fd >= 0);
+    uint8_t r[300];
+    struct { uint8_t pdu[16]; int n; int exc; } cases[] = {
+        {{0x2B, 0x0E, 0x01, 0x00}, 4, 1},          /* read device id: illegal function */
+        {{0x08, 0, 0, 0x12, 0x34}, 5, 1},          /* diagnostics: illegal function */
+        {{3, 0x07, 0xF8, 0, 10}, 5, 2},            /* holding 2040+10 > 2048: illegal address */
+        {{4, 0x04, 0x00, 0, 1}, 5, 2},             /* input register 1024 */
+        {{3, 0, 0, 0, 126}, 5, 3},                 /* 126 registers: illegal value */
+        {{3, 0, 0, 0, 0}, 5, 3},                   /* 0 registers */
+        {{1, 0, 0, 0x07, 0xD1}, 5, 3},             /* 2001 coils */
+        {{5, 0, 1, 0x12, 0x34}, 5, 3},             /* coil value neither 0 nor FF00 */
+        {{16, 0, 0, 0, 2, 3, 0, 1, 0, 2}, 10, 3},  /* byte count 3 for 2 registers */
+        {{3, 0, 0}, 3, 3},                         /* truncated PDU */
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        int k = slave_ask(rt, fd, (uint16_t)(100 + i), cases[i].pdu, cases[i].n, r);
+        CHECK_EQ(k, 9);
+        CHECK_EQ((r[0] << 8) | r[1], (int)(100 + i)); /* transaction id echoed */
+        CHECK_EQ(r[7], cases[i].pdu[0] | 0x80);
+        CHECK_EQ(r[8], cases[i].exc);
+    }
+    /* the connection still works */
+    plcrt_image(rt)->mw[3] = 4242;
+    uint8_t ok[] = {3, 0x04, 0x03, 0, 1};
+    CHECK_EQ(slave_ask(rt, fd, 7, ok, 5, r), 11);
+    CHECK_EQ((r[9] << 8) | r[10], 4242);
+    uint8_t coil[] = {5, 0, 17, 0xFF, 0};
+    CHECK_EQ(slave_ask(rt, fd, 8, coil, 5, r), 12);
+    CHECK_EQ(plcrt_image(rt)->qx[2][1], 1);
+    plcrt_slave_stats_t st;
+    CHECK_EQ(plcrt_slave_stats(rt, &st), 0);
+    CHECK_EQ(st.exceptions, 10);
+    CHECK_EQ(st.requests, 12);
+    close(fd);
+    plcrt_free(rt);
+}
+
+TEST(slave_closes_a_connection_that_is_not_modbus_tcp)
+{
+    plcrt_t *rt = new_rt();
+    CHECK_EQ(plcrt_slave_start(rt, "127.0.0.1", 0), 0);
+    int fd = slave_pair(rt);
+    const char junk[] = "GET / HTTP/1.0\r\n\r\n"; /* protocol id 'T','/' */
+    CHECK_EQ(write(fd, junk, sizeof junk - 1), (ssize_t)(sizeof junk - 1));
+    plcrt_slave_poll(rt, 0);
+    uint8_t r[16];
+    CHECK(read(fd, r, sizeof r) <= 0); /* closed (or reset) without an answer */
+    plcrt_slave_stats_t st;
+    plcrt_slave_stats(rt, &st);
+    CHECK_EQ(st.bad_frames, 1);
+    CHECK_EQ(st.clients, 0);
+    close(fd);
+    plcrt_free(rt);
+}
+
+TEST(slave_inter_byte_and_idle_timeouts_close_connections)
+{
+    plcrt_t *rt = new_rt();
+    CHECK_EQ(plcrt_slave_start(rt, "127.0.0.1", 0), 0);
+    CHECK_EQ(plcrt_slave_set_timeouts(rt, 600000000ull, 50000000ull), 0); /* 600 ms, 50 ms */
+    int stalled = slave_pair(rt), idle = slave_pair(rt), busy = slave_pair(rt);
+    uint8_t part[] = {0, 1, 0, 0, 0, 6, 1, 3}; /* a request cut after its function code */
+    CHECK_EQ(write(stalled, part, sizeof part), (ssize_t)sizeof part);
+    plcrt_slave_stats_t st = {0};
+    uint8_t r[300], rd[] = {3, 0, 0, 0, 1};
+    uint64_t t0 = ms_now(), stalled_gone = 0, idle_gone = 0;
+    /* the stalled request goes after 50 ms, the idle client after 600 ms; the busy one asks
+     * every 20 ms and stays (up to 5 s: a busy machine only makes it slower) */
+    while (ms_now() - t0 < 5000 && !(stalled_gone && idle_gone)) {
+        CHECK_EQ(slave_ask(rt, busy, 1, rd, 5, r), 11);
+        usleep(20000);
+        plcrt_slave_poll(rt, 0);
+        if (!stalled_gone && recv(stalled, r, sizeof r, MSG_DONTWAIT) == 0) stalled_gone = ms_now() - t0;
+        if (!idle_gone && recv(idle, r, sizeof r, MSG_DONTWAIT) == 0) idle_gone = ms_now() - t0;
+    }
+    CHECK(stalled_gone >= 50 && stalled_gone < idle_gone);
+    CHECK(idle_gone >= 600);
+    plcrt_slave_stats(rt, &st);
+    CHECK_EQ(st.timeouts, 2);
+    CHECK_EQ(st.clients, 1);
+    close(stalled);
+    close(idle);
+    close(busy);
+    plcrt_free(rt);
+}
+
+TEST(slave_timeouts_come_from_the_config)
+{
+    plcrt_t *rt = new_rt();
+    CHECK_EQ(plcrt_load_config_text(rt, "s.cfg", "[slave]\nport = 0\nbyte_timeout = 0\n"), -1);
+    CHECK_STR_CONTAINS(plcrt_errmsg(rt), "s.cfg:3: error: byte_timeout must be > 0");
+    CHECK_EQ(plcrt_load_config_text(rt, "s.cfg", "[slave]\nport = 0\nidle_timeout = 250ms\n"
+                                                 "byte_timeout = 20ms\n"), 0);
+    int idle = slave_pair(rt);
+    uint64_t t0 = ms_now(), gone = 0;
+    uint8_t r[16];
+    while (!gone && ms_now() - t0 < 5000) {
+        plcrt_slave_poll(rt, 10);
+        if (recv(idle, r, sizeof r, MSG_DONTWAIT) == 0) gone = ms_now() - t0;
+    }
+    CHECK(gone >= 250);
+    close(idle);
+    plcrt_free(rt);
+}
+
+static int tcp_connect(int port)
+{
+    int fd = socket(AF_INET, SOCK_STREAM, 0);
+    struct sockaddr_in a = {0};
+    a.sin_family = AF_INET;
+    a.sin_port = htons((uint16_t)port);
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    if (connect(fd, (struct sockaddr *)&a, sizeof a) != 0) { close(fd); return -1; }
+    return fd;
+}
+
+TEST(slave_serves_64_idle_clients_and_one_more)
+{
+    plcrt_t *rt = new_rt();
+    CHECK_EQ(plcrt_slave_start(rt, "127.0.0.1", 0), 0);
+    int port = plcrt_slave_port(rt);
+    int fds[PLCRT_SLAVE_MAX_CLIENTS + 1];
+    for (int i = 0; i < 64; i++) {
+        fds[i] = tcp_connect(port);
+        CHECK(fds[i] >= 0);
+    }
+    for (int i = 0; i < 10; i++) plcrt_slave_poll(rt, 5);
+    plcrt_slave_stats_t st;
+    plcrt_slave_stats(rt, &st);
+    CHECK_EQ(st.clients, 64);
+    /* the 65th is answered, and so is every idle one */
+    fds[64] = tcp_connect(port);
+    plcrt_image(rt)->iw[1] = 65;
+    uint8_t q[] = {0, 9, 0, 0, 0, 6, 1, 4, 0, 1, 0, 1}, r[32];
+    for (int i = 64; i >= 0; i -= 16) {
+        CHECK_EQ(write(fds[i], q, sizeof q), (ssize_t)sizeof q);
+        int k = 0;
+        for (int tries = 0; tries < 100 && k <= 0; tries++) {
+            plcrt_slave_poll(rt, 5);
+            k = (int)recv(fds[i], r, sizeof r, MSG_DONTWAIT);
+        }
+        CHECK_EQ(k, 11);
+        CHECK_EQ((r[9] << 8) | r[10], 65);
+    }
+    /* beyond PLCRT_SLAVE_MAX_CLIENTS the quietest connection makes room */
+    int more[PLCRT_SLAVE_MAX_CLIENTS];
+    for (int i = 0; i < PLCRT_SLAVE_MAX_CLIENTS - 64; i++) more[i] = tcp_connect(port);
+    for (int i = 0; i < 20; i++) plcrt_slave_poll(rt, 5);
+    plcrt_slave_stats(rt, &st);
+    CHECK_EQ(st.clients, PLCRT_SLAVE_MAX_CLIENTS);
+    CHECK_EQ(st.evicted, 1);
+    for (int i = 0; i <= 64; i++) close(fds[i]);
+    for (int i = 0; i < PLCRT_SLAVE_MAX_CLIENTS - 64; i++) close(more[i]);
+    plcrt_free(rt);
+}
+
+typedef struct rt_job { plcrt_t *rt; volatile int stop; } rt_job_t;
+static void *realtime_thread(void *arg)
+{
+    rt_job_t *j = arg;
+    plcrt_run_realtime(j->rt, 0, &j->stop);
+    return NULL;
+}
+
+
+TEST(slave_malformed_and_trickling_clients_do_not_slow_the_scan)
+{
+    /* Before: libmodbus slept ~1 s on a malformed request with the image lock held (1
+     * scan/s instead of 100). Generous bound: a busy 2-core machine still reaches half. */
+    plcrt_t *rt = new_rt();
+    CHECK_EQ(plcrt_slave_start(rt, "127.0.0.1", 0), 0);
+    int port = plcrt_slave_port(rt);
+    rt_job_t job = {rt, 0};
+    pthread_t th;
+    pthread_create(&th, NULL, realtime_thread, &job);
+    int bad = tcp_connect(port), slow = tcp_connect(port), good = tcp_connect(port);
+    CHECK(bad >= 0 && slow >= 0 && good >= 0);
+    uint8_t bad_q[] = {0, 1, 0, 0, 0, 6, 1, 3, 0, 0, 0, 126};  /* 126 registers */
+    uint8_t slow_q[] = {0, 2, 0, 0, 0, 6, 1, 3, 0, 0, 0, 1};
+    uint8_t good_q[] = {0, 3, 0, 0, 0, 6, 1, 4, 0, 0, 0, 1}, r[32];
+    uint64_t s0 = plcrt_scan_count(rt), t0 = ms_now();
+    uint64_t worst_ms = 0;
+    int answered = 0;
+    for (int i = 0; i < 10; i++) { /* 1 s: bad requests, a byte every 100 ms, good requests */
+        if (write(bad, bad_q, sizeof bad_q) != (ssize_t)sizeof bad_q) break;
+        if (write(slow, slow_q + i, 1) != 1) break;
+        uint64_t a = ms_now();
+        if (write(good, good_q, sizeof good_q) == (ssize_t)sizeof good_q &&
+            recv(good, r, sizeof r, 0) == 11)
+            answered++;
+        if (ms_now() - a > worst_ms) worst_ms = ms_now() - a;
+        usleep(100000);
+    }
+    uint64_t scans = plcrt_scan_count(rt) - s0, ms = ms_now() - t0;
+    fprintf(stderr, "    %llu scans in %llu ms with a malformed and a trickling client; "
+            "good client worst reply %llu ms\n", (unsigned long long)scans, (unsigned long long)ms,
+            (unsigned long long)worst_ms);
+    CHECK_EQ(answered, 10);
+    CHECK(scans * 10 * 2 >= ms); /* >= 50 % of 100 scans/s */
+    CHECK(worst_ms < 500);
+    job.stop = 1;
+    pthread_join(th, NULL);
+    close(bad);
+    close(slow);
+    close(good);
+    plcrt_free(rt);
+}
+
+/* ------------------------------------------------------------------ log rate limit */
+
+typedef struct flapper { int listen_fd; volatile int stop; int accepted; } flapper_t;
+static void *flapper_thread(void *arg) /* accepts every connection and closes it at once */
+{
+    flapper_t *f = arg;
+    while (!f->stop) {
+        struct pollfd p = {f->listen_fd, POLLIN, 0};
+        if (poll(&p, 1, 50) != 1) continue;
+        int c = accept(f->listen_fd, NULL, NULL);
+        if (c >= 0) { close(c); f->accepted++; }
+    }
+    return NULL;
+}
+
+TEST(reconnect_lines_are_rate_limited_per_device)
+{
+    flapper_t f = {socket(AF_INET, SOCK_STREAM, 0), 0, 0};
+    struct sockaddr_in a = {0};
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    CHECK_EQ(bind(f.listen_fd, (struct sockaddr *)&a, sizeof a), 0);
+    CHECK_EQ(listen(f.listen_fd, 64), 0);
+    socklen_t len = sizeof a;
+    getsockname(f.listen_fd, (struct sockaddr *)&a, &len);
+    pthread_t th;
+    pthread_create(&th, NULL, flapper_thread, &f);
+    plcrt_t *rt = new_rt();
+    char cfg[512];
+    snprintf(cfg, sizeof cfg, "[master]\nreconnect_min = 10ms\n[device dev]\nhost = 127.0.0.1\n"
+             "port = %d\ntimeout = 100ms\n[read r]\ndevice = dev\nstart = 0\nsize = 1\nimage = %%IW500\n",
+             ntohs(a.sin_port));
+    CHECK_EQ(plcrt_load_config_text(rt, "t.cfg", cfg), 0);
+    plcrt_scan(rt, 12500); /* 125 s of virtual time: a connection every poll, each one fails */
+    uint64_t connects = 0;
+    plcrt_device_stats(rt, 0, NULL, NULL, &connects);
+    CHECK(connects > 500);
+    int lines = 0;
+    for (const char *p = log_buf; (p = strstr(p, "device dev: connected to")); p++) lines++;
+    CHECK_EQ(lines, 3); /* at 0.1 s, 60.x s, 120.x s */
+    CHECK_STR_CONTAINS(log_buf, "such lines not logged in the last 60 s)");
+    f.stop = 1;
+    pthread_join(th, NULL);
+    close(f.listen_fd);
     plcrt_free(rt);
 }
 

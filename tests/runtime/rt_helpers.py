@@ -50,6 +50,7 @@ class ModbusServer:
         self.holding = [0] * size
         self.input = [0] * size
         self.log = []
+        self.duplicate_replies = 0  # the next n replies are sent twice (a stale duplicate)
         self.lock = threading.Lock()
         outer = self
 
@@ -65,7 +66,11 @@ class ModbusServer:
                     if pdu is None:
                         return
                     reply = outer._handle(pdu)
-                    sock.sendall(struct.pack(">HHHB", tid, 0, len(reply) + 1, unit) + reply)
+                    adu = struct.pack(">HHHB", tid, 0, len(reply) + 1, unit) + reply
+                    with outer.lock:
+                        twice = outer.duplicate_replies > 0
+                        outer.duplicate_replies -= twice
+                    sock.sendall(adu * (2 if twice else 1))
 
         class Server(socketserver.ThreadingTCPServer):
             allow_reuse_address = True

@@ -411,14 +411,41 @@ def _prune_cache(cache: Path):
         pass  # another process pruned at the same time
 
 
+def _check_outdir(outdir: Path):
+    """outdir is replaced by the build: refuse anything that is not an earlier build's output
+    (or an empty directory) rather than delete it; one line when it cannot be written."""
+    if outdir.is_symlink():
+        raise BuildError(f"{outdir}: error: is a symbolic link: give the directory it points to")
+    if outdir.exists() and not outdir.is_dir():
+        raise BuildError(f"{outdir}: error: exists and is not a directory")
+    if outdir.is_dir():
+        if any(outdir.iterdir()) and not ((outdir / "symbols.json").is_file() or (outdir / "gen").is_dir()):
+            raise BuildError(f"{outdir}: error: not empty and not the output of plcrt-build: "
+                             "not replaced")
+        if not os.access(outdir.parent, os.W_OK):
+            raise BuildError(f"{outdir}: error: cannot replace it (its directory is not writable)")
+        return
+    parent = outdir.parent
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        raise BuildError(f"{outdir}: error: cannot create it: {parent} is not a directory")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise BuildError(f"{outdir}: error: cannot create it: {parent} is not writable")
+
+
 def build_program(sources, outdir, compiler="auto", cflags=None) -> BuildResult:
     """Translate and link ST sources; the result lands in outdir (created)."""
     sources = [Path(s).resolve() for s in sources]
     for s in sources:
-        if not s.is_file():
+        if not s.exists():
             raise BuildError(f"{s}: error: no such file")
+        if not s.is_file():
+            raise BuildError(f"{s}: error: {'a directory' if s.is_dir() else 'not a regular file'}, "
+                             "not an ST source")
     compiler = resolve_compiler(compiler)
     outdir = Path(outdir).resolve()
+    _check_outdir(outdir)
     key = _hash_inputs(sources, compiler, _compiler_fingerprint(compiler) + repr(cflags))
     cache = _cache_root()
     if cache and (cache / key / "symbols.json").is_file():
@@ -538,8 +565,15 @@ def _build_into(sources, out: Path, compiler: str, cflags):
     (out / "symbols.json").write_text(json.dumps(meta, indent=1))
 
 
+class _OneLineParser(argparse.ArgumentParser):
+    """A bad command line is one line (argparse prints the usage too)."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
+
+
 def main(argv=None):
-    ap = argparse.ArgumentParser(prog="plcrt-build", description=__doc__.split("\n\n")[0])
+    ap = _OneLineParser(prog="plcrt-build", description=__doc__.split("\n\n")[0])
     ap.add_argument("-o", "--outdir", required=True)
     ap.add_argument("--compiler", default="auto", choices=["auto", "stc", "matiec"])
     ap.add_argument("sources", nargs="+")
@@ -549,6 +583,17 @@ def main(argv=None):
     except BuildError as e:
         print(e, file=sys.stderr)  # already FILE:LINE:COL: error: ... or says what failed
         return 1
+    except UnicodeDecodeError as e:
+        print(f"plcrt-build: error: a source is not UTF-8 text ({e.reason} at byte {e.start})",
+              file=sys.stderr)
+        return 1
+    except OSError as e:  # e.g. a file system that fails or fills up during the build
+        where = f"{e.filename}: " if e.filename else ""
+        print(f"plcrt-build: error: {where}{e.strerror or e}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("plcrt-build: interrupted", file=sys.stderr)
+        return 130
     print(f"{res.executable}\n{res.library}")
     return 0
 

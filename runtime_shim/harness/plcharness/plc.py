@@ -192,6 +192,7 @@ class Plc:
                                                   ctypes.POINTER(ctypes.c_uint64),
                                                   ctypes.POINTER(ctypes.c_uint64),
                                                   ctypes.POINTER(ctypes.c_uint64)]),
+            ("plcrt_device_dropped_replies", ctypes.c_uint64, [ctypes.c_void_p, ctypes.c_int]),
             ("plcrt_device_set_fd", ctypes.c_int, [ctypes.c_void_p, ctypes.c_char_p, ctypes.c_int,
                                                    ctypes.c_void_p, ctypes.c_void_p]),
             ("plcrt_free", None, [ctypes.c_void_p]),
@@ -395,14 +396,16 @@ class Plc:
         return self._lib.plcrt_slave_port(self._rt)
 
     def device_stats(self):
-        """{device name: {"errors": n, "requests": n, "connects": n}} of the Modbus master."""
+        """{device name: {"errors": n, "requests": n, "connects": n, "dropped_replies": n}} of
+        the Modbus master (dropped: replies with the transaction id of an earlier request)."""
         out = {}
         for i in range(self._lib.plcrt_device_count(self._rt)):
             e, r, c = ctypes.c_uint64(), ctypes.c_uint64(), ctypes.c_uint64()
             self._lib.plcrt_device_stats(self._rt, i, ctypes.byref(e), ctypes.byref(r),
                                          ctypes.byref(c))
             name = self._lib.plcrt_device_name(self._rt, i).decode()
-            out[name] = {"errors": e.value, "requests": r.value, "connects": c.value}
+            out[name] = {"errors": e.value, "requests": r.value, "connects": c.value,
+                         "dropped_replies": self._lib.plcrt_device_dropped_replies(self._rt, i)}
         return out
 
     _AFTER_SEND = ctypes.CFUNCTYPE(None, ctypes.c_void_p)

@@ -1,0 +1,56 @@
+"""The master checks the MBAP transaction id: a duplicated reply (here: the server sends its
+first answer twice) is dropped and counted, and never lands in the next range's image."""
+import pytest
+
+from plcharness import Plc
+from rt_helpers import COMPILERS, ModbusServer
+
+PROG = """
+PROGRAM MAIN
+VAR a AT %IW500 : WORD; b AT %IW510 : WORD; END_VAR
+END_PROGRAM
+CONFIGURATION Config0
+RESOURCE Res0 ON PLC
+TASK task0(INTERVAL := T#10ms, PRIORITY := 0);
+PROGRAM instance0 WITH task0 : MAIN;
+END_RESOURCE
+END_CONFIGURATION
+"""
+
+CONFIG = """
+[device modem]
+host = 127.0.0.1
+port = {port}
+[read a]
+device = modem
+start = 0
+size = 1
+image = %IW500
+[read b]
+device = modem
+start = 10
+size = 1
+image = %IW510
+"""
+
+
+@pytest.mark.parametrize("compiler", COMPILERS)
+def test_duplicated_reply_is_dropped_not_put_into_the_next_range(compiler, st_file, tmp_path):
+    server = ModbusServer()
+    try:
+        server.holding[0] = 111
+        server.holding[10] = 222
+        server.duplicate_replies = 1
+        cfg = tmp_path / "plc.conf"
+        cfg.write_text(CONFIG.format(port=server.port))
+        plc = Plc.build([st_file(PROG)], workdir=tmp_path, compiler=compiler, config=cfg)
+        plc.scan(1)
+        assert plc["MAIN.a"] == 111
+        assert plc["MAIN.b"] == 222  # before: 111, the duplicate of a's reply
+        stats = plc.device_stats()["modem"]
+        assert stats["dropped_replies"] == 1 and stats["errors"] == 0, stats
+        plc.scan(20)
+        assert (plc["MAIN.a"], plc["MAIN.b"]) == (111, 222)
+        assert plc.device_stats()["modem"]["dropped_replies"] == 1
+    finally:
+        server.close()
