@@ -83,6 +83,7 @@ class Gen:
         self.lines = []
         self.ind = 0
         self.tmp = 0
+        self.matiec = getattr(project, "semantics", "matiec") == "matiec"
 
     # ---- output helpers
     def w(self, s=""):
@@ -97,7 +98,8 @@ class Gen:
     def generate(self, outdir):
         files = {}
         with open(os.path.join(os.path.dirname(__file__), HEADER)) as f:
-            files[HEADER] = f.read()
+            files[HEADER] = f.read().replace(
+                "#define STC_MATIEC 0", f"#define STC_MATIEC {1 if self.matiec else 0}", 1)
         files["POUS.h"] = self.pous_h()
         files["POUS.c"] = self.pous_c()
         cfg_files = self.config_files()
@@ -659,10 +661,26 @@ class Gen:
         fn = "stc_idxu" if t.is_elem and t.kind == "uint" and t.bits == 64 else "stc_idx"
         return f"{fn}({self.ex(ix)}, {lo}, {hi})"
 
-    def ex(self, e):
-        t = e.ty
+    def _is_narrow(self, t):
+        """matiec mode: C evaluates 8- and 16-bit integer arithmetic in int (32 bits) and only
+        truncates where the value is stored or passed on; such expressions are 'wide'."""
+        return self.matiec and t is not None and t.is_elem and t.kind in ("sint", "uint", "bit") \
+            and t.bits < 32
+
+    def ex(self, e, wide=False):
+        """C expression of e. With wide=True (operands of operators) a narrow integer
+        expression may stay in int as matiec's C leaves it; otherwise it is truncated."""
         if isinstance(e, S.Paren):
-            return self.ex(e.inner)
+            return self.ex(e.inner, wide)
+        if isinstance(e, (S.BinOp, S.UnOp)):
+            r = self.binop(e) if isinstance(e, S.BinOp) else self.unop(e)
+            if getattr(e, "wide", False) and not wide:
+                return f"(({e.ty.ctype}){r})"
+            return r
+        return self._ex(e)
+
+    def _ex(self, e):
+        t = e.ty
         if isinstance(e, (S.IntLit, S.RealLit, S.BoolLit)):
             return lit(e.value, t)
         if isinstance(e, S.TimeLit):
@@ -696,6 +714,11 @@ class Gen:
                 return self.conversion(e)
             if k == "binop":
                 return self.binop(e.binop)
+            if k == "math":
+                xs = [f"(double){self.ex(a)}" for a in e.argv]
+                fn = {"SQRT": "sqrt", "LN": "log", "LOG": "log10", "EXP": "exp",
+                      "EXPT": "stc_expt"}[e.name]
+                return f"(({t.ctype}){fn}({', '.join(xs)}))"
             if k == "trunc":
                 x = self.ex(e.argv[0])
                 lo, hi = t.range()
@@ -707,7 +730,14 @@ class Gen:
 
     def unop(self, e):
         t = e.ty
-        x = self.ex(e.operand)
+        x = self.ex(e.operand, wide=self._is_narrow(t))
+        if self._is_narrow(t) and not (e.op == "NOT" and t.kind == "bool"):
+            e.wide = True
+            if e.op == "NOT":
+                return f"(~(int32_t){x})"
+            if e.op == "+":
+                return f"((int32_t){x})"
+            return f"((int32_t)(0u - (uint32_t){x}))"
         if e.op == "NOT":
             if t.kind == "bool":
                 return f"(!{x})"
@@ -727,8 +757,23 @@ class Gen:
     def binop(self, e):
         op = e.op
         t = e.ty
-        a = self.ex(e.left)
-        b = self.ex(e.right)
+        if op in self._COP:
+            nw = self._is_narrow(e.left.ty)
+        else:
+            nw = self._is_narrow(t)
+        a = self.ex(e.left, wide=nw)
+        b = self.ex(e.right, wide=nw)
+        if nw and op not in self._COP:
+            # matiec: C int arithmetic, no truncation until the value is stored
+            e.wide = True
+            if op == "/":
+                return f"stc_div_DINT((int32_t){a}, (int32_t){b})"
+            if op == "MOD":
+                return f"stc_mod_DINT((int32_t){a}, (int32_t){b})"
+            if op in ("AND", "OR", "XOR"):
+                cop = {"AND": "&", "OR": "|", "XOR": "^"}[op]
+                return f"((int32_t){a} {cop} (int32_t){b})"
+            return f"((int32_t)((uint32_t){a} {op} (uint32_t){b}))"
         if op in self._COP:
             ot = e.left.ty
             fam = "f" if ot.is_elem and ot.kind == "real" else \
@@ -748,12 +793,16 @@ class Gen:
                 rt = e.right.ty
             if op in ("+", "-"):
                 return f"((int64_t)((uint64_t){a} {op} (uint64_t){b}))"
+            if self.matiec:
+                return f"stc_time_{'mul' if op == '*' else 'div'}_m({a}, (double){b})"
             if rt.kind == "real":
                 return f"stc_time_{'mulf' if op == '*' else 'divf'}({a}, (double){b})"
             return f"stc_time_{'mul' if op == '*' else 'div'}({a}, (int64_t){b})"
         if t.kind == "real":
             if op == "MOD":
                 return "0"
+            if op == "**":
+                return f"(({t.ctype})stc_expt((double){a}, (double){b}))"
             return f"({a} {op} {b})"
         if op == "/":
             return f"stc_div_{t.name}({a}, {b})"
@@ -790,6 +839,11 @@ class Gen:
         t = e.ty
         xs = [self.ex(a) for a in args]
         if n in ("SHL", "SHR", "ROL", "ROR"):
+            if self.matiec and n in ("SHL", "SHR") and t.bits > 1:
+                # matiec shifts in C: x86 takes the count modulo 32 (64 for LWORD), after the
+                # promotion of BYTE and WORD to int
+                mask = 63 if t.bits == 64 else 31
+                return f"stc_{n.lower()}_{t.name}({xs[0]}, (int64_t){xs[1]} & {mask})"
             return f"stc_{n.lower()}_{t.name}({xs[0]}, (int64_t){xs[1]})"
         if n == "ABS":
             if t.kind == "uint":
@@ -811,10 +865,23 @@ class Gen:
         if n == "MUX":
             k = xs[0]
             out = xs[-1]
+            last = len(xs) - 1
+            if self.matiec:
+                # matiec: a selector outside 0..n-1 gives the type's initial value (0)
+                out = f"({k} == {last - 1} ? {xs[-1]} : {self._zero(t)})"
             for i in range(len(xs) - 2, 0, -1):
                 out = f"({k} == {i - 1} ? {xs[i]} : {out})"
             return out
         raise AssertionError(n)
+
+    def _zero(self, t):
+        if t.is_enum:
+            return "0"
+        if not t.is_elem:
+            return f"({_c_elem(t)}){{0}}"
+        if t.kind == "time":
+            return "INT64_C(0)"
+        return lit(0, t)
 
     def _minmax(self, xs, cmp, t):
         # nested conditional expressions; arguments are evaluated more than once, which is

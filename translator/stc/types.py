@@ -184,7 +184,7 @@ STD_FBS = {fb.name: fb for fb in [
 
 # generic standard functions handled by the checker (names are reserved as identifiers)
 STD_FUNCS = {"ABS", "MIN", "MAX", "LIMIT", "SEL", "MUX", "SHL", "SHR", "ROL", "ROR", "MOVE",
-             "ADD", "SUB", "MUL", "DIV", "SQRT", "EXPT", "TRUNC"}
+             "ADD", "SUB", "MUL", "DIV", "SQRT", "EXPT", "TRUNC", "LN", "LOG", "EXP"}
 
 # names matiec refuses as identifiers (keywords it reserves and standard library names)
 RESERVED = {"EN", "ENO", "STEP", "END_STEP", "ACTION", "END_ACTION", "TRANSITION",
@@ -193,6 +193,6 @@ RESERVED = {"EN", "ENO", "STEP", "END_STEP", "ACTION", "END_ACTION", "TRANSITION
             "EXPT", "LEN", "LEFT", "RIGHT", "MID", "CONCAT", "INSERT", "DELETE",
             "REPLACE", "FIND", "SQRT", "LN", "LOG", "EXP", "SIN", "COS", "TAN", "ASIN", "ACOS",
             "ATAN", "NE", "EQ", "GT", "GE", "LT", "LE", "NOT", "METHOD", "INTERFACE", "POINTER",
-            "REF_TO", "REF", "NULL", "ANY", "ANY_NUM", "ANY_INT", "ANY_BIT", "ANY_REAL",
+            "REF_TO", "NULL", "ANY", "ANY_NUM", "ANY_INT", "ANY_BIT", "ANY_REAL",
             "ANY_ELEMENTARY", "ANY_DERIVED", "ANY_MAGNITUDE", "ANY_DATE", "ANY_STRING"}
 RESERVED |= set(ELEMENTARY) | STD_FUNCS | set(STD_FBS) | UNSUPPORTED_TYPES
