@@ -1211,8 +1211,11 @@ class Checker:
             if lt.kind != "real":
                 self.fail(e.left.pos, "'**' needs REAL or LREAL on the left: write a REAL "
                           "literal like 2.0")
-            lt = rt if rt.is_elem and rt.kind == "real" else T.ELEMENTARY["LREAL"]
-            self.settle(e.left, lt)
+            if e.left.ty is not None and not e.left.ty.is_lit:
+                lt = e.left.ty          # settled by the context already
+            else:
+                lt = rt if rt.is_elem and rt.kind == "real" else T.ELEMENTARY["LREAL"]
+                self.settle(e.left, lt)
         if not (lt.is_elem and lt.kind == "real"):
             self.fail(e.pos, f"'**' needs REAL or LREAL, not {lt}")
         if rt.is_lit:

@@ -701,14 +701,15 @@ def _blank_comments(text, report, rec):
         line_at[0], line_at[1] = off, ln
         return (ln, off - (text.rfind("\n", 0, off) + 1) + 1)
 
+    scan = 0                  # where to look for the next opener (pos: copied up to here)
     while True:
-        m = _OPENERS.search(text, pos)
+        m = _OPENERS.search(text, scan)
         if m is None:
             break
         tok = m.group(0)
         start = m.start()
+        scan = m.end()
         if tok[0] in "'\"" or tok.startswith("//"):
-            pos = m.end()
             continue
         close = {"(*": "*)", "/*": "*/", "{": "}"}[tok]
         end = text.find(close, start + len(tok))
@@ -738,6 +739,6 @@ def _blank_comments(text, report, rec):
                    "C output): remove it or make it a (* comment *)")
         out.append(text[pos:start])
         out.append(_NOT_NL.sub(lambda x: " " * len(x.group(0)), text[start:end]))
-        pos = end
+        pos = scan = end
     out.append(text[pos:])
     return "".join(out)
