@@ -583,6 +583,15 @@ class Gen:
                 self.w(f"{base}.{name} = &{self.lv(e)};")
             else:
                 self.store(f"{base}.{name}", p.type, e)
+        en = getattr(c, "en", None)
+        eno = getattr(c, "eno", None)
+        if en is not None:
+            flag = self.new_tmp("en")
+            self.w("{")
+            self.ind += 1
+            self.w(f"uint8_t {flag} = (uint8_t)({self.ex(en)} != 0);")
+            self.w(f"if ({flag}) {{")
+            self.ind += 1
         if pou.std is not None:
             if pou.std.needs_time:
                 self.w(f"{pou.name}_body__(&{base}, stc_time_ns(__CURRENT_TIME));")
@@ -590,6 +599,15 @@ class Gen:
                 self.w(f"{pou.name}_body__(&{base});")
         else:
             self.w(f"{pou.name}_body__(&{base});")
+        if en is not None:
+            self.ind -= 1
+            self.w("}")
+            if eno is not None:
+                self.w(f"{self.lv(eno)} = {flag};")
+            self.ind -= 1
+            self.w("}")
+        elif eno is not None:
+            self.w(f"{self.lv(eno)} = 1;")
         for p, target in c.outs:
             tl = self.lv(target)
             if p.type.is_array:

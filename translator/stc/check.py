@@ -1381,7 +1381,22 @@ class Checker:
                 self.fail(c.pos, f"{pou.name} takes {len(inputs)} inputs, got {len(positional)}")
             for a, p in zip(positional, inputs):
                 bound[p.name] = a.value
+        c.en = c.eno = None
         for a in named:
+            if fb and a.name in ("EN", "ENO") and isinstance(a, S.ArgIn if a.name == "EN" else S.ArgOut):
+                # EN := cond runs the body only when cond is TRUE; ENO => v tells whether it ran
+                if a.name == "EN":
+                    self.cond(a.value, "EN")
+                    c.en = a.value
+                else:
+                    if a.negate:
+                        self.err(a.pos, "NOT x => y is not supported: negate afterwards")
+                        continue
+                    tt = self.lvalue(a.target, "assign to")
+                    if not T.same_type(tt, T.BOOL):
+                        self.err(a.target.pos, f"ENO is BOOL but '=>' target is {tt}")
+                    c.eno = a.target
+                continue
             p = pou.vars.get(a.name)
             if p is None or p.kind not in ("VAR_INPUT", "VAR_OUTPUT", "VAR_IN_OUT"):
                 self.err(a.pos, f"{pou.name} has no parameter '{a.name}'")
