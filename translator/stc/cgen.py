@@ -31,9 +31,25 @@ def ptr_decl(t, name):
     return f"{_c_elem(t)} *{name}"
 
 
+def _c_string(v):
+    out = []
+    for ch in v:
+        o = ord(ch) & 0xFF
+        if ch in '"\\?':
+            out.append("\\" + ch)
+        elif 32 <= o < 127:
+            out.append(ch)
+        else:
+            out.append(f"\\{o:03o}")
+    return '"' + "".join(out) + '"'
+
+
 def lit(v, t):
     if t.is_enum:
         return str(v)
+    if t.kind == "string":
+        v = v or ""
+        return f"((stc_string){{{len(v)}u, {_c_string(v)}}})" if v else "((stc_string){0u, {0}})"
     if t.kind == "real":
         v = float(v)
         if math.isinf(v) or math.isnan(v):
@@ -701,6 +717,8 @@ class Gen:
         t = e.ty
         if isinstance(e, (S.IntLit, S.RealLit, S.BoolLit)):
             return lit(e.value, t)
+        if isinstance(e, S.StringLit):
+            return lit(e.value, t)
         if isinstance(e, S.TimeLit):
             return lit(e.ns, T.TIME)
         if isinstance(e, S.TypedLit):
@@ -792,6 +810,11 @@ class Gen:
                 cop = {"AND": "&", "OR": "|", "XOR": "^"}[op]
                 return f"((int32_t){a} {cop} (int32_t){b})"
             return f"((int32_t)((uint32_t){a} {op} (uint32_t){b}))"
+        if op in self._COP and e.left.ty.is_elem and e.left.ty.kind == "string":
+            cop = {"=": "==", "<>": "!="}.get(op, op)
+            return f"(stc_str_cmp(&{a}, &{b}) {cop} 0)" if isinstance(e.left, (S.Name, S.Field, S.Index)) \
+                and isinstance(e.right, (S.Name, S.Field, S.Index)) else \
+                f"(stc_str_cmpv({a}, {b}) {cop} 0)"
         if op in self._COP:
             ot = e.left.ty
             fam = "f" if ot.is_elem and ot.kind == "real" else \
@@ -863,6 +886,13 @@ class Gen:
                 mask = 63 if t.bits == 64 else 31
                 return f"stc_{n.lower()}_{t.name}({xs[0]}, (int64_t){xs[1]} & {mask})"
             return f"stc_{n.lower()}_{t.name}({xs[0]}, (int64_t){xs[1]})"
+        if n == "LEN":
+            return f"((int16_t){xs[0]}.len)"
+        if n == "CONCAT":
+            out = xs[0]
+            for x in xs[1:]:
+                out = f"stc_str_concat({out}, {x})"
+            return out
         if n == "ABS":
             if t.kind == "uint":
                 return xs[0]

@@ -377,7 +377,7 @@ class Checker:
             pass
 
     def is_constant(self, e):
-        if isinstance(e, (S.IntLit, S.RealLit, S.TimeLit, S.BoolLit, S.TypedLit)):
+        if isinstance(e, (S.IntLit, S.RealLit, S.TimeLit, S.BoolLit, S.TypedLit, S.StringLit)):
             return True
         if isinstance(e, S.Paren):
             return self.is_constant(e.inner)
@@ -950,7 +950,18 @@ class Checker:
                 self.fail(e.pos, f"malformed TIME literal {e.text}")
             return T.TIME
         if isinstance(e, S.StringLit):
-            self.fail(e.pos, "string literals are not supported by stc")
+            if e.text.startswith('"'):
+                self.fail(e.pos, "WSTRING literals (\"...\") are not supported by stc: use "
+                          "'...' (STRING)")
+            v = _string_value(e.text[1:-1])
+            if v is None:
+                self.fail(e.pos, f"invalid $ escape in string literal {e.text}")
+            if len(v) > T.STR_MAX:
+                self.warn(e.pos, f"string literal of {len(v)} characters: a STRING holds "
+                          f"{T.STR_MAX} (matiec cuts it)")
+                v = v[:T.STR_MAX]
+            e.value = v
+            return T.STRING
         if isinstance(e, S.TypedLit):
             return self.typed_lit(e)
         if isinstance(e, S.Paren):
@@ -1148,6 +1159,8 @@ class Checker:
                 self.fail(e.pos, f"{op} needs BOOL or a bit string type (BYTE/WORD/DWORD/LWORD), "
                           f"not {t}")
             return t
+        if t.is_elem and t.kind == "string":
+            self.fail(e.pos, f"'{op}' on STRING is not defined: use CONCAT, LEN")
         # arithmetic
         if not t.is_elem:
             self.fail(e.pos, f"'{op}' on {t}")
@@ -1522,6 +1535,20 @@ class Checker:
             if not (t.is_elem and t.is_num):
                 self.fail(c.pos, f"ABS needs a numeric type, not {t}")
             return t
+        if n == "LEN":
+            need(1)
+            t = self.expr(args[0], T.STRING)
+            if not T.same_type(t, T.STRING):
+                self.fail(args[0].pos, f"LEN needs a STRING, not {t}")
+            return T.INT
+        if n == "CONCAT":
+            if len(args) < 2:
+                self.fail(c.pos, "CONCAT takes at least 2 arguments")
+            for a in args:
+                t = self.expr(a, T.STRING)
+                if not T.same_type(t, T.STRING):
+                    self.fail(a.pos, f"CONCAT needs STRINGs, not {t}")
+            return T.STRING
         if n in ("SQRT", "LN", "LOG", "EXP"):
             need(1)
             t = same(args, expected)
@@ -1555,14 +1582,14 @@ class Checker:
             if len(args) < 2:
                 self.fail(c.pos, f"{n} takes at least 2 arguments")
             t = same(args, expected)
-            if not t.is_elem:
-                self.fail(c.pos, f"{n} needs an elementary type, not {t}")
+            if not t.is_elem or t.kind == "string":
+                self.fail(c.pos, f"{n} needs a number, bit string or TIME, not {t}")
             return t
         if n == "LIMIT":
             need(3)
             t = same(args, expected)
-            if not t.is_elem:
-                self.fail(c.pos, f"LIMIT needs an elementary type, not {t}")
+            if not t.is_elem or t.kind == "string":
+                self.fail(c.pos, f"LIMIT needs a number, bit string or TIME, not {t}")
             return t
         if n == "SEL":
             need(3)
@@ -1617,6 +1644,32 @@ _KW = []
 # standard function names matiec accepts as STRUCT member names (a member is always written
 # after a '.', so it cannot be mistaken for the function)
 _MEMBER_OK = {"LEN", "LEFT", "RIGHT", "MID", "FIND"}
+
+
+_STR_ESC = {"$": "$", "'": "'", '"': '"', "L": "\n", "N": "\n", "P": "\f", "R": "\r",
+            "T": "\t"}
+
+
+def _string_value(body):
+    """Characters of a STRING literal body ($ escapes decoded), None when malformed."""
+    out = []
+    i = 0
+    while i < len(body):
+        ch = body[i]
+        if ch != "$":
+            out.append(ch)
+            i += 1
+            continue
+        nxt = body[i + 1:i + 2].upper()
+        if nxt in _STR_ESC:
+            out.append(_STR_ESC[nxt])
+            i += 2
+        elif re.fullmatch(r"[0-9A-Fa-f]{2}", body[i + 1:i + 3]):
+            out.append(chr(int(body[i + 1:i + 3], 16)))
+            i += 3
+        else:
+            return None
+    return "".join(out)
 
 
 def _time_const(e):

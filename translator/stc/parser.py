@@ -680,7 +680,7 @@ def parse(text, filename, diags):
 
 # what the comment pass looks at: comment and pragma openers, and string literals and //
 # comments (skipped, so a '(*' inside them opens nothing)
-_OPENERS = re.compile(r"\(\*|/\*|\{|'[^'\n]*'|\"[^\"\n]*\"|//[^\n]*")
+_OPENERS = re.compile(r"\(\*|/\*|\{|'(?:[^'$\n]|\$[^\n])*'|\"(?:[^\"$\n]|\$[^\n])*\"|//[^\n]*")
 _NOT_NL = re.compile(r"[^\n]+")
 
 

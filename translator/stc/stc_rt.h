@@ -16,6 +16,26 @@
 #define STC_MATIEC 0
 
 typedef struct { long tv_sec; long tv_nsec; } stc_time;
+/* matiec's STRING layout: a length and STR_MAX_LEN (126) characters, no terminating NUL */
+typedef struct { uint8_t len; uint8_t body[126]; } stc_string;
+
+static inline int stc_str_cmp(const stc_string *a, const stc_string *b)
+{
+    size_t n = a->len < b->len ? a->len : b->len;
+    int c = memcmp(a->body, b->body, n);
+    return c != 0 ? c : (int)a->len - (int)b->len;
+}
+static inline int stc_str_cmpv(stc_string a, stc_string b) { return stc_str_cmp(&a, &b); }
+/* CONCAT: the result is cut at 126 characters, as in matiec */
+static inline stc_string stc_str_concat(stc_string a, stc_string b)
+{
+    size_t n = b.len;
+    if (a.len > 126u) a.len = 126u;
+    if (n > 126u - a.len) n = 126u - a.len;
+    memcpy(a.body + a.len, b.body, n);
+    a.len = (uint8_t)(a.len + n);
+    return a;
+}
 
 /* C storage type of each IEC type name that can appear in LOCATED_VARIABLES.h, so a runtime
  * can define the located storage with an X-macro:
