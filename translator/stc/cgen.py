@@ -254,7 +254,9 @@ class Gen:
         rt = pou.rtype
         ret = "stc_time" if rt.is_elem and rt.kind == "time" else _c_elem(rt)
         if rt.is_array:
-            ret = "void"   # rejected earlier
+            # C functions cannot return arrays: the caller passes the result's storage
+            ret = "void"
+            params.insert(0, f"{rt.name} *{pou.name}__RESULT_p")
         return f"{ret} {pou.name}({', '.join(params) or 'void'})"
 
     # ---- POUS.c
@@ -300,7 +302,7 @@ class Gen:
             else:
                 acc[v.name] = f"(*data->{v.name})" if v.kind == "VAR_IN_OUT" else f"data->{v.name}"
         if pou.kind == "function":
-            acc["\0result"] = f"{pou.name}__RESULT"
+            acc["\0result"] = f"(*{pou.name}__RESULT_p)" if pou.rtype.is_array else f"{pou.name}__RESULT"
         return acc
 
     def function(self, pou):
@@ -311,22 +313,24 @@ class Gen:
         self.w("{")
         self.ind += 1
         rt = pou.rtype
-        self.w(f"{cdecl(rt, pou.name + '__RESULT')};")
+        res = self.acc["\0result"]
+        if not rt.is_array:
+            self.w(f"{cdecl(rt, pou.name + '__RESULT')};")
         for v in pou.vars.values():
             if v.kind in ("VAR", "VAR_TEMP"):
                 self.w(f"{cdecl(v.type, v.name)};")
         for v in pou.vars.values():
             if v.kind in ("VAR_INPUT", "VAR_IN_OUT", "VAR_OUTPUT"):
                 self.w(f"(void){v.name};  /* parameters may be unused */")
-        self.w(f"memset(&{pou.name}__RESULT, 0, sizeof {pou.name}__RESULT);")
-        self.init_storage(f"{pou.name}__RESULT", rt, None)
+        self.w(f"memset(&{res}, 0, sizeof {res});")
+        self.init_storage(res, rt, None)
         for v in pou.vars.values():
             if v.kind in ("VAR", "VAR_TEMP", "VAR_OUTPUT"):
                 lv = self.acc[v.name]
                 self.w(f"memset(&{lv}, 0, sizeof {lv});")
                 self.init_storage(lv, v.type, v.init)
         self.stmts(pou.node.body)
-        self.w(f"return {pou.name}__RESULT;")
+        self.w("return;" if rt.is_array else f"return {pou.name}__RESULT;")
         self.ind -= 1
         self.w("}")
         self.w()
@@ -471,7 +475,7 @@ class Gen:
         elif isinstance(s, S.Continue):
             self.w("continue;")
         elif isinstance(s, S.Return):
-            if self.pou.kind == "function":
+            if self.pou.kind == "function" and not self.pou.rtype.is_array:
                 self.w(f"return {self.pou.name}__RESULT;")
             else:
                 self.w("return;")
@@ -570,7 +574,13 @@ class Gen:
 
     def store(self, lv, t, value):
         """Assignment of expression `value` to storage lv of type t."""
-        if t.is_array:
+        if t.is_array and isinstance(value, S.Call) and getattr(value, "kind", None) == "func":
+            # a FUNCTION returning an array writes into a temporary, then it is copied (the
+            # function may read the target through a global)
+            tmp = self.new_tmp("res")
+            self.w(f"{{ {t.name} {tmp}; {self.func_call(value, result=tmp)}; "
+                   f"memcpy(&{lv}, &{tmp}, sizeof {lv}); }}")
+        elif t.is_array:
             self.w(f"memcpy(&{lv}, &{self.lv(value)}, sizeof {lv});")
         elif t.is_struct:
             self.w(f"{lv} = {self.ex(value)};")
@@ -587,7 +597,11 @@ class Gen:
             for k in ("kind", "pou", "bound", "outs"):
                 if hasattr(c, k):
                     setattr(e, k, getattr(c, k))
-            self.w(f"(void){self.func_call(e)};")
+            if e.pou.rtype.is_array:
+                tmp = self.new_tmp("res")
+                self.w(f"{{ {e.pou.rtype.name} {tmp}; {self.func_call(e, result=tmp)}; }}")
+            else:
+                self.w(f"(void){self.func_call(e)};")
 
     def fb_call(self, c):
         v = c.var
@@ -631,9 +645,9 @@ class Gen:
             else:
                 self.w(f"{tl} = {base}.{p.name};")
 
-    def func_call(self, c):
+    def func_call(self, c, result=None):
         pou = c.pou
-        args = []
+        args = [f"&{result}"] if result is not None else []
         outs = {p.name: t for p, t in c.outs}
         for v in pou.vars.values():
             if v.kind == "VAR_INPUT":

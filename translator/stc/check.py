@@ -406,9 +406,10 @@ class Checker:
                 self.err(n.rtype.pos, "a FUNCTION returning a STRUCT is not portable (matiec "
                          "accepts it but its C does not compile): use a VAR_IN_OUT or a "
                          "FUNCTION_BLOCK")
-            elif pou.rtype.is_array:
-                self.err(n.rtype.pos, "a FUNCTION returning an ARRAY is not supported: use a "
-                         "VAR_IN_OUT array")
+            elif pou.rtype.is_array and pou.rtype.name is None:
+                self.err(n.rtype.pos, "a FUNCTION returning an anonymous ARRAY cannot be "
+                         "assigned anywhere (matiec rejects assigning anonymous ARRAY types): "
+                         "declare a named array TYPE and return that")
         for blk in n.blocks:
             self._var_block(pou, blk)
 
