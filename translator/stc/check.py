@@ -1202,8 +1202,9 @@ class Checker:
                       "(T#1ms * 2148 gives -2.147 s); multiply whole seconds (T#1s * n) or "
                       "use DINT_TO_TIME")
         else:
-            self.warn(e.pos, "portability: TIME / number differs between matiec and IEC "
-                      "(matiec divides in floating point)")
+            self.warn(e.pos, "portability: TIME / number differs between matiec and IEC: "
+                      "matiec divides seconds and nanoseconds in double, so the result can be "
+                      "some ns off (more for long TIMEs)")
 
     def _warn_narrow(self, e, t):
         if not (t.is_elem and t.kind in ("sint", "uint", "bit") and t.bits < 32):
