@@ -763,7 +763,8 @@ class Gen:
             if k == "conv":
                 return self.conversion(e)
             if k == "binop":
-                return self.binop(e.binop)
+                r = self.binop(e.binop)    # ADD(a, b) ...: a typed function in matiec
+                return f"(({t.ctype}){r})" if getattr(e.binop, "wide", False) else r
             if k == "math":
                 xs = [f"(double){self.ex(a)}" for a in e.argv]
                 fn = {"SQRT": "sqrt", "LN": "log", "LOG": "log10", "EXP": "exp",
@@ -811,6 +812,8 @@ class Gen:
             nw = self._is_narrow(e.left.ty)
         else:
             nw = self._is_narrow(t)
+        if getattr(e, "fn_form", False):
+            nw = False            # ADD(a, b) ...: typed arguments and result, as in matiec
         a = self.ex(e.left, wide=nw)
         b = self.ex(e.right, wide=nw)
         if nw and op not in self._COP:

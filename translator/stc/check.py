@@ -1207,6 +1207,8 @@ class Checker:
                       "some ns off (more for long TIMEs)")
 
     def _warn_narrow(self, e, t):
+        if getattr(e, "fn_form", False):
+            return
         if not (t.is_elem and t.kind in ("sint", "uint", "bit") and t.bits < 32):
             return
         for x in (e.left, e.right):
@@ -1621,6 +1623,7 @@ class Checker:
             need(2)
             op = {"ADD": "+", "SUB": "-", "MUL": "*", "DIV": "/"}[n]
             b = S.BinOp(c.pos, op, args[0], args[1])
+            b.fn_form = True      # matiec: a typed function, its arguments are truncated
             t = self.binop(b, expected)
             b.ty = t
             c.kind = "binop"
