@@ -520,7 +520,7 @@ class _Recovery:
             if self._new(e.line):
                 ch = e.char
                 if ch == "'" or ch == '"':
-                    msg = "string literals are not supported"
+                    msg = f"string literal not closed on its line: missing {ch}"
                 else:
                     msg = f"unexpected character {ch!r}"
                 self.report((e.line, e.column), msg)
