@@ -173,3 +173,24 @@ def test_long_statement_nesting_is_a_located_error(tmp_path):
             "END_IF;\n" * 1200 + "END_PROGRAM\n" + CONFIG)
     rc, rss, err = _stc_under_limits(tmp_path, text)
     assert rc == 1 and "internal" not in err and "nested too deeply" in err
+
+
+OTHER_WARNINGS = [
+    ("FUNCTION_BLOCK Acc\nVAR_IN_OUT total : INT; END_VAR\ntotal := total + 1;\n"
+     "END_FUNCTION_BLOCK\nPROGRAM Main\nVAR a : Acc; s : INT; END_VAR\na(total := s);\na();\n"
+     "END_PROGRAM\n", 8, 1, "VAR_IN_OUT 'TOTAL' of ACC is not passed"),
+    ("PROGRAM Main\nVAR x AT %IX2000.9 : BOOL; END_VAR\nVAR y : BOOL; END_VAR\ny := x;\n"
+     "END_PROGRAM\n", 2, 10, "bit number 9 is outside 0..7"),
+    ("PROGRAM Main\nVAR s : STRING; END_VAR\ns := '" + "x" * 130 + "';\nEND_PROGRAM\n",
+     3, 6, "string literal of 130 characters: a STRING holds 126"),
+]
+
+
+@pytest.mark.parametrize("text,line,col,needle", OTHER_WARNINGS,
+                         ids=["in_out_missing", "bit_above_7", "long_string"])
+def test_other_portability_warnings(tmp_path, text, line, col, needle):
+    src = tmp_path / "w.st"
+    src.write_text(text + CONFIG)
+    r = H.run_stc(["-o", str(tmp_path / "o"), str(src)])
+    assert r.returncode == 0, r.stderr
+    assert f"{src}:{line}:{col}: warning: " in r.stderr and needle in r.stderr, r.stderr
