@@ -194,3 +194,15 @@ def test_other_portability_warnings(tmp_path, text, line, col, needle):
     r = H.run_stc(["-o", str(tmp_path / "o"), str(src)])
     assert r.returncode == 0, r.stderr
     assert f"{src}:{line}:{col}: warning: " in r.stderr and needle in r.stderr, r.stderr
+
+
+def test_real_power_and_math_of_literals(tmp_path):
+    # REAL ** was accepted but its C did not compile; TRUNC(-3.7) was rejected
+    src = tmp_path / "m.st"
+    src.write_text("PROGRAM Main\nVAR h : REAL; s : LREAL; d : DINT; e : REAL; END_VAR\n"
+                   "h := 2.25 ** 0.5;\ns := SQRT(16.0) + EXP(0.0);\nd := TRUNC(-3.7);\n"
+                   "e := EXPT(2.0, 3);\nEND_PROGRAM\n" + CONFIG)
+    exe = H.build([str(src)], str(tmp_path))
+    values = H.run(exe, 1)
+    got = {k: H.lookup(values, "MAIN0." + k) for k in ("H", "S", "D", "E")}
+    assert got == {"H": "1.5", "S": "5", "D": "-3", "E": "8"}
