@@ -84,7 +84,19 @@ def _depth(*xs):
 
 
 def _nest(node, *children):
-    d = _depth(*children) + 1
+    return _nest_d(node, _depth(*children) + 1)
+
+
+def _nest2(node, a, b):
+    """_nest for two expression children (the common case, kept cheap)."""
+    return _nest_d(node, max(a.__dict__.get("depth", 0), b.__dict__.get("depth", 0)) + 1)
+
+
+def _nest1(node, a):
+    return _nest_d(node, a.__dict__.get("depth", 0) + 1)
+
+
+def _nest_d(node, d):
     node.depth = d
     if d == MAX_DEPTH + 1 and _depth_sink[0] is not None:
         _depth_sink[0](node.pos, f"nested too deeply (more than {MAX_DEPTH} levels of "
@@ -255,7 +267,7 @@ class _Build(Transformer):
         return list(c)
 
     def assign_stmt(self, c):
-        return _nest(S.Assign(c[0].pos, c[0], c[2]), c[0], c[2])
+        return _nest2(S.Assign(c[0].pos, c[0], c[2]), c[0], c[2])
 
     def call_stmt(self, c):
         return _nest(S.CallStmt(_pos(c[0]), str(c[0]).upper(), c[2] or []), c[2] or [])
@@ -325,30 +337,30 @@ class _Build(Transformer):
         return [x for x in c if isinstance(x, S.Node)]
 
     def arg_pos(self, c):
-        return _nest(S.ArgPos(c[0].pos, c[0]), c[0])
+        return _nest1(S.ArgPos(c[0].pos, c[0]), c[0])
 
     def arg_in(self, c):
-        return _nest(S.ArgIn(_pos(c[0]), str(c[0]).upper(), c[2]), c[2])
+        return _nest1(S.ArgIn(_pos(c[0]), str(c[0]).upper(), c[2]), c[2])
 
     def arg_out(self, c):
-        return _nest(S.ArgOut(_pos(c[0]), str(c[0]).upper(), c[2], False), c[2])
+        return _nest1(S.ArgOut(_pos(c[0]), str(c[0]).upper(), c[2], False), c[2])
 
     def arg_out_not(self, c):
         return S.ArgOut(_pos(c[1]), str(c[1]).upper(), c[3], True)
 
     # ---- expressions
     def binop(self, c):
-        return _nest(S.BinOp(_pos(c[1]), str(c[1]).upper() if c[1].type != "AMP" else "AND", c[0], c[2]),
-                     c[0], c[2])
+        return _nest2(S.BinOp(_pos(c[1]), str(c[1]).upper() if c[1].type != "AMP" else "AND", c[0], c[2]),
+                      c[0], c[2])
 
     def neg(self, c):
-        return _nest(S.UnOp(_pos(c[0]), "-", c[1]), c[1])
+        return _nest1(S.UnOp(_pos(c[0]), "-", c[1]), c[1])
 
     def pos(self, c):
-        return _nest(S.UnOp(_pos(c[0]), "+", c[1]), c[1])
+        return _nest1(S.UnOp(_pos(c[0]), "+", c[1]), c[1])
 
     def not_(self, c):
-        return _nest(S.UnOp(_pos(c[0]), "NOT", c[1]), c[1])
+        return _nest1(S.UnOp(_pos(c[0]), "NOT", c[1]), c[1])
 
     def int_lit(self, c):
         t = c[0]
@@ -388,7 +400,7 @@ class _Build(Transformer):
         return S.Name(_pos(c[0]), str(c[0]).upper())
 
     def field(self, c):
-        return _nest(S.Field(_pos(c[2]), c[0], str(c[2]).upper()), c[0])
+        return _nest1(S.Field(_pos(c[2]), c[0], str(c[2]).upper()), c[0])
 
     def index(self, c):
         ixs = [x for x in c[2:-1] if isinstance(x, S.Node)]
@@ -404,7 +416,7 @@ class _Build(Transformer):
         return _nest(S.Call(_pos(c[0]), str(c[0]).upper(), c[2] or []), c[2] or [])
 
     def paren(self, c):
-        return _nest(S.Paren(_pos(c[0]), c[1]), c[1])
+        return _nest1(S.Paren(_pos(c[0]), c[1]), c[1])
 
     def start(self, c):
         return list(c)
