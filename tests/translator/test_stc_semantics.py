@@ -206,3 +206,10 @@ def test_real_power_and_math_of_literals(tmp_path):
     values = H.run(exe, 1)
     got = {k: H.lookup(values, "MAIN0." + k) for k in ("H", "S", "D", "E")}
     assert got == {"H": "1.5", "S": "5", "D": "-3", "E": "8"}
+
+
+def test_help_documents_semantics():
+    r = H.run_stc(["--help"])
+    assert r.returncode == 0
+    assert "--semantics" in r.stdout and "--werror-portability" in r.stdout
+    assert "matiec" in r.stdout and "iec" in r.stdout
