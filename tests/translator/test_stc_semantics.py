@@ -93,6 +93,7 @@ def test_portability_warning(tmp_path, stmt, needle):
     # --werror-portability turns it into a failing build
     r = H.run_stc(["--werror-portability", "-o", str(tmp_path / "o2"), str(src)])
     assert r.returncode == 1 and needle in r.stderr
+    assert f"{src}:4:" in r.stderr and ": error: portability:" in r.stderr
     assert not (tmp_path / "o2").exists()
 
 

@@ -121,7 +121,9 @@ def run(files, libdirs, outdir, semantics="matiec", werror_portability=False):
     diags = Diagnostics()
     project = compile_files(texts, diags, semantics)
     for line in diags.format(warnings=True):
-        print(line + (" [--werror-portability]" if werror_portability else ""), file=sys.stderr)
+        if werror_portability:   # the warnings are what fails the build: say so
+            line = line.replace(": warning: ", ": error: ", 1) + " [--werror-portability]"
+        print(line, file=sys.stderr)
     if diags or (werror_portability and diags.warnings):
         for line in diags.format():
             print(line, file=sys.stderr)
