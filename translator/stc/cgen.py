@@ -493,7 +493,8 @@ class Gen:
         ctype = "uint64_t" if st.is_elem and st.kind == "uint" and st.bits == 64 else "int64_t"
         self.w("{")
         self.ind += 1
-        self.w(f"{ctype} {sel} = {self.ex(s.selector)};")
+        # matiec: switch () on the C value, an 8/16-bit expression is not truncated
+        self.w(f"{ctype} {sel} = {self.ex(s.selector, wide=self.matiec)};")
         first = True
         for labels, body in s.groups:
             conds = []

@@ -751,6 +751,9 @@ class Checker:
         elif not (st.is_enum or st.is_elem and st.is_int):
             self.err(s.selector.pos, f"CASE selector must be an integer or enumerated type, not {st}")
             st = None
+        else:
+            # matiec's switch() sees an 8/16-bit selector expression untruncated
+            self._warn_narrow(S.BinOp(s.selector.pos, "=", s.selector, s.selector), st)
         groups = []
         cur = None
         seen = []
