@@ -48,11 +48,12 @@ def symtab_c(outdir):
     return "\n".join(out) + "\n"
 
 
-def build(st_files, workdir, cc=None):
+def build(st_files, workdir, cc=None, semantics=None):
     """Translate and compile; returns path of the executable. Raises AssertionError with the
-    compiler output on failure."""
+    compiler output on failure. semantics: None (stc's default) or "matiec" / "iec"."""
     outdir = os.path.join(workdir, "gen")
-    r = run_stc(["-o", outdir] + list(st_files))
+    sem = [f"--semantics={semantics}"] if semantics else []
+    r = run_stc(sem + ["-o", outdir] + list(st_files))
     assert r.returncode == 0, f"stc failed ({r.returncode}):\n{r.stderr}"
     with open(os.path.join(outdir, "stc_symtab.c"), "w") as f:
         f.write(symtab_c(outdir))
@@ -60,7 +61,7 @@ def build(st_files, workdir, cc=None):
         srcs = [os.path.join(outdir, x.strip()) for x in f if x.strip()]
     exe = os.path.join(workdir, "prog")
     cmd = [cc or os.environ.get("CC", "cc")] + CFLAGS + ["-I", outdir, "-o", exe] + srcs + [
-        os.path.join(outdir, "stc_symtab.c"), os.path.join(HERE, "stc_test_main.c")]
+        os.path.join(outdir, "stc_symtab.c"), os.path.join(HERE, "stc_test_main.c"), "-lm"]
     p = subprocess.run(cmd, capture_output=True, text=True)
     assert p.returncode == 0, f"C compile failed:\n{' '.join(cmd)}\n{p.stderr}"
     return exe
@@ -93,10 +94,17 @@ _SET = re.compile(r"\(\*\s*SET\s+(\S+)\s*=\s*(\S+)\s*\*\)", re.I)
 _ERROR = re.compile(r"\(\*\s*ERROR\s+(\d+):(\d+):\s*(.*?)\s*\*\)", re.I)
 
 
-def expectations(text):
+_EXPECT_MODE = re.compile(r"\(\*\s*EXPECT-(MATIEC|IEC)\s+(\S+)\s*=\s*(.*?)\s*\*\)", re.I)
+
+
+def expectations(text, semantics="matiec"):
+    """(scans, [(path, value)], [(path, value)]) for one semantics: (* EXPECT p = v *) holds
+    in both, (* EXPECT-MATIEC p = v *) / (* EXPECT-IEC p = v *) in one mode only."""
     m = _SCANS.search(text)
     scans = int(m.group(1)) if m else 1
-    return scans, _EXPECT.findall(text), _SET.findall(text)
+    expects = _EXPECT.findall(text)
+    expects += [(p, v) for mode, p, v in _EXPECT_MODE.findall(text) if mode.lower() == semantics]
+    return scans, expects, _SET.findall(text)
 
 
 def expected_errors(text):

@@ -16,13 +16,14 @@ def _id(p):
     return os.path.splitext(os.path.basename(p))[0]
 
 
+@pytest.mark.parametrize("semantics", ["matiec", "iec"])
 @pytest.mark.parametrize("path", ACCEPT, ids=_id)
-def test_accept(path, tmp_path):
+def test_accept(path, semantics, tmp_path):
     with open(path) as f:
         text = f.read()
-    scans, expects, sets = H.expectations(text)
+    scans, expects, sets = H.expectations(text, semantics)
     assert expects, f"{path}: no (* EXPECT ... *) lines"
-    exe = H.build([path], str(tmp_path))
+    exe = H.build([path], str(tmp_path), semantics=semantics)
     values = H.run(exe, scans, sets)
     for sym, want in expects:
         got = H.lookup(values, sym)

@@ -1,7 +1,11 @@
 """Value cross-check with the reference compiler: every accept-corpus program is also compiled
 with matiec (iec2c + its lib/C), run for the same scans in the same virtual time, and must
-produce the (* EXPECT ... *) values that stc's build produces. Files marked
-(* MATIEC-DIFFERS: reason *) are skipped with that reason (known matiec bugs).
+produce the (* EXPECT ... *) values that stc's build produces in its default
+--semantics=matiec (EXPECT and EXPECT-MATIEC lines). Files marked
+(* MATIEC-DIFFERS: reason *) are skipped with that reason (known matiec bugs); files marked
+(* FORK-DIFFERS: reason *) hold upstream matiec's values; they are compared too, but when the
+program built by this iec2c does not finish within a few seconds or gives other values (as
+OpenPLC's fork of matiec does there) the test is skipped with that reason and the values.
 Skipped, with the reason, when iec2c is absent (as in CI)."""
 import glob
 import os
@@ -177,12 +181,13 @@ def test_matiec_same_values(path, tmp_path):
     m = re.search(r"\(\*\s*MATIEC-DIFFERS:\s*(.*?)\*\)", text, re.S)
     if m:
         pytest.skip("matiec differs: " + " ".join(m.group(1).split()))
-    scans, expects, sets = H.expectations(text)
+    fork = re.search(r"\(\*\s*FORK-DIFFERS:\s*(.*?)\*\)", text, re.S)
+    scans, expects, sets = H.expectations(text, "matiec")
     d = Diagnostics()
     project = compile_files([(path, text, False)], d)
     assert not d, d.format()
     stc_out = tmp_path / "stc"
-    r = H.run_stc(["-o", str(stc_out), path])
+    r = H.run_stc(["--semantics=matiec", "-o", str(stc_out), path])
     assert r.returncode == 0, r.stderr
     rows = _symbols(str(stc_out))
     mdir = tmp_path / "matiec"
@@ -200,8 +205,21 @@ def test_matiec_same_values(path, tmp_path):
                                 if f.endswith(".c") and f != "POUS.c"), "-lm"],
                        capture_output=True, text=True)
     assert p.returncode == 0, p.stderr
-    run = subprocess.run([str(exe)], capture_output=True, text=True, timeout=60)
+    try:
+        run = subprocess.run([str(exe)], capture_output=True, text=True,
+                             timeout=5 if fork else 60)
+    except subprocess.TimeoutExpired:
+        if not fork:
+            raise
+        pytest.skip("known difference of OpenPLC's matiec fork (this iec2c's program did not "
+                    "finish in 5 s): " + " ".join(fork.group(1).split()))
     assert run.returncode == 0, run.stderr
     got = dict(line.split("=", 1) for line in run.stdout.splitlines())
+    if fork:
+        diff = [f"{sym}: {got[sym.upper()]} (stc {want})" for sym, want in expects
+                if got[sym.upper()] != want.replace(" ", "")]
+        if diff:
+            pytest.skip("known difference of OpenPLC's matiec fork: " + " ".join(fork.group(1).split())
+                        + "; this iec2c gives " + ", ".join(diff))
     for sym, want in expects:
         assert got[sym.upper()] == want.replace(" ", ""), f"{sym}: matiec gives {got[sym.upper()]}, stc {want}"

@@ -147,13 +147,13 @@ def _alarm(signum, frame):
     raise Timeout()
 
 
-def run_case(name, text, workdir, cc, case_timeout):
+def run_case(name, text, workdir, cc, case_timeout, semantics="matiec"):
     """Returns None if fine, else a one-line reason."""
     diags = Diagnostics()
     signal.signal(signal.SIGALRM, _alarm)
     signal.alarm(case_timeout)
     try:
-        project = compile_files([(name, text, False)], diags)
+        project = compile_files([(name, text, False)], diags, semantics)
         if diags:
             lines = diags.format()
             for ln in lines:
@@ -219,7 +219,9 @@ def main(argv=None):
             name, text = rng.choice(pool)
             mutant = mutate(rng, text, donors)
             n += 1
-            res = run_case(name, mutant, work, args.cc, args.case_timeout)
+            # both semantics: the C of each must compile
+            res = run_case(name, mutant, work, args.cc, args.case_timeout,
+                           "iec" if n % 2 else "matiec")
             if res == "ACCEPTED":
                 accepted += 1
             elif res is not None:

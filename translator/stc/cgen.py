@@ -31,9 +31,25 @@ def ptr_decl(t, name):
     return f"{_c_elem(t)} *{name}"
 
 
+def _c_string(v):
+    out = []
+    for ch in v:
+        o = ord(ch) & 0xFF
+        if ch in '"\\?':
+            out.append("\\" + ch)
+        elif 32 <= o < 127:
+            out.append(ch)
+        else:
+            out.append(f"\\{o:03o}")
+    return '"' + "".join(out) + '"'
+
+
 def lit(v, t):
     if t.is_enum:
         return str(v)
+    if t.kind == "string":
+        v = v or ""
+        return f"((stc_string){{{len(v)}u, {_c_string(v)}}})" if v else "((stc_string){0u, {0}})"
     if t.kind == "real":
         v = float(v)
         if math.isinf(v) or math.isnan(v):
@@ -83,6 +99,7 @@ class Gen:
         self.lines = []
         self.ind = 0
         self.tmp = 0
+        self.matiec = getattr(project, "semantics", "matiec") == "matiec"
 
     # ---- output helpers
     def w(self, s=""):
@@ -97,7 +114,8 @@ class Gen:
     def generate(self, outdir):
         files = {}
         with open(os.path.join(os.path.dirname(__file__), HEADER)) as f:
-            files[HEADER] = f.read()
+            files[HEADER] = f.read().replace(
+                "#define STC_MATIEC 0", f"#define STC_MATIEC {1 if self.matiec else 0}", 1)
         files["POUS.h"] = self.pous_h()
         files["POUS.c"] = self.pous_c()
         cfg_files = self.config_files()
@@ -236,7 +254,9 @@ class Gen:
         rt = pou.rtype
         ret = "stc_time" if rt.is_elem and rt.kind == "time" else _c_elem(rt)
         if rt.is_array:
-            ret = "void"   # rejected earlier
+            # C functions cannot return arrays: the caller passes the result's storage
+            ret = "void"
+            params.insert(0, f"{rt.name} *{pou.name}__RESULT_p")
         return f"{ret} {pou.name}({', '.join(params) or 'void'})"
 
     # ---- POUS.c
@@ -282,7 +302,7 @@ class Gen:
             else:
                 acc[v.name] = f"(*data->{v.name})" if v.kind == "VAR_IN_OUT" else f"data->{v.name}"
         if pou.kind == "function":
-            acc["\0result"] = f"{pou.name}__RESULT"
+            acc["\0result"] = f"(*{pou.name}__RESULT_p)" if pou.rtype.is_array else f"{pou.name}__RESULT"
         return acc
 
     def function(self, pou):
@@ -293,22 +313,24 @@ class Gen:
         self.w("{")
         self.ind += 1
         rt = pou.rtype
-        self.w(f"{cdecl(rt, pou.name + '__RESULT')};")
+        res = self.acc["\0result"]
+        if not rt.is_array:
+            self.w(f"{cdecl(rt, pou.name + '__RESULT')};")
         for v in pou.vars.values():
             if v.kind in ("VAR", "VAR_TEMP"):
                 self.w(f"{cdecl(v.type, v.name)};")
         for v in pou.vars.values():
             if v.kind in ("VAR_INPUT", "VAR_IN_OUT", "VAR_OUTPUT"):
                 self.w(f"(void){v.name};  /* parameters may be unused */")
-        self.w(f"memset(&{pou.name}__RESULT, 0, sizeof {pou.name}__RESULT);")
-        self.init_storage(f"{pou.name}__RESULT", rt, None)
+        self.w(f"memset(&{res}, 0, sizeof {res});")
+        self.init_storage(res, rt, None)
         for v in pou.vars.values():
             if v.kind in ("VAR", "VAR_TEMP", "VAR_OUTPUT"):
                 lv = self.acc[v.name]
                 self.w(f"memset(&{lv}, 0, sizeof {lv});")
                 self.init_storage(lv, v.type, v.init)
         self.stmts(pou.node.body)
-        self.w(f"return {pou.name}__RESULT;")
+        self.w("return;" if rt.is_array else f"return {pou.name}__RESULT;")
         self.ind -= 1
         self.w("}")
         self.w()
@@ -453,7 +475,7 @@ class Gen:
         elif isinstance(s, S.Continue):
             self.w("continue;")
         elif isinstance(s, S.Return):
-            if self.pou.kind == "function":
+            if self.pou.kind == "function" and not self.pou.rtype.is_array:
                 self.w(f"return {self.pou.name}__RESULT;")
             else:
                 self.w("return;")
@@ -471,7 +493,8 @@ class Gen:
         ctype = "uint64_t" if st.is_elem and st.kind == "uint" and st.bits == 64 else "int64_t"
         self.w("{")
         self.ind += 1
-        self.w(f"{ctype} {sel} = {self.ex(s.selector)};")
+        # matiec: switch () on the C value, an 8/16-bit expression is not truncated
+        self.w(f"{ctype} {sel} = {self.ex(s.selector, wide=self.matiec)};")
         first = True
         for labels, body in s.groups:
             conds = []
@@ -552,7 +575,13 @@ class Gen:
 
     def store(self, lv, t, value):
         """Assignment of expression `value` to storage lv of type t."""
-        if t.is_array:
+        if t.is_array and isinstance(value, S.Call) and getattr(value, "kind", None) == "func":
+            # a FUNCTION returning an array writes into a temporary, then it is copied (the
+            # function may read the target through a global)
+            tmp = self.new_tmp("res")
+            self.w(f"{{ {t.name} {tmp}; {self.func_call(value, result=tmp)}; "
+                   f"memcpy(&{lv}, &{tmp}, sizeof {lv}); }}")
+        elif t.is_array:
             self.w(f"memcpy(&{lv}, &{self.lv(value)}, sizeof {lv});")
         elif t.is_struct:
             self.w(f"{lv} = {self.ex(value)};")
@@ -569,7 +598,11 @@ class Gen:
             for k in ("kind", "pou", "bound", "outs"):
                 if hasattr(c, k):
                     setattr(e, k, getattr(c, k))
-            self.w(f"(void){self.func_call(e)};")
+            if e.pou.rtype.is_array:
+                tmp = self.new_tmp("res")
+                self.w(f"{{ {e.pou.rtype.name} {tmp}; {self.func_call(e, result=tmp)}; }}")
+            else:
+                self.w(f"(void){self.func_call(e)};")
 
     def fb_call(self, c):
         v = c.var
@@ -581,6 +614,15 @@ class Gen:
                 self.w(f"{base}.{name} = &{self.lv(e)};")
             else:
                 self.store(f"{base}.{name}", p.type, e)
+        en = getattr(c, "en", None)
+        eno = getattr(c, "eno", None)
+        if en is not None:
+            flag = self.new_tmp("en")
+            self.w("{")
+            self.ind += 1
+            self.w(f"uint8_t {flag} = (uint8_t)({self.ex(en)} != 0);")
+            self.w(f"if ({flag}) {{")
+            self.ind += 1
         if pou.std is not None:
             if pou.std.needs_time:
                 self.w(f"{pou.name}_body__(&{base}, stc_time_ns(__CURRENT_TIME));")
@@ -588,6 +630,15 @@ class Gen:
                 self.w(f"{pou.name}_body__(&{base});")
         else:
             self.w(f"{pou.name}_body__(&{base});")
+        if en is not None:
+            self.ind -= 1
+            self.w("}")
+            if eno is not None:
+                self.w(f"{self.lv(eno)} = {flag};")
+            self.ind -= 1
+            self.w("}")
+        elif eno is not None:
+            self.w(f"{self.lv(eno)} = 1;")
         for p, target in c.outs:
             tl = self.lv(target)
             if p.type.is_array:
@@ -595,9 +646,9 @@ class Gen:
             else:
                 self.w(f"{tl} = {base}.{p.name};")
 
-    def func_call(self, c):
+    def func_call(self, c, result=None):
         pou = c.pou
-        args = []
+        args = [f"&{result}"] if result is not None else []
         outs = {p.name: t for p, t in c.outs}
         for v in pou.vars.values():
             if v.kind == "VAR_INPUT":
@@ -659,11 +710,29 @@ class Gen:
         fn = "stc_idxu" if t.is_elem and t.kind == "uint" and t.bits == 64 else "stc_idx"
         return f"{fn}({self.ex(ix)}, {lo}, {hi})"
 
-    def ex(self, e):
-        t = e.ty
+    def _is_narrow(self, t):
+        """matiec mode: C evaluates 8- and 16-bit integer arithmetic in int (32 bits) and only
+        truncates where the value is stored or passed on; such expressions are 'wide'."""
+        return self.matiec and t is not None and t.is_elem and t.kind in ("sint", "uint", "bit") \
+            and t.bits < 32
+
+    def ex(self, e, wide=False):
+        """C expression of e. With wide=True (operands of operators) a narrow integer
+        expression may stay in int as matiec's C leaves it; otherwise it is truncated."""
         if isinstance(e, S.Paren):
-            return self.ex(e.inner)
+            return self.ex(e.inner, wide)
+        if isinstance(e, (S.BinOp, S.UnOp)):
+            r = self.binop(e) if isinstance(e, S.BinOp) else self.unop(e)
+            if getattr(e, "wide", False) and not wide:
+                return f"(({e.ty.ctype}){r})"
+            return r
+        return self._ex(e)
+
+    def _ex(self, e):
+        t = e.ty
         if isinstance(e, (S.IntLit, S.RealLit, S.BoolLit)):
+            return lit(e.value, t)
+        if isinstance(e, S.StringLit):
             return lit(e.value, t)
         if isinstance(e, S.TimeLit):
             return lit(e.ns, T.TIME)
@@ -695,7 +764,13 @@ class Gen:
             if k == "conv":
                 return self.conversion(e)
             if k == "binop":
-                return self.binop(e.binop)
+                r = self.binop(e.binop)    # ADD(a, b) ...: a typed function in matiec
+                return f"(({t.ctype}){r})" if getattr(e.binop, "wide", False) else r
+            if k == "math":
+                xs = [f"(double){self.ex(a)}" for a in e.argv]
+                fn = {"SQRT": "sqrt", "LN": "log", "LOG": "log10", "EXP": "exp",
+                      "EXPT": "stc_expt"}[e.name]
+                return f"(({t.ctype}){fn}({', '.join(xs)}))"
             if k == "trunc":
                 x = self.ex(e.argv[0])
                 lo, hi = t.range()
@@ -707,7 +782,14 @@ class Gen:
 
     def unop(self, e):
         t = e.ty
-        x = self.ex(e.operand)
+        x = self.ex(e.operand, wide=self._is_narrow(t))
+        if self._is_narrow(t) and not (e.op == "NOT" and t.kind == "bool"):
+            e.wide = True
+            if e.op == "NOT":
+                return f"(~(int32_t){x})"
+            if e.op == "+":
+                return f"((int32_t){x})"
+            return f"((int32_t)(0u - (uint32_t){x}))"
         if e.op == "NOT":
             if t.kind == "bool":
                 return f"(!{x})"
@@ -727,8 +809,30 @@ class Gen:
     def binop(self, e):
         op = e.op
         t = e.ty
-        a = self.ex(e.left)
-        b = self.ex(e.right)
+        if op in self._COP:
+            nw = self._is_narrow(e.left.ty)
+        else:
+            nw = self._is_narrow(t)
+        if getattr(e, "fn_form", False):
+            nw = False            # ADD(a, b) ...: typed arguments and result, as in matiec
+        a = self.ex(e.left, wide=nw)
+        b = self.ex(e.right, wide=nw)
+        if nw and op not in self._COP:
+            # matiec: C int arithmetic, no truncation until the value is stored
+            e.wide = True
+            if op == "/":
+                return f"stc_div_DINT((int32_t){a}, (int32_t){b})"
+            if op == "MOD":
+                return f"stc_mod_DINT((int32_t){a}, (int32_t){b})"
+            if op in ("AND", "OR", "XOR"):
+                cop = {"AND": "&", "OR": "|", "XOR": "^"}[op]
+                return f"((int32_t){a} {cop} (int32_t){b})"
+            return f"((int32_t)((uint32_t){a} {op} (uint32_t){b}))"
+        if op in self._COP and e.left.ty.is_elem and e.left.ty.kind == "string":
+            cop = {"=": "==", "<>": "!="}.get(op, op)
+            return f"(stc_str_cmp(&{a}, &{b}) {cop} 0)" if isinstance(e.left, (S.Name, S.Field, S.Index)) \
+                and isinstance(e.right, (S.Name, S.Field, S.Index)) else \
+                f"(stc_str_cmpv({a}, {b}) {cop} 0)"
         if op in self._COP:
             ot = e.left.ty
             fam = "f" if ot.is_elem and ot.kind == "real" else \
@@ -748,12 +852,16 @@ class Gen:
                 rt = e.right.ty
             if op in ("+", "-"):
                 return f"((int64_t)((uint64_t){a} {op} (uint64_t){b}))"
+            if self.matiec:
+                return f"stc_time_{'mul' if op == '*' else 'div'}_m({a}, (double){b})"
             if rt.kind == "real":
                 return f"stc_time_{'mulf' if op == '*' else 'divf'}({a}, (double){b})"
             return f"stc_time_{'mul' if op == '*' else 'div'}({a}, (int64_t){b})"
         if t.kind == "real":
             if op == "MOD":
                 return "0"
+            if op == "**":
+                return f"(({t.ctype})stc_expt((double){a}, (double){b}))"
             return f"({a} {op} {b})"
         if op == "/":
             return f"stc_div_{t.name}({a}, {b})"
@@ -790,7 +898,19 @@ class Gen:
         t = e.ty
         xs = [self.ex(a) for a in args]
         if n in ("SHL", "SHR", "ROL", "ROR"):
+            if self.matiec and n in ("SHL", "SHR") and t.bits > 1:
+                # matiec shifts in C: x86 takes the count modulo 32 (64 for LWORD), after the
+                # promotion of BYTE and WORD to int
+                mask = 63 if t.bits == 64 else 31
+                return f"stc_{n.lower()}_{t.name}({xs[0]}, (int64_t){xs[1]} & {mask})"
             return f"stc_{n.lower()}_{t.name}({xs[0]}, (int64_t){xs[1]})"
+        if n == "LEN":
+            return f"((int16_t){xs[0]}.len)"
+        if n == "CONCAT":
+            out = xs[0]
+            for x in xs[1:]:
+                out = f"stc_str_concat({out}, {x})"
+            return out
         if n == "ABS":
             if t.kind == "uint":
                 return xs[0]
@@ -811,10 +931,23 @@ class Gen:
         if n == "MUX":
             k = xs[0]
             out = xs[-1]
+            last = len(xs) - 1
+            if self.matiec:
+                # matiec: a selector outside 0..n-1 gives the type's initial value (0)
+                out = f"({k} == {last - 1} ? {xs[-1]} : {self._zero(t)})"
             for i in range(len(xs) - 2, 0, -1):
                 out = f"({k} == {i - 1} ? {xs[i]} : {out})"
             return out
         raise AssertionError(n)
+
+    def _zero(self, t):
+        if t.is_enum:
+            return "0"
+        if not t.is_elem:
+            return f"({_c_elem(t)}){{0}}"
+        if t.kind == "time":
+            return "INT64_C(0)"
+        return lit(0, t)
 
     def _minmax(self, xs, cmp, t):
         # nested conditional expressions; arguments are evaluated more than once, which is

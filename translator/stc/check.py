@@ -75,6 +75,7 @@ class Project:
         self.config = None
         self.located = []          # Var of every located variable, in declaration order
         self.enum_values = {}      # VALUE -> [EnumT] for bare enum names
+        self.semantics = "matiec"  # "matiec" or "iec": run-time values the C reproduces
 
 
 _KIND_OK = {
@@ -92,10 +93,15 @@ def _lit_fits(value, ty):
 
 
 class Checker:
-    def __init__(self, diags):
+    def __init__(self, diags, semantics="matiec"):
         self.d = diags
         self.p = Project()
+        self.p.semantics = semantics
         self.file = None
+
+    def warn(self, pos, msg):
+        """Portability warning: the construct's value differs between matiec and IEC."""
+        self.d.warn(self.file, pos, msg)
 
     # ---- errors
     def err(self, pos, msg, file=None):
@@ -166,7 +172,9 @@ class Checker:
             return False
         return True
 
-    def _check_ident(self, name, pos):
+    def _check_ident(self, name, pos, member=False):
+        if member and name in _MEMBER_OK:
+            return
         if "__" in name:
             self.err(pos, f"identifier '{name}' contains '__', which matiec rejects: use a single '_'")
         elif name.endswith("_"):
@@ -225,7 +233,7 @@ class Checker:
             fields = {}
             for m in spec.members:
                 for mname, mpos in m.names:
-                    self._check_ident(mname, mpos)
+                    self._check_ident(mname, mpos, member=True)
                     mt = self.resolve_type(m.type, member=True)
                     if mname in fields:
                         self.err(mpos, f"member '{mname}' is declared twice")
@@ -369,7 +377,7 @@ class Checker:
             pass
 
     def is_constant(self, e):
-        if isinstance(e, (S.IntLit, S.RealLit, S.TimeLit, S.BoolLit, S.TypedLit)):
+        if isinstance(e, (S.IntLit, S.RealLit, S.TimeLit, S.BoolLit, S.TypedLit, S.StringLit)):
             return True
         if isinstance(e, S.Paren):
             return self.is_constant(e.inner)
@@ -398,9 +406,10 @@ class Checker:
                 self.err(n.rtype.pos, "a FUNCTION returning a STRUCT is not portable (matiec "
                          "accepts it but its C does not compile): use a VAR_IN_OUT or a "
                          "FUNCTION_BLOCK")
-            elif pou.rtype.is_array:
-                self.err(n.rtype.pos, "a FUNCTION returning an ARRAY is not supported: use a "
-                         "VAR_IN_OUT array")
+            elif pou.rtype.is_array and pou.rtype.name is None:
+                self.err(n.rtype.pos, "a FUNCTION returning an anonymous ARRAY cannot be "
+                         "assigned anywhere (matiec rejects assigning anonymous ARRAY types): "
+                         "declare a named array TYPE and return that")
         for blk in n.blocks:
             self._var_block(pou, blk)
 
@@ -516,8 +525,8 @@ class Checker:
             self.err(pos, f"invalid direct address {text}")
             return
         if size == "X" and not 0 <= parts[1] <= 7:
-            self.err(pos, f"bit number {parts[1]} out of range 0..7")
-            return
+            self.warn(pos, f"portability: bit number {parts[1]} is outside 0..7: matiec accepts "
+                      "it, but OpenPLC's I/O image has 8 bits per byte, so nothing reaches it")
         v.location = (area, size, parts)
         v.cname = "__" + area + size + "_".join(str(x) for x in parts)
         v.pos = v.pos
@@ -742,6 +751,9 @@ class Checker:
         elif not (st.is_enum or st.is_elem and st.is_int):
             self.err(s.selector.pos, f"CASE selector must be an integer or enumerated type, not {st}")
             st = None
+        else:
+            # matiec's switch() sees an 8/16-bit selector expression untruncated
+            self._warn_narrow(S.BinOp(s.selector.pos, "=", s.selector, s.selector), st)
         groups = []
         cur = None
         seen = []
@@ -907,6 +919,9 @@ class Checker:
 
     def fb_member(self, e, bt):
         fv = bt.pou.vars.get(e.name)
+        if fv is not None and fv.kind == "VAR" and bt.pou.std is None:
+            e.ty = fv.type      # matiec lets a program read an instance's local variables
+            return fv.type
         if fv is None or fv.kind not in ("VAR_INPUT", "VAR_OUTPUT"):
             if fv is not None and bt.pou.std is None:
                 self.fail(e.pos, f"'{e.name}' of {bt.name} is not an input or output: internal "
@@ -939,7 +954,18 @@ class Checker:
                 self.fail(e.pos, f"malformed TIME literal {e.text}")
             return T.TIME
         if isinstance(e, S.StringLit):
-            self.fail(e.pos, "string literals are not supported by stc")
+            if e.text.startswith('"'):
+                self.fail(e.pos, "WSTRING literals (\"...\") are not supported by stc: use "
+                          "'...' (STRING)")
+            v = _string_value(e.text[1:-1])
+            if v is None:
+                self.fail(e.pos, f"invalid $ escape in string literal {e.text}")
+            if len(v) > T.STR_MAX:
+                self.warn(e.pos, f"string literal of {len(v)} characters: a STRING holds "
+                          f"{T.STR_MAX} (matiec cuts it)")
+                v = v[:T.STR_MAX]
+            e.value = v
+            return T.STRING
         if isinstance(e, S.TypedLit):
             return self.typed_lit(e)
         if isinstance(e, S.Paren):
@@ -1085,17 +1111,21 @@ class Checker:
             if rt.is_lit or rt.is_elem and rt.is_num:
                 if rt.is_lit:
                     self.settle(e.right, T.DINT if rt.kind == "int" else T.ELEMENTARY["LREAL"])
+                self._warn_time_scale(e, e.left, e.right)
                 return T.TIME
             self.fail(e.pos, f"TIME {op} {rt}: the right operand must be a number")
         if op == "*" and rt.is_elem and rt.kind == "time" and (lt.is_lit or lt.is_elem and lt.is_num):
             if lt.is_lit:
                 self.settle(e.left, T.DINT if lt.kind == "int" else T.ELEMENTARY["LREAL"])
             e.swap = True
+            self._warn_time_scale(e, e.right, e.left)
             return T.TIME
         if op in ("+", "-") and lt.is_elem and lt.kind == "time":
             if rt.is_elem and rt.kind == "time":
                 return T.TIME
             self.fail(e.pos, f"TIME {op} {rt}: both operands must be TIME (write e.g. T#5ms)")
+        if op == "**":
+            return self._power(e, lt, rt)
         if lt.is_lit and rt.is_lit:
             if op in self._CMP:
                 k = "real" if "real" in (lt.kind, rt.kind) else "int"
@@ -1120,6 +1150,8 @@ class Checker:
             self.fail(e.pos, f"'{op}' between {lt} and {rt}: IEC strict typing needs the same "
                       f"type on both sides; convert explicitly (e.g. {_conv_hint(rt, lt)})")
         t = lt
+        if op in self._CMP or op in ("/", "MOD"):
+            self._warn_narrow(e, t)
         if op in self._CMP:
             if t.is_array or t.is_struct or t.is_fb:
                 self.fail(e.pos, f"cannot compare values of type {t}")
@@ -1131,6 +1163,8 @@ class Checker:
                 self.fail(e.pos, f"{op} needs BOOL or a bit string type (BYTE/WORD/DWORD/LWORD), "
                           f"not {t}")
             return t
+        if t.is_elem and t.kind == "string":
+            self.fail(e.pos, f"'{op}' on STRING is not defined: use CONCAT, LEN")
         # arithmetic
         if not t.is_elem:
             self.fail(e.pos, f"'{op}' on {t}")
@@ -1152,6 +1186,63 @@ class Checker:
             self.fail(e.pos, f"arithmetic '{op}' on {t} is not allowed (matiec rejects it: "
                       f"{t.name} is a bit string): convert first, e.g. {t.name}_TO_UINT(x) {op} 1")
         return t
+
+    # ---- portability warnings: constructs whose value differs between matiec and IEC
+    def _warn_time_scale(self, e, te, ke):
+        tv = _time_const(te)
+        if tv is not None and tv % 1_000_000_000 == 0 and e.op == "*" and \
+                ke.ty is not None and ke.ty.is_elem and ke.ty.is_int:
+            return      # whole seconds times an integer: matiec computes it exactly
+        kv = self.const_value(ke)
+        if tv is not None and kv is not None:
+            if (e.op == "*" and _matiec_time_mul(tv, kv) == tv * kv) or \
+                    (e.op == "/" and kv != 0 and abs(tv) % 1_000_000_000 < 2**31 and
+                     _matiec_time_div(tv, kv) == int(tv / kv)):
+                return
+        if e.op == "*":
+            self.warn(e.pos, "portability: TIME * number differs between matiec and IEC: matiec "
+                      "scales the sub-second part through a 32-bit int of nanoseconds "
+                      "(T#1ms * 2148 gives -2.147 s); multiply whole seconds (T#1s * n) or "
+                      "use DINT_TO_TIME")
+        else:
+            self.warn(e.pos, "portability: TIME / number differs between matiec and IEC: "
+                      "matiec divides seconds and nanoseconds in double, so the result can be "
+                      "some ns off (more for long TIMEs)")
+
+    def _warn_narrow(self, e, t):
+        if getattr(e, "fn_form", False):
+            return
+        if not (t.is_elem and t.kind in ("sint", "uint", "bit") and t.bits < 32):
+            return
+        for x in (e.left, e.right):
+            while isinstance(x, S.Paren):
+                x = x.inner
+            arith = isinstance(x, S.BinOp) and x.op in ("+", "-", "*") or \
+                isinstance(x, S.UnOp) and (x.op == "-" or x.op == "NOT" and t.kind != "bool")
+            if arith and self.const_value(x) is None:
+                self.warn(x.pos, f"portability: the intermediate value of this {t} expression "
+                          f"is not truncated to {t} by matiec (C computes it in 32-bit int) "
+                          f"but is by IEC: assign it to a variable of type {t} first")
+                return
+
+    def _power(self, e, lt, rt):
+        """x ** y (EXPT): x REAL or LREAL, y any number; the result has x's type."""
+        if lt.is_lit:
+            if lt.kind != "real":
+                self.fail(e.left.pos, "'**' needs REAL or LREAL on the left: write a REAL "
+                          "literal like 2.0")
+            if e.left.ty is not None and not e.left.ty.is_lit:
+                lt = e.left.ty          # settled by the context already
+            else:
+                lt = rt if rt.is_elem and rt.kind == "real" else T.ELEMENTARY["LREAL"]
+                self.settle(e.left, lt)
+        if not (lt.is_elem and lt.kind == "real"):
+            self.fail(e.pos, f"'**' needs REAL or LREAL, not {lt}")
+        if rt.is_lit:
+            self.settle(e.right, lt if rt.kind == "real" else T.DINT)
+        elif not (rt.is_elem and rt.is_num):
+            self.fail(e.right.pos, f"'**': the exponent must be a number, not {rt}")
+        return lt
 
     def coerce(self, e, from_t, to_t, what, soft=False):
         """Check that a value of from_t can be stored in to_t; settle literals."""
@@ -1255,6 +1346,7 @@ class Checker:
             c.kind = "fb"
             c.var = v
             self.bind_args(c, v.type.pou, fb=True)
+            self._warn_std_fb(c, v.type.pou)
             return None
         if name in T.STD_FBS or (name in self.p.pous and self.p.pous[name].kind == "function_block"):
             self.fail(c.pos, f"'{name}' is a function block type: declare an instance and call that")
@@ -1283,6 +1375,18 @@ class Checker:
                       "use a typed conversion like INT_TO_UINT")
         self.fail(c.pos, f"unknown function '{name}'")
 
+    def _warn_std_fb(self, c, pou):
+        std = pou.std.name if pou.std is not None else None
+        if std == "F_TRIG":
+            clk = c.bound.get("CLK")
+            if not (isinstance(clk, S.BoolLit) and clk.value):
+                self.warn(c.pos, "portability: F_TRIG differs between matiec and the OpenPLC "
+                          "fork / IEC mode on the first call: matiec gives Q = TRUE when CLK is "
+                          "FALSE on the first call; ignore Q on the first scan")
+        elif std in ("CTU", "CTD", "CTUD"):
+            self.warn(c.pos, f"portability: {std} differs between matiec and IEC at its limits: "
+                      "matiec stops counting up at PV and down at 0, IEC at the limits of INT")
+
     def bind_args(self, c, pou, fb):
         params = [v for v in pou.vars.values() if v.kind in ("VAR_INPUT", "VAR_OUTPUT", "VAR_IN_OUT")]
         inputs = [v for v in params if v.kind in ("VAR_INPUT", "VAR_IN_OUT")]
@@ -1293,13 +1397,26 @@ class Checker:
         if positional and named:
             self.fail(c.pos, "mixing positional and named (:=) arguments is not allowed")
         if positional:
-            if fb:
-                self.fail(c.pos, "function block calls need named arguments (IN := ...)")
             if len(positional) > len(inputs):
                 self.fail(c.pos, f"{pou.name} takes {len(inputs)} inputs, got {len(positional)}")
             for a, p in zip(positional, inputs):
                 bound[p.name] = a.value
+        c.en = c.eno = None
         for a in named:
+            if fb and a.name in ("EN", "ENO") and isinstance(a, S.ArgIn if a.name == "EN" else S.ArgOut):
+                # EN := cond runs the body only when cond is TRUE; ENO => v tells whether it ran
+                if a.name == "EN":
+                    self.cond(a.value, "EN")
+                    c.en = a.value
+                else:
+                    if a.negate:
+                        self.err(a.pos, "NOT x => y is not supported: negate afterwards")
+                        continue
+                    tt = self.lvalue(a.target, "assign to")
+                    if not T.same_type(tt, T.BOOL):
+                        self.err(a.target.pos, f"ENO is BOOL but '=>' target is {tt}")
+                    c.eno = a.target
+                continue
             p = pou.vars.get(a.name)
             if p is None or p.kind not in ("VAR_INPUT", "VAR_OUTPUT", "VAR_IN_OUT"):
                 self.err(a.pos, f"{pou.name} has no parameter '{a.name}'")
@@ -1327,7 +1444,13 @@ class Checker:
             e = bound.get(p.name)
             if e is None:
                 if p.kind == "VAR_IN_OUT":
-                    self.err(c.pos, f"VAR_IN_OUT '{p.name}' of {pou.name} must be passed")
+                    if fb:
+                        # matiec accepts it: the instance keeps the variable of its last call
+                        self.warn(c.pos, f"portability: VAR_IN_OUT '{p.name}' of {pou.name} is "
+                                  "not passed: the instance uses the variable of its previous "
+                                  "call (none on the first call: the program crashes)")
+                    else:
+                        self.err(c.pos, f"VAR_IN_OUT '{p.name}' of {pou.name} must be passed")
                 continue
             try:
                 if p.kind == "VAR_IN_OUT":
@@ -1402,6 +1525,16 @@ class Checker:
                 self.settle(args[1], T.DINT)
             elif not (nt.is_elem and nt.is_int):
                 self.fail(args[1].pos, f"{n}: shift count must be an integer, not {nt}")
+            if n in ("SHL", "SHR") and t.bits > 1:
+                k = self.const_value(args[1])
+                cw = 64 if t.bits == 64 else 32
+                if k is None:
+                    self.warn(args[1].pos, f"portability: {n} by a variable count differs between "
+                              f"matiec and IEC when the count is >= {cw} (matiec shifts in C: "
+                              f"x86 takes the count modulo {cw}); limit the count first")
+                elif not 0 <= k < cw:
+                    self.warn(args[1].pos, f"portability: {n} of {t} by {k} differs between "
+                              "matiec and IEC (IEC shifts everything out)")
             return t
         if n in ("ABS",):
             need(1)
@@ -1409,11 +1542,36 @@ class Checker:
             if not (t.is_elem and t.is_num):
                 self.fail(c.pos, f"ABS needs a numeric type, not {t}")
             return t
-        if n in ("SQRT", "EXPT"):
-            self.fail(c.pos, f"{n} is not supported by stc (it would need the C math library)")
+        if n == "LEN":
+            need(1)
+            t = self.expr(args[0], T.STRING)
+            if not T.same_type(t, T.STRING):
+                self.fail(args[0].pos, f"LEN needs a STRING, not {t}")
+            return T.INT
+        if n == "CONCAT":
+            if len(args) < 2:
+                self.fail(c.pos, "CONCAT takes at least 2 arguments")
+            for a in args:
+                t = self.expr(a, T.STRING)
+                if not T.same_type(t, T.STRING):
+                    self.fail(a.pos, f"CONCAT needs STRINGs, not {t}")
+            return T.STRING
+        if n in ("SQRT", "LN", "LOG", "EXP"):
+            need(1)
+            t = same(args, expected)
+            if not (t.is_elem and t.kind == "real"):
+                if t.is_elem and t.is_int:
+                    self.fail(args[0].pos, f"{n} needs REAL or LREAL, not {t} (matiec rejects "
+                              f"it): convert first, e.g. {t.name}_TO_REAL(x)")
+                self.fail(args[0].pos, f"{n} needs REAL or LREAL, not {t}")
+            c.kind = "math"
+            return t
         if n == "TRUNC":
             need(1)
             t = self.expr(args[0], None)
+            if t.is_lit and t.kind == "real":
+                self.settle(args[0], T.ELEMENTARY["LREAL"])
+                t = args[0].ty
             if not (t.is_elem and t.kind == "real"):
                 self.fail(args[0].pos, f"TRUNC needs REAL or LREAL, not {t}")
             if expected is None or not (expected.is_elem and expected.is_int):
@@ -1431,14 +1589,14 @@ class Checker:
             if len(args) < 2:
                 self.fail(c.pos, f"{n} takes at least 2 arguments")
             t = same(args, expected)
-            if not t.is_elem:
-                self.fail(c.pos, f"{n} needs an elementary type, not {t}")
+            if not t.is_elem or t.kind == "string":
+                self.fail(c.pos, f"{n} needs a number, bit string or TIME, not {t}")
             return t
         if n == "LIMIT":
             need(3)
             t = same(args, expected)
-            if not t.is_elem:
-                self.fail(c.pos, f"LIMIT needs an elementary type, not {t}")
+            if not t.is_elem or t.kind == "string":
+                self.fail(c.pos, f"LIMIT needs a number, bit string or TIME, not {t}")
             return t
         if n == "SEL":
             need(3)
@@ -1458,11 +1616,17 @@ class Checker:
             t = same(args[1:], expected)
             if t.is_fb or t.is_array:
                 self.fail(c.pos, f"MUX of {t} is not supported")
+            k = self.const_value(args[0])
+            if k is not None and not 0 <= k < len(args) - 1:
+                self.warn(args[0].pos, f"portability: MUX selector {k} is out of range 0.."
+                          f"{len(args) - 2}: matiec gives 0, IEC leaves it undefined (stc "
+                          "--semantics=iec gives the last input)")
             return t
         if n in ("ADD", "SUB", "MUL", "DIV"):
             need(2)
             op = {"ADD": "+", "SUB": "-", "MUL": "*", "DIV": "/"}[n]
             b = S.BinOp(c.pos, op, args[0], args[1])
+            b.fn_form = True      # matiec: a typed function, its arguments are truncated
             t = self.binop(b, expected)
             b.ty = t
             c.kind = "binop"
@@ -1476,11 +1640,82 @@ class Checker:
             et = self.expr(args[1], None)
             if et.is_lit:
                 self.settle(args[1], t if et.kind == "real" else T.DINT)
+            elif not (et.is_elem and et.is_num):
+                self.fail(args[1].pos, f"EXPT: the exponent must be a number, not {et}")
+            c.kind = "math"
             return t
         self.fail(c.pos, f"standard function {n} is not supported by stc")
 
 
 _KW = []
+
+# standard function names matiec accepts as STRUCT member names (a member is always written
+# after a '.', so it cannot be mistaken for the function)
+_MEMBER_OK = {"LEN", "LEFT", "RIGHT", "MID", "FIND"}
+
+
+_STR_ESC = {"$": "$", "'": "'", '"': '"', "L": "\n", "N": "\n", "P": "\f", "R": "\r",
+            "T": "\t"}
+
+
+def _string_value(body):
+    """Characters of a STRING literal body ($ escapes decoded), None when malformed."""
+    out = []
+    i = 0
+    while i < len(body):
+        ch = body[i]
+        if ch != "$":
+            out.append(ch)
+            i += 1
+            continue
+        nxt = body[i + 1:i + 2].upper()
+        if nxt in _STR_ESC:
+            out.append(_STR_ESC[nxt])
+            i += 2
+        elif re.fullmatch(r"[0-9A-Fa-f]{2}", body[i + 1:i + 3]):
+            out.append(chr(int(body[i + 1:i + 3], 16)))
+            i += 3
+        else:
+            return None
+    return "".join(out)
+
+
+def _time_const(e):
+    while isinstance(e, S.Paren):
+        e = e.inner
+    if isinstance(e, S.TimeLit):
+        return e.ns
+    return None
+
+
+def _c_div(a, b):
+    q = abs(a) // abs(b)
+    return q if (a >= 0) == (b > 0) else -q
+
+
+def _c_i32(d):
+    return int(d) if -2**31 <= d < 2**31 else -2**31
+
+
+def _c_i64(d):
+    return int(d) if -9.2e18 <= d < 9.2e18 else -2**63
+
+
+def _matiec_time_mul(ns, k):
+    """matiec's TIME * k in nanoseconds (see stc_time_mul_m in stc_rt.h)."""
+    sec, nsec = _c_div(ns, 10**9), ns - _c_div(ns, 10**9) * 10**9
+    s_f = float(sec) * k
+    s = _c_i64(s_f)
+    n = _c_i32(float(nsec) * k)
+    q = _c_div(n, 10**9)
+    return (s + q) * 10**9 + _c_i64(float(n - q * 10**9) + (s_f - s) * 1e9)
+
+
+def _matiec_time_div(ns, k):
+    sec, nsec = _c_div(ns, 10**9), ns - _c_div(ns, 10**9) * 10**9
+    s_f = float(sec) / k
+    s = _c_i64(s_f)
+    return s * 10**9 + _c_i64(float(nsec) / k + (s_f - s) * 1e9)
 
 
 def _keywords():

@@ -3,6 +3,7 @@ import argparse
 import glob
 import os
 import sys
+import threading
 
 from . import __version__
 from .diag import CompileError, Diagnostics
@@ -14,8 +15,18 @@ A file given both on the command line and through -I is read once.
 
 Output in OUTDIR: POUS.h, POUS.c, Config0.c, one <RESOURCE>.c per resource, stc_rt.h,
 LOCATED_VARIABLES.h, SYMBOLS.tsv and SOURCES.txt (the .c files to compile).
+--semantics=matiec (the default) makes the C reproduce matiec's run-time values (what
+OpenPLC and Beremiz run) where they differ from IEC 61131-3; --semantics=iec gives the IEC
+values. Constructs whose value differs between the two get a portability warning
+(FILE:LINE:COL: warning: MESSAGE) in both modes; --werror-portability makes them errors.
 Errors are printed as FILE:LINE:COL: error: MESSAGE. Exit status: 0 success, 1 errors in
 the input, 2 bad usage."""
+
+# Deeply nested expressions are checked and generated recursively: run the translation in a
+# thread with a large stack and a matching recursion limit (the parser itself is iterative,
+# and expressions nested deeper than parser.MAX_DEPTH get a located error).
+_STACK = 512 * 1024 * 1024
+_RECURSION = 60000
 
 
 class _Parser(argparse.ArgumentParser):
@@ -31,6 +42,10 @@ def main(argv=None):
     ap.add_argument("-o", dest="outdir", metavar="OUTDIR", help="directory for the generated files")
     ap.add_argument("-I", dest="libdirs", metavar="DIR", action="append", default=[],
                     help="also read the *.st files in DIR as library POUs")
+    ap.add_argument("--semantics", choices=["matiec", "iec"], default="matiec",
+                    help="run-time values to reproduce: matiec's (default) or IEC 61131-3's")
+    ap.add_argument("--werror-portability", action="store_true",
+                    help="treat portability warnings (matiec and IEC values differ) as errors")
     ap.add_argument("--version", action="version", version=f"stc {__version__}")
     ap.add_argument("files", nargs="*", metavar="FILE.st")
     args = ap.parse_args(argv)
@@ -38,18 +53,44 @@ def main(argv=None):
         ap.error("no input files")
     if not args.outdir:
         ap.error("missing -o OUTDIR")
+    result = []
+
+    def work():
+        try:
+            result.append(run(args.files, args.libdirs, args.outdir, args.semantics,
+                              args.werror_portability))
+        except Exception as e:  # last resort: never show a traceback to the user
+            if os.environ.get("STC_DEBUG"):
+                raise
+            print(f"stc: error: internal: {type(e).__name__}: {e}", file=sys.stderr)
+            result.append(1)
+
     try:
-        return run(args.files, args.libdirs, args.outdir)
+        run_deep(work)
     except KeyboardInterrupt:
         return 130
-    except Exception as e:  # last resort: never show a traceback to the user
-        if os.environ.get("STC_DEBUG"):
-            raise
-        print(f"stc: error: internal: {type(e).__name__}: {e}", file=sys.stderr)
-        return 1
+    return result[0] if result else 1
 
 
-def run(files, libdirs, outdir):
+def run_deep(fn):
+    """Run fn() in a thread with a large stack and a high recursion limit."""
+    old = sys.getrecursionlimit()
+    try:
+        threading.stack_size(_STACK)
+    except (ValueError, RuntimeError):
+        fn()
+    else:
+        sys.setrecursionlimit(max(old, _RECURSION))
+        try:
+            t = threading.Thread(target=fn, name="stc", daemon=True)
+            t.start()
+            t.join()
+        finally:
+            threading.stack_size(0)
+            sys.setrecursionlimit(old)
+
+
+def run(files, libdirs, outdir, semantics="matiec", werror_portability=False):
     from .compiler import compile_files
     sources = []
     seen = set()
@@ -78,8 +119,12 @@ def run(files, libdirs, outdir):
             print(f"stc: error: {f}: {e.strerror}", file=sys.stderr)
             return 1
     diags = Diagnostics()
-    project = compile_files(texts, diags)
-    if diags:
+    project = compile_files(texts, diags, semantics)
+    for line in diags.format(warnings=True):
+        if werror_portability:   # the warnings are what fails the build: say so
+            line = line.replace(": warning: ", ": error: ", 1) + " [--werror-portability]"
+        print(line, file=sys.stderr)
+    if diags or (werror_portability and diags.warnings):
         for line in diags.format():
             print(line, file=sys.stderr)
         return 1

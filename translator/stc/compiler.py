@@ -4,8 +4,15 @@ from . import syntax as S
 from .check import Checker
 
 
-def compile_files(texts, diags):
-    """texts: [(filename, text, is_library)]. Returns a Project (valid only without errors)."""
+SEMANTICS = ("matiec", "iec")
+
+
+def compile_files(texts, diags, semantics="matiec"):
+    """texts: [(filename, text, is_library)]. Returns a Project (valid only without errors).
+    semantics: "matiec" (reproduce matiec's run-time values, the default) or "iec"
+    (IEC 61131-3 values); portability warnings go to diags.warnings in both modes."""
+    if semantics not in SEMANTICS:
+        raise ValueError(f"semantics must be one of {', '.join(SEMANTICS)}, not {semantics!r}")
     parsed = []
     for fname, text, lib in texts:
         nodes = parser.parse(text, fname, diags)
@@ -16,4 +23,4 @@ def compile_files(texts, diags):
         parsed.append((fname, nodes))
     if diags:
         return None
-    return Checker(diags).run(parsed)
+    return Checker(diags, semantics).run(parsed)

@@ -8,7 +8,16 @@ class CompileError(Exception):
 class Diagnostics:
     def __init__(self):
         self.errors = []          # (file, line, col, message)
+        self.warnings = []        # (file, line, col, message): portability warnings
         self._seen = set()
+
+    def warn(self, file, pos, message):
+        line, col = pos if pos else (0, 0)
+        key = (file, line, col, message)
+        if key in self._seen:
+            return
+        self._seen.add(key)
+        self.warnings.append(key)
 
     def error(self, file, pos, message):
         line, col = pos if pos else (0, 0)
@@ -21,14 +30,16 @@ class Diagnostics:
     def __bool__(self):
         return bool(self.errors)
 
-    def format(self):
+    def format(self, warnings=False):
         out = []
         order = {}
-        for e in self.errors:
+        items = self.warnings if warnings else self.errors
+        kind = "warning" if warnings else "error"
+        for e in items:
             order.setdefault(e[0], len(order))
-        for file, line, col, msg in sorted(self.errors, key=lambda e: (order[e[0]], e[1], e[2])):
+        for file, line, col, msg in sorted(items, key=lambda e: (order[e[0]], e[1], e[2])):
             if line:
-                out.append(f"{file}:{line}:{col}: error: {msg}")
+                out.append(f"{file}:{line}:{col}: {kind}: {msg}")
             else:
-                out.append(f"{file}: error: {msg}")
+                out.append(f"{file}: {kind}: {msg}")
         return out

@@ -64,6 +64,46 @@ def int_value(text):
         return None
 
 
+# Expressions and statements nested deeper than this get a located error: the checker and
+# the C generator walk them recursively (in a thread with a large stack, see cli.py).
+MAX_DEPTH = 1000
+_depth_sink = [None]
+
+
+def _depth(*xs):
+    d = 0
+    for x in xs:
+        if isinstance(x, list):
+            for y in x:
+                d = max(d, _depth(y))
+        elif isinstance(x, tuple):
+            d = max(d, _depth(*x))
+        elif isinstance(x, S.Node):
+            d = max(d, x.__dict__.get("depth", 0))
+    return d
+
+
+def _nest(node, *children):
+    return _nest_d(node, _depth(*children) + 1)
+
+
+def _nest2(node, a, b):
+    """_nest for two expression children (the common case, kept cheap)."""
+    return _nest_d(node, max(a.__dict__.get("depth", 0), b.__dict__.get("depth", 0)) + 1)
+
+
+def _nest1(node, a):
+    return _nest_d(node, a.__dict__.get("depth", 0) + 1)
+
+
+def _nest_d(node, d):
+    node.depth = d
+    if d == MAX_DEPTH + 1 and _depth_sink[0] is not None:
+        _depth_sink[0](node.pos, f"nested too deeply (more than {MAX_DEPTH} levels of "
+                       "expressions or statements): split it using intermediate variables")
+    return node
+
+
 class _Build(Transformer):
     """Parser callbacks (run inline by the LALR parser) building syntax.* nodes."""
 
@@ -227,10 +267,10 @@ class _Build(Transformer):
         return list(c)
 
     def assign_stmt(self, c):
-        return S.Assign(c[0].pos, c[0], c[2])
+        return _nest2(S.Assign(c[0].pos, c[0], c[2]), c[0], c[2])
 
     def call_stmt(self, c):
-        return S.CallStmt(_pos(c[0]), str(c[0]).upper(), c[2] or [])
+        return _nest(S.CallStmt(_pos(c[0]), str(c[0]).upper(), c[2] or []), c[2] or [])
 
     def empty_stmt(self, c):
         return S.Empty(_pos(c[0]))
@@ -251,7 +291,7 @@ class _Build(Transformer):
             branches.append(c[i])
             i += 1
         orelse = c[i + 1]  # c[i] ELSE or None
-        return S.If(_pos(c[0]), branches, orelse)
+        return _nest(S.If(_pos(c[0]), branches, orelse), branches, orelse)
 
     def elsif_part(self, c):
         return (c[1], c[3])
@@ -262,7 +302,7 @@ class _Build(Transformer):
         for x in c[3:]:
             if isinstance(x, list):
                 orelse = x
-        return S.Case(_pos(c[0]), c[1], items, orelse)
+        return _nest(S.Case(_pos(c[0]), c[1], items, orelse), c[1], items, orelse)
 
     def case_else(self, c):
         return c[1]
@@ -284,41 +324,43 @@ class _Build(Transformer):
 
     def for_stmt(self, c):
         # FOR IDENT := expr TO expr [BY expr] DO stmts END_FOR ;
-        return S.For(_pos(c[0]), S.Name(_pos(c[1]), str(c[1]).upper()), c[3], c[5], c[7], c[9])
+        return _nest(S.For(_pos(c[0]), S.Name(_pos(c[1]), str(c[1]).upper()), c[3], c[5], c[7], c[9]),
+                     c[3], c[5], c[7], c[9])
 
     def while_stmt(self, c):
-        return S.While(_pos(c[0]), c[1], c[3])
+        return _nest(S.While(_pos(c[0]), c[1], c[3]), c[1], c[3])
 
     def repeat_stmt(self, c):
-        return S.Repeat(_pos(c[0]), c[1], c[3])
+        return _nest(S.Repeat(_pos(c[0]), c[1], c[3]), c[1], c[3])
 
     def call_args(self, c):
         return [x for x in c if isinstance(x, S.Node)]
 
     def arg_pos(self, c):
-        return S.ArgPos(c[0].pos, c[0])
+        return _nest1(S.ArgPos(c[0].pos, c[0]), c[0])
 
     def arg_in(self, c):
-        return S.ArgIn(_pos(c[0]), str(c[0]).upper(), c[2])
+        return _nest1(S.ArgIn(_pos(c[0]), str(c[0]).upper(), c[2]), c[2])
 
     def arg_out(self, c):
-        return S.ArgOut(_pos(c[0]), str(c[0]).upper(), c[2], False)
+        return _nest1(S.ArgOut(_pos(c[0]), str(c[0]).upper(), c[2], False), c[2])
 
     def arg_out_not(self, c):
         return S.ArgOut(_pos(c[1]), str(c[1]).upper(), c[3], True)
 
     # ---- expressions
     def binop(self, c):
-        return S.BinOp(_pos(c[1]), str(c[1]).upper() if c[1].type != "AMP" else "AND", c[0], c[2])
+        return _nest2(S.BinOp(_pos(c[1]), str(c[1]).upper() if c[1].type != "AMP" else "AND", c[0], c[2]),
+                      c[0], c[2])
 
     def neg(self, c):
-        return S.UnOp(_pos(c[0]), "-", c[1])
+        return _nest1(S.UnOp(_pos(c[0]), "-", c[1]), c[1])
 
     def pos(self, c):
-        return S.UnOp(_pos(c[0]), "+", c[1])
+        return _nest1(S.UnOp(_pos(c[0]), "+", c[1]), c[1])
 
     def not_(self, c):
-        return S.UnOp(_pos(c[0]), "NOT", c[1])
+        return _nest1(S.UnOp(_pos(c[0]), "NOT", c[1]), c[1])
 
     def int_lit(self, c):
         t = c[0]
@@ -358,10 +400,11 @@ class _Build(Transformer):
         return S.Name(_pos(c[0]), str(c[0]).upper())
 
     def field(self, c):
-        return S.Field(_pos(c[2]), c[0], str(c[2]).upper())
+        return _nest1(S.Field(_pos(c[2]), c[0], str(c[2]).upper()), c[0])
 
     def index(self, c):
-        return S.Index(_pos(c[1]), c[0], [x for x in c[2:-1] if isinstance(x, S.Node)])
+        ixs = [x for x in c[2:-1] if isinstance(x, S.Node)]
+        return _nest(S.Index(_pos(c[1]), c[0], ixs), c[0], ixs)
 
     def bit_access(self, c):
         return S.BitAccess(_pos(c[1]), c[0], str(c[2]))
@@ -370,10 +413,10 @@ class _Build(Transformer):
         return S.Deref(_pos(c[1]), c[0])
 
     def func_call(self, c):
-        return S.Call(_pos(c[0]), str(c[0]).upper(), c[2] or [])
+        return _nest(S.Call(_pos(c[0]), str(c[0]).upper(), c[2] or []), c[2] or [])
 
     def paren(self, c):
-        return S.Paren(_pos(c[0]), c[1])
+        return _nest1(S.Paren(_pos(c[0]), c[1]), c[1])
 
     def start(self, c):
         return list(c)
@@ -489,7 +532,7 @@ class _Recovery:
             if self._new(e.line):
                 ch = e.char
                 if ch == "'" or ch == '"':
-                    msg = "string literals are not supported"
+                    msg = f"string literal not closed on its line: missing {ch}"
                 else:
                     msg = f"unexpected character {ch!r}"
                 self.report((e.line, e.column), msg)
@@ -627,34 +670,87 @@ def parse(text, filename, diags):
     _comment_sink[1] = lambda tok: report(
         _pos(tok), "{ ... } pragmas are not portable (matiec pastes them into its C output): "
         "remove it or make it a (* comment *)")
-    if "(*" in text:
-        for m in _COMMENT.finditer(text):
-            inner = m.group(0).find("(*", 2)
-            if inner >= 0:
-                # nested only if a stray '*)' follows before the next comment opens
-                close = text.find("*)", m.end())
-                opening = text.find("(*", m.end())
-                if close < 0 or 0 <= opening < close:
-                    continue
-                off = m.start() + inner
-                line = text.count("\n", 0, off) + 1
-                col = off - (text.rfind("\n", 0, off) + 1) + 1
-                report((line, col), "nested comments are not portable (matiec rejects them "
-                       "without -n): close the outer comment first")
-                rec.last_line = max(rec.last_line, text.count("\n", 0, m.end()) + 1)
+    _depth_sink[0] = report
+    text = _blank_comments(text, report, rec)
+    if text is None:
+        _depth_sink[0] = None
+        return None
     try:
         tree = p.parse(text, on_error=rec)
     except UnexpectedInput as e:
+        _depth_sink[0] = None
         if not errors:
             tok = getattr(e, "token", None)
             pos = (getattr(e, "line", 0) or 0, getattr(e, "column", 0) or 0)
             report(pos if pos[0] > 0 else (0, 0), _unexpected_message(e) if tok is not None else "syntax error")
         return None
+    _depth_sink[0] = None
     if errors:
         return None
     return tree
 
 
+# what the comment pass looks at: comment and pragma openers, and string literals and //
+# comments (skipped, so a '(*' inside them opens nothing)
+_OPENERS = re.compile(r"\(\*|/\*|\{|'(?:[^'$\n]|\$[^\n])*'|\"(?:[^\"$\n]|\$[^\n])*\"|//[^\n]*")
+_NOT_NL = re.compile(r"[^\n]+")
 
 
-_COMMENT = re.compile(r"\(\*.*?\*\)", re.S)
+def _blank_comments(text, report, rec):
+    """Replace every (* *) comment, /* */ comment and { } pragma by spaces (newlines kept, so
+    token positions do not move), in time and memory linear in the text: the lexer then never
+    has to match a comment. Reports nested, unclosed and non-portable ones."""
+    if "(*" not in text and "/*" not in text and "{" not in text:
+        return text
+    out = []
+    pos = 0
+    line_at = [0, 1]          # offset, line number there (offsets only grow)
+    next_close = [-1]         # cached text.find("*)", ...) for the nested-comment check
+
+    def where(off):
+        o, ln = line_at
+        ln += text.count("\n", o, off)
+        line_at[0], line_at[1] = off, ln
+        return (ln, off - (text.rfind("\n", 0, off) + 1) + 1)
+
+    scan = 0                  # where to look for the next opener (pos: copied up to here)
+    while True:
+        m = _OPENERS.search(text, scan)
+        if m is None:
+            break
+        tok = m.group(0)
+        start = m.start()
+        scan = m.end()
+        if tok[0] in "'\"" or tok.startswith("//"):
+            continue
+        close = {"(*": "*)", "/*": "*/", "{": "}"}[tok]
+        end = text.find(close, start + len(tok))
+        if end < 0:
+            what = {"(*": "comment '(*'", "/*": "comment '/*'", "{": "pragma '{'"}[tok]
+            report(where(start), f"{what} is not closed: missing '{close}'")
+            return None      # the rest of the file is inside it: nothing more to parse
+        end += len(close)
+        if tok == "(*":
+            inner = text.find("(*", start + 2, end - 2)
+            if inner >= 0:
+                # nested only if a stray '*)' follows before the next comment opens
+                if next_close[0] < end:
+                    next_close[0] = text.find("*)", end)
+                    if next_close[0] < 0:
+                        next_close[0] = len(text) + 1
+                opening = text.find("(*", end, next_close[0])
+                if next_close[0] <= len(text) and opening < 0:
+                    report(where(inner), "nested comments are not portable (matiec rejects "
+                           "them without -n): close the outer comment first")
+                    rec.last_line = max(rec.last_line, where(end)[0])
+        elif tok == "/*":
+            report(where(start), "/* */ comments are not portable (matiec rejects them): "
+                   "use (* ... *)")
+        else:
+            report(where(start), "{ ... } pragmas are not portable (matiec pastes them into its "
+                   "C output): remove it or make it a (* comment *)")
+        out.append(text[pos:start])
+        out.append(_NOT_NL.sub(lambda x: " " * len(x.group(0)), text[start:end]))
+        pos = scan = end
+    out.append(text[pos:])
+    return "".join(out)

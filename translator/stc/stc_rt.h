@@ -7,10 +7,35 @@
 #ifndef STC_RT_H
 #define STC_RT_H
 
+#include <math.h>
 #include <stdint.h>
 #include <string.h>
 
+/* 1: reproduce matiec's run-time values where they differ from IEC 61131-3 (stc
+ * --semantics=matiec, the default); 0: IEC values (--semantics=iec). stc writes this line. */
+#define STC_MATIEC 0
+
 typedef struct { long tv_sec; long tv_nsec; } stc_time;
+/* matiec's STRING layout: a length and STR_MAX_LEN (126) characters, no terminating NUL */
+typedef struct { uint8_t len; uint8_t body[126]; } stc_string;
+
+static inline int stc_str_cmp(const stc_string *a, const stc_string *b)
+{
+    size_t n = a->len < b->len ? a->len : b->len;
+    int c = memcmp(a->body, b->body, n);
+    return c != 0 ? c : (int)a->len - (int)b->len;
+}
+static inline int stc_str_cmpv(stc_string a, stc_string b) { return stc_str_cmp(&a, &b); }
+/* CONCAT: the result is cut at 126 characters, as in matiec */
+static inline stc_string stc_str_concat(stc_string a, stc_string b)
+{
+    size_t n = b.len;
+    if (a.len > 126u) a.len = 126u;
+    if (n > 126u - a.len) n = 126u - a.len;
+    memcpy(a.body + a.len, b.body, n);
+    a.len = (uint8_t)(a.len + n);
+    return a;
+}
 
 /* C storage type of each IEC type name that can appear in LOCATED_VARIABLES.h, so a runtime
  * can define the located storage with an X-macro:
@@ -106,6 +131,35 @@ static inline int64_t stc_time_div(int64_t t, int64_t n) { return n == 0 ? 0 : (
 static inline int64_t stc_time_mul(int64_t t, int64_t n) { return (int64_t)((uint64_t)t * (uint64_t)n); }
 static inline int64_t stc_time_mulf(int64_t t, double n) { double r = (double)t * n; return (r >= 9.2e18 || r <= -9.2e18) ? 0 : (int64_t)r; }
 static inline int64_t stc_time_divf(int64_t t, double n) { double r = n == 0.0 ? 0.0 : (double)t / n; return (r >= 9.2e18 || r <= -9.2e18) ? 0 : (int64_t)r; }
+
+/* matiec's TIME * number and TIME / number (--semantics=matiec). Its library scales the
+ * seconds in double and the nanoseconds part through a 32-bit int: a double outside the int
+ * range converts to INT_MIN on x86, so T#1ms * 2148 gives -2.147483648 s. Same arithmetic here,
+ * without undefined behaviour. */
+static inline int64_t stc_m_i32(double d) { return (d >= -2147483648.0 && d < 2147483648.0) ? (int64_t)(int32_t)d : (int64_t)INT32_MIN; }
+static inline int64_t stc_m_i64(double d) { return (d >= -9.2e18 && d < 9.2e18) ? (int64_t)d : INT64_MIN; }
+static inline int64_t stc_m_time(int64_t sec, int64_t nsec) { return (int64_t)((uint64_t)sec * 1000000000u + (uint64_t)nsec); }
+static inline int64_t stc_time_mul_m(int64_t t, double k)
+{
+    int64_t sec = t / 1000000000, nsec = t % 1000000000, s, n;
+    double s_f = (double)sec * k;
+    s = stc_m_i64(s_f);
+    n = stc_m_i32((double)nsec * k);
+    return stc_m_time(s + n / 1000000000, stc_m_i64((double)(n % 1000000000) + (s_f - (double)s) * 1e9));
+}
+static inline int64_t stc_time_div_m(int64_t t, double k)
+{
+    int64_t sec = t / 1000000000, nsec = t % 1000000000, s;
+    double s_f;
+    if (k == 0.0)
+        return 0;     /* matiec: undefined (division by zero in C) */
+    s_f = (double)sec / k;
+    s = stc_m_i64(s_f);
+    return stc_m_time(s, stc_m_i64((double)nsec / k + (s_f - (double)s) * 1e9));
+}
+
+/* REAL ** number, EXPT, SQRT, LN, LOG, EXP: in double, like matiec (link with -lm). */
+static inline double stc_expt(double a, double b) { return pow(a, b); }
 
 /* REAL -> integer conversion: rounds to nearest, ties to even (as matiec does), and saturates
  * at the limits of the target type (matiec leaves overflow undefined). */
@@ -259,15 +313,28 @@ static inline void TP_body__(TP *fb, int64_t now)
 }
 
 static inline void R_TRIG_body__(R_TRIG *fb) { fb->Q = (uint8_t)(fb->CLK && !fb->mem); fb->mem = fb->CLK; }
+#if STC_MATIEC
+/* matiec: M starts FALSE and holds NOT CLK, so Q is TRUE on the first call when CLK is FALSE */
+static inline void F_TRIG_body__(F_TRIG *fb) { fb->Q = (uint8_t)(!fb->CLK && !fb->mem); fb->mem = (uint8_t)!fb->CLK; }
+#else
 static inline void F_TRIG_body__(F_TRIG *fb) { fb->Q = (uint8_t)(!fb->CLK && fb->mem); fb->mem = fb->CLK; }
+#endif
 
-/* Counters count on the rising edge of CU / CD and stop at the limits of INT. */
+/* Counters count on the rising edge of CU / CD and stop at the limits of INT (IEC); matiec's
+ * stop counting up at PV and down at 0. */
+#if STC_MATIEC
+#define STC_CV_UP_MAX(fb) (fb)->PV
+#define STC_CV_DOWN_MIN(fb) 0
+#else
+#define STC_CV_UP_MAX(fb) INT16_MAX
+#define STC_CV_DOWN_MIN(fb) INT16_MIN
+#endif
 static inline void CTU_body__(CTU *fb)
 {
     fb->cu_edge.CLK = fb->CU;
     R_TRIG_body__(&fb->cu_edge);
     if (fb->R) fb->CV = 0;
-    else if (fb->cu_edge.Q && fb->CV < INT16_MAX) fb->CV++;
+    else if (fb->cu_edge.Q && fb->CV < STC_CV_UP_MAX(fb)) fb->CV++;
     fb->Q = (uint8_t)(fb->CV >= fb->PV);
 }
 
@@ -276,7 +343,7 @@ static inline void CTD_body__(CTD *fb)
     fb->cd_edge.CLK = fb->CD;
     R_TRIG_body__(&fb->cd_edge);
     if (fb->LD) fb->CV = fb->PV;
-    else if (fb->cd_edge.Q && fb->CV > INT16_MIN) fb->CV--;
+    else if (fb->cd_edge.Q && fb->CV > STC_CV_DOWN_MIN(fb)) fb->CV--;
     fb->Q = (uint8_t)(fb->CV <= 0);
 }
 
@@ -289,8 +356,8 @@ static inline void CTUD_body__(CTUD *fb)
     if (fb->R) fb->CV = 0;
     else if (fb->LD) fb->CV = fb->PV;
     else if (!(fb->cu_edge.Q && fb->cd_edge.Q)) {
-        if (fb->cu_edge.Q && fb->CV < INT16_MAX) fb->CV++;
-        else if (fb->cd_edge.Q && fb->CV > INT16_MIN) fb->CV--;
+        if (fb->cu_edge.Q && fb->CV < STC_CV_UP_MAX(fb)) fb->CV++;
+        else if (fb->cd_edge.Q && fb->CV > STC_CV_DOWN_MIN(fb)) fb->CV--;
     }
     fb->QU = (uint8_t)(fb->CV >= fb->PV);
     fb->QD = (uint8_t)(fb->CV <= 0);

@@ -123,6 +123,7 @@ for _n, _k, _b, _c in [
     ("UDINT", "uint", 32, "uint32_t"), ("ULINT", "uint", 64, "uint64_t"),
     ("REAL", "real", 32, "float"), ("LREAL", "real", 64, "double"),
     ("TIME", "time", 64, "stc_time"),
+    ("STRING", "string", 8 * 127, "stc_string"),
 ]:
     ELEMENTARY[_n] = Elem(_n, _k, _b, _c)
 
@@ -137,7 +138,7 @@ CONVERTIBLE = ["BOOL", "BYTE", "WORD", "DWORD", "LWORD", "SINT", "INT", "DINT", 
                "USINT", "UINT", "UDINT", "ULINT", "REAL", "LREAL", "TIME"]
 
 # types matiec knows but stc does not implement
-UNSUPPORTED_TYPES = {"STRING", "WSTRING", "DATE", "TIME_OF_DAY", "TOD", "DATE_AND_TIME", "DT",
+UNSUPPORTED_TYPES = {"WSTRING", "DATE", "TIME_OF_DAY", "TOD", "DATE_AND_TIME", "DT",
                      "LTIME", "LDATE", "LTOD", "LDT", "CHAR", "WCHAR"}
 
 
@@ -184,7 +185,11 @@ STD_FBS = {fb.name: fb for fb in [
 
 # generic standard functions handled by the checker (names are reserved as identifiers)
 STD_FUNCS = {"ABS", "MIN", "MAX", "LIMIT", "SEL", "MUX", "SHL", "SHR", "ROL", "ROR", "MOVE",
-             "ADD", "SUB", "MUL", "DIV", "SQRT", "EXPT", "TRUNC"}
+             "ADD", "SUB", "MUL", "DIV", "SQRT", "EXPT", "TRUNC", "LN", "LOG", "EXP",
+             "LEN", "CONCAT"}
+
+STRING = ELEMENTARY["STRING"]
+STR_MAX = 126      # matiec's STR_MAX_LEN: characters a STRING holds
 
 # names matiec refuses as identifiers (keywords it reserves and standard library names)
 RESERVED = {"EN", "ENO", "STEP", "END_STEP", "ACTION", "END_ACTION", "TRANSITION",
@@ -193,6 +198,6 @@ RESERVED = {"EN", "ENO", "STEP", "END_STEP", "ACTION", "END_ACTION", "TRANSITION
             "EXPT", "LEN", "LEFT", "RIGHT", "MID", "CONCAT", "INSERT", "DELETE",
             "REPLACE", "FIND", "SQRT", "LN", "LOG", "EXP", "SIN", "COS", "TAN", "ASIN", "ACOS",
             "ATAN", "NE", "EQ", "GT", "GE", "LT", "LE", "NOT", "METHOD", "INTERFACE", "POINTER",
-            "REF_TO", "REF", "NULL", "ANY", "ANY_NUM", "ANY_INT", "ANY_BIT", "ANY_REAL",
+            "REF_TO", "NULL", "ANY", "ANY_NUM", "ANY_INT", "ANY_BIT", "ANY_REAL",
             "ANY_ELEMENTARY", "ANY_DERIVED", "ANY_MAGNITUDE", "ANY_DATE", "ANY_STRING"}
 RESERVED |= set(ELEMENTARY) | STD_FUNCS | set(STD_FBS) | UNSUPPORTED_TYPES

@@ -100,8 +100,9 @@ def _run(cmd, what, cwd=None):
     return proc
 
 
-def _translate_stc(sources, gen):
-    cmd = _stc_command() + ["-o", str(gen)] + [str(s) for s in sources]
+def _translate_stc(sources, gen, semantics=None):
+    sem = [f"--semantics={semantics}"] if semantics else []
+    cmd = _stc_command() + sem + ["-o", str(gen)] + [str(s) for s in sources]
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True)
     except FileNotFoundError as e:
@@ -434,8 +435,10 @@ def _check_outdir(outdir: Path):
         raise BuildError(f"{outdir}: error: cannot create it: {parent} is not writable")
 
 
-def build_program(sources, outdir, compiler="auto", cflags=None) -> BuildResult:
-    """Translate and link ST sources; the result lands in outdir (created)."""
+def build_program(sources, outdir, compiler="auto", cflags=None, semantics=None) -> BuildResult:
+    """Translate and link ST sources; the result lands in outdir (created).
+    semantics: None (stc's default, matiec) or "matiec" / "iec" (stc --semantics; ignored
+    when matiec itself translates)."""
     sources = [Path(s).resolve() for s in sources]
     for s in sources:
         if not s.exists():
@@ -446,7 +449,8 @@ def build_program(sources, outdir, compiler="auto", cflags=None) -> BuildResult:
     compiler = resolve_compiler(compiler)
     outdir = Path(outdir).resolve()
     _check_outdir(outdir)
-    key = _hash_inputs(sources, compiler, _compiler_fingerprint(compiler) + repr(cflags))
+    key = _hash_inputs(sources, compiler, _compiler_fingerprint(compiler) + repr(cflags) +
+                       (f":semantics={semantics}" if semantics and compiler == "stc" else ""))
     cache = _cache_root()
     if cache and (cache / key / "symbols.json").is_file():
         try:
@@ -459,7 +463,7 @@ def build_program(sources, outdir, compiler="auto", cflags=None) -> BuildResult:
             pass  # pruned meanwhile by another process: build it again
     tmp = Path(tempfile.mkdtemp(prefix="plcrt-build-", dir=cache if cache else None))
     try:
-        _build_into(sources, tmp, compiler, cflags or [])
+        _build_into(sources, tmp, compiler, cflags or [], semantics)
         if outdir.exists():
             shutil.rmtree(outdir)
         shutil.copytree(tmp, outdir)
@@ -484,12 +488,12 @@ def _load_result(outdir: Path) -> BuildResult:
                        programs=meta["programs"])
 
 
-def _build_into(sources, out: Path, compiler: str, cflags):
+def _build_into(sources, out: Path, compiler: str, cflags, semantics=None):
     gen = out / "gen"
     gen.mkdir(parents=True)
     include = [f"-I{gen}"]
     if compiler == "stc":
-        _translate_stc(sources, gen)
+        _translate_stc(sources, gen, semantics)
         if not (gen / "SYMBOLS.tsv").is_file():
             raise BuildError(f"stc: {gen}/SYMBOLS.tsv missing: the program does not match the ABI")
         symbols, decls = read_symbols_tsv(gen / "SYMBOLS.tsv")
@@ -576,10 +580,12 @@ def main(argv=None):
     ap = _OneLineParser(prog="plcrt-build", description=__doc__.split("\n\n")[0])
     ap.add_argument("-o", "--outdir", required=True)
     ap.add_argument("--compiler", default="auto", choices=["auto", "stc", "matiec"])
+    ap.add_argument("--semantics", choices=["matiec", "iec"], default=None,
+                    help="stc only: run-time values of matiec (stc's default) or IEC 61131-3")
     ap.add_argument("sources", nargs="+")
     args = ap.parse_args(argv)
     try:
-        res = build_program(args.sources, args.outdir, args.compiler)
+        res = build_program(args.sources, args.outdir, args.compiler, semantics=args.semantics)
     except BuildError as e:
         print(e, file=sys.stderr)  # already FILE:LINE:COL: error: ... or says what failed
         return 1
