@@ -53,6 +53,17 @@ int mipcosim_plc_replace(mipcosim *sim, int id, mipcosim_scan_fn scan, void *rt,
 /* Wires device `device` of PLC id to endpoint ep (0 = MDP, s = TRM of station s). */
 int mipcosim_connect(mipcosim *sim, int id, mipcosim_set_fd_fn set_fd, const char *device, int ep);
 
+/* The same without a socket (the kernel's default): the runtime's in-process transport
+ * (plcrt_device_set_transport of that library copy) hands each request ADU to the emulator
+ * core (mipemu_handle at the current virtual time) and parses the response ADU with the same
+ * code as over TCP. */
+typedef long (*mipcosim_transact_fn)(void *user, const uint8_t *req, size_t req_len,
+                                     uint8_t *rsp, size_t rsp_cap);
+typedef int (*mipcosim_set_transport_fn)(void *rt, const char *device,
+                                         mipcosim_transact_fn transact, void *user);
+int mipcosim_connect_inproc(mipcosim *sim, int id, mipcosim_set_transport_fn set_transport,
+                            const char *device, int ep);
+
 /* Taps: after every scan of PLC id, if the 16-bit word at seq changed, one entry is logged:
  * the nhdr words at hdr, then min(hdr[len_index], ndata_max) words at data (len_index < 0 or
  * data NULL: no data). tap is a slot number chosen by the caller (0..63); setting it again

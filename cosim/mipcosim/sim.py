@@ -39,6 +39,7 @@ def _lib():
         ("mipcosim_plc_add", c.c_int, [c.c_void_p, c.c_void_p, c.c_void_p, c.c_uint64]),
         ("mipcosim_plc_replace", c.c_int, [c.c_void_p, c.c_int, c.c_void_p, c.c_void_p, c.c_uint64]),
         ("mipcosim_connect", c.c_int, [c.c_void_p, c.c_int, c.c_void_p, c.c_char_p, c.c_int]),
+        ("mipcosim_connect_inproc", c.c_int, [c.c_void_p, c.c_int, c.c_void_p, c.c_char_p, c.c_int]),
         ("mipcosim_tap", c.c_int, [c.c_void_p, c.c_int, c.c_int, c.c_void_p, c.c_void_p, c.c_int,
                                    c.c_int, c.c_void_p, c.c_int]),
         ("mipcosim_tap_read", c.c_size_t, [c.c_void_p, c.c_void_p, c.c_size_t]),
@@ -109,6 +110,9 @@ class Setup:
     transfer_timeout_s: int = 0
     radio: Radio = field(default_factory=Radio)
     compiler: str = "stc"
+    # "inproc": the runtime hands each request ADU to the emulator core (the kernel);
+    # "socketpair": the same ADUs over a socketpair through libmodbus (as over TCP)
+    transport: str = "inproc"
 
     def params(self, station, session, start=0):
         down = (0, 0, 0, 0)
@@ -177,7 +181,14 @@ class Chain:
         old = self.plcs.get(who)
         self.plcs[who] = plc
         scan = ctypes.cast(plc.library.plcrt_scan, ctypes.c_void_p)
-        set_fd = ctypes.cast(plc.library.plcrt_device_set_fd, ctypes.c_void_p)
+        if self.s.transport == "inproc":
+            set_fd = ctypes.cast(plc.library.plcrt_device_set_transport, ctypes.c_void_p)
+            connect = self.lib.mipcosim_connect_inproc
+        elif self.s.transport == "socketpair":
+            set_fd = ctypes.cast(plc.library.plcrt_device_set_fd, ctypes.c_void_p)
+            connect = self.lib.mipcosim_connect
+        else:
+            raise CosimError(f"transport {self.s.transport!r}: use inproc or socketpair")
         if who in self.ids:
             self._check(self.lib.mipcosim_plc_replace(self.sim, self.ids[who], scan, plc.handle, TICK_NS))
         else:
@@ -188,10 +199,10 @@ class Chain:
             old.close()
         pid = self.ids[who]
         if role == "out":
-            self._check(self.lib.mipcosim_connect(self.sim, pid, set_fd, b"trm", s))
+            self._check(connect(self.sim, pid, set_fd, b"trm", s))
         else:
             for st in range(1, self.s.stations + 1):
-                self._check(self.lib.mipcosim_connect(self.sim, pid, set_fd, f"mdp{st}".encode(), 0))
+                self._check(connect(self.sim, pid, set_fd, f"mdp{st}".encode(), 0))
         if start is None:
             start = 0 if role == "out" else {}
         session = self.session(who)

@@ -56,6 +56,9 @@ typedef struct plcrt_device {
     int ext_fd; /* >= 0: transport seam, an fd given by plcrt_device_set_fd */
     plcrt_after_send_fn after_send;
     void *after_send_user;
+    plcrt_transact_fn transact; /* in-process transport (plcrt_device_set_transport) */
+    void *transact_user;
+    uint16_t tid;               /* its MBAP transaction id */
     uint64_t next_connect_ns, backoff_ns;
     uint64_t n_errors, n_requests, n_connects;
     int failing;     /* last request failed: log only transitions */
