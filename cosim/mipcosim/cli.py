@@ -37,6 +37,9 @@ def parse(argv):
                         "(run: none, soak: 120)")
     p.add_argument("--limit", type=float, default=0, help="virtual seconds before giving up")
     p.add_argument("--trace", help="emulator trace (JSON lines) to this file")
+    p.add_argument("--transport", choices=["inproc", "socketpair"], default="inproc",
+                   help="PLC <-> emulator: the kernel's in-process transport (default) or "
+                        "libmodbus over socketpairs")
     p.add_argument("--workdir", help="build and scratch directory (default: a temp dir)")
     a = p.parse_args(argv)
     soak = a.what == "soak"
@@ -56,7 +59,7 @@ def main(argv=None):
     st = Setup(stations=a.stations, static=a.static, polled=a.polled, bidi=a.bidi, loss=a.loss,
                seed=a.seed, records=a.records, per_transfer=a.per_transfer, payload=a.payload,
                radio=Radio.realistic() if a.realistic else Radio(),
-               timeout_ms=3000 if a.realistic else 300)
+               timeout_ms=3000 if a.realistic else 300, transport=a.transport)
     workdir = Path(a.workdir or tempfile.mkdtemp(prefix="mipcosim-"))
     limit = a.limit or (60 + a.records * a.stations * (8 if a.realistic else 0.5)
                         / (1 - a.loss) ** 2)
