@@ -4,9 +4,9 @@
  * The simulation owns a mipemu network. Each PLC is a plcrt instance from its own copy of a
  * program library; the simulation only holds function pointers into that copy (plcrt_scan,
  * plcrt_device_set_fd), so any number of programs can run side by side. A PLC's Modbus
- * device is wired to an emulator endpoint through a socketpair: the runtime writes the
- * request, its after_send hook lands here, the emulator core answers on the other end, the
- * runtime reads the answer - all in the calling thread, at the current virtual time.
+ * device is wired to an emulator endpoint in process (mipcosim_connect_inproc: the runtime
+ * hands each request ADU to the emulator core and parses the response ADU) or through a
+ * socketpair (mipcosim_connect) - all in the calling thread, at the current virtual time.
  *
  * The run loop scans every PLC whose next tick is due and advances the radio to each tick,
  * so a run is a pure function of the configuration, the programs and the seed.
@@ -80,7 +80,7 @@ size_t mipcosim_tap_read(mipcosim *sim, uint16_t *buf, size_t cap);
 int mipcosim_run(mipcosim *sim, uint64_t until_ns);
 int mipcosim_failed_plc(const mipcosim *sim);
 
-/* Counters: Modbus requests answered by the emulator through the socketpairs, scans run. */
+/* Counters: Modbus requests answered by the emulator (either transport), scans run. */
 uint64_t mipcosim_requests(const mipcosim *sim);
 uint64_t mipcosim_scans(const mipcosim *sim);
 
