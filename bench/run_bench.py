@@ -483,8 +483,8 @@ def cosim_speed_run(virt_s, workdir: Path, stations=8, transport="inproc", tick_
             plc[f"%MW{i}"] = w
 
     try:
-        out_b = S.build("outstation", False, workdir)
-        cen_b = S.build("central", False, workdir)
+        out_b = S.build("outstation", False, workdir, tick_ms=tick_ms)
+        cen_b = S.build("central", False, workdir, tick_ms=tick_ms)
         oconf = workdir / "outstation.conf"
         oconf.write_text(L.outstation_config(15021))
         big = 60000

@@ -64,11 +64,25 @@ class _Stats(ctypes.Structure):
 _BUILDS = {}
 
 
-def build(role, bidi, workdir: Path, compiler="stc"):
-    key = (role, bidi, compiler)
+def build(role, bidi, workdir: Path, compiler="stc", tick_ms=10):
+    """The example program of `role`, its task interval (the scan tick) tick_ms."""
+    key = (role, bidi, compiler, tick_ms)
     if key not in _BUILDS:
-        out = Path(workdir) / f"build-{role}{'-bidi' if bidi else ''}-{compiler}"
-        _BUILDS[key] = build_program(L.program_sources(role, bidi), out, compiler=compiler)
+        tag = f"{role}{'-bidi' if bidi else ''}-{compiler}" + (f"-{tick_ms}ms" if tick_ms != 10 else "")
+        out = Path(workdir) / f"build-{tag}"
+        srcs = L.program_sources(role, bidi)
+        if tick_ms != 10:
+            # the same program with another task interval: the PLC's clock (timers, timeouts)
+            # goes on by one interval per scan, so it must be the kernel's scan tick
+            main = Path(srcs[-1])
+            text = main.read_text()
+            if text.count("INTERVAL := T#10ms") != 1:
+                raise CosimError(f"{main}: no single 'INTERVAL := T#10ms' to set the scan tick")
+            out.mkdir(parents=True, exist_ok=True)
+            copy = out / main.name
+            copy.write_text(text.replace("INTERVAL := T#10ms", f"INTERVAL := T#{tick_ms}ms"))
+            srcs = srcs[:-1] + [str(copy)]
+        _BUILDS[key] = build_program(srcs, out, compiler=compiler)
     return _BUILDS[key]
 
 
@@ -113,6 +127,7 @@ class Setup:
     # "inproc": the runtime hands each request ADU to the emulator core (the kernel);
     # "socketpair": the same ADUs over a socketpair through libmodbus (as over TCP)
     transport: str = "inproc"
+    tick_ms: int = 10          # scan tick = the programs' task interval
 
     def params(self, station, session, start=0):
         down = (0, 0, 0, 0)
@@ -148,8 +163,11 @@ class Chain:
             raise CosimError(err.value.decode())
         if trace:
             self._check(self.lib.mipcosim_trace_file(self.sim, str(trace).encode()))
-        self.out_build = build("outstation", setup.bidi, self.workdir, setup.compiler)
-        self.cen_build = build("central", setup.bidi, self.workdir, setup.compiler)
+        if not 1 <= setup.tick_ms <= 1000:
+            raise CosimError(f"tick_ms {setup.tick_ms}: use 1..1000")
+        self.tick_ns = setup.tick_ms * MS
+        self.out_build = build("outstation", setup.bidi, self.workdir, setup.compiler, setup.tick_ms)
+        self.cen_build = build("central", setup.bidi, self.workdir, setup.compiler, setup.tick_ms)
         self.out_conf = self.workdir / "outstation.conf"
         self.out_conf.write_text(L.outstation_config(15021))
         self.cen_conf = self.workdir / "central.conf"
@@ -178,6 +196,8 @@ class Chain:
         role, s = who
         plc = Plc(self.out_build if role == "out" else self.cen_build, self.workdir,
                   config=self.out_conf if role == "out" else self.cen_conf)
+        if plc.tick_ns != self.tick_ns:
+            raise CosimError(f"{who}: the program scans every {plc.tick_ns} ns, the kernel every {self.tick_ns}")
         old = self.plcs.get(who)
         self.plcs[who] = plc
         scan = ctypes.cast(plc.library.plcrt_scan, ctypes.c_void_p)
@@ -190,9 +210,9 @@ class Chain:
         else:
             raise CosimError(f"transport {self.s.transport!r}: use inproc or socketpair")
         if who in self.ids:
-            self._check(self.lib.mipcosim_plc_replace(self.sim, self.ids[who], scan, plc.handle, TICK_NS))
+            self._check(self.lib.mipcosim_plc_replace(self.sim, self.ids[who], scan, plc.handle, self.tick_ns))
         else:
-            pid = self.lib.mipcosim_plc_add(self.sim, scan, plc.handle, TICK_NS)
+            pid = self.lib.mipcosim_plc_add(self.sim, scan, plc.handle, self.tick_ns)
             self._check(0 if pid >= 0 else -1)
             self.ids[who] = pid
         if old is not None:

@@ -93,6 +93,22 @@ def test_chain_inproc_transport_same_trace_as_modbus_tcp_stream(chain_workdir, t
     assert sp[2] == ip[2]
 
 
+def test_chain_scan_tick_is_a_parameter(chain_workdir):
+    """50 ms scans: the programs are built with that task interval (their timers follow the
+    kernel's clock) and the transfer under loss is still exact."""
+    st = Setup(loss=0.1, seed=3, records=12, per_transfer=5, tick_ms=50, log_period_ms=100)
+    with Chain(st, chain_workdir) as ch:
+        assert all(p.tick_ns == 50_000_000 for p in ch.plcs.values())
+        assert ch.run_to_end(600 * SEC)
+        scans = ch.radio_stats()["scans"]
+        reps = check(ch)
+        tot = summary(reps)
+        # two PLCs, one scan each per 50 ms of virtual time
+        assert abs(scans - 2 * ch.now // 50_000_000) <= 2
+    assert [p for r in reps for p in r.problems] == []
+    assert tot["records"] == 12 and tot["lost"] == 0 and tot["duplicated"] == 0
+
+
 def test_chain_transport_name_is_checked(chain_workdir):
     with pytest.raises(Exception, match="transport 'tcp': use inproc or socketpair"):
         Chain(Setup(transport="tcp"), chain_workdir)
