@@ -52,6 +52,10 @@ int mipcosim_plc_replace(mipcosim *sim, int id, mipcosim_scan_fn scan, void *rt,
 
 /* Wires device `device` of PLC id to endpoint ep (0 = MDP, s = TRM of station s). */
 int mipcosim_connect(mipcosim *sim, int id, mipcosim_set_fd_fn set_fd, const char *device, int ep);
+/* The same over a real TCP connection on 127.0.0.1 (made in the calling thread): Modbus TCP
+ * exactly as the runtime speaks it to a modem, still in lockstep (to compare transports). */
+int mipcosim_connect_tcp(mipcosim *sim, int id, mipcosim_set_fd_fn set_fd, const char *device,
+                         int ep);
 
 /* The same without a socket (the kernel's default): the runtime's in-process transport
  * (plcrt_device_set_transport of that library copy) hands each request ADU to the emulator

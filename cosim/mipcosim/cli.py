@@ -37,9 +37,9 @@ def parse(argv):
                         "(run: none, soak: 120)")
     p.add_argument("--limit", type=float, default=0, help="virtual seconds before giving up")
     p.add_argument("--trace", help="emulator trace (JSON lines) to this file")
-    p.add_argument("--transport", choices=["inproc", "socketpair"], default="inproc",
+    p.add_argument("--transport", choices=["inproc", "socketpair", "tcp"], default="inproc",
                    help="PLC <-> emulator: the kernel's in-process transport (default) or "
-                        "libmodbus over socketpairs")
+                        "libmodbus over socketpairs or TCP on 127.0.0.1")
     p.add_argument("--tick-ms", type=int, default=10, help="scan tick (the programs' task interval)")
     p.add_argument("--workdir", help="build and scratch directory (default: a temp dir)")
     a = p.parse_args(argv)

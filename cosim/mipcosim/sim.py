@@ -39,6 +39,7 @@ def _lib():
         ("mipcosim_plc_add", c.c_int, [c.c_void_p, c.c_void_p, c.c_void_p, c.c_uint64]),
         ("mipcosim_plc_replace", c.c_int, [c.c_void_p, c.c_int, c.c_void_p, c.c_void_p, c.c_uint64]),
         ("mipcosim_connect", c.c_int, [c.c_void_p, c.c_int, c.c_void_p, c.c_char_p, c.c_int]),
+        ("mipcosim_connect_tcp", c.c_int, [c.c_void_p, c.c_int, c.c_void_p, c.c_char_p, c.c_int]),
         ("mipcosim_connect_inproc", c.c_int, [c.c_void_p, c.c_int, c.c_void_p, c.c_char_p, c.c_int]),
         ("mipcosim_tap", c.c_int, [c.c_void_p, c.c_int, c.c_int, c.c_void_p, c.c_void_p, c.c_int,
                                    c.c_int, c.c_void_p, c.c_int]),
@@ -125,7 +126,8 @@ class Setup:
     radio: Radio = field(default_factory=Radio)
     compiler: str = "stc"
     # "inproc": the runtime hands each request ADU to the emulator core (the kernel);
-    # "socketpair": the same ADUs over a socketpair through libmodbus (as over TCP)
+    # "socketpair" / "tcp": the same ADUs through libmodbus over a socketpair / a TCP
+    # connection on 127.0.0.1
     transport: str = "inproc"
     tick_ms: int = 10          # scan tick = the programs' task interval
 
@@ -204,11 +206,12 @@ class Chain:
         if self.s.transport == "inproc":
             set_fd = ctypes.cast(plc.library.plcrt_device_set_transport, ctypes.c_void_p)
             connect = self.lib.mipcosim_connect_inproc
-        elif self.s.transport == "socketpair":
+        elif self.s.transport in ("socketpair", "tcp"):
             set_fd = ctypes.cast(plc.library.plcrt_device_set_fd, ctypes.c_void_p)
-            connect = self.lib.mipcosim_connect
+            connect = (self.lib.mipcosim_connect if self.s.transport == "socketpair"
+                       else self.lib.mipcosim_connect_tcp)
         else:
-            raise CosimError(f"transport {self.s.transport!r}: use inproc or socketpair")
+            raise CosimError(f"transport {self.s.transport!r}: use inproc, socketpair or tcp")
         if who in self.ids:
             self._check(self.lib.mipcosim_plc_replace(self.sim, self.ids[who], scan, plc.handle, self.tick_ns))
         else:

@@ -7,6 +7,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <netinet/tcp.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
@@ -201,7 +204,54 @@ static void after_send(void *user)
     }
 }
 
+/* A connected pair of stream sockets: AF_UNIX socketpair, or (tcp) a TCP connection over
+ * 127.0.0.1 made in this thread (listen on port 0, connect, accept). */
+static int stream_pair(int tcp, int sv[2])
+{
+    if (!tcp) return socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, sv);
+    int l = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    if (l < 0) return -1;
+    struct sockaddr_in a;
+    memset(&a, 0, sizeof a);
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    socklen_t alen = sizeof a;
+    int c = -1, one = 1;
+    if (bind(l, (struct sockaddr *)&a, sizeof a) != 0 || listen(l, 1) != 0 ||
+        getsockname(l, (struct sockaddr *)&a, &alen) != 0)
+        goto fail;
+    c = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    if (c < 0 || connect(c, (struct sockaddr *)&a, sizeof a) != 0) goto fail;
+    int e = accept(l, NULL, NULL);
+    if (e < 0) goto fail;
+    setsockopt(c, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
+    setsockopt(e, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
+    close(l);
+    sv[0] = c;
+    sv[1] = e;
+    return 0;
+fail:
+    if (c >= 0) close(c);
+    close(l);
+    return -1;
+}
+
+static int connect_stream(mipcosim *sim, int id, mipcosim_set_fd_fn set_fd, const char *device,
+                          int ep, int tcp);
+
 int mipcosim_connect(mipcosim *sim, int id, mipcosim_set_fd_fn set_fd, const char *device, int ep)
+{
+    return connect_stream(sim, id, set_fd, device, ep, 0);
+}
+
+int mipcosim_connect_tcp(mipcosim *sim, int id, mipcosim_set_fd_fn set_fd, const char *device,
+                         int ep)
+{
+    return connect_stream(sim, id, set_fd, device, ep, 1);
+}
+
+static int connect_stream(mipcosim *sim, int id, mipcosim_set_fd_fn set_fd, const char *device,
+                          int ep, int tcp)
 {
     if (id < 0 || id >= sim->nplcs || !sim->plcs[id].rt) return fail(sim, "connect: no PLC %d", id);
     if (!set_fd || !device) return fail(sim, "connect: no set_fd function or device");
@@ -221,9 +271,9 @@ int mipcosim_connect(mipcosim *sim, int id, mipcosim_set_fd_fn set_fd, const cha
         c = calloc(1, sizeof *c);
         if (!c) return fail(sim, "out of memory");
         int sv[2];
-        if (socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, sv) != 0) {
+        if (stream_pair(tcp, sv) != 0) {
             free(c);
-            return fail(sim, "socketpair: %s", strerror(errno));
+            return fail(sim, "%s: %s", tcp ? "TCP over 127.0.0.1" : "socketpair", strerror(errno));
         }
         c->sim = sim;
         c->plc = id;

@@ -70,12 +70,13 @@ def test_chain_same_seed_same_run(chain_workdir, tmp_path):
 
 
 @pytest.mark.parametrize("restart", ["none", "central"])
-def test_chain_inproc_transport_same_trace_as_modbus_tcp_stream(chain_workdir, tmp_path, restart):
-    """The kernel's in-process transport (request ADU handed to the emulator core) and libmodbus's
-    TCP backend over a stream socket give the same emulator trace, byte for byte (every Modbus
-    request with its transaction id, every radio telegram), and the same delivered records."""
+def test_chain_inproc_transport_same_trace_as_modbus_tcp(chain_workdir, tmp_path, restart):
+    """The kernel's in-process transport (request ADU handed to the emulator core) and libmodbus
+    over a real TCP connection on 127.0.0.1 (and over a socketpair) give the same emulator
+    trace, byte for byte (every Modbus request with its transaction id, every radio telegram),
+    and the same delivered records."""
     runs = {}
-    for transport in ("socketpair", "inproc"):
+    for transport in ("tcp", "socketpair", "inproc"):
         st = Setup(loss=0.3, seed=23, records=14, per_transfer=5, bidi=True, stations=2,
                    transport=transport)
         trace = tmp_path / f"trace-{transport}.jsonl"
@@ -86,11 +87,12 @@ def test_chain_inproc_transport_same_trace_as_modbus_tcp_stream(chain_workdir, t
             assert ch.run_to_end(600 * SEC)
             events = [(e.t, e.tap, e.words) for e in ch.events]
             runs[transport] = (trace.read_bytes(), events, ch.radio_stats())
-    sp, ip = runs["socketpair"], runs["inproc"]
-    assert b'"ev":"modbus"' in sp[0] and len(sp[0]) > 10_000
-    assert sp[0] == ip[0]
-    assert sp[1] == ip[1] and len(sp[1]) > 0
-    assert sp[2] == ip[2]
+    tcp, ip = runs["tcp"], runs["inproc"]
+    assert b'"ev":"modbus"' in tcp[0] and len(tcp[0]) > 10_000
+    assert tcp[0] == ip[0]
+    assert tcp[1] == ip[1] and len(tcp[1]) > 0
+    assert tcp[2] == ip[2]
+    assert runs["socketpair"] == tcp
 
 
 def test_chain_scan_tick_is_a_parameter(chain_workdir):
@@ -110,8 +112,8 @@ def test_chain_scan_tick_is_a_parameter(chain_workdir):
 
 
 def test_chain_transport_name_is_checked(chain_workdir):
-    with pytest.raises(Exception, match="transport 'tcp': use inproc or socketpair"):
-        Chain(Setup(transport="tcp"), chain_workdir)
+    with pytest.raises(Exception, match="transport 'udp': use inproc, socketpair or tcp"):
+        Chain(Setup(transport="udp"), chain_workdir)
 
 
 def test_chain_other_seed_other_losses(chain_workdir):
