@@ -442,8 +442,8 @@ def cosim_speed_run(virt_s, workdir: Path, stations=8, transport="inproc", tick_
     soft-PLCs (plc/central.st holds 4 receivers, cosim/mipcosim/layout.py MAX_STATIONS = 4; the
     k-th central serves stations 4k+1..4k+4 with those unit ids) with `tick_ms` scans over one
     emulated network (one MDP-810) in libmipcosim's lockstep virtual time. transport "inproc":
-    the kernel (request ADUs handed to the emulator core); "socketpair": libmodbus over
-    socketpairs (what the co-simulation used before)."""
+    the kernel (request ADUs handed to the emulator core); "socketpair" / "tcp": libmodbus
+    over socketpairs (what the co-simulation used before) / TCP on 127.0.0.1."""
     import ctypes
     import resource
 
@@ -476,7 +476,7 @@ def cosim_speed_run(virt_s, workdir: Path, stations=8, transport="inproc", tick_
             connect = lib.mipcosim_connect_inproc
         else:
             setter = ctypes.cast(plc._lib.plcrt_device_set_fd, ctypes.c_void_p)
-            connect = lib.mipcosim_connect
+            connect = lib.mipcosim_connect_tcp if transport == "tcp" else lib.mipcosim_connect
         for dev, ep in wires:
             check(connect(sim, pid, setter, dev.encode(), ep))
         for i, w in enumerate(params.words()):
