@@ -50,6 +50,8 @@ def parse(argv):
     a.restart_every = a.restart_every if a.restart_every is not None else (120 if soak else 0)
     if a.per_transfer == 0 and a.records > 65534:
         p.error("more than 65534 records need --per-transfer")
+    if not 1 <= a.stations <= L.MAX_STATIONS:
+        p.error(f"--stations must be in 1..{L.MAX_STATIONS} (the receivers of plc/central.st)")
     if not 1 <= a.tick_ms <= 1000:
         p.error("--tick-ms must be in 1..1000")
     if not 0 <= a.loss < 1:

@@ -152,6 +152,11 @@ class Chain:
     """Outstation PLC(s) + central PLC + emulator network in one process."""
 
     def __init__(self, setup: Setup, workdir: Path, trace=None):
+        if not 1 <= setup.stations <= L.MAX_STATIONS:
+            raise CosimError(f"stations {setup.stations}: the central program (plc/central.st) "
+                             f"serves 1..{L.MAX_STATIONS}")
+        if not 1 <= setup.tick_ms <= 1000:
+            raise CosimError(f"tick_ms {setup.tick_ms}: use 1..1000")
         self.s = setup
         self.workdir = Path(workdir)
         self.workdir.mkdir(parents=True, exist_ok=True)
@@ -165,8 +170,6 @@ class Chain:
             raise CosimError(err.value.decode())
         if trace:
             self._check(self.lib.mipcosim_trace_file(self.sim, str(trace).encode()))
-        if not 1 <= setup.tick_ms <= 1000:
-            raise CosimError(f"tick_ms {setup.tick_ms}: use 1..1000")
         self.tick_ns = setup.tick_ms * MS
         self.out_build = build("outstation", setup.bidi, self.workdir, setup.compiler, setup.tick_ms)
         self.cen_build = build("central", setup.bidi, self.workdir, setup.compiler, setup.tick_ms)
