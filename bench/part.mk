@@ -13,16 +13,11 @@ $(BENCH_BUILD)/mb_bare_server: $(BENCH_DIR)/mb_bare_server.c
 	@mkdir -p $(@D)
 	$(CC) $(BENCH_CFLAGS) $(shell pkg-config --cflags libmodbus) -o $@ $< $(shell pkg-config --libs libmodbus)
 
-# Fallback of the goodput figure while the co-simulation is not built (labelled as such).
-$(BENCH_BUILD)/goodput_sim: $(BENCH_DIR)/goodput_sim.c $(BUILD)/emulator/libmipemu.a emulator/include/mipemu.h
-	@mkdir -p $(@D)
-	$(CC) $(BENCH_CFLAGS) -Iemulator/include -o $@ $< $(BUILD)/emulator/libmipemu.a
-
 $(BENCH_BUILD)/rss_run: $(BENCH_DIR)/rss_run.c
 	@mkdir -p $(@D)
 	$(CC) $(BENCH_CFLAGS) -D_GNU_SOURCE -o $@ $<
 
-BENCH_BINS := $(BENCH_BUILD)/mb_client $(BENCH_BUILD)/mb_bare_server $(BENCH_BUILD)/goodput_sim $(BENCH_BUILD)/rss_run
+BENCH_BINS := $(BENCH_BUILD)/mb_client $(BENCH_BUILD)/mb_bare_server $(BENCH_BUILD)/rss_run
 
 # The tests in tests/bench/ run `make bench` themselves; they need the programs built.
 PYTEST_DEPS += $(BENCH_BINS)

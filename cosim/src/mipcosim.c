@@ -7,11 +7,14 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <netinet/tcp.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
-#define MAX_PLCS 64
-#define MAX_CONNS 256
+#define MAX_PLCS 512
+#define MAX_CONNS 1024
 #define MAX_TAPS 64
 #define NAME_MAX_LEN 64
 
@@ -147,8 +150,8 @@ static void drop_plc_wiring(mipcosim *sim, int id)
         conn_t *c = sim->conns[i];
         if (!c || c->plc != id) continue;
         uint8_t junk[512];
-        while (recv(c->fd_plc, junk, sizeof junk, MSG_DONTWAIT) > 0) {}
-        while (recv(c->fd_emu, junk, sizeof junk, MSG_DONTWAIT) > 0) {}
+        while (c->fd_plc >= 0 && recv(c->fd_plc, junk, sizeof junk, MSG_DONTWAIT) > 0) {}
+        while (c->fd_emu >= 0 && recv(c->fd_emu, junk, sizeof junk, MSG_DONTWAIT) > 0) {}
         c->len = 0;
     }
 }
@@ -201,7 +204,54 @@ static void after_send(void *user)
     }
 }
 
+/* A connected pair of stream sockets: AF_UNIX socketpair, or (tcp) a TCP connection over
+ * 127.0.0.1 made in this thread (listen on port 0, connect, accept). */
+static int stream_pair(int tcp, int sv[2])
+{
+    if (!tcp) return socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, sv);
+    int l = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    if (l < 0) return -1;
+    struct sockaddr_in a;
+    memset(&a, 0, sizeof a);
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    socklen_t alen = sizeof a;
+    int c = -1, one = 1;
+    if (bind(l, (struct sockaddr *)&a, sizeof a) != 0 || listen(l, 1) != 0 ||
+        getsockname(l, (struct sockaddr *)&a, &alen) != 0)
+        goto fail;
+    c = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    if (c < 0 || connect(c, (struct sockaddr *)&a, sizeof a) != 0) goto fail;
+    int e = accept(l, NULL, NULL);
+    if (e < 0) goto fail;
+    setsockopt(c, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
+    setsockopt(e, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
+    close(l);
+    sv[0] = c;
+    sv[1] = e;
+    return 0;
+fail:
+    if (c >= 0) close(c);
+    close(l);
+    return -1;
+}
+
+static int connect_stream(mipcosim *sim, int id, mipcosim_set_fd_fn set_fd, const char *device,
+                          int ep, int tcp);
+
 int mipcosim_connect(mipcosim *sim, int id, mipcosim_set_fd_fn set_fd, const char *device, int ep)
+{
+    return connect_stream(sim, id, set_fd, device, ep, 0);
+}
+
+int mipcosim_connect_tcp(mipcosim *sim, int id, mipcosim_set_fd_fn set_fd, const char *device,
+                         int ep)
+{
+    return connect_stream(sim, id, set_fd, device, ep, 1);
+}
+
+static int connect_stream(mipcosim *sim, int id, mipcosim_set_fd_fn set_fd, const char *device,
+                          int ep, int tcp)
 {
     if (id < 0 || id >= sim->nplcs || !sim->plcs[id].rt) return fail(sim, "connect: no PLC %d", id);
     if (!set_fd || !device) return fail(sim, "connect: no set_fd function or device");
@@ -221,9 +271,9 @@ int mipcosim_connect(mipcosim *sim, int id, mipcosim_set_fd_fn set_fd, const cha
         c = calloc(1, sizeof *c);
         if (!c) return fail(sim, "out of memory");
         int sv[2];
-        if (socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, sv) != 0) {
+        if (stream_pair(tcp, sv) != 0) {
             free(c);
-            return fail(sim, "socketpair: %s", strerror(errno));
+            return fail(sim, "%s: %s", tcp ? "TCP over 127.0.0.1" : "socketpair", strerror(errno));
         }
         c->sim = sim;
         c->plc = id;
@@ -234,6 +284,51 @@ int mipcosim_connect(mipcosim *sim, int id, mipcosim_set_fd_fn set_fd, const cha
     }
     c->ep = ep;
     if (set_fd(sim->plcs[id].rt, device, c->fd_plc, after_send, c) != 0)
+        return fail(sim, "connect: the runtime refused device '%s'", device);
+    return 0;
+}
+
+/* In-process transport: one request ADU in, the emulator core's response ADU out. */
+static long transact(void *user, const uint8_t *req, size_t req_len, uint8_t *rsp, size_t cap)
+{
+    conn_t *c = user;
+    mipcosim *sim = c->sim;
+    long flen = mipemu_frame_length(req, req_len);
+    if (flen <= 0 || (size_t)flen != req_len) return -1;
+    long n = mipemu_handle(sim->net, c->ep, req, req_len, rsp, cap);
+    if (n < 0) return -1; /* the emulator would close the connection: no answer */
+    sim->requests++;
+    return n;
+}
+
+int mipcosim_connect_inproc(mipcosim *sim, int id, mipcosim_set_transport_fn set_transport,
+                            const char *device, int ep)
+{
+    if (id < 0 || id >= sim->nplcs || !sim->plcs[id].rt) return fail(sim, "connect: no PLC %d", id);
+    if (!set_transport || !device) return fail(sim, "connect: no set_transport function or device");
+    if (ep < 0 || ep > mipemu_net_stations(sim->net))
+        return fail(sim, "connect: endpoint %d is not 0 (MDP) or a station 1..%d", ep,
+                    mipemu_net_stations(sim->net));
+    if (strlen(device) >= NAME_MAX_LEN) return fail(sim, "connect: device name too long");
+    conn_t *c = NULL;
+    int slot = -1;
+    for (int i = 0; i < MAX_CONNS; i++) {
+        conn_t *o = sim->conns[i];
+        if (o && o->plc == id && !strcmp(o->device, device)) { c = o; break; }
+        if (!o && slot < 0) slot = i;
+    }
+    if (!c) {
+        if (slot < 0) return fail(sim, "more than %d connections", MAX_CONNS);
+        c = calloc(1, sizeof *c);
+        if (!c) return fail(sim, "out of memory");
+        c->sim = sim;
+        c->plc = id;
+        c->fd_plc = c->fd_emu = -1;
+        snprintf(c->device, sizeof c->device, "%s", device);
+        sim->conns[slot] = c;
+    }
+    c->ep = ep;
+    if (set_transport(sim->plcs[id].rt, device, transact, c) != 0)
         return fail(sim, "connect: the runtime refused device '%s'", device);
     return 0;
 }

@@ -85,6 +85,36 @@ static int fake_scan(void *rt, uint64_t n)
     return 0;
 }
 
+/* The same fake over the in-process transport: the ADU goes to the handler, no socket. */
+typedef struct fake_ip {
+    mipcosim_transact_fn transact;
+    void *user;
+    int scans;
+    uint8_t req[300];
+    size_t req_len;
+    uint8_t rsp[400];
+    long rsp_len;
+} fake_ip_t;
+
+static int fake_set_transport(void *rt, const char *device, mipcosim_transact_fn transact, void *user)
+{
+    (void)device;
+    fake_ip_t *f = rt;
+    f->transact = transact;
+    f->user = user;
+    return 0;
+}
+
+static int fake_ip_scan(void *rt, uint64_t n)
+{
+    fake_ip_t *f = rt;
+    (void)n;
+    f->scans++;
+    if (!f->transact) return 0;
+    f->rsp_len = f->transact(f->user, f->req, f->req_len, f->rsp, sizeof f->rsp);
+    return 0;
+}
+
 static mipcosim *new_sim(int stations, double loss, uint64_t seed)
 {
     char err[128];
@@ -144,6 +174,31 @@ static void test_requests_answered_by_the_emulator(void)
     mipemu_stats st;
     CHECK(mipemu_net_stats(mipcosim_net(sim), 2, &st) == 0);
     CHECK(st.blocks_up == 1);                 /* the radio carried it to the MDP */
+    mipcosim_free(sim);
+}
+
+static void test_inproc_transport_answers_adus(void)
+{
+    mipcosim *sim = new_sim(2, 0, 1);
+    CHECK(sim);
+    fake_ip_t a;
+    memset(&a, 0, sizeof a);
+    /* FC3 of 5 at TRM 2198 (status, count, 3 data), transaction id 7 */
+    uint8_t r[] = {0, 7, 0, 0, 0, 6, 1, 3, 0x08, 0x96, 0, 5};
+    memcpy(a.req, r, sizeof r);
+    a.req_len = sizeof r;
+    int id = mipcosim_plc_add(sim, fake_ip_scan, &a, 10000000);
+    CHECK(mipcosim_connect_inproc(sim, id, fake_set_transport, "trm", 2) == 0);
+    CHECK(mipcosim_connect_inproc(sim, id, fake_set_transport, "x", 3) == -1);
+    CHECK(strstr(mipcosim_errmsg(sim), "endpoint 3"));
+    CHECK(mipcosim_run(sim, 20000000) == 0);
+    /* MBAP echoes the transaction id; unit 1, fc 3, 10 bytes */
+    CHECK(a.rsp_len == 9 + 10 && a.rsp[1] == 7 && a.rsp[7] == 3 && a.rsp[8] == 10);
+    CHECK(mipcosim_requests(sim) == 2);
+    /* a frame whose MBAP length does not match: no answer (a timeout for the runtime) */
+    a.req[5] = 9;
+    CHECK(mipcosim_run(sim, 30000000) == 0);
+    CHECK(a.rsp_len == -1 && mipcosim_requests(sim) == 2);
     mipcosim_free(sim);
 }
 
@@ -271,6 +326,7 @@ int main(int argc, char **argv)
         if (!strcmp(argv[i], "--junit") && i + 1 < argc) junit = argv[++i];
     run("ticks_in_lockstep", test_ticks_in_lockstep);
     run("requests_answered_by_the_emulator", test_requests_answered_by_the_emulator);
+    run("inproc_transport_answers_adus", test_inproc_transport_answers_adus);
     run("taps_log_each_change_once", test_taps_log_each_change_once);
     run("replace_switches_off_and_restarts", test_replace_switches_off_and_restarts);
     run("failed_scan_stops_the_run", test_failed_scan_stops_the_run);

@@ -1,7 +1,8 @@
 """The emulator core (emulator/include/mipemu.h) loaded through ctypes, in virtual time.
 
-The shared object build/docs/libmipemu.so is built by `make` (docs/part.mk) from the emulator's
-own source emulator/src/mipemu.c, so this is the same code the mip-emulator server runs.
+The emulator core is the one in the simulation kernel, build/cosim/libmipcosim.so (cosim/part.mk
+links emulator/src/mipemu.c into it): the same code the mip-emulator server and the
+co-simulation run, not a second build of it.
 """
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ import struct
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
-SO = REPO / "build" / "docs" / "libmipemu.so"
+SO = REPO / "build" / "cosim" / "libmipcosim.so"
 
 TRACE_FN = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_char_p, ctypes.c_size_t)
 

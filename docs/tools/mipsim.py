@@ -7,7 +7,7 @@ time, with the emulator's fault options; prints what each side saw and writes a 
         [--limit-s 120] [--trace FILE]
 
 Nothing real runs: two soft PLCs (plcharness, st_lib built with stc) and the emulator core
-(build/docs/libmipemu.so, built by `make`) step together every 10 ms of virtual
+(the kernel's, build/cosim/libmipcosim.so, built by `make`) step together every 10 ms of virtual
 time, so a run of minutes takes seconds and the same options give the same result. Draw the
 trace with docs/tools/seqdiag.py. Exit status 0 when every transfer completed and the data
 arrived unchanged, 1 otherwise, 2 for bad options.

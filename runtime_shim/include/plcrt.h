@@ -123,6 +123,14 @@ void plcrt_set_log(plcrt_t *rt, plcrt_log_fn fn, void *user);
 typedef void (*plcrt_after_send_fn)(void *user);
 int plcrt_device_set_fd(plcrt_t *rt, const char *device, int fd,
                         plcrt_after_send_fn after_send, void *user);
+/* In-process transport (the same seam, without a socket): every request ADU (MBAP header +
+ * PDU, as it would go over TCP) is handed to transact(user, req, len, rsp, cap), which writes
+ * the response ADU into rsp and returns its length, or -1 for no answer (seen as a timeout).
+ * From the ADU on, the master runs the same code as over TCP. Call before the first scan. */
+typedef long (*plcrt_transact_fn)(void *user, const uint8_t *req, size_t req_len, uint8_t *rsp,
+                                  size_t rsp_cap);
+int plcrt_device_set_transport(plcrt_t *rt, const char *device, plcrt_transact_fn transact,
+                               void *user);
 int plcrt_device_count(const plcrt_t *rt);
 const char *plcrt_device_name(const plcrt_t *rt, int i);
 /* Counters of a device: failed requests, successful requests, reconnects. */

@@ -175,6 +175,7 @@ static int device_ensure_ctx(plcrt_t *rt, plcrt_device_t *d)
 static int device_connect(plcrt_t *rt, struct plcrt_master *m, plcrt_device_t *d, uint64_t now,
                           int *err)
 {
+    if (d->transact) return 0; /* in process: always there */
     if (device_ensure_ctx(rt, d) != 0) { *err = ENOMEM; return -1; }
     if (d->connected) return 0;
     if (now < d->next_connect_ns) { *err = ENOTCONN; return -1; }
@@ -265,7 +266,7 @@ typedef struct request {
 static int do_request(struct plcrt_master *m, plcrt_device_t *d, request_t *q, int *transport)
 {
     uint8_t req[MODBUS_TCP_MAX_ADU_LENGTH];
-    uint8_t rsp[MODBUS_TCP_MAX_ADU_LENGTH];
+    uint8_t rsp[MODBUS_TCP_MAX_ADU_LENGTH + 64]; /* + room for an in-process handler's cap */
     int n = 0;
     *transport = 0;
     req[n++] = (uint8_t)d->unit_id;
@@ -283,18 +284,41 @@ static int do_request(struct plcrt_master *m, plcrt_device_t *d, request_t *q, i
             if (q->data[i]) req[n + i / 8] |= (uint8_t)(1u << (i % 8));
         n += bytes;
     }
-    uint16_t tid = 0;
-    if (send_adu(d, req, n, &tid) < 0) {
-        *transport = 1;
-        return STATUS_TRANSPORT(errno);
+    int len, h;
+    if (d->transact) {
+        /* in-process transport: the request ADU exactly as send_adu frames it for TCP (MBAP
+         * with a new transaction id, protocol 0, length) to the handler; the reply ADU is
+         * checked like a TCP reply (same transaction id), then parsed by the code below */
+        uint8_t adu[MODBUS_TCP_MAX_ADU_LENGTH];
+        d->tid = (uint16_t)(d->tid + 1) ? (uint16_t)(d->tid + 1) : 1;
+        put16(adu, d->tid);
+        put16(adu + 2, 0);
+        put16(adu + 4, n);
+        memcpy(adu + 6, req, (size_t)n);
+        long r = d->transact(d->transact_user, adu, (size_t)n + 6, rsp, sizeof rsp);
+        if (r < 0) {
+            *transport = 1;
+            return STATUS_TRANSPORT(ETIMEDOUT);
+        }
+        len = (int)r;
+        h = 7;
+        if (len < h + 1 || len > MODBUS_TCP_MAX_ADU_LENGTH || get16(rsp) != d->tid || get16(rsp + 2) != 0 ||
+            get16(rsp + 4) != len - 6)
+            goto bad;
+    } else {
+        uint16_t tid = 0;
+        if (send_adu(d, req, n, &tid) < 0) {
+            *transport = 1;
+            return STATUS_TRANSPORT(errno);
+        }
+        if (d->after_send) d->after_send(d->after_send_user);
+        len = receive_reply(m, d, tid, rsp);
+        if (len < 0) {
+            *transport = 1;
+            return STATUS_TRANSPORT(errno);
+        }
+        h = modbus_get_header_length(d->ctx); /* MBAP incl. unit id: the function code follows */
     }
-    if (d->after_send) d->after_send(d->after_send_user);
-    int len = receive_reply(m, d, tid, rsp);
-    if (len < 0) {
-        *transport = 1;
-        return STATUS_TRANSPORT(errno);
-    }
-    int h = modbus_get_header_length(d->ctx); /* MBAP incl. unit id: the function code follows */
     if (len < h + 2 || rsp[h - 1] != (uint8_t)d->unit_id) goto bad;
     if (rsp[h] == (uint8_t)(q->fc | 0x80)) return rsp[h + 1] ? rsp[h + 1] : EPROTO + 1000;
     if (rsp[h] != q->fc) goto bad;
@@ -362,7 +386,9 @@ static int range_request(plcrt_t *rt, struct plcrt_master *m, plcrt_range_t *r, 
                   q->addr, q->count, r->name, why, (unsigned long long)d->n_errors);
     snprintf(d->last_error, sizeof d->last_error, "%s", why);
     d->failing = 1;
-    if (transport && d->connected && d->ext_fd < 0) {
+    if (d->transact) {
+        /* in process nothing can be left in a stream */
+    } else if (transport && d->connected && d->ext_fd < 0) {
         /* the TCP stream may hold a late answer: start over on a new connection */
         pthread_mutex_lock(&m->lock);
         device_close(d);
@@ -542,9 +568,42 @@ int plcrt_device_set_fd(plcrt_t *rt, const char *device, int fd, plcrt_after_sen
             d->ctx = NULL;
         }
         d->ext_fd = fd;
+        d->transact = NULL;
         d->after_send = after_send;
         d->after_send_user = user;
         return device_ensure_ctx(rt, d);
+    }
+    plcrt_seterr(rt, "no device '%s' in the config", device);
+    return -1;
+}
+
+int plcrt_device_set_transport(plcrt_t *rt, const char *device, plcrt_transact_fn transact,
+                               void *user)
+{
+    struct plcrt_master *m = rt->master;
+    if (rt->started) {
+        plcrt_seterr(rt, "plcrt_device_set_transport: call before the first scan");
+        return -1;
+    }
+    if (!transact) {
+        plcrt_seterr(rt, "plcrt_device_set_transport: no handler");
+        return -1;
+    }
+    for (int i = 0; m && i < m->n_devices; i++) {
+        plcrt_device_t *d = &m->devices[i];
+        if (strcmp(d->name, device) != 0) continue;
+        if (d->ctx) {
+            if (d->ext_fd >= 0) modbus_set_socket(d->ctx, -1);
+            else modbus_close(d->ctx);
+            modbus_free(d->ctx);
+            d->ctx = NULL;
+        }
+        d->ext_fd = -1;
+        d->after_send = NULL;
+        d->transact = transact;
+        d->transact_user = user;
+        d->connected = 1;
+        return 0;
     }
     plcrt_seterr(rt, "no device '%s' in the config", device);
     return -1;

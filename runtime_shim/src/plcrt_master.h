@@ -57,6 +57,8 @@ typedef struct plcrt_device {
     int ext_fd; /* >= 0: transport seam, an fd given by plcrt_device_set_fd */
     plcrt_after_send_fn after_send;
     void *after_send_user;
+    plcrt_transact_fn transact; /* in-process transport (plcrt_device_set_transport) */
+    void *transact_user;
     uint64_t next_connect_ns, backoff_ns;
     uint64_t n_errors, n_requests, n_connects;
     uint64_t n_stale; /* replies dropped: transaction id of an earlier request */

@@ -31,3 +31,25 @@ def test_chain_cli_bad_option_one_line(tmp_path):
     assert p.returncode == 2
     assert "more than 65534 records need --per-transfer" in p.stderr
     assert "Traceback" not in p.stderr
+
+
+def test_chain_cli_stations_and_tick_out_of_range_one_line(tmp_path):
+    for args, msg in [(["--stations", "6"], "--stations must be in 1..4"),
+                      (["--tick-ms", "0"], "--tick-ms must be in 1..1000"),
+                      (["--transport", "udp"], "invalid choice: 'udp'")]:
+        p = cli("run", *args, tmp_path=tmp_path)
+        assert p.returncode == 2, (args, p.stderr)
+        assert msg in p.stderr and "Traceback" not in p.stderr
+
+
+def test_chain_cli_tcp_transport_same_result_as_the_kernel(tmp_path):
+    """The same run over Modbus TCP on 127.0.0.1 and through the in-process transport."""
+    out = {}
+    for tr in ("tcp", "inproc"):
+        p = cli("run", "--records", "8", "--loss", "0.2", "--seed", "4", "--transport", tr,
+                tmp_path=tmp_path / tr)
+        assert p.returncode == 0, p.stdout + p.stderr
+        lines = [l for l in p.stdout.splitlines() if l.startswith(("result:", "  radio:"))]
+        out[tr] = [l.split(" in ")[0] if l.startswith("  radio:") else
+                   " ".join(w for w in l.split() if not w.startswith("seconds=")) for l in lines]
+    assert out["tcp"] == out["inproc"] and out["tcp"][-1].startswith("result: ok records=8")
