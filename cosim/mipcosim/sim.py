@@ -79,8 +79,9 @@ def build(role, bidi, workdir: Path, compiler="stc", tick_ms=10):
             text = main.read_text()
             if text.count("INTERVAL := T#10ms") != 1:
                 raise CosimError(f"{main}: no single 'INTERVAL := T#10ms' to set the scan tick")
-            out.mkdir(parents=True, exist_ok=True)
-            copy = out / main.name
+            src_dir = Path(workdir) / f"src-{tag}"  # not in out: the build replaces only its own output
+            src_dir.mkdir(parents=True, exist_ok=True)
+            copy = src_dir / main.name
             copy.write_text(text.replace("INTERVAL := T#10ms", f"INTERVAL := T#{tick_ms}ms"))
             srcs = srcs[:-1] + [str(copy)]
         _BUILDS[key] = build_program(srcs, out, compiler=compiler)
