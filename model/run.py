@@ -1,0 +1,238 @@
+#!/usr/bin/env python3
+"""Runs the spin model of the MIP logger transfer in every configuration and prints, per
+configuration, states stored, depth reached, time and the verdict.
+
+Each configuration either must hold every property ("holds") or is a documented weakness of
+peers that follow only the Piciorgros note ("known: KIND"): the run then must find exactly
+that kind of violation, so the model keeps showing why our extensions exist. Any other
+outcome ends the runner non-zero. A violation prints its counterexample as a short trace.
+
+usage: model/run.py [-k SUBSTRING] [--list] [--junit FILE] [--trace-dir DIR] [--work DIR]
+"""
+import argparse
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from xml.sax.saxutils import escape
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+MODEL = os.path.join(HERE, "mip.pml")
+
+# name, defines, expectation, what it shows
+#   expectation: "holds" or "known:<kind>" with kind one of
+#   progress (a run in which the sender never finishes: no error, no completion),
+#   MIX, DUP/ORDER, GAP, LOST, SILENT, DONE (the assertion names in env.pml)
+NOTE_CONFIGS = [
+    ("note-note/strict/spont", dict(SND="NOTE", RCV="NOTE"), "holds",
+     "two note peers, no restart: everything arrives"),
+    ("note-note/strict/polled", dict(SND="NOTE", RCV="NOTE", POLLED=1), "holds",
+     "two note peers, polled drive"),
+    ("note-note/strict/spont/down", dict(SND="NOTE", RCV="NOTE", SSIDE=0), "holds",
+     "two note peers, the central sends to the outstation"),
+    ("note-note/lenient/spont", dict(SND="NOTE", RCV="NOTE", NS_LENIENT=1, NR_LENIENT=1), "holds",
+     "two lenient note peers, no restart"),
+]
+
+CONFIGS = list(NOTE_CONFIGS)
+
+KINDS = {
+    "GAP": ["gi==1", "gi==(a_i+1)"],
+    "MIX": ["gt==a_t"],
+    "DUP/ORDER": ["gi>a_i"],
+    "LOST": ["a_i==3", "a_i=="],
+    "SILENT": ["sabort"],
+    "DONE": ["compl&(1<<st)"],
+}
+
+
+def kind_of(text):
+    """The property a pan/spin output reports violated."""
+    if "acceptance cycle" in text:
+        return "progress"
+    m = re.search(r"assertion violated \((.*)\)", text)
+    if not m:
+        return None
+    expr = m.group(1).replace(" ", "")
+    if "sabort" in expr:
+        return "SILENT"
+    if "compl&" in expr:
+        return "DONE"
+    if expr.startswith("((a_t!=0)") or "a_i==" in expr and "gi" not in expr:
+        return "LOST"
+    if "gt==a_t" in expr:
+        return "MIX"
+    if "gi>a_i" in expr:
+        return "DUP/ORDER"
+    if "gi==" in expr:
+        return "GAP"
+    return "assert:" + expr
+
+
+def spin_defs(defs):
+    out = []
+    for k, v in defs.items():
+        out.append("-D%s=%s" % (k, v))
+    return out
+
+
+def sh(cmd, cwd, timeout=900):
+    p = subprocess.run(cmd, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                       universal_newlines=True, timeout=timeout)
+    return p.returncode, p.stdout
+
+
+def build(work, defs, extra_cc=()):
+    rc, out = sh(["spin", "-a"] + spin_defs(defs) + [MODEL], work)
+    if rc != 0 or not os.path.exists(os.path.join(work, "pan.c")):
+        raise RuntimeError("spin -a failed:\n" + out)
+    rc, out = sh(["cc", "-O2", "-w", "-DVECTORSZ=2048", "-DMEMLIM=4096"] + list(extra_cc)
+                 + ["-o", "pan", "pan.c"], work)
+    if rc != 0:
+        raise RuntimeError("cc pan.c failed:\n" + out)
+
+
+def stats(out):
+    def grab(rx, conv=int, default=None):
+        m = re.search(rx, out)
+        return conv(m.group(1)) if m else default
+    return {
+        "stored": grab(r"(\d+) states, stored"),
+        "depth": grab(r"depth reached (\d+)"),
+        "errors": grab(r"errors: (\d+)"),
+        "complete": "Search not completed" not in out or "errors: 0" not in out,
+        "maxdepth_hit": "max search depth too small" in out,
+    }
+
+
+SIDE = {"M0": "central(MDP)", "M1": "outstation(TRM)"}
+
+
+def readable_trace(work, defs, limit=60):
+    """Replays pan's trail with spin and keeps the model's own event lines."""
+    rc, out = sh(["spin", "-t", "-k", "mip.pml.trail"] + spin_defs(defs) + [MODEL], work)
+    lines = []
+    for ln in out.splitlines():
+        s = ln.strip()
+        if s.startswith("@ "):
+            s = s[2:]
+            for k, v in SIDE.items():
+                s = s.replace(k, v)
+            s = s.replace("(t0#0)", "").replace("  ", " ").rstrip()
+            lines.append(s)
+        elif "START OF CYCLE" in s:
+            lines.append("--- from here the run repeats forever (no progress) ---")
+        elif "assertion violated" in s:
+            lines.append("VIOLATED: " + s[s.index("assertion"):])
+    # collapse immediate repeats
+    packed = []
+    for s in lines:
+        if packed and packed[-1][0] == s:
+            packed[-1][1] += 1
+        else:
+            packed.append([s, 1])
+    text = ["%s%s" % (s, "" if n == 1 else "  (x%d)" % n) for s, n in packed]
+    if len(text) > limit:
+        text = text[:10] + ["... (%d lines left out)" % (len(text) - limit)] + text[-(limit - 10):]
+    return text
+
+
+def run_one(name, defs, expect, work_root, maxdepth):
+    work = os.path.join(work_root, re.sub(r"[^A-Za-z0-9]+", "_", name))
+    shutil.rmtree(work, ignore_errors=True)
+    os.makedirs(work)
+    t0 = time.time()
+    build(work, defs, ["-DNFAIR=3"])
+    rc, out = sh(["./pan", "-a", "-f", "-m%d" % maxdepth, "-w24"], work)
+    st = stats(out)
+    kind = kind_of(out) if st["errors"] else None
+    trace = []
+    if kind and kind != "progress":
+        # the shortest counterexample of a safety violation: breadth-first, claim off
+        build(work, defs, ["-DBFS", "-DNOCLAIM", "-DSAFETY"])
+        rc2, out2 = sh(["./pan", "-m%d" % maxdepth, "-w24"], work)
+        if "assertion violated" in out2:
+            trace = readable_trace(work, defs)
+    elif kind == "progress":
+        trace = readable_trace(work, defs)
+    secs = time.time() - t0
+    if st["maxdepth_hit"]:
+        verdict, ok = "INCOMPLETE (max search depth too small)", False
+    elif expect == "holds":
+        ok = st["errors"] == 0
+        verdict = "holds" if ok else "VIOLATED " + (kind or "?")
+    else:
+        want = expect.split(":", 1)[1]
+        ok = kind == want
+        verdict = ("known weakness reproduced: " + want) if ok else \
+            ("EXPECTED %s, got %s" % (want, kind or "no violation"))
+    return dict(name=name, stored=st["stored"], depth=st["depth"], secs=secs, ok=ok,
+                verdict=verdict, kind=kind, trace=trace, raw=out)
+
+
+def main(argv):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("-k", default="", help="run only configurations whose name contains this")
+    ap.add_argument("--list", action="store_true", help="list the configurations and exit")
+    ap.add_argument("--junit", help="write a JUnit XML report here")
+    ap.add_argument("--trace-dir", help="write each counterexample trace to DIR/<name>.txt")
+    ap.add_argument("--work", help="build directory (default: a temporary one)")
+    ap.add_argument("--max-depth", type=int, default=200000)
+    a = ap.parse_args(argv)
+    if shutil.which("spin") is None:
+        print("model/run.py: error: spin is not installed (Debian package 'spin')", file=sys.stderr)
+        return 2
+    sel = [c for c in CONFIGS if a.k in c[0]]
+    if a.list:
+        for name, defs, expect, what in sel:
+            print("%-36s %-24s %s" % (name, expect, what))
+        return 0
+    if not sel:
+        print("model/run.py: error: no configuration matches -k %r" % a.k, file=sys.stderr)
+        return 2
+    work_root = a.work or tempfile.mkdtemp(prefix="mip-model-")
+    os.makedirs(work_root, exist_ok=True)
+    results = []
+    print("%-36s %10s %7s %7s  %s" % ("configuration", "states", "depth", "secs", "verdict"))
+    for name, defs, expect, what in sel:
+        try:
+            r = run_one(name, defs, expect, work_root, a.max_depth)
+        except (RuntimeError, subprocess.TimeoutExpired) as e:
+            r = dict(name=name, stored=None, depth=None, secs=0.0, ok=False,
+                     verdict="ERROR " + str(e).splitlines()[0], kind=None, trace=[], raw=str(e))
+        results.append(r)
+        print("%-36s %10s %7s %7.1f  %s" % (name, r["stored"], r["depth"], r["secs"], r["verdict"]),
+              flush=True)
+        if r["trace"] and (not r["ok"] or os.environ.get("MODEL_TRACES")):
+            for ln in r["trace"]:
+                print("      " + ln)
+        if r["trace"] and a.trace_dir:
+            os.makedirs(a.trace_dir, exist_ok=True)
+            with open(os.path.join(a.trace_dir, re.sub(r"[^A-Za-z0-9]+", "_", name) + ".txt"), "w") as f:
+                f.write("%s: %s\n" % (name, r["verdict"]))
+                f.write("\n".join(r["trace"]) + "\n")
+    npass = sum(r["ok"] for r in results)
+    nfail = len(results) - npass
+    if a.junit:
+        os.makedirs(os.path.dirname(os.path.abspath(a.junit)), exist_ok=True)
+        with open(a.junit, "w") as f:
+            f.write('<?xml version="1.0" encoding="UTF-8"?>\n<testsuite name="model" tests="%d" failures="%d">\n'
+                    % (len(results), nfail))
+            for r in results:
+                f.write('  <testcase classname="model" name="%s" time="%.1f">' % (escape(r["name"]), r["secs"]))
+                if not r["ok"]:
+                    f.write('<failure message="%s">%s</failure>' % (
+                        escape(r["verdict"], {'"': "&quot;"}), escape("\n".join(r["trace"]))))
+                f.write("</testcase>\n")
+            f.write("</testsuite>\n")
+    if not a.work:
+        shutil.rmtree(work_root, ignore_errors=True)
+    print("model: %d passed, %d failed" % (npass, nfail))
+    return 0 if nfail == 0 else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
