@@ -30,6 +30,9 @@
 #ifndef TT
 #define TT 2
 #endif
+#ifndef OT
+#define OT (3 * TT)          /* the out-of-step bound 3 x tTimeout of P11 / P21 */
+#endif
 #ifndef RST_S
 #define RST_S 0
 #endif
@@ -65,7 +68,9 @@ byte ph;                           /* 0: next is the poll (MDP->TRM), 1: the ans
 bool dhas, uhas;                   /* the slot's poll / answer carries a block */
 byte closs;                        /* lossy slots in a row */
 bool slotlost;                     /* this slot lost a telegram */
-byte tmr[2];                       /* PLC timers per side: slots since the PLC restarted them */
+byte tmr[2];                       /* PLC timers per side: slots since the PLC's last write */
+byte otmr[2];                      /* out-of-step timers of our blocks (P11/P21), saturating at OT */
+bool r_stuck;                      /* our receiver raised MIP_ERR_PEER_OUT_OF_STEP (P21) */
 
 /* ---- bounded faults ---- */
 byte rst_s = RST_S, rst_r = RST_R;
@@ -129,7 +134,9 @@ inline endslot() {
     slotlost = 0;
     ph = 0;
     if :: tmr[0] < TT -> tmr[0]++ :: else -> skip fi;
-    if :: tmr[1] < TT -> tmr[1]++ :: else -> skip fi
+    if :: tmr[1] < TT -> tmr[1]++ :: else -> skip fi;
+    if :: otmr[0] < OT -> otmr[0]++ :: else -> skip fi;
+    if :: otmr[1] < OT -> otmr[1]++ :: else -> skip fi
 }
 
 /* The time-slot radio between the MDP and one TRM (mipemu.c step()): poll, answer, ack. */
@@ -169,37 +176,40 @@ active proctype Radio() {
 
 /* ---- the receiving application (ghost) ---- */
 
+/* Never set: each names the property in the text spin prints for a violated assertion. */
+bool GAP, MIX, DUP_ORDER, LOST, SILENT, DONE;
+
 /* a record handed to the application */
 inline app_record(gt, gi) {
     if
     :: a_t == 0 ->
-        assert(gi == 1);                 /* GAP: a transfer delivered without its first record */
+        assert(gi == 1 || GAP);          /* a transfer delivered without its first record */
         a_t = gt; a_i = 1
     :: else ->
-        assert(gt == a_t);               /* MIX: records of two transfers in one */
-        assert(gi > a_i);                /* DUP/ORDER: delivered twice or out of order */
-        assert(gi == a_i + 1);           /* GAP: a record skipped */
+        assert(gt == a_t || MIX);        /* records of two transfers in one */
+        assert(gi > a_i || DUP_ORDER);   /* delivered twice or out of order */
+        assert(gi == a_i + 1 || GAP);    /* a record skipped */
         a_i = gi
     fi
 }
 
 /* the receiver reports the transfer complete */
 inline app_complete() {
-    assert(a_t != 0 && a_i == NREC);    /* LOST: completed without every record */
+    assert((a_t != 0 && a_i == NREC) || LOST); /* completed without every record */
     compl = compl | (1 << a_t);
     a_t = 0; a_i = 0
 }
 
 /* the receiver drops the transfer it was delivering; err: it says so (xError) */
 inline app_drop(err) {
-    assert(err || a_t == 0 || (sabort & (1 << a_t))); /* SILENT: dropped although its sender goes on, no error */
+    assert(err || a_t == 0 || (sabort & (1 << a_t)) || SILENT); /* dropped although its sender goes on, no error */
     if :: err && a_t != 0 -> r_err++ :: else -> skip fi;
     a_t = 0; a_i = 0
 }
 
 /* ---- the sending application (ghost) ---- */
 inline app_sent(st) {
-    assert(compl & (1 << st));           /* DONE: the sender reports done, the receiver did not complete it */
+    assert((compl & (1 << st)) || DONE); /* the sender reports done, the receiver did not complete it */
     s_done++;
     if :: s_done + s_err == NT -> s_fin = 1 :: else -> skip fi
 }
@@ -210,5 +220,6 @@ inline app_failed(ft) {
     if :: s_done + s_err == NT -> s_fin = 1 :: else -> skip fi
 }
 
-/* progress: every transfer the sender was given ends, done or failed */
-ltl progress { <> s_fin }
+/* progress: every transfer the sender was given ends, done or failed, or our receiver says
+ * with xError that its peer is out of step (P21: the note sender cannot go on) */
+ltl progress { <> (s_fin || r_stuck) }

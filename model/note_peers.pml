@@ -35,7 +35,7 @@ send:
     mb_write(S, ctr, 0, t, cur);
 wait:
     do
-    :: mb_read(S, nw, nc, nx, nt, ni);
+    :: !(!POLLED && !rnew[S] && tmr[S] >= TT) -> mb_read(S, nw, nc, nx, nt, ni);
         if
         :: nw && nc == ctr ->
             if
@@ -60,7 +60,7 @@ proctype NoteReceiver() {
     bool nw;
     mb_write(R, 0, 0, 0, 0);      /* the request with acknowledgement 0 */
     do
-    :: mb_read(R, nw, nc, nx, nt, ni);
+    :: !(POLLED && !rnew[R] && tmr[R] >= TT) -> mb_read(R, nw, nc, nx, nt, ni);
         if
         :: nw && nc != 0 && nc == last ->
             mb_write(R, last, 0, 0, 0)          /* duplicate: acknowledge again */

@@ -1,0 +1,154 @@
+/* our_peers.pml: MIP_Sender and MIP_Receiver of st_lib/, unidirectional layout, as the rules
+ * P1..P24 of st_lib/PROTOCOL.md define them. Labels are the state names of PROTOCOL.md section 9
+ * (E_MIP_SenderState / E_MIP_ReceiverState without the MIP_ prefix); the rule numbers stand in
+ * the comments.
+ *
+ * Abstractions:
+ *  - The check value chk(block) (PROTOCOL.md section 1) is CHK(t, i): records of different
+ *    attempts have different content. The residual of P8 (a restarted sender whose record N is
+ *    identical to the old one) delivers the same data and is not modelled.
+ *  - The echo [ack, 16#4D50, chk] (P8/P24) is register 1 = x: x = 0 no magic (a note
+ *    receiver), x = 1 magic with chk 0 (ack 0), else magic with chk x.
+ *  - tTimeout = TT poll slots; the out-of-step bound 3 x tTimeout (P11/P21) = OT slots.
+ *  - The caller's chunk and write handshakes answer at once (SND_GET_CHUNK is passed through;
+ *    WR_REQUEST..WR_CLEAR is the atomic mb_write); P10 (cyclic I/O) does not arise.
+ *  - P14 (uMaxRetries > 0), P22 (tTransferTimeout > 0) are off, as by default; rate limiting of
+ *    repeated acknowledgements (P17/P20) is left out (every such telegram is answered).
+ */
+
+#define CHK(t, i) ((t) * 8 + (i))
+#define CHK0 1
+
+
+proctype OurSender() {
+    byte cur, t, ctr, prev, nc, nx, nt, ni, lastn;
+    bool nw, first = 1, tel, oos;
+SND_IDLE:
+    if
+    :: s_done + s_err == NT -> goto idle
+    :: else -> skip
+    fi;
+SND_GET_CHUNK:
+    skip;
+    /* P6: a new transfer starts with record 1 at once */
+    d_step { g_next++; t = g_next; cur = 1; ctr = CTR(cur); oos = 0 };
+#if POLLED
+SND_WAIT_REQUEST:
+    /* P3 polled: record 1 goes out when a request telegram arrives */
+    do
+    :: mb_read(S, nw, nc, nx, nt, ni);
+        d_step { tel = nw || first || nc != lastn; first = 0; lastn = nc };
+        if :: tel -> goto send :: else -> skip fi
+    :: rst_s > 0 -> goto restart
+    od;
+#endif
+send:
+    mb_write(S, ctr, 0, t, cur);
+SND_WAIT_ACK:
+    do
+    :: !(!POLLED && !rnew[S] && tmr[S] >= TT) -> mb_read(S, nw, nc, nx, nt, ni);
+        d_step {
+            tel = nw || first || nc != lastn; first = 0; lastn = nc;
+            if :: cur == 1 -> prev = 0 :: else -> prev = CTR(cur - 1) fi
+        };
+        if
+        :: nc == ctr && (nx == 0 || nx == CHK(t, cur)) ->
+            /* P8: the acknowledgement of the record in flight counts */
+            oos = 0;
+            if
+            :: cur == NREC -> goto SND_DONE
+            :: else -> d_step { cur++; ctr = CTR(cur) }; goto send   /* P25 */
+            fi
+        :: cur > 1 && nc == 0 -> goto SND_ERROR                  /* P12 peer reset */
+        :: (cur == 1 && (nc == 0 || nc == LAST)) || (cur > 1 && nc == prev) ->
+            /* P7 / P3: the previous acknowledgement; polled: a request, repeat */
+            oos = 0;
+            if :: POLLED && tel -> goto send :: else -> skip fi
+        :: else ->
+            /* P11 out of step: neither the record in flight nor the previous one */
+            if
+            :: !oos -> oos = 1; otmr[S] = 0
+            :: oos && otmr[S] >= OT -> goto SND_ERROR
+            :: else -> skip
+            fi;
+            if :: POLLED && tel -> goto send :: else -> skip fi
+        fi
+    :: !POLLED && !rnew[S] && tmr[S] >= TT -> goto send          /* P3 spontaneous repeat */
+    :: rst_s > 0 -> goto restart
+    od;
+SND_DONE:
+    app_sent(t);
+    goto SND_IDLE;
+SND_ERROR:
+    printf("@ sender SND_ERROR\n");
+    app_failed(t);
+    goto SND_IDLE;
+restart:
+    printf("@ sender PLC restarts\n");
+    d_step { rst_s--; sabort = sabort | (1 << t); first = 1; oos = 0 };
+    goto SND_IDLE;
+idle:
+    do
+    :: mb_read(S, nw, nc, nx, nt, ni)
+    od
+}
+
+proctype OurReceiver() {
+    byte L, Lchk, c, nc, nx, nt, ni, lastn;
+    bool nw, first = 1, tel, uoos;
+RCV_WAIT_FIRST:
+    skip;
+    /* P23: acknowledge 0 once on start */
+    d_step { L = 0; Lchk = CHK0; uoos = 0 };
+    mb_write(R, 0, CHK0, 0, 0);
+RCV_IN_TRANSFER:          /* also RCV_COMPLETE (L = 16#FFFF): one loop, L tells them apart */
+    do
+    :: !(POLLED && !rnew[R] && tmr[R] >= TT) -> mb_read(R, nw, nc, nx, nt, ni);
+        d_step { tel = nw || first || nc != lastn; c = CHK(nt, ni) };
+        if
+        :: !tel || nc == 0 -> skip          /* no telegram; P16 record 0 is never sent here */
+        :: else ->
+            if
+            :: nc == L && c == Lchk ->
+                /* P17 duplicate: acknowledge again */
+                uoos = 0; mb_write(R, L, Lchk, 0, 0)
+            :: nc == 1 && !(L == 1 && c == Lchk) ->
+                /* P15 / P18: record 1 starts a new transfer; an open one fails */
+RCV_WAIT_PROCESSED_1:
+                d_step {
+                    if :: L != 0 && L != LAST -> app_drop(1) :: else -> skip fi;
+                    app_record(nt, ni); L = 1; Lchk = c; uoos = 0
+                };
+                mb_write(R, L, Lchk, 0, 0)
+            :: nc != 1 && L != 0 && L != LAST && (nc == L + 1 || nc == LAST) ->
+                /* P15 the next record */
+RCV_WAIT_PROCESSED:
+                d_step {
+                    app_record(nt, ni);
+                    if :: nc == LAST -> app_complete() :: else -> skip fi;
+                    L = nc; Lchk = c; uoos = 0
+                };
+                mb_write(R, L, Lchk, 0, 0)
+            :: !first && nc == LAST && (L == 0 || (L == LAST && c != Lchk)) ->
+                /* P19 a lone 16#FFFF: a complete one-record transfer */
+                d_step { app_record(nt, ni); app_complete(); L = LAST; Lchk = c; uoos = 0 };
+                mb_write(R, L, Lchk, 0, 0)
+            :: else ->
+                /* P20 unexpected: ignored, the last acknowledgement repeated; P21 */
+                if
+                :: first -> skip
+                :: !first && !uoos -> uoos = 1; otmr[R] = 0
+                :: !first && uoos && otmr[R] >= OT -> r_stuck = 1; printf("@ receiver xError PEER_OUT_OF_STEP\n")
+                :: else -> skip
+                fi;
+                mb_write(R, L, Lchk, 0, 0)
+            fi
+        fi;
+        d_step { first = 0; lastn = nc }
+    :: POLLED && !rnew[R] && tmr[R] >= TT -> mb_write(R, L, Lchk, 0, 0)   /* P3 polled */
+    :: rst_r > 0 ->
+        printf("@ receiver PLC restarts\n");
+        d_step { rst_r--; app_drop(1); first = 1 };
+        goto RCV_WAIT_FIRST
+    od
+}
