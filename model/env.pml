@@ -31,7 +31,7 @@
 #define TT 2
 #endif
 #ifndef OT
-#define OT (3 * TT)          /* the out-of-step bound 3 x tTimeout of P11 / P21 */
+#define OT (3 * TT + 1)      /* the out-of-step bound 3 x tTimeout of P11 / P21 (timers start at 1) */
 #endif
 #ifndef RST_S
 #define RST_S 0
@@ -92,18 +92,25 @@ inline mb_write(wm, vc, vx, vt, vi) {
         printf("@ M%d PLC writes [%d,%d] (t%d#%d)\n", wm, vc, vx, vt, vi);
         wc[wm] = vc; wx[wm] = vx; wt[wm] = vt; wi[wm] = vi;
         pend[wm] = 1; waitb[wm] = 1; onair[wm] = 0;
-        tmr[wm] = 0
+        if
+        :: (POLLED && wm == R) || (!POLLED && wm == S) -> tmr[wm] = 0
+        :: else -> skip
+        fi
     }
 }
 
 /* A Modbus read of status, count and read data in one FC3: returns the block and whether it
- * was new; clears bit 0 after the answer was composed. */
+ * was new; clears bit 0 after the answer was composed. Used inside the caller's d_step, which
+ * decides on the block and clears the values again (clr_read), so that old reads do not
+ * multiply the states. */
 inline mb_read(rm, isnew, oc, ox, ot, oi) {
-    d_step {
-        isnew = rnew[rm]; oc = rc[rm]; ox = rx[rm]; ot = rt[rm]; oi = ri[rm];
-        if :: isnew -> printf("@ M%d PLC reads new [%d,%d] (t%d#%d)\n", rm, oc, ox, ot, oi) :: else -> skip fi;
-        rnew[rm] = 0
-    }
+    isnew = rnew[rm]; oc = rc[rm]; ox = rx[rm]; ot = rt[rm]; oi = ri[rm];
+    if :: isnew -> printf("@ M%d PLC reads new [%d,%d] (t%d#%d)\n", rm, oc, ox, ot, oi) :: else -> skip fi;
+    rnew[rm] = 0
+}
+
+inline clr_read(isnew, oc, ox, ot, oi) {
+    isnew = 0; oc = 0; ox = 0; ot = 0; oi = 0
 }
 
 inline deliver(from, to) {
@@ -133,10 +140,16 @@ inline endslot() {
     fi;
     slotlost = 0;
     ph = 0;
-    if :: tmr[0] < TT -> tmr[0]++ :: else -> skip fi;
-    if :: tmr[1] < TT -> tmr[1]++ :: else -> skip fi;
-    if :: otmr[0] < OT -> otmr[0]++ :: else -> skip fi;
-    if :: otmr[1] < OT -> otmr[1]++ :: else -> skip fi
+    /* only the timer that drives repetitions runs: the sender's (spontaneous) or the
+     * receiver's (polled); the other one is never read */
+#if POLLED
+    if :: tmr[R] < TT -> tmr[R]++ :: else -> skip fi;
+#else
+    if :: tmr[S] < TT -> tmr[S]++ :: else -> skip fi;
+#endif
+    /* an out-of-step timer runs from 1 (started) to OT (expired); 0 = stopped */
+    if :: otmr[0] > 0 && otmr[0] < OT -> otmr[0]++ :: else -> skip fi;
+    if :: otmr[1] > 0 && otmr[1] < OT -> otmr[1]++ :: else -> skip fi
 }
 
 /* The time-slot radio between the MDP and one TRM (mipemu.c step()): poll, answer, ack. */

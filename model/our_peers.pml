@@ -20,25 +20,32 @@
 #define CHK0 1
 
 
+/* decisions (besides those of note_peers.pml) */
+#define A_RESET  5   /* P12: acknowledgement 0 after a counted record */
+#define A_OOS    6   /* P11: out of step for the whole bound */
+
 proctype OurSender() {
-    byte cur, t, ctr, prev, nc, nx, nt, ni, lastn;
-    bool nw, first = 1, tel, oos;
+    byte cur, t, ctr, prev, nc, nx, nt, ni, act;
+    bool nw, first = 1, oos;
 SND_IDLE:
     if
     :: s_done + s_err == NT -> goto idle
     :: else -> skip
     fi;
 SND_GET_CHUNK:
-    skip;
     /* P6: a new transfer starts with record 1 at once */
-    d_step { g_next++; t = g_next; cur = 1; ctr = CTR(cur); oos = 0 };
+    d_step { g_next++; t = g_next; cur = 1; ctr = CTR(cur); oos = 0; otmr[S] = 0 };
 #if POLLED
 SND_WAIT_REQUEST:
-    /* P3 polled: record 1 goes out when a request telegram arrives */
+    /* P3 polled: record 1 goes out when a request telegram arrives (P6) */
     do
-    :: mb_read(S, nw, nc, nx, nt, ni);
-        d_step { tel = nw || first || nc != lastn; first = 0; lastn = nc };
-        if :: tel -> goto send :: else -> skip fi
+    :: d_step {
+            mb_read(S, nw, nc, nx, nt, ni);
+            if :: nw || first -> act = A_SEND :: else -> act = A_NONE fi;
+            first = 0;
+            clr_read(nw, nc, nx, nt, ni)
+        };
+        if :: act == A_SEND -> act = A_NONE; goto send :: else -> skip fi
     :: rst_s > 0 -> goto restart
     od;
 #endif
@@ -46,32 +53,42 @@ send:
     mb_write(S, ctr, 0, t, cur);
 SND_WAIT_ACK:
     do
-    :: !(!POLLED && !rnew[S] && tmr[S] >= TT) -> mb_read(S, nw, nc, nx, nt, ni);
+    :: !(!POLLED && !rnew[S] && tmr[S] >= TT) ->
         d_step {
-            tel = nw || first || nc != lastn; first = 0; lastn = nc;
-            if :: cur == 1 -> prev = 0 :: else -> prev = CTR(cur - 1) fi
+            mb_read(S, nw, nc, nx, nt, ni);
+            nw = nw || first; first = 0;     /* nw: a new telegram (section 1) */
+            if :: cur == 1 -> prev = 0 :: else -> prev = CTR(cur - 1) fi;
+            act = A_NONE;
+            if
+            :: nc == ctr && (nx == 0 || nx == CHK(t, cur)) ->
+                /* P8: the acknowledgement of the record in flight counts */
+                oos = 0; otmr[S] = 0;
+                if
+                :: cur == NREC -> act = A_DONE
+                :: else -> act = A_NEXT; cur++; ctr = CTR(cur)       /* P25 */
+                fi
+            :: cur > 1 && nc == 0 -> act = A_RESET                   /* P12 peer reset */
+            :: (cur == 1 && (nc == 0 || nc == LAST)) || (cur > 1 && nc == prev) ->
+                /* P7 / P3: the previous acknowledgement; polled: a request, repeat */
+                oos = 0; otmr[S] = 0;
+                if :: POLLED && nw -> act = A_SEND :: else -> skip fi
+            :: else ->
+                /* P11 out of step: neither the record in flight nor the previous one */
+                if
+                :: !oos -> oos = 1; otmr[S] = 1
+                :: oos && otmr[S] >= OT -> act = A_OOS
+                :: else -> skip
+                fi;
+                if :: act == A_NONE && POLLED && nw -> act = A_SEND :: else -> skip fi
+            fi;
+            prev = 0;
+            clr_read(nw, nc, nx, nt, ni)
         };
         if
-        :: nc == ctr && (nx == 0 || nx == CHK(t, cur)) ->
-            /* P8: the acknowledgement of the record in flight counts */
-            oos = 0;
-            if
-            :: cur == NREC -> goto SND_DONE
-            :: else -> d_step { cur++; ctr = CTR(cur) }; goto send   /* P25 */
-            fi
-        :: cur > 1 && nc == 0 -> goto SND_ERROR                  /* P12 peer reset */
-        :: (cur == 1 && (nc == 0 || nc == LAST)) || (cur > 1 && nc == prev) ->
-            /* P7 / P3: the previous acknowledgement; polled: a request, repeat */
-            oos = 0;
-            if :: POLLED && tel -> goto send :: else -> skip fi
-        :: else ->
-            /* P11 out of step: neither the record in flight nor the previous one */
-            if
-            :: !oos -> oos = 1; otmr[S] = 0
-            :: oos && otmr[S] >= OT -> goto SND_ERROR
-            :: else -> skip
-            fi;
-            if :: POLLED && tel -> goto send :: else -> skip fi
+        :: act == A_DONE -> act = A_NONE; goto SND_DONE
+        :: act == A_NEXT || act == A_SEND -> act = A_NONE; goto send
+        :: act == A_RESET || act == A_OOS -> act = A_NONE; goto SND_ERROR
+        :: else -> skip
         fi
     :: !POLLED && !rnew[S] && tmr[S] >= TT -> goto send          /* P3 spontaneous repeat */
     :: rst_s > 0 -> goto restart
@@ -81,70 +98,72 @@ SND_DONE:
     goto SND_IDLE;
 SND_ERROR:
     printf("@ sender SND_ERROR\n");
-    app_failed(t);
+    d_step { app_failed(t); oos = 0; otmr[S] = 0 };
     goto SND_IDLE;
 restart:
     printf("@ sender PLC restarts\n");
-    d_step { rst_s--; sabort = sabort | (1 << t); first = 1; oos = 0 };
+    d_step { rst_s--; sabort = sabort | (1 << t); first = 1; oos = 0; otmr[S] = 0 };
     goto SND_IDLE;
 idle:
     do
-    :: mb_read(S, nw, nc, nx, nt, ni)
+    :: d_step { mb_read(S, nw, nc, nx, nt, ni); clr_read(nw, nc, nx, nt, ni); first = 0 }
     od
 }
 
 proctype OurReceiver() {
-    byte L, Lchk, c, nc, nx, nt, ni, lastn;
-    bool nw, first = 1, tel, uoos;
+    byte L, Lchk, c, nc, nx, nt, ni, act;
+    bool nw, first = 1, uoos;
 RCV_WAIT_FIRST:
     skip;
     /* P23: acknowledge 0 once on start */
-    d_step { L = 0; Lchk = CHK0; uoos = 0 };
+    d_step { L = 0; Lchk = CHK0; uoos = 0; otmr[R] = 0 };
     mb_write(R, 0, CHK0, 0, 0);
 RCV_IN_TRANSFER:          /* also RCV_COMPLETE (L = 16#FFFF): one loop, L tells them apart */
     do
-    :: !(POLLED && !rnew[R] && tmr[R] >= TT) -> mb_read(R, nw, nc, nx, nt, ni);
-        d_step { tel = nw || first || nc != lastn; c = CHK(nt, ni) };
-        if
-        :: !tel || nc == 0 -> skip          /* no telegram; P16 record 0 is never sent here */
-        :: else ->
+    :: !(POLLED && !rnew[R] && tmr[R] >= TT) ->
+        d_step {
+            mb_read(R, nw, nc, nx, nt, ni);
+            c = CHK(nt, ni);
+            act = A_NONE;
             if
-            :: nc == L && c == Lchk ->
-                /* P17 duplicate: acknowledge again */
-                uoos = 0; mb_write(R, L, Lchk, 0, 0)
-            :: nc == 1 && !(L == 1 && c == Lchk) ->
-                /* P15 / P18: record 1 starts a new transfer; an open one fails */
-RCV_WAIT_PROCESSED_1:
-                d_step {
+            :: !(nw || first) || nc == 0 -> skip   /* no telegram; P16 record 0 is never sent here */
+            :: else ->
+                if
+                :: nc == L && c == Lchk ->
+                    /* P17 duplicate: acknowledge again */
+                    uoos = 0; otmr[R] = 0; act = A_ACK
+                :: nc == 1 && !(L == 1 && c == Lchk) ->
+                    /* P15 / P18 (RCV_WAIT_PROCESSED): record 1 starts a new transfer; an
+                     * open one fails with MIP_ERR_SENDER_RESET */
                     if :: L != 0 && L != LAST -> app_drop(1) :: else -> skip fi;
-                    app_record(nt, ni); L = 1; Lchk = c; uoos = 0
-                };
-                mb_write(R, L, Lchk, 0, 0)
-            :: nc != 1 && L != 0 && L != LAST && (nc == L + 1 || nc == LAST) ->
-                /* P15 the next record */
-RCV_WAIT_PROCESSED:
-                d_step {
+                    app_record(nt, ni); L = 1; Lchk = c; uoos = 0; otmr[R] = 0; act = A_ACK
+                :: nc != 1 && L != 0 && L != LAST && (nc == L + 1 || nc == LAST) ->
+                    /* P15 the next record (RCV_WAIT_PROCESSED) */
                     app_record(nt, ni);
                     if :: nc == LAST -> app_complete() :: else -> skip fi;
-                    L = nc; Lchk = c; uoos = 0
-                };
-                mb_write(R, L, Lchk, 0, 0)
-            :: !first && nc == LAST && (L == 0 || (L == LAST && c != Lchk)) ->
-                /* P19 a lone 16#FFFF: a complete one-record transfer */
-                d_step { app_record(nt, ni); app_complete(); L = LAST; Lchk = c; uoos = 0 };
-                mb_write(R, L, Lchk, 0, 0)
-            :: else ->
-                /* P20 unexpected: ignored, the last acknowledgement repeated; P21 */
-                if
-                :: first -> skip
-                :: !first && !uoos -> uoos = 1; otmr[R] = 0
-                :: !first && uoos && otmr[R] >= OT -> r_stuck = 1; printf("@ receiver xError PEER_OUT_OF_STEP\n")
-                :: else -> skip
-                fi;
-                mb_write(R, L, Lchk, 0, 0)
-            fi
-        fi;
-        d_step { first = 0; lastn = nc }
+                    L = nc; Lchk = c; uoos = 0; otmr[R] = 0; act = A_ACK
+                :: !first && nc == LAST && (L == 0 || (L == LAST && c != Lchk)) ->
+                    /* P19 a lone 16#FFFF: a complete one-record transfer */
+                    app_record(nt, ni); app_complete(); L = LAST; Lchk = c; uoos = 0; otmr[R] = 0;
+                    act = A_ACK
+                :: else ->
+                    /* P20 unexpected: ignored, the last acknowledgement repeated; P21 */
+                    if
+                    :: first -> skip
+                    :: !first && !uoos -> uoos = 1; otmr[R] = 1
+                    :: !first && uoos && otmr[R] >= OT -> r_stuck = 1; printf("@ receiver xError PEER_OUT_OF_STEP\n")
+                    :: else -> skip
+                    fi;
+                    act = A_ACK
+                fi
+            fi;
+            first = 0; c = 0;
+            clr_read(nw, nc, nx, nt, ni)
+        };
+        if
+        :: act == A_ACK -> act = A_NONE; mb_write(R, L, Lchk, 0, 0)
+        :: else -> skip
+        fi
     :: POLLED && !rnew[R] && tmr[R] >= TT -> mb_write(R, L, Lchk, 0, 0)   /* P3 polled */
     :: rst_r > 0 ->
         printf("@ receiver PLC restarts\n");

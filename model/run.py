@@ -133,8 +133,8 @@ def readable_trace(work, defs, limit=60):
             lines.append(s)
         elif "START OF CYCLE" in s:
             lines.append("--- from here the run repeats forever (no progress) ---")
-        elif "assertion violated" in s:
-            lines.append("VIOLATED: " + s[s.index("assertion"):])
+        elif "text of failed assertion" in s:
+            lines.append("VIOLATED: " + s.split(":", 2)[-1].strip())
     # collapse immediate repeats
     packed = []
     for s in lines:
