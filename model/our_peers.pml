@@ -21,6 +21,19 @@
 
 
 /* decisions (besides those of note_peers.pml) */
+/* P19 variants for findings: 0 = as PROTOCOL.md (L = 0 or L = 16#FFFF with another check),
+ * 1 = only L = 16#FFFF with another check, 2 = no lone 16#FFFF */
+#ifndef P19_MODE
+#define P19_MODE 0
+#endif
+
+/* receiver's first read after xEnable: 0 = as PROTOCOL.md section 1 (a telegram; only P19 and
+ * P21 leave it out), 1 = variant: a block already there at the first read (bit 0 clear) is
+ * never taken as a record */
+#ifndef RFIRST_MODE
+#define RFIRST_MODE 0
+#endif
+
 #define A_RESET  5   /* P12: acknowledgement 0 after a counted record */
 #define A_OOS    6   /* P11: out of step for the whole bound */
 
@@ -127,6 +140,7 @@ RCV_IN_TRANSFER:          /* also RCV_COMPLETE (L = 16#FFFF): one loop, L tells 
             act = A_NONE;
             if
             :: !(nw || first) || nc == 0 -> skip   /* no telegram; P16 record 0 is never sent here */
+            :: RFIRST_MODE == 1 && first && !nw -> skip   /* variant: the first read's old block never counts */
             :: else ->
                 if
                 :: nc == L && c == Lchk ->
@@ -142,7 +156,7 @@ RCV_IN_TRANSFER:          /* also RCV_COMPLETE (L = 16#FFFF): one loop, L tells 
                     app_record(nt, ni);
                     if :: nc == LAST -> app_complete() :: else -> skip fi;
                     L = nc; Lchk = c; uoos = 0; otmr[R] = 0; act = A_ACK
-                :: !first && nc == LAST && (L == 0 || (L == LAST && c != Lchk)) ->
+                :: !first && nc == LAST && ((P19_MODE == 0 && L == 0) || (P19_MODE < 2 && L == LAST && c != Lchk)) ->
                     /* P19 a lone 16#FFFF: a complete one-record transfer */
                     app_record(nt, ni); app_complete(); L = LAST; Lchk = c; uoos = 0; otmr[R] = 0;
                     act = A_ACK

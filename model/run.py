@@ -10,6 +10,7 @@ outcome ends the runner non-zero. A violation prints its counterexample as a sho
 usage: model/run.py [-k SUBSTRING] [--list] [--junit FILE] [--trace-dir DIR] [--work DIR]
 """
 import argparse
+import concurrent.futures
 import os
 import re
 import shutil
@@ -189,11 +190,15 @@ def main(argv):
     ap.add_argument("--trace-dir", help="write each counterexample trace to DIR/<name>.txt")
     ap.add_argument("--work", help="build directory (default: a temporary one)")
     ap.add_argument("--max-depth", type=int, default=200000)
+    ap.add_argument("-D", action="append", default=[], metavar="NAME=VALUE",
+                    help="an extra model define for every configuration (exploring variants)")
+    ap.add_argument("-j", type=int, default=2, help="configurations checked in parallel (default 2)")
     a = ap.parse_args(argv)
     if shutil.which("spin") is None:
         print("model/run.py: error: spin is not installed (Debian package 'spin')", file=sys.stderr)
         return 2
-    sel = [c for c in CONFIGS if a.k in c[0]]
+    extra = dict(d.split("=", 1) if "=" in d else (d, "1") for d in a.D)
+    sel = [(n, dict(d, **extra), e, w) for n, d, e, w in CONFIGS if a.k in n]
     if a.list:
         for name, defs, expect, what in sel:
             print("%-36s %-24s %s" % (name, expect, what))
@@ -205,23 +210,28 @@ def main(argv):
     os.makedirs(work_root, exist_ok=True)
     results = []
     print("%-36s %10s %7s %7s  %s" % ("configuration", "states", "depth", "secs", "verdict"))
-    for name, defs, expect, what in sel:
+    def one(c):
+        name, defs, expect, what = c
         try:
-            r = run_one(name, defs, expect, work_root, a.max_depth)
+            return run_one(name, defs, expect, work_root, a.max_depth)
         except (RuntimeError, subprocess.TimeoutExpired) as e:
-            r = dict(name=name, stored=None, depth=None, secs=0.0, ok=False,
-                     verdict="ERROR " + str(e).splitlines()[0], kind=None, trace=[], raw=str(e))
-        results.append(r)
-        print("%-36s %10s %7s %7.1f  %s" % (name, r["stored"], r["depth"], r["secs"], r["verdict"]),
-              flush=True)
-        if r["trace"] and (not r["ok"] or os.environ.get("MODEL_TRACES")):
-            for ln in r["trace"]:
-                print("      " + ln)
-        if r["trace"] and a.trace_dir:
-            os.makedirs(a.trace_dir, exist_ok=True)
-            with open(os.path.join(a.trace_dir, re.sub(r"[^A-Za-z0-9]+", "_", name) + ".txt"), "w") as f:
-                f.write("%s: %s\n" % (name, r["verdict"]))
-                f.write("\n".join(r["trace"]) + "\n")
+            return dict(name=name, stored=None, depth=None, secs=0.0, ok=False,
+                        verdict="ERROR " + str(e).splitlines()[0], kind=None, trace=[], raw=str(e))
+
+    with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, a.j)) as pool:
+        for r in pool.map(one, sel):
+            name = r["name"]
+            results.append(r)
+            print("%-36s %10s %7s %7.1f  %s" % (name, r["stored"], r["depth"], r["secs"], r["verdict"]),
+                  flush=True)
+            if r["trace"] and (not r["ok"] or os.environ.get("MODEL_TRACES")):
+                for ln in r["trace"]:
+                    print("      " + ln)
+            if r["trace"] and a.trace_dir:
+                os.makedirs(a.trace_dir, exist_ok=True)
+                with open(os.path.join(a.trace_dir, re.sub(r"[^A-Za-z0-9]+", "_", name) + ".txt"), "w") as f:
+                    f.write("%s: %s\n" % (name, r["verdict"]))
+                    f.write("\n".join(r["trace"]) + "\n")
     npass = sum(r["ok"] for r in results)
     nfail = len(results) - npass
     if a.junit:
