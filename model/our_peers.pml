@@ -21,8 +21,9 @@
 
 
 /* decisions (besides those of note_peers.pml) */
-/* P19 variants for findings: 0 = as PROTOCOL.md (L = 0 or L = 16#FFFF with another check),
- * 1 = only L = 16#FFFF with another check, 2 = no lone 16#FFFF */
+/* P19 variants for findings: 0 = as PROTOCOL.md (L = 0 or L = 16#FFFF with another check,
+ * not where it may be the tail of a lost transfer), 1 = only L = 16#FFFF with another check,
+ * 2 = no lone 16#FFFF */
 #ifndef P19_MODE
 #define P19_MODE 0
 #endif
@@ -125,7 +126,10 @@ idle:
 
 proctype OurReceiver() {
     byte L, Lchk, c, nc, nx, nt, ni, act;
+    byte oldchk;             /* P19: check value of an old 16#FFFF found as the first block */
     bool nw, first = 1, uoos;
+    bool sempty;             /* P19: a read since xEnable showed the area empty (count 0) */
+    bool nolone;             /* P19: no lone 16#FFFF until a record 1 was accepted */
 RCV_WAIT_FIRST:
     skip;
     /* P23: acknowledge 0 once on start */
@@ -139,9 +143,17 @@ RCV_IN_TRANSFER:          /* also RCV_COMPLETE (L = 16#FFFF): one loop, L tells 
             c = CHK(nt, ni);
             act = A_NONE;
             if
-            :: !(nw || first) || nc == 0 -> skip   /* no telegram; P16 record 0 is never sent here */
-            :: RFIRST_MODE == 1 && first && !nw -> skip   /* variant: the first read's old block never counts */
+            :: nc == 0 -> sempty = 1         /* an empty area (count 0): no telegram; P16 record 0 is never sent here */
+            :: nc != 0 && !(nw || first) -> skip                  /* no telegram */
+            :: RFIRST_MODE == 1 && nc != 0 && first && !nw -> first = 0   /* variant: the first read's old block never counts */
             :: else ->
+                if
+                :: first && nc == LAST && (!nw || !sempty) ->
+                    oldchk = c   /* P19: an old 16#FFFF as the first block, and its copies */
+                :: first && nc != LAST ->
+                    nolone = 1   /* P19: a sender was mid-transfer when this receiver started */
+                :: else -> skip
+                fi;
                 if
                 :: nc == L && c == Lchk ->
                     /* P17 duplicate: acknowledge again */
@@ -150,14 +162,16 @@ RCV_IN_TRANSFER:          /* also RCV_COMPLETE (L = 16#FFFF): one loop, L tells 
                     /* P15 / P18 (RCV_WAIT_PROCESSED): record 1 starts a new transfer; an
                      * open one fails with MIP_ERR_SENDER_RESET */
                     if :: L != 0 && L != LAST -> app_drop(1) :: else -> skip fi;
-                    app_record(nt, ni); L = 1; Lchk = c; uoos = 0; otmr[R] = 0; act = A_ACK
+                    app_record(nt, ni); L = 1; Lchk = c; uoos = 0; otmr[R] = 0; act = A_ACK;
+                    nolone = 0
                 :: nc != 1 && L != 0 && L != LAST && (nc == L + 1 || nc == LAST) ->
                     /* P15 the next record (RCV_WAIT_PROCESSED) */
                     app_record(nt, ni);
                     if :: nc == LAST -> app_complete() :: else -> skip fi;
                     L = nc; Lchk = c; uoos = 0; otmr[R] = 0; act = A_ACK
-                :: !first && nc == LAST && ((P19_MODE == 0 && L == 0) || (P19_MODE < 2 && L == LAST && c != Lchk)) ->
-                    /* P19 a lone 16#FFFF: a complete one-record transfer */
+                :: nc == LAST && ((P19_MODE != 1 && P19_MODE != 2 && L == 0) || (P19_MODE != 2 && L == LAST && c != Lchk)) && !nolone && c != oldchk ->
+                    /* P19 a lone 16#FFFF: a complete one-record transfer, unless it may be the
+                     * tail of a transfer whose start this receiver lost */
                     app_record(nt, ni); app_complete(); L = LAST; Lchk = c; uoos = 0; otmr[R] = 0;
                     act = A_ACK
                 :: else ->
@@ -171,7 +185,8 @@ RCV_IN_TRANSFER:          /* also RCV_COMPLETE (L = 16#FFFF): one loop, L tells 
                     act = A_ACK
                 fi
             fi;
-            first = 0; c = 0;
+            if :: nc != 0 -> first = 0 :: else -> skip fi;   /* the first block read has a count */
+            c = 0;
             clr_read(nw, nc, nx, nt, ni)
         };
         if
@@ -181,7 +196,7 @@ RCV_IN_TRANSFER:          /* also RCV_COMPLETE (L = 16#FFFF): one loop, L tells 
     :: POLLED && !rnew[R] && tmr[R] >= TT -> mb_write(R, L, Lchk, 0, 0)   /* P3 polled */
     :: rst_r > 0 ->
         printf("@ receiver PLC restarts\n");
-        d_step { rst_r--; app_drop(1); first = 1 };
+        d_step { rst_r--; app_drop(1); first = 1; sempty = 0; nolone = 0; oldchk = 0 };
         goto RCV_WAIT_FIRST
     od
 }

@@ -240,7 +240,7 @@ def main(argv):
             return run_one(name, defs, expect, work_root, a.max_depth)
         except (RuntimeError, subprocess.TimeoutExpired) as e:
             return dict(name=name, stored=None, depth=None, secs=0.0, ok=False,
-                        verdict="ERROR " + str(e).splitlines()[0], kind=None, trace=[], raw=str(e))
+                        verdict="ERROR " + " | ".join(str(e).splitlines()[:2]), kind=None, trace=[], raw=str(e))
 
     with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, a.j)) as pool:
         for r in pool.map(one, sel):
