@@ -28,6 +28,12 @@
 #define P19_MODE 0
 #endif
 
+/* P8 variant for findings: 0 = as PROTOCOL.md (the echo's check value must match), 1 = the
+ * number alone counts (what the echo buys) */
+#ifndef P8_MODE
+#define P8_MODE 0
+#endif
+
 /* receiver's first read after xEnable: 0 = as PROTOCOL.md section 1 (a telegram; only P19 and
  * P21 leave it out), 1 = variant: a block already there at the first read (bit 0 clear) is
  * never taken as a record */
@@ -74,7 +80,7 @@ SND_WAIT_ACK:
             if :: cur == 1 -> prev = 0 :: else -> prev = CTR(cur - 1) fi;
             act = A_NONE;
             if
-            :: nc == ctr && (nx == 0 || nx == CHK(t, cur)) ->
+            :: nc == ctr && (nx == 0 || nx == CHK(t, cur) || P8_MODE == 1) ->
                 /* P8: the acknowledgement of the record in flight counts */
                 oos = 0; otmr[S] = 0;
                 if

@@ -209,6 +209,7 @@ def run_one(name, defs, expect, work_root, maxdepth):
 def main(argv):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("-k", default="", help="run only configurations whose name contains this")
+    ap.add_argument("--exact", action="store_true", help="-k names one configuration exactly")
     ap.add_argument("--list", action="store_true", help="list the configurations and exit")
     ap.add_argument("--junit", help="write a JUnit XML report here")
     ap.add_argument("--trace-dir", help="write each counterexample trace to DIR/<name>.txt")
@@ -222,7 +223,8 @@ def main(argv):
         print("model/run.py: error: spin is not installed (Debian package 'spin')", file=sys.stderr)
         return 2
     extra = dict(d.split("=", 1) if "=" in d else (d, "1") for d in a.D)
-    sel = [(n, dict(d, **extra), e, w) for n, d, e, w in CONFIGS if a.k in n]
+    sel = [(n, dict(d, **extra), e, w) for n, d, e, w in CONFIGS
+           if (n == a.k if a.exact else a.k in n)]
     if a.list:
         for name, defs, expect, what in sel:
             print("%-36s %-24s %s" % (name, expect, what))
