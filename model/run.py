@@ -122,7 +122,7 @@ def build(work, defs, extra_cc=()):
     rc, out = sh(["spin", "-a"] + spin_defs(defs) + [MODEL], work)
     if rc != 0 or not os.path.exists(os.path.join(work, "pan.c")):
         raise RuntimeError("spin -a failed:\n" + out)
-    rc, out = sh(["cc", "-O2", "-w", "-DVECTORSZ=2048", "-DMEMLIM=4096"] + list(extra_cc)
+    rc, out = sh(["cc", "-O1", "-w", "-DMEMLIM=4096"] + list(extra_cc)
                  + ["-o", "pan", "pan.c"], work)
     if rc != 0:
         raise RuntimeError("cc pan.c failed:\n" + out)
@@ -179,14 +179,14 @@ def run_one(name, defs, expect, work_root, maxdepth):
     os.makedirs(work)
     t0 = time.time()
     build(work, defs, ["-DNFAIR=3"])
-    rc, out = sh(["./pan", "-a", "-f", "-m%d" % maxdepth, "-w24"], work)
+    rc, out = sh(["./pan", "-a", "-f", "-m%d" % maxdepth, "-w22"], work)
     st = stats(out)
     kind = kind_of(out) if st["errors"] else None
     trace = []
     if kind and kind != "progress":
         # the shortest counterexample of a safety violation: breadth-first, claim off
         build(work, defs, ["-DBFS", "-DNOCLAIM", "-DSAFETY"])
-        rc2, out2 = sh(["./pan", "-m%d" % maxdepth, "-w24"], work)
+        rc2, out2 = sh(["./pan", "-m%d" % maxdepth, "-w22"], work)
         if "assertion violated" in out2:
             trace = readable_trace(work, defs)
     elif kind == "progress":
