@@ -1,0 +1,238 @@
+/* env.pml: the environment of the MIP logger transfer, as the emulator (emulator/src/mipemu.c)
+ * implements it, in dynamic mode: two modems (MDP-810 = side 0, TRM-810 = side 1) with their
+ * write and read areas and read-status bits, a time-slot radio that loses telegrams and repeats
+ * an unconfirmed block at every poll, PLC timers that count poll slots, and the ghost variables
+ * the properties are written over.
+ *
+ * A block is abstracted to its first two registers and two ghost fields:
+ *   c  register 0 (record counter or acknowledgement of the stream this model checks)
+ *   x  register 1 (what our extensions put there, e.g. a marker; 0 for a note peer)
+ *   t  ghost: the transfer attempt a record belongs to (0 = not a record)
+ *   i  ghost: the record's index in its transfer, 1..NREC
+ * The ghost fields never influence a peer: they only feed the assertions.
+ *
+ * Configuration (spin -D...; defaults below): NREC records per transfer, NT transfers the
+ * sending application submits, MAXC lost slots in a row (a slot after MAXC lossy slots loses
+ * nothing: loss < 1), TT timer expiry in poll slots, RST_S / RST_R restarts of the sending /
+ * receiving PLC, SSIDE the sender's modem (1 = outstation sends to the central, as in the
+ * note's example; 0 = central sends to the outstation), POLLED drive (1) or spontaneous (0).
+ */
+
+#ifndef NREC
+#define NREC 3
+#endif
+#ifndef NT
+#define NT 2
+#endif
+#ifndef MAXC
+#define MAXC 1
+#endif
+#ifndef TT
+#define TT 2
+#endif
+#ifndef OT
+#define OT (3 * TT + 1)      /* the out-of-step bound 3 x tTimeout of P11 / P21 (timers start at 1) */
+#endif
+#ifndef RST_S
+#define RST_S 0
+#endif
+#ifndef RST_R
+#define RST_R 0
+#endif
+#ifndef SSIDE
+#define SSIDE 1
+#endif
+#ifndef POLLED
+#define POLLED 0
+#endif
+
+#define MDP 0
+#define TRM 1
+#define S   SSIDE            /* the sender's modem */
+#define R   (1 - SSIDE)      /* the receiver's modem */
+#define LAST 255             /* 16#FFFF: the last record of a transfer */
+
+/* record counter of the record with index i */
+#define CTR(i) ((i) < NREC -> (i) : LAST)
+
+/* ---- modems: [MDP] and [TRM] ---- */
+byte wc[2], wx[2], wt[2], wi[2];   /* write area (the block queued for the radio) */
+bool pend[2];                      /* read-status bit 4: write data unconfirmed */
+bool waitb[2];                     /* read-status bit 1: write data waiting (not yet sent) */
+bool onair[2];                     /* the block taken for the current slot is still the queued one */
+byte rc[2], rx[2], rt[2], ri[2];   /* read area (the last block received) */
+bool rnew[2];                      /* read-status bit 0: new read data */
+
+/* ---- radio ---- */
+byte ph;                           /* 0: next is the poll (MDP->TRM), 1: the answer, 2: the ack */
+bool dhas, uhas;                   /* the slot's poll / answer carries a block */
+byte closs;                        /* lossy slots in a row */
+bool slotlost;                     /* this slot lost a telegram */
+byte tmr[2];                       /* PLC timers per side: slots since the PLC's last write */
+byte otmr[2];                      /* out-of-step timers of our blocks (P11/P21), saturating at OT */
+bool r_stuck;                      /* our receiver raised MIP_ERR_PEER_OUT_OF_STEP (P21) */
+
+/* ---- bounded faults ---- */
+byte rst_s = RST_S, rst_r = RST_R;
+
+/* ---- ghosts ---- */
+byte g_next;                       /* last transfer attempt id the sender used */
+byte a_t, a_i;                     /* receiver application: transfer being delivered, last index */
+int  compl;                        /* bit t: the receiver completed attempt t with every record */
+int  sabort;                       /* bit t: the sender gave attempt t up (restart or error) */
+bool s_fin;                        /* the sending application has finished all NT transfers */
+byte s_done, s_err;                /* transfers the sender reported done / failed */
+byte r_err;                        /* transfers the receiver closed with an error */
+
+/* A Modbus FC16 write of one block to the first write register (dynamic mode): replaces the
+ * queued block, sets bits 1 and 4; a block already taken for the current slot stays on air but
+ * its confirmation no longer clears the new one (the emulator's generation check). */
+inline mb_write(wm, vc, vx, vt, vi) {
+    d_step {
+        printf("@ M%d PLC writes [%d,%d] (t%d#%d)\n", wm, vc, vx, vt, vi);
+        wc[wm] = vc; wx[wm] = vx; wt[wm] = vt; wi[wm] = vi;
+        pend[wm] = 1; waitb[wm] = 1; onair[wm] = 0;
+        if
+        :: (POLLED && wm == R) || (!POLLED && wm == S) -> tmr[wm] = 0
+        :: else -> skip
+        fi
+    }
+}
+
+/* A Modbus read of status, count and read data in one FC3: returns the block and whether it
+ * was new; clears bit 0 after the answer was composed. Used inside the caller's d_step, which
+ * decides on the block and clears the values again (clr_read), so that old reads do not
+ * multiply the states. */
+inline mb_read(rm, isnew, oc, ox, ot, oi) {
+    isnew = rnew[rm]; oc = rc[rm]; ox = rx[rm]; ot = rt[rm]; oi = ri[rm];
+    if :: isnew -> printf("@ M%d PLC reads new [%d,%d] (t%d#%d)\n", rm, oc, ox, ot, oi) :: else -> skip fi;
+    rnew[rm] = 0
+}
+
+inline clr_read(isnew, oc, ox, ot, oi) {
+    isnew = 0; oc = 0; ox = 0; ot = 0; oi = 0
+}
+
+inline deliver(from, to) {
+    printf("@ radio M%d -> M%d [%d,%d] (t%d#%d)\n", from, to, wc[from], wx[from], wt[from], wi[from]);
+    rc[to] = wc[from]; rx[to] = wx[from]; rt[to] = wt[from]; ri[to] = wi[from];
+    rnew[to] = 1
+}
+
+inline confirm(cm) {
+    if
+    :: onair[cm] -> pend[cm] = 0; onair[cm] = 0; printf("@ radio confirms M%d block [%d]\n", cm, wc[cm])
+    :: else -> skip
+    fi
+}
+
+inline maylose(lost) {
+    if
+    :: closs < MAXC -> lost = 1; slotlost = 1; printf("@ radio telegram lost (phase %d)\n", ph)
+    :: true -> lost = 0
+    fi
+}
+
+inline endslot() {
+    if
+    :: slotlost -> closs++
+    :: else -> closs = 0
+    fi;
+    slotlost = 0;
+    ph = 0;
+    /* only the timer that drives repetitions runs: the sender's (spontaneous) or the
+     * receiver's (polled); the other one is never read */
+#if POLLED
+    if :: tmr[R] < TT -> tmr[R]++ :: else -> skip fi;
+#else
+    if :: tmr[S] < TT -> tmr[S]++ :: else -> skip fi;
+#endif
+    /* an out-of-step timer runs from 1 (started) to OT (expired); 0 = stopped */
+    if :: otmr[0] > 0 && otmr[0] < OT -> otmr[0]++ :: else -> skip fi;
+    if :: otmr[1] > 0 && otmr[1] < OT -> otmr[1]++ :: else -> skip fi
+}
+
+/* The time-slot radio between the MDP and one TRM (mipemu.c step()): poll, answer, ack. */
+active proctype Radio() {
+    bool lost;
+    do
+    :: d_step { ph == 0 ->
+        /* poll: the MDP sends its pending block (or an empty poll); bit 1 clears when sent */
+        dhas = pend[MDP]; onair[MDP] = dhas;
+        if :: dhas -> waitb[MDP] = 0 :: else -> skip fi;
+        maylose(lost);
+        if
+        :: lost -> endslot()
+        :: else -> if :: dhas -> deliver(MDP, TRM) :: else -> skip fi; ph = 1
+        fi }
+    :: d_step { ph == 1 ->
+        /* answer: the TRM sends its pending block (or an empty answer); it confirms the poll */
+        uhas = pend[TRM]; onair[TRM] = uhas;
+        if :: uhas -> waitb[TRM] = 0 :: else -> skip fi;
+        maylose(lost);
+        if
+        :: lost -> endslot()
+        :: else ->
+            if :: dhas -> confirm(MDP) :: else -> skip fi;
+            if
+            :: uhas -> deliver(TRM, MDP); ph = 2
+            :: else -> endslot()
+            fi
+        fi }
+    :: d_step { ph == 2 ->
+        /* ack: the MDP confirms the answer's block */
+        maylose(lost);
+        if :: !lost -> confirm(TRM) :: else -> skip fi;
+        endslot() }
+    od
+}
+
+/* ---- the receiving application (ghost) ---- */
+
+/* Never set: each names the property in the text spin prints for a violated assertion. */
+bool GAP, MIX, DUP_ORDER, LOST, SILENT, DONE;
+
+/* a record handed to the application */
+inline app_record(gt, gi) {
+    if
+    :: a_t == 0 ->
+        assert(gi == 1 || GAP);          /* a transfer delivered without its first record */
+        a_t = gt; a_i = 1
+    :: else ->
+        assert(gt == a_t || MIX);        /* records of two transfers in one */
+        assert(gi > a_i || DUP_ORDER);   /* delivered twice or out of order */
+        assert(gi == a_i + 1 || GAP);    /* a record skipped */
+        a_i = gi
+    fi
+}
+
+/* the receiver reports the transfer complete */
+inline app_complete() {
+    assert((a_t != 0 && a_i == NREC) || LOST); /* completed without every record */
+    compl = compl | (1 << a_t);
+    a_t = 0; a_i = 0
+}
+
+/* the receiver drops the transfer it was delivering; err: it says so (xError) */
+inline app_drop(err) {
+    assert(err || a_t == 0 || (sabort & (1 << a_t)) || SILENT); /* dropped although its sender goes on, no error */
+    if :: err && a_t != 0 -> r_err++ :: else -> skip fi;
+    a_t = 0; a_i = 0
+}
+
+/* ---- the sending application (ghost) ---- */
+inline app_sent(st) {
+    assert((compl & (1 << st)) || DONE); /* the sender reports done, the receiver did not complete it */
+    s_done++;
+    if :: s_done + s_err == NT -> s_fin = 1 :: else -> skip fi
+}
+
+inline app_failed(ft) {
+    sabort = sabort | (1 << ft);
+    s_err++;
+    if :: s_done + s_err == NT -> s_fin = 1 :: else -> skip fi
+}
+
+/* progress: every transfer the sender was given ends, done or failed, or our receiver says
+ * with xError that its peer is out of step (P21: the note sender cannot go on) */
+ltl progress { <> (s_fin || r_stuck) }

@@ -1,0 +1,208 @@
+/* our_peers.pml: MIP_Sender and MIP_Receiver of st_lib/, unidirectional layout, as the rules
+ * P1..P24 of st_lib/PROTOCOL.md define them. Labels are the state names of PROTOCOL.md section 9
+ * (E_MIP_SenderState / E_MIP_ReceiverState without the MIP_ prefix); the rule numbers stand in
+ * the comments.
+ *
+ * Abstractions:
+ *  - The check value chk(block) (PROTOCOL.md section 1) is CHK(t, i): records of different
+ *    attempts have different content. The residual of P8 (a restarted sender whose record N is
+ *    identical to the old one) delivers the same data and is not modelled.
+ *  - The echo [ack, 16#4D50, chk] (P8/P24) is register 1 = x: x = 0 no magic (a note
+ *    receiver), x = 1 magic with chk 0 (ack 0), else magic with chk x.
+ *  - tTimeout = TT poll slots; the out-of-step bound 3 x tTimeout (P11/P21) = OT slots.
+ *  - The caller's chunk and write handshakes answer at once (SND_GET_CHUNK is passed through;
+ *    WR_REQUEST..WR_CLEAR is the atomic mb_write); P10 (cyclic I/O) does not arise.
+ *  - P14 (uMaxRetries > 0), P22 (tTransferTimeout > 0) are off, as by default; rate limiting of
+ *    repeated acknowledgements (P17/P20) is left out (every such telegram is answered).
+ */
+
+#define CHK(t, i) ((t) * 8 + (i))
+#define CHK0 1
+
+
+/* decisions (besides those of note_peers.pml) */
+/* P19 variants for findings: 0 = as PROTOCOL.md (L = 0 or L = 16#FFFF with another check,
+ * not where it may be the tail of a lost transfer), 1 = only L = 16#FFFF with another check,
+ * 2 = no lone 16#FFFF */
+#ifndef P19_MODE
+#define P19_MODE 0
+#endif
+
+/* P8 variant for findings: 0 = as PROTOCOL.md (the echo's check value must match), 1 = the
+ * number alone counts (what the echo buys) */
+#ifndef P8_MODE
+#define P8_MODE 0
+#endif
+
+/* receiver's first read after xEnable: 0 = as PROTOCOL.md section 1 (a telegram; only P19 and
+ * P21 leave it out), 1 = variant: a block already there at the first read (bit 0 clear) is
+ * never taken as a record */
+#ifndef RFIRST_MODE
+#define RFIRST_MODE 0
+#endif
+
+#define A_RESET  5   /* P12: acknowledgement 0 after a counted record */
+#define A_OOS    6   /* P11: out of step for the whole bound */
+
+proctype OurSender() {
+    byte cur, t, ctr, prev, nc, nx, nt, ni, act;
+    bool nw, first = 1, oos;
+SND_IDLE:
+    if
+    :: s_done + s_err == NT -> goto idle
+    :: else -> skip
+    fi;
+SND_GET_CHUNK:
+    /* P6: a new transfer starts with record 1 at once */
+    d_step { g_next++; t = g_next; cur = 1; ctr = CTR(cur); oos = 0; otmr[S] = 0 };
+#if POLLED
+SND_WAIT_REQUEST:
+    /* P3 polled: record 1 goes out when a request telegram arrives (P6) */
+    do
+    :: d_step {
+            mb_read(S, nw, nc, nx, nt, ni);
+            if :: nw || first -> act = A_SEND :: else -> act = A_NONE fi;
+            first = 0;
+            clr_read(nw, nc, nx, nt, ni)
+        };
+        if :: act == A_SEND -> act = A_NONE; goto send :: else -> skip fi
+    :: rst_s > 0 -> goto restart
+    od;
+#endif
+send:
+    mb_write(S, ctr, 0, t, cur);
+SND_WAIT_ACK:
+    do
+    :: !(!POLLED && !rnew[S] && tmr[S] >= TT) ->
+        d_step {
+            mb_read(S, nw, nc, nx, nt, ni);
+            nw = nw || first; first = 0;     /* nw: a new telegram (section 1) */
+            if :: cur == 1 -> prev = 0 :: else -> prev = CTR(cur - 1) fi;
+            act = A_NONE;
+            if
+            :: nc == ctr && (nx == 0 || nx == CHK(t, cur) || P8_MODE == 1) ->
+                /* P8: the acknowledgement of the record in flight counts */
+                oos = 0; otmr[S] = 0;
+                if
+                :: cur == NREC -> act = A_DONE
+                :: else -> act = A_NEXT; cur++; ctr = CTR(cur)       /* P25 */
+                fi
+            :: cur > 1 && nc == 0 -> act = A_RESET                   /* P12 peer reset */
+            :: (cur == 1 && (nc == 0 || nc == LAST)) || (cur > 1 && nc == prev) ->
+                /* P7 / P3: the previous acknowledgement; polled: a request, repeat */
+                oos = 0; otmr[S] = 0;
+                if :: POLLED && nw -> act = A_SEND :: else -> skip fi
+            :: else ->
+                /* P11 out of step: neither the record in flight nor the previous one */
+                if
+                :: !oos -> oos = 1; otmr[S] = 1
+                :: oos && otmr[S] >= OT -> act = A_OOS
+                :: else -> skip
+                fi;
+                if :: act == A_NONE && POLLED && nw -> act = A_SEND :: else -> skip fi
+            fi;
+            prev = 0;
+            clr_read(nw, nc, nx, nt, ni)
+        };
+        if
+        :: act == A_DONE -> act = A_NONE; goto SND_DONE
+        :: act == A_NEXT || act == A_SEND -> act = A_NONE; goto send
+        :: act == A_RESET || act == A_OOS -> act = A_NONE; goto SND_ERROR
+        :: else -> skip
+        fi
+    :: !POLLED && !rnew[S] && tmr[S] >= TT -> goto send          /* P3 spontaneous repeat */
+    :: rst_s > 0 -> goto restart
+    od;
+SND_DONE:
+    app_sent(t);
+    goto SND_IDLE;
+SND_ERROR:
+    printf("@ sender SND_ERROR\n");
+    d_step { app_failed(t); oos = 0; otmr[S] = 0 };
+    goto SND_IDLE;
+restart:
+    printf("@ sender PLC restarts\n");
+    d_step { rst_s--; sabort = sabort | (1 << t); first = 1; oos = 0; otmr[S] = 0 };
+    goto SND_IDLE;
+idle:
+    do
+    :: d_step { mb_read(S, nw, nc, nx, nt, ni); clr_read(nw, nc, nx, nt, ni); first = 0 }
+    od
+}
+
+proctype OurReceiver() {
+    byte L, Lchk, c, nc, nx, nt, ni, act;
+    byte oldchk;             /* P19: check value of an old 16#FFFF found as the first block */
+    bool nw, first = 1, uoos;
+    bool sempty;             /* P19: a read since xEnable showed the area empty (count 0) */
+    bool nolone;             /* P19: no lone 16#FFFF until a record 1 was accepted */
+RCV_WAIT_FIRST:
+    skip;
+    /* P23: acknowledge 0 once on start */
+    d_step { L = 0; Lchk = CHK0; uoos = 0; otmr[R] = 0 };
+    mb_write(R, 0, CHK0, 0, 0);
+RCV_IN_TRANSFER:          /* also RCV_COMPLETE (L = 16#FFFF): one loop, L tells them apart */
+    do
+    :: !(POLLED && !rnew[R] && tmr[R] >= TT) ->
+        d_step {
+            mb_read(R, nw, nc, nx, nt, ni);
+            c = CHK(nt, ni);
+            act = A_NONE;
+            if
+            :: nc == 0 -> sempty = 1         /* an empty area (count 0): no telegram; P16 record 0 is never sent here */
+            :: nc != 0 && !(nw || first) -> skip                  /* no telegram */
+            :: RFIRST_MODE == 1 && nc != 0 && first && !nw -> first = 0   /* variant: the first read's old block never counts */
+            :: else ->
+                if
+                :: first && nc == LAST && (!nw || !sempty) ->
+                    oldchk = c   /* P19: an old 16#FFFF as the first block, and its copies */
+                :: first && nc != LAST ->
+                    nolone = 1   /* P19: a sender was mid-transfer when this receiver started */
+                :: else -> skip
+                fi;
+                if
+                :: nc == L && c == Lchk ->
+                    /* P17 duplicate: acknowledge again */
+                    uoos = 0; otmr[R] = 0; act = A_ACK
+                :: nc == 1 && !(L == 1 && c == Lchk) ->
+                    /* P15 / P18 (RCV_WAIT_PROCESSED): record 1 starts a new transfer; an
+                     * open one fails with MIP_ERR_SENDER_RESET */
+                    if :: L != 0 && L != LAST -> app_drop(1) :: else -> skip fi;
+                    app_record(nt, ni); L = 1; Lchk = c; uoos = 0; otmr[R] = 0; act = A_ACK;
+                    nolone = 0
+                :: nc != 1 && L != 0 && L != LAST && (nc == L + 1 || nc == LAST) ->
+                    /* P15 the next record (RCV_WAIT_PROCESSED) */
+                    app_record(nt, ni);
+                    if :: nc == LAST -> app_complete() :: else -> skip fi;
+                    L = nc; Lchk = c; uoos = 0; otmr[R] = 0; act = A_ACK
+                :: nc == LAST && ((P19_MODE != 1 && P19_MODE != 2 && L == 0) || (P19_MODE != 2 && L == LAST && c != Lchk)) && !nolone && c != oldchk ->
+                    /* P19 a lone 16#FFFF: a complete one-record transfer, unless it may be the
+                     * tail of a transfer whose start this receiver lost */
+                    app_record(nt, ni); app_complete(); L = LAST; Lchk = c; uoos = 0; otmr[R] = 0;
+                    act = A_ACK
+                :: else ->
+                    /* P20 unexpected: ignored, the last acknowledgement repeated; P21 */
+                    if
+                    :: first -> skip
+                    :: !first && !uoos -> uoos = 1; otmr[R] = 1
+                    :: !first && uoos && otmr[R] >= OT -> r_stuck = 1; printf("@ receiver xError PEER_OUT_OF_STEP\n")
+                    :: else -> skip
+                    fi;
+                    act = A_ACK
+                fi
+            fi;
+            if :: nc != 0 -> first = 0 :: else -> skip fi;   /* the first block read has a count */
+            c = 0;
+            clr_read(nw, nc, nx, nt, ni)
+        };
+        if
+        :: act == A_ACK -> act = A_NONE; mb_write(R, L, Lchk, 0, 0)
+        :: else -> skip
+        fi
+    :: POLLED && !rnew[R] && tmr[R] >= TT -> mb_write(R, L, Lchk, 0, 0)   /* P3 polled */
+    :: rst_r > 0 ->
+        printf("@ receiver PLC restarts\n");
+        d_step { rst_r--; app_drop(1); first = 1; sempty = 0; nolone = 0; oldchk = 0 };
+        goto RCV_WAIT_FIRST
+    od
+}

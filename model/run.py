@@ -1,0 +1,282 @@
+#!/usr/bin/env python3
+"""Runs the spin model of the MIP logger transfer in every configuration and prints, per
+configuration, states stored, depth reached, time and the verdict.
+
+Each configuration either must hold every property ("holds") or is a documented weakness of
+peers that follow only the Piciorgros note ("known: KIND"): the run then must find exactly
+that kind of violation, so the model keeps showing why our extensions exist. Any other
+outcome ends the runner non-zero. A violation prints its counterexample as a short trace.
+
+usage: model/run.py [-k SUBSTRING] [--list] [--junit FILE] [--trace-dir DIR] [--work DIR]
+"""
+import argparse
+import concurrent.futures
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from xml.sax.saxutils import escape
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+MODEL = os.path.join(HERE, "mip.pml")
+
+# name, defines, expectation, what it shows
+#   expectation: "holds" or "known:<kind>" with kind one of
+#   progress (a run in which the sender never finishes: no error, no completion),
+#   MIX, DUP_ORDER, GAP, LOST, SILENT, DONE (the assertion names in env.pml)
+NOTE_CONFIGS = [
+    ("note-note/strict/spont", dict(SND="NOTE", RCV="NOTE"), "holds",
+     "two note peers, no restart: everything arrives"),
+    ("note-note/strict/polled", dict(SND="NOTE", RCV="NOTE", POLLED=1), "holds",
+     "two note peers, polled drive"),
+    ("note-note/strict/spont/down", dict(SND="NOTE", RCV="NOTE", SSIDE=0), "holds",
+     "two note peers, the central sends to the outstation"),
+    ("note-note/lenient/spont", dict(SND="NOTE", RCV="NOTE", NS_LENIENT=1, NR_LENIENT=1), "holds",
+     "two lenient note peers, no restart"),
+]
+
+def _matrix():
+    out = []
+    drives = [("spont", {}), ("polled", {"POLLED": 1})]
+    sides = [("up", {}), ("down", {"SSIDE": 0})]
+    faults = [("", {}), ("+rst-snd", {"RST_S": 1}), ("+rst-rcv", {"RST_R": 1})]
+    peers = [
+        ("ours-ours", {"SND": "OURS", "RCV": "OURS"}),
+        ("ours-noteR-strict", {"SND": "OURS", "RCV": "NOTE"}),
+        ("ours-noteR-lenient", {"SND": "OURS", "RCV": "NOTE", "NR_LENIENT": 1}),
+        ("noteS-strict-ours", {"SND": "NOTE", "RCV": "OURS"}),
+        ("noteS-lenient-ours", {"SND": "NOTE", "RCV": "OURS", "NS_LENIENT": 1}),
+        ("note-note-strict", {"SND": "NOTE", "RCV": "NOTE"}),
+        ("note-note-lenient", {"SND": "NOTE", "RCV": "NOTE", "NS_LENIENT": 1, "NR_LENIENT": 1}),
+    ]
+    for pn, pd in peers:
+        for dn, dd in drives:
+            for sn, sd in sides:
+                for fn, fd in faults:
+                    d = dict(pd); d.update(dd); d.update(sd); d.update(fd)
+                    if fd:
+                        d["NT"] = 1   # a restart makes the second attempt itself
+                    name = "%s/%s/%s%s" % (pn, dn, sn, fn)
+                    exp, why = expectation(name)
+                    out.append((name, d, exp, why))
+    return out
+
+
+# Documented weaknesses (see docs/dev/model.md): (regular expression over the name, kind, why).
+# Everything else must hold.
+KNOWN = [
+    (r"^note-note-.*\+rst-snd$", "MIX",
+     "N1: a restarted note sender counts the stale acknowledgement of the old record 1"),
+    (r"^note-note-strict/.*\+rst-rcv$", "progress",
+     "N2: a restarted strict note receiver waits for record 1, the sender repeats forever, silently"),
+    (r"^note-note-lenient/.*\+rst-rcv$", "SILENT",
+     "N3: a lenient note receiver drops an open transfer without an error"),
+    (r"^ours-noteR-.*\+rst-snd$", "MIX",
+     "F2: a note receiver takes our restarted sender's record 1 for a duplicate; its ack has no echo"),
+    (r"^noteS-.*-ours/.*\+rst-snd$", "MIX",
+     "F3: a restarted note sender counts a stale acknowledgement; its new record 1 never goes on air"),
+    (r"^noteS-lenient-ours/.*\+rst-rcv$", "GAP",
+     "F4: a sender that goes back to record 1 on ack 0 then counts a stale acknowledgement"),
+]
+
+
+def expectation(name):
+    for rx, kind, why in KNOWN:
+        if re.search(rx, name):
+            return "known:" + kind, why
+    return "holds", ""
+
+
+CONFIGS = _matrix()
+
+def kind_of(text):
+    """The property a pan/spin output reports violated."""
+    if "acceptance cycle" in text:
+        return "progress"
+    m = re.search(r"assertion violated (.*)", text)
+    if not m:
+        return None
+    for k in ("GAP", "MIX", "DUP_ORDER", "LOST", "SILENT", "DONE"):
+        if re.search(r"\b%s\b" % k, m.group(1)):
+            return k
+    return "assert " + m.group(1)
+
+
+def spin_defs(defs):
+    out = []
+    for k, v in defs.items():
+        out.append("-D%s=%s" % (k, v))
+    return out
+
+
+def sh(cmd, cwd, timeout=900):
+    p = subprocess.run(cmd, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                       universal_newlines=True, timeout=timeout)
+    return p.returncode, p.stdout
+
+
+def build(work, defs, extra_cc=()):
+    rc, out = sh(["spin", "-a"] + spin_defs(defs) + [MODEL], work)
+    if rc != 0 or not os.path.exists(os.path.join(work, "pan.c")):
+        raise RuntimeError("spin -a failed:\n" + out)
+    rc, out = sh(["cc", "-O1", "-w", "-DMEMLIM=4096"] + list(extra_cc)
+                 + ["-o", "pan", "pan.c"], work)
+    if rc != 0:
+        raise RuntimeError("cc pan.c failed:\n" + out)
+
+
+def stats(out):
+    def grab(rx, conv=int, default=None):
+        m = re.search(rx, out)
+        return conv(m.group(1)) if m else default
+    return {
+        "stored": grab(r"(\d+) states, stored"),
+        "depth": grab(r"depth reached (\d+)"),
+        "errors": grab(r"errors: (\d+)"),
+        "complete": "Search not completed" not in out or "errors: 0" not in out,
+        "maxdepth_hit": "max search depth too small" in out,
+    }
+
+
+SIDE = {"M0": "central(MDP)", "M1": "outstation(TRM)"}
+
+
+def readable_trace(work, defs, limit=60):
+    """Replays pan's trail with spin and keeps the model's own event lines."""
+    rc, out = sh(["spin", "-t", "-k", "mip.pml.trail"] + spin_defs(defs) + [MODEL], work)
+    lines = []
+    for ln in out.splitlines():
+        s = ln.strip()
+        if s.startswith("@ "):
+            s = s[2:]
+            for k, v in SIDE.items():
+                s = s.replace(k, v)
+            s = s.replace("(t0#0)", "").replace("  ", " ").rstrip()
+            lines.append(s)
+        elif "START OF CYCLE" in s:
+            lines.append("--- from here the run repeats forever (no progress) ---")
+        elif "text of failed assertion" in s:
+            lines.append("VIOLATED: " + s.split(":", 2)[-1].strip())
+    # collapse immediate repeats
+    packed = []
+    for s in lines:
+        if packed and packed[-1][0] == s:
+            packed[-1][1] += 1
+        else:
+            packed.append([s, 1])
+    text = ["%s%s" % (s, "" if n == 1 else "  (x%d)" % n) for s, n in packed]
+    if len(text) > limit:
+        text = text[:10] + ["... (%d lines left out)" % (len(text) - limit)] + text[-(limit - 10):]
+    return text
+
+
+def run_one(name, defs, expect, work_root, maxdepth):
+    work = os.path.join(work_root, re.sub(r"[^A-Za-z0-9]+", "_", name))
+    shutil.rmtree(work, ignore_errors=True)
+    os.makedirs(work)
+    t0 = time.time()
+    build(work, defs, ["-DNFAIR=3"])
+    rc, out = sh(["./pan", "-a", "-f", "-m%d" % maxdepth, "-w22"], work)
+    st = stats(out)
+    kind = kind_of(out) if st["errors"] else None
+    trace = []
+    if kind and kind != "progress":
+        # the shortest counterexample of a safety violation: breadth-first, claim off
+        build(work, defs, ["-DBFS", "-DNOCLAIM", "-DSAFETY"])
+        rc2, out2 = sh(["./pan", "-m%d" % maxdepth, "-w22"], work)
+        if "assertion violated" in out2:
+            trace = readable_trace(work, defs)
+    elif kind == "progress":
+        trace = readable_trace(work, defs)
+    secs = time.time() - t0
+    if st["maxdepth_hit"]:
+        verdict, ok = "INCOMPLETE (max search depth too small)", False
+    elif expect == "holds":
+        ok = st["errors"] == 0
+        verdict = "holds" if ok else "VIOLATED " + (kind or "?")
+    else:
+        want = expect.split(":", 1)[1]
+        ok = kind == want
+        verdict = ("known weakness reproduced: " + want) if ok else \
+            ("EXPECTED %s, got %s" % (want, kind or "no violation"))
+    return dict(name=name, stored=st["stored"], depth=st["depth"], secs=secs, ok=ok,
+                verdict=verdict, kind=kind, trace=trace, raw=out)
+
+
+def main(argv):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("-k", default="", help="run only configurations whose name contains this")
+    ap.add_argument("--exact", action="store_true", help="-k names one configuration exactly")
+    ap.add_argument("--list", action="store_true", help="list the configurations and exit")
+    ap.add_argument("--junit", help="write a JUnit XML report here")
+    ap.add_argument("--trace-dir", help="write each counterexample trace to DIR/<name>.txt")
+    ap.add_argument("--work", help="build directory (default: a temporary one)")
+    ap.add_argument("--max-depth", type=int, default=200000)
+    ap.add_argument("-D", action="append", default=[], metavar="NAME=VALUE",
+                    help="an extra model define for every configuration (exploring variants)")
+    ap.add_argument("-j", type=int, default=2, help="configurations checked in parallel (default 2)")
+    a = ap.parse_args(argv)
+    if shutil.which("spin") is None:
+        print("model/run.py: error: spin is not installed (Debian package 'spin')", file=sys.stderr)
+        return 2
+    extra = dict(d.split("=", 1) if "=" in d else (d, "1") for d in a.D)
+    sel = [(n, dict(d, **extra), e, w) for n, d, e, w in CONFIGS
+           if (n == a.k if a.exact else a.k in n)]
+    if a.list:
+        for name, defs, expect, what in sel:
+            print("%-36s %-24s %s" % (name, expect, what))
+        return 0
+    if not sel:
+        print("model/run.py: error: no configuration matches -k %r" % a.k, file=sys.stderr)
+        return 2
+    work_root = a.work or tempfile.mkdtemp(prefix="mip-model-")
+    os.makedirs(work_root, exist_ok=True)
+    results = []
+    print("%-36s %10s %7s %7s  %s" % ("configuration", "states", "depth", "secs", "verdict"))
+    def one(c):
+        name, defs, expect, what = c
+        try:
+            return run_one(name, defs, expect, work_root, a.max_depth)
+        except (RuntimeError, subprocess.TimeoutExpired) as e:
+            return dict(name=name, stored=None, depth=None, secs=0.0, ok=False,
+                        verdict="ERROR " + " | ".join(str(e).splitlines()[:2]), kind=None, trace=[], raw=str(e))
+
+    with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, a.j)) as pool:
+        for r in pool.map(one, sel):
+            name = r["name"]
+            results.append(r)
+            print("%-36s %10s %7s %7.1f  %s" % (name, r["stored"], r["depth"], r["secs"], r["verdict"]),
+                  flush=True)
+            if r["trace"] and (not r["ok"] or os.environ.get("MODEL_TRACES")):
+                for ln in r["trace"]:
+                    print("      " + ln)
+            if r["trace"] and a.trace_dir:
+                os.makedirs(a.trace_dir, exist_ok=True)
+                with open(os.path.join(a.trace_dir, re.sub(r"[^A-Za-z0-9]+", "_", name) + ".txt"), "w") as f:
+                    f.write("%s: %s\n" % (name, r["verdict"]))
+                    f.write("\n".join(r["trace"]) + "\n")
+    npass = sum(r["ok"] for r in results)
+    nfail = len(results) - npass
+    if a.junit:
+        os.makedirs(os.path.dirname(os.path.abspath(a.junit)), exist_ok=True)
+        with open(a.junit, "w") as f:
+            f.write('<?xml version="1.0" encoding="UTF-8"?>\n<testsuite name="model" tests="%d" failures="%d">\n'
+                    % (len(results), nfail))
+            for r in results:
+                f.write('  <testcase classname="model" name="%s" time="%.1f">' % (escape(r["name"]), r["secs"]))
+                if not r["ok"]:
+                    f.write('<failure message="%s">%s</failure>' % (
+                        escape(r["verdict"], {'"': "&quot;"}), escape("\n".join(r["trace"]))))
+                f.write("</testcase>\n")
+            f.write("</testsuite>\n")
+    if not a.work:
+        shutil.rmtree(work_root, ignore_errors=True)
+    print("model: %d passed, %d failed" % (npass, nfail))
+    return 0 if nfail == 0 else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -1,0 +1,59 @@
+"""model/run.py, the spin model of the record protocol: the runner's verdicts a developer sees.
+The full matrix runs in `make model-check` (part of `make test`); here only what proves the
+checker can fail: a known silent hang is found and shown as a trace, and a wrong expectation
+or a bad argument ends non-zero with one line."""
+import pathlib
+import shutil
+import subprocess
+import sys
+
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+RUN = ROOT / "model" / "run.py"
+
+pytestmark = pytest.mark.skipif(shutil.which("spin") is None,
+                                reason="spin is not installed (Debian package 'spin', see .ci/apt-packages.txt)")
+
+
+def run(*args, tmp_path):
+    return subprocess.run([sys.executable, str(RUN), "--work", str(tmp_path / "w"), *args],
+                          capture_output=True, text=True, timeout=600)
+
+
+def test_silent_hang_of_two_note_peers_is_found_with_its_trace(tmp_path):
+    r = run("--exact", "-k", "note-note-strict/spont/up+rst-rcv", "--trace-dir", str(tmp_path / "t"), tmp_path=tmp_path)
+    assert r.returncode == 0, r.stdout + r.stderr
+    row = [ln for ln in r.stdout.splitlines() if ln.startswith("note-note-strict/spont/up+rst-rcv")]
+    assert len(row) == 1 and "known weakness reproduced: progress" in row[0]
+    states, depth = row[0].split()[1:3]
+    assert int(states) > 1000 and int(depth) > 10
+    trace = (tmp_path / "t" / "note_note_strict_spont_up_rst_rcv.txt").read_text()
+    assert "receiver PLC restarts" in trace
+    assert "repeats forever" in trace
+    assert r.stdout.splitlines()[-1] == "model: 1 passed, 0 failed"
+
+
+def test_a_violation_where_all_must_hold_fails_the_run(tmp_path):
+    # two note peers without restarts must hold; adding a receiver restart through -D makes
+    # the strict note receiver hang, and a configuration that must hold then fails the run
+    r = run("--exact", "-k", "note-note-strict/spont/up", "-D", "RST_R=1", "-D", "NT=1", tmp_path=tmp_path)
+    assert r.returncode == 1
+    row = [ln for ln in r.stdout.splitlines() if ln.startswith("note-note-strict/spont/up ")]
+    assert "VIOLATED progress" in row[0]
+    assert "--- from here the run repeats forever (no progress) ---" in r.stdout
+
+
+def test_unknown_configuration_is_one_line(tmp_path):
+    r = run("-k", "no-such-configuration", tmp_path=tmp_path)
+    assert r.returncode == 2
+    assert r.stderr.strip().count("\n") == 0 and "no configuration matches" in r.stderr
+
+
+def test_our_sender_without_the_echo_check_mixes_transfers_after_a_restart(tmp_path):
+    # P8 (the echo's check value) is what keeps a stale acknowledgement from counting after
+    # our sender restarts: the model with the number alone (P8_MODE=1) must find the mix
+    r = run("--exact", "-k", "ours-ours/spont/up+rst-snd", "-D", "P8_MODE=1", tmp_path=tmp_path)
+    assert r.returncode == 1
+    assert "VIOLATED MIX" in r.stdout
+    assert "sender PLC restarts" in r.stdout
