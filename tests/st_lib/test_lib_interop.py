@@ -290,12 +290,15 @@ def test_bidirectional_stale_ack_counts_only_after_own_modem_confirmed(wd):
 
 # ---------------------------------------------------------------- P25: reaction
 
-@pytest.mark.parametrize("polled", [False, True])
-def test_one_scan_from_ack_to_next_write_request(wd, polled):
+@pytest.mark.parametrize("polled,buffer", [(False, False), (True, False), (False, True)])
+def test_one_scan_from_ack_to_next_write_request(wd, polled, buffer):
     """P25: the scan that reads (and counts) the acknowledgement asks for the next chunk; the
-    chunk arrives in the following scan and the write request rises in that scan."""
+    chunk arrives in the following scan (MIP_BufferSender: its own next call) and the write
+    request rises in that scan."""
     data = pattern(6 * 122, seed=311)
-    u = Uni(wd, data, polled=polled, timeout_ms=300)
+    u = Uni(wd, data, polled=polled, timeout_ms=300, buffer=buffer)
+    if buffer:
+        u.snd["uLength"] = 6 * 122
     events = []
 
     class Probe:
