@@ -81,15 +81,23 @@ class Runner:
 
 
 # found by a random hunt: the outstation PLC restarts right after writing record 1; the new
-# sender must not take the old record's acknowledgement for its own (fixed by the quiet wait)
+# sender must not take the old record's acknowledgement for its own (fixed by the quiet wait,
+# now by the echo check, PROTOCOL.md P8)
 @example(s={"seed": 0, "polled": False, "read_mode": "trigger", "read_every": 3, "p_lost": 0.0,
             "p_dup": 0.0, "p_drop": 0.0, "chunk": 3, "transfers": 2, "write_errors": 0.0,
             "restarts": [(10, "O")]})
 # found by a wider hunt: heavy loss, drops and restarts of both sides; a receiver that had
-# nothing open did not answer the reset record (fixed: every reset is answered once)
+# nothing open did not answer the reset record (fixed: every reset is answered once; sessions
+# now open with record 1, the case stays as a restart schedule)
 @example(s={"seed": 354485, "polled": False, "read_mode": "trigger", "read_every": 2,
             "p_lost": 0.25, "p_dup": 0.25, "p_drop": 0.2, "chunk": 3, "transfers": 5,
             "write_errors": 0.0, "restarts": [(77, "C"), (126, "C"), (157, "O"), (732, "O")]})
+# found by a random hunt after sessions opened with record 1: the central restarts mid-transfer
+# and the sender's last record (16#FFFF) arrives later: taken for a note sender's one-record
+# transfer, a fragment was delivered as complete (fixed: PROTOCOL.md P19 exceptions)
+@example(s={"seed": 601960, "polled": True, "read_mode": "trigger", "read_every": 2,
+            "p_lost": 0.1, "p_dup": 0.0, "p_drop": 0.2, "chunk": 123, "transfers": 4,
+            "write_errors": 0.15, "restarts": [(1007, "O"), (984, "O"), (305, "C")]})
 @settings(max_examples=30 * SCALE, **SETTINGS)
 @given(s=schedule)
 def test_unidirectional_exactly_once(wd, s):
