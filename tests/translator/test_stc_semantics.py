@@ -70,6 +70,7 @@ WARN_CASES = [
     ("t := T#1ms * k;", "TIME * number"),
     ("t := k * T#1ms;", "TIME * number"),
     ("t := T#1ms / k;", "TIME / number"),
+    ("t := t / 3;", "TIME / number"),
     ("w := SHL(w, n);", "SHL by a variable count"),
     ("w := SHR(w, 40);", "SHR of DWORD by 40"),
     ("i := (i + j) / 2;", "intermediate value of this INT"),
@@ -101,6 +102,7 @@ def test_no_warning_for_portable_constructs(tmp_path):
     src = tmp_path / "p.st"
     src.write_text("PROGRAM Main\nVAR t : TIME; k : DINT; w : DWORD; i : INT; j : INT; END_VAR\n"
                    "t := T#1s * k; t := T#1ms * 2000; w := SHL(w, 3); i := i + j; j := i / 2;\n"
+                   "t := t / 2; t := t / 512;\n"
                    "i := MUX(1, i, j);\nEND_PROGRAM\n" + CONFIG)
     r = H.run_stc(["-o", str(tmp_path / "o"), str(src)])
     assert r.returncode == 0 and r.stderr == ""

@@ -1199,6 +1199,11 @@ class Checker:
                     (e.op == "/" and kv != 0 and abs(tv) % 1_000_000_000 < 2**31 and
                      _matiec_time_div(tv, kv) == int(tv / kv)):
                 return
+        if e.op == "/" and kv is not None and isinstance(kv, int) and 1 <= kv <= 512 and \
+                kv & (kv - 1) == 0 and ke.ty is not None and ke.ty.is_elem and ke.ty.is_int:
+            # a power of two up to 2**9 divides 10**9: matiec's double arithmetic is exact and
+            # truncates toward zero like IEC, for every TIME
+            return
         if e.op == "*":
             self.warn(e.pos, "portability: TIME * number differs between matiec and IEC: matiec "
                       "scales the sub-second part through a 32-bit int of nanoseconds "
