@@ -22,6 +22,8 @@ class DocsError(Exception):
 
 def _cell_text(r):
     text = r["text"].replace("|", "/")
+    if "/loss30/" in r["cell"]:
+        text += f" ({r.get('lost_telegrams', 0)} blocks lost)"
     return text if r["passed"] else f"**FAIL** {text}"
 
 
@@ -31,6 +33,18 @@ def table(doc) -> str:
     cfg = doc["config"]
     passed = sum(r["passed"] for r in doc["results"])
     lines = [BEGIN,
+             "## 6. Interoperability with a peer that follows only the note",
+             "",
+             "Generated from a run of the interop matrix (`make interop-matrix`, or "
+             "`tests/interop/`): our outstation (sender) or our central (receiver) against "
+             "`mip-peer`, a peer written from the note alone: `strict` accepts only the next "
+             "number, `lenient` also takes record 1 as a new transfer. A cell reads "
+             "*complete* (every record arrived exactly once, in order, register for register, "
+             "and the sender saw its last record acknowledged; *after X*: our blocks reported X "
+             "on the way), *error X after t s* (one of our blocks ended in `xError` with X, "
+             "t seconds after the fault), or **FAIL** (data lost or duplicated silently, an "
+             "error later than the bound, or a hang).",
+             "",
              f"Our blocks (plc/ programs in the soft-PLC, real time) against the note-only peer "
              f"(`mip-peer`, peers/) over mip-emulator on the fast radio: {cfg['records']} records "
              f"per transfer, tTimeout {cfg['timeout_ms']} ms, uMaxRetries {cfg['max_retries']}, "

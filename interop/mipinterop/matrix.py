@@ -90,7 +90,9 @@ class Config:
     static_registers: int = 24     # static mode: registers mirrored; payload = this - header
     timeout_ms: int = 500          # the blocks' tTimeout
     max_retries: int = 3           # the senders' uMaxRetries (0 = unlimited)
-    bound_factor: float = 4.0      # the bound: this many tTimeout
+    # the bound: this many tTimeout after the fault. (uMaxRetries + 1) tTimeout until a sender
+    # gives up, and one more for opening the session again.
+    bound_factor: float = 5.0
     restart_after: int = 3         # restart once this record was acknowledged
     loss: float = 0.3
     peer_retransmit_s: float = 0.5
@@ -114,6 +116,7 @@ class Result:
     errors: list = field(default_factory=list)
     streams: dict = field(default_factory=dict)
     seconds: float = 0.0
+    lost_telegrams: int = 0        # of them carrying a block (record or acknowledgement)
 
 
 # ----------------------------------------------------------------------------- processes
@@ -180,6 +183,7 @@ class CellRun:
         self.slave = None
         self.peer = None
         self.lives = 0
+        self.ours_restarted = self.peer_restarted = False
 
     # -- what each stream should carry
     def up_want(self):
@@ -197,7 +201,8 @@ class CellRun:
     # -- processes
     def start_emulator(self):
         args = [str(EMU), "--mdp-port", "0", "--trm-base-port", "0", "--stations", "1",
-                "--seed", str(self.seed), "--bitrate", "1000000", "--slot-gap-ms", "1"]
+                "--seed", str(self.seed), "--bitrate", "1000000", "--slot-gap-ms", "1",
+                "--trace", str(self.dir / "trace.jsonl")]
         loss = self.cfg.loss if self.cell.fault == "loss30" else 0.0
         args += ["--loss-up", str(loss), "--loss-down", str(loss)]
         if self.static:
@@ -272,34 +277,42 @@ class CellRun:
         except (FileNotFoundError, json.JSONDecodeError):
             return {"transfers": [], "open": []}
 
-    def plc_stream_state(self, w, want):
-        """Our receiver's committed stream against `want` (a list of records)."""
+    def plc_stream_state(self, w, want, resent):
+        """Our receiver's committed stream against `want` (a list of records). `resent`: the
+        stream's sender restarted in this cell, so the whole transfer may arrive again."""
         stream = [v for r in want for v in r]
         committed = w[L.R_COM_LO] + (w[L.R_COM_HI] << 16)
         window = w[L.W_BASE:]
         if committed == 0:
             return "pending", ""
-        if committed > len(stream):
-            return "bad", f"our receiver committed {committed} registers, {len(stream)} were sent"
+        k, rest = divmod(committed, len(stream))
+        if rest:
+            return "bad", (f"our receiver committed {committed} registers: not whole transfers "
+                           f"of the {len(stream)} sent")
+        if k > 1 and not resent:
+            return "bad", f"our receiver committed the transfer {k} times"
+        full = stream * k
         got = [window[p % L.WINDOW] for p in range(max(0, committed - L.WINDOW), committed)]
-        if got != stream[max(0, committed - L.WINDOW):committed] or committed % len(want[0]):
-            return "bad", f"our receiver's committed registers differ from the sent records"
-        if committed < len(stream):
-            # a completed transfer with fewer records than were sent: lost silently
-            if w[L.R_TRANSFERS] >= 1:
-                return "bad", (f"our receiver completed a transfer of {committed} of "
-                               f"{len(stream)} registers")
-            return "pending", ""
-        if (w[L.R_SUM_A], w[L.R_SUM_B]) != L.fletcher(stream):
+        want_tail = full[max(0, committed - L.WINDOW):]
+        if got != want_tail:
+            i = next(i for i, (a, b) in enumerate(zip(got, want_tail)) if a != b)
+            p = max(0, committed - L.WINDOW) + i
+            return "bad", (f"our receiver's committed register {p} (record "
+                           f"{p % len(stream) // len(want[0]) + 1} of the transfer) is {got[i]}, "
+                           f"{want_tail[i]} was sent")
+        if (w[L.R_SUM_A], w[L.R_SUM_B]) != L.fletcher(full):
             return "bad", "checksum of our receiver's committed stream differs"
         return "held", ""
 
-    def peer_stream_state(self, got, want):
-        for t in got.get("transfers", []):
+    def peer_stream_state(self, got, want, resent):
+        transfers = got.get("transfers", [])
+        for t in transfers:
             if t != want:
                 return "bad", (f"the peer completed a transfer of {len(t)} records that is not "
                                f"the {len(want)} sent")
-        return ("held", "") if got.get("transfers") else ("pending", "")
+        if len(transfers) > 1 and not resent:
+            return "bad", f"the peer received the transfer {len(transfers)} times"
+        return ("held", "") if transfers else ("pending", "")
 
     def observe(self):
         """(streams, errors, bad): per stream 'held'/'done'/'pending'; our failures so far."""
@@ -309,19 +322,19 @@ class CellRun:
         errors = []
         # up stream: outstation -> central
         if self.cell.ours == "sender":
-            state, why = self.peer_stream_state(got, self.up_want())
+            state, why = self.peer_stream_state(got, self.up_want(), self.ours_restarted)
             sender_done = w[L.S_ALL] == 1
         else:
-            state, why = self.plc_stream_state(w, self.up_want())
+            state, why = self.plc_stream_state(w, self.up_want(), self.peer_restarted)
             sender_done = self.peer.seen("acknowledged", 0xFFFF)
         streams["up"] = "complete" if state == "held" and sender_done else state
         bad = bad or why
         if self.bidi:
             if self.cell.ours == "sender":
-                state, why = self.plc_stream_state(w, self.down_want())
+                state, why = self.plc_stream_state(w, self.down_want(), self.peer_restarted)
                 sender_done = self.peer.seen("acknowledged", 0xFFFF)
             else:
-                state, why = self.peer_stream_state(got, self.down_want())
+                state, why = self.peer_stream_state(got, self.down_want(), self.ours_restarted)
                 sender_done = w[L.S_ALL] == 1
             streams["down"] = "complete" if state == "held" and sender_done else state
             bad = bad or why
@@ -358,9 +371,11 @@ class CellRun:
                     if self.peer.seen(kind, cfg.restart_after):
                         if cell.fault == "restart-ours":
                             self.stop_plc()
+                            self.ours_restarted = True
                             self.start_plc()
                         else:
                             self.peer.stop()
+                            self.peer_restarted = True
                             self.start_peer()
                         restart_pending = False
                         t0 = time.monotonic()
@@ -410,9 +425,12 @@ class CellRun:
             self.procs.stop()
 
     def _result(self, outcome, passed, text, streams, errors, t_begin):
+        trace = demo.TraceStats(self.dir / "trace.jsonl")
+        trace.update()
         return Result(cell=self.cell.key, outcome=outcome, passed=passed, text=text,
                       errors=[f"{who}:{name}" for who, name in errors], streams=dict(streams),
-                      seconds=round(time.monotonic() - t_begin, 1))
+                      seconds=round(time.monotonic() - t_begin, 1),
+                      lost_telegrams=trace.blocks_lost)
 
 
 def run_cell(cell: Cell, cfg: Config, progs, workdir: Path, seed: int = 1) -> Result:

@@ -104,16 +104,18 @@ class Receiver:
 
     def on_record(self, number, payload):
         """Take one received record; returns the acknowledgement to send back."""
+        if number == 0:
+            return self.last_ack       # "undefined": the other side has nothing to send
         if self.is_next(number):
             pass
+        elif number == self.last_ack:
+            self.duplicates += 1       # the same record again (a repeat): the same answer
+            return self.last_ack
         elif self.lenient and number == 1:
             self.abandoned.append(self.current)
             self.current = []
         else:
-            if number == self.last_ack:
-                self.duplicates += 1
-            else:
-                self.unexpected += 1
+            self.unexpected += 1
             return self.last_ack
         if number == 1 or (number == LAST and self.last_ack in (0, LAST)):
             self.current = []
