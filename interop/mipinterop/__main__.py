@@ -13,8 +13,13 @@ from . import docs
 from .matrix import Cell, Config, MatrixError, all_cells, run_matrix
 
 
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):          # one line, not usage + message
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
 def main(argv=None):
-    p = argparse.ArgumentParser(prog="mipinterop", description=__doc__.splitlines()[0])
+    p = _Parser(prog="mipinterop", description=__doc__.splitlines()[0])
     p.add_argument("--out", help="run the matrix and write its results (JSON) here")
     p.add_argument("--cells", help="only these cells: ours/reading/fault/layout/mode, comma-separated")
     p.add_argument("--workdir", help="logs of every cell (default: a temporary directory)")

@@ -21,8 +21,13 @@ def logger_records(count, size, seed):
     return [[rng.randrange(65536) for _ in range(size)] for _ in range(count)]
 
 
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):          # one line, not usage + message
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
 def parse_args(argv):
-    p = argparse.ArgumentParser(prog="mip-peer", description=__doc__.splitlines()[0])
+    p = _Parser(prog="mip-peer", description=__doc__.splitlines()[0])
     p.add_argument("role", choices=["outstation", "central"])
     p.add_argument("--host", default="127.0.0.1")
     p.add_argument("--port", type=int, required=True, help="Modbus TCP port of the modem")

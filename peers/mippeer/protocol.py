@@ -16,10 +16,10 @@ What the note says (section 2.1, our translation):
 Section 2.2 runs the same scheme both ways with two counters in front of the payload.
 
 Two readings of the receiver (both are the note, they differ where it is silent):
-  strict:  accept only the next number: 1 after 0 or 0xFFFF, N+1 after N, 0xFFFF after N;
-           anything else is answered with the last acknowledgement again.
-  lenient: in addition, a record 1 always starts a new transfer (an open one is abandoned),
-           and a lone 0xFFFF after 0 is a complete one-record transfer ("der letzte Datensatz").
+  strict:  accept only the next number: 1 after 0 or 0xFFFF, N+1 after N, 0xFFFF ("the last
+           record") after N or after 0 (a one-record transfer; after 0xFFFF it would be a
+           repeat of the last one); anything else is answered with the last acknowledgement.
+  lenient: in addition, a record 1 always starts a new transfer (an open one is abandoned).
 Senders are the same in both readings, except that a lenient sender takes an acknowledgement 0
 in the middle of a transfer as "the receiver has no data of mine" (the note's meaning of 0) and
 starts again with record 1; a strict sender just repeats its record.
@@ -99,7 +99,7 @@ class Receiver:
         if self.last_ack in (0, LAST):
             if number == 1:
                 return True
-            return self.lenient and number == LAST and self.last_ack == 0
+            return number == LAST and self.last_ack == 0
         return number == self.last_ack + 1 or number == LAST
 
     def on_record(self, number, payload):
