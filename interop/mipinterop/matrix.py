@@ -89,9 +89,12 @@ class Config:
     payload: int = 20              # payload registers per record, dynamic mode
     static_registers: int = 24     # static mode: registers mirrored; payload = this - header
     timeout_ms: int = 500          # the blocks' tTimeout
-    max_retries: int = 3           # the senders' uMaxRetries (0 = unlimited)
-    # the bound: this many tTimeout after the fault. (uMaxRetries + 1) tTimeout until a sender
-    # gives up, and one more for opening the session again.
+    # the senders' uMaxRetries: unlimited (the demo's setting, and the hard case: a stuck
+    # sender must not be rescued by giving up, it must say that the peer is out of step)
+    max_retries: int = 0
+    # the bound: this many tTimeout after the fault. st_lib/PROTOCOL.md (P11, P21): an error
+    # after 3 tTimeout of out-of-step telegrams and the next telegram after that (at most one
+    # more tTimeout), plus one tTimeout for the restarted side to open its session.
     bound_factor: float = 5.0
     restart_after: int = 3         # restart once this record was acknowledged
     loss: float = 0.3
