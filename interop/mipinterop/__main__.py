@@ -22,6 +22,8 @@ def main(argv=None):
     p = _Parser(prog="mipinterop", description=__doc__.splitlines()[0])
     p.add_argument("--out", help="run the matrix and write its results (JSON) here")
     p.add_argument("--cells", help="only these cells: ours/reading/fault/layout/mode, comma-separated")
+    p.add_argument("--drive", choices=["spontaneous", "polled"], default="spontaneous",
+                   help="drive of both sides (the CI matrix: spontaneous)")
     p.add_argument("--workdir", help="logs of every cell (default: a temporary directory)")
     p.add_argument("--write-docs", metavar="RESULTS",
                    help="write the table of this results file into docs/protocol.md")
@@ -49,7 +51,7 @@ def main(argv=None):
 
         with tempfile.TemporaryDirectory(prefix="mipinterop-") as tmp:
             work = Path(a.workdir) if a.workdir else Path(tmp)
-            doc = run_matrix(cells, Config(), work, progress)
+            doc = run_matrix(cells, Config(drive=a.drive), work, progress)
         Path(a.out).write_text(json.dumps(doc, indent=1) + "\n")
         failed = [r for r in doc["results"] if not r["passed"]]
         print(f"mipinterop: {len(cells) - len(failed)} of {len(cells)} cells pass "
