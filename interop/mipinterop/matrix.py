@@ -120,6 +120,7 @@ class Result:
     streams: dict = field(default_factory=dict)
     seconds: float = 0.0
     lost_telegrams: int = 0        # of them carrying a block (record or acknowledgement)
+    detail: str = ""               # counters at the end, to see where a cell got stuck
 
 
 # ----------------------------------------------------------------------------- processes
@@ -430,10 +431,22 @@ class CellRun:
     def _result(self, outcome, passed, text, streams, errors, t_begin):
         trace = demo.TraceStats(self.dir / "trace.jsonl")
         trace.update()
+        detail = ""
+        try:
+            w = self.plc_words()
+            got = self.peer_received()
+            detail = (f"ours: delivered {w[L.R_REC_LO]}, duplicates {w[L.R_DUP]}, unexpected "
+                      f"{w[L.R_UNEXP]}, retransmissions {w[L.S_RETRANS]}, read out "
+                      f"{w[L.S_OUT_LO]}; peer: accepted {got.get('accepted', [])}, "
+                      f"duplicates {got.get('duplicates', 0)}, unexpected "
+                      f"{got.get('unexpected', 0)}, acknowledged "
+                      f"{[e[1] for e in self.peer.events if e[0] == 'acknowledged']}")
+        except Exception as e:     # the PLC may be gone; the detail is only a help
+            detail = f"no counters: {e}"
         return Result(cell=self.cell.key, outcome=outcome, passed=passed, text=text,
                       errors=[f"{who}:{name}" for who, name in errors], streams=dict(streams),
                       seconds=round(time.monotonic() - t_begin, 1),
-                      lost_telegrams=trace.blocks_lost)
+                      lost_telegrams=trace.blocks_lost, detail=detail)
 
 
 def run_cell(cell: Cell, cfg: Config, progs, workdir: Path, seed: int = 1) -> Result:
