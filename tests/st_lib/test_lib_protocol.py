@@ -53,14 +53,8 @@ def test_note_example_counter_by_counter(wd):
     u.rcv["xEnable"] = True          # the central starts asking: acknowledgement 0
     assert u.bench.run_until(lambda: u.snd["xDone"], 3000)
     log = until_last_ack(u.radio.log)
-    # Our sender opens a session after its start with the reset record 0 (see MIP_Sender):
-    # the central's request 0, the reset 0 with its marker, the answer 0 (and requests 0
-    # while the sender waits for quiet). Then the note's read-out follows exactly.
-    first = next(i for i, t in enumerate(log) if t.src == "O" and t.block[0] == 1) - 1
-    opening, log = log[:first], log[first:]
-    assert [t.src for t in opening][:3] == ["C", "O", "C"]
-    assert all(t.block[0] == 0 for t in opening)
-    assert all(len(t.block) == 2 and t.block[1] != 0 for t in opening if t.src == "O")
+    # The session opens as in the note (st_lib/PROTOCOL.md P6): the central's request 0,
+    # then record 1 at once - no reset record, no quiet wait.
     seen = [(t.src, t.block[0], t.fate) for t in log]
     assert seen == [
         ("C", 0, "ok"), ("O", 1, "ok"), ("C", 1, "ok"),
@@ -72,7 +66,8 @@ def test_note_example_counter_by_counter(wd):
     ]
     o_lengths = [len(t.block) for t in log if t.src == "O"]
     assert o_lengths == [123] * 5 + [51]
-    assert all(len(t.block) == 1 for t in log if t.src == "C")
+    # the central's blocks carry the echo a note outstation ignores: [ack, 16#4D50, check]
+    assert all(len(t.block) == 3 and t.block[1] == 0x4D50 for t in log if t.src == "C")
     assert u.sink.transfers == [data]
     assert [n for n, _ in u.sink.records] == [1, 2, 3, 4, FFFF]
     assert u.rcv["xDone"] and u.rcv["wAck"] == FFFF
@@ -231,8 +226,9 @@ def test_ack_by_caller_holds_the_acknowledgement(wd):
 # ---------------------------------------------------------------- restarts
 
 def test_sender_restart_mid_transfer(wd):
-    """The outstation PLC restarts after 2 of 5 records: the new sender resets the receiver
-    (record 0), which reports the open transfer as failed; the new transfer arrives whole."""
+    """The outstation PLC restarts after 2 of 5 records: the new sender starts with record 1
+    at once (no reset record); the receiver takes record 1 as a new transfer (P18), reports
+    the open one failed; the new transfer arrives whole."""
     old, new = pattern(5 * 122, seed=13), pattern(3 * 122, seed=14)
     u = Uni(wd, old)
     u.bench.step(3)
@@ -245,11 +241,12 @@ def test_sender_restart_mid_transfer(wd):
     assert u.rcv["udiFailedTransfers"] == 1
     assert u.rcv["eLastErrorId"] == E_SENDER_RESET
     assert u.sink.transfers == [new]
-    assert any(t.src == "O" and t.block[0] == 0 for t in u.radio.log)
+    assert not any(t.src == "O" and t.block[0] == 0 for t in u.radio.log)
 
 
-def test_sender_restart_reset_record_lost(wd):
-    """The first reset record after the restart is lost for good: it is sent again."""
+def test_sender_restart_first_record_lost(wd):
+    """The first record 1 after the restart is lost for good: it is sent again, the receiver
+    still takes it as a new transfer."""
     old, new = pattern(6 * 122, seed=15), pattern(2 * 122, seed=16)
     u = Uni(wd, old)
     u.bench.step(3)
@@ -257,7 +254,7 @@ def test_sender_restart_reset_record_lost(wd):
     assert u.bench.run_until(lambda: u.rcv["udiRecords"] >= 3, 2000)
     u.restart_outstation()
     u.src.data = new
-    u.radio.fate = drop_first("O", 0)
+    u.radio.fate = drop_first("O", 1)
     u.bench.step(5)
     assert u.send() == "done"
     assert u.rcv["udiFailedTransfers"] == 1
@@ -416,7 +413,7 @@ def test_more_than_65534_records(wd):
     """Jump the counters (white box) to 65532, then offer further chunks: record 65534 is the
     last ordinary number; another non-last chunk fails the transfer with
     MIP_ERR_TOO_MANY_RECORDS, and the receiver reports that transfer failed when the next
-    transfer resets it. (Counting 65534 real records would take hours of virtual radio.)"""
+    transfer's record 1 arrives (P18). (Counting 65534 real records would take hours of virtual radio.)"""
     u = Uni(wd, pattern(10 * 122, seed=22))
     jump_counters(u, 65532)
     assert u.bench.run_until(lambda: u.snd["xError"], 3000)
@@ -428,7 +425,7 @@ def test_more_than_65534_records(wd):
     u.src.data = pattern(100, seed=23)
     assert u.send() == "done"
     assert u.rcv["udiFailedTransfers"] == 1 and u.sink.transfers == [pattern(100, seed=23)]
-    assert any(t.src == "O" and t.block[0] == 0 for t in u.radio.log)     # the reset record
+    assert u.rcv["eLastErrorId"] == E_SENDER_RESET
 
 
 def test_record_65535_after_65534(wd):
