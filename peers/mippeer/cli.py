@@ -1,11 +1,13 @@
-"""mip-peer: an independent MIP peer (outstation or central) talking Modbus TCP to a modem.
+"""mip-peer: a MIP peer (outstation or central) that follows only the Piciorgros note.
 
-Example: mip-peer central --port 15020 --unit 1 --expect 5 --out received.json
+Example: mip-peer central --port 15020 --unit 1 --expect 1 --out received.json
 """
 
 import argparse
 import json
+import os
 import random
+import signal
 import sys
 import time
 
@@ -19,13 +21,25 @@ def logger_records(count, size, seed):
     return [[rng.randrange(65536) for _ in range(size)] for _ in range(count)]
 
 
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):          # one line, not usage + message
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
 def parse_args(argv):
-    p = argparse.ArgumentParser(prog="mip-peer", description=__doc__.splitlines()[0])
+    p = _Parser(prog="mip-peer", description=__doc__.splitlines()[0])
     p.add_argument("role", choices=["outstation", "central"])
     p.add_argument("--host", default="127.0.0.1")
     p.add_argument("--port", type=int, required=True, help="Modbus TCP port of the modem")
     p.add_argument("--unit", type=int, default=1, help="unit id (at the MDP: the station address)")
-    p.add_argument("--layout", choices=["uni", "bi"], default="uni")
+    p.add_argument("--layout", choices=["uni", "bi"], default="uni",
+                   help="uni: note 2.1 (one counter); bi: note 2.2 (two counters)")
+    reading = p.add_mutually_exclusive_group()
+    reading.add_argument("--strict", dest="lenient", action="store_false", default=False,
+                         help="receiver accepts only the next number (default)")
+    reading.add_argument("--lenient", dest="lenient", action="store_true",
+                         help="receiver also takes record 1 as a new transfer; sender restarts "
+                              "with record 1 on acknowledgement 0")
     p.add_argument("--drive", choices=["polled", "spontaneous"], default="spontaneous")
     p.add_argument("--records", type=int, default=0, help="records to send (generated logger data)")
     p.add_argument("--record-size", type=int, default=122, help="payload registers per record")
@@ -34,27 +48,59 @@ def parse_args(argv):
     p.add_argument("--period", type=float, default=0.05, help="seconds between modem reads")
     p.add_argument("--retransmit", type=float, default=2.0, help="spontaneous resend timeout, s")
     p.add_argument("--request", type=float, default=1.0, help="polled request interval, s")
-    p.add_argument("--static-registers", type=int, default=0, help="static mode: N mirrored registers")
+    p.add_argument("--static-registers", type=int, default=0,
+                   help="static MIP mode: write this many registers every time (0: dynamic)")
+    p.add_argument("--linger", type=float, default=1.0,
+                   help="keep answering this many seconds after the work is done")
     p.add_argument("--timeout", type=float, default=60.0, help="give up after this many seconds")
-    p.add_argument("--out", help="write received transfers as JSON to this file")
+    p.add_argument("--events", action="store_true",
+                   help="print one line per accepted record and per acknowledged record")
+    p.add_argument("--out", help="keep the received transfers as JSON in this file")
     a = p.parse_args(argv)
     header = 2 if a.layout == "bi" else 1
+    if a.records < 0 or a.records > 65535:
+        p.error("--records must be 0..65535")
     if a.records and not 1 <= a.record_size <= 123 - header:
         p.error(f"--record-size must be 1..{123 - header} for the {a.layout} layout")
+    if not 0 <= a.static_registers <= 123:
+        p.error("--static-registers must be 0..123 (one FC16 carries at most 123)")
     return a
+
+
+def _write_out(path, peer):
+    r = peer.receiver
+    doc = {"transfers": r.transfers, "open": r.current, "abandoned": r.abandoned,
+           "accepted": r.accepted, "duplicates": r.duplicates, "unexpected": r.unexpected}
+    tmp = path + ".tmp"
+    with open(tmp, "w") as f:
+        json.dump(doc, f)
+    os.replace(tmp, path)
+
+
+class _Stop(Exception):
+    pass
+
+
+def _on_term(*_):
+    raise _Stop()
 
 
 def main(argv=None):
     a = parse_args(argv)
     records = logger_records(a.records, a.record_size, a.seed) if a.records else None
     try:
-        peer = Peer(a.role, records, layout=a.layout, drive=a.drive, retransmit_s=a.retransmit,
-                    request_s=a.request, static_registers=a.static_registers)
+        peer = Peer(a.role, records, layout=a.layout, drive=a.drive, lenient=a.lenient,
+                    retransmit_s=a.retransmit, request_s=a.request,
+                    static_registers=a.static_registers)
     except ValueError as e:
         print(f"mip-peer: error: {e}", file=sys.stderr)
         return 2
+    signal.signal(signal.SIGTERM, _on_term)
     modem = Modem(a.host, a.port, "trm" if a.role == "outstation" else "mdp", a.unit)
     start = time.monotonic()
+    done_at = None
+    seen_accepted = seen_acked = 0
+    stopped = None
     try:
         modem.connect()
         while True:
@@ -62,8 +108,23 @@ def main(argv=None):
             block = peer.step(now, modem.read())
             if block is not None:
                 modem.write(block)
-            received = peer.receiver.transfers if peer.receiver else []
-            if peer.done and len(received) >= a.expect:
+            r, s = peer.receiver, peer.sender
+            if r is not None and len(r.accepted) > seen_accepted:
+                if a.events:
+                    for n in r.accepted[seen_accepted:]:
+                        print(f"accepted {n}", flush=True)
+                seen_accepted = len(r.accepted)
+                if a.out:
+                    _write_out(a.out, peer)
+            if s is not None and s.index != seen_acked:
+                if a.events and s.index > seen_acked:
+                    for n in s._numbers[seen_acked : s.index]:
+                        print(f"acknowledged {n}", flush=True)
+                seen_acked = s.index
+            finished = peer.done and len(r.transfers if r else []) >= a.expect
+            if finished and done_at is None:
+                done_at = now
+            if done_at is not None and now - done_at >= a.linger:
                 break
             if now > a.timeout:
                 print(f"mip-peer: error: timeout after {a.timeout:g} s", file=sys.stderr)
@@ -72,19 +133,21 @@ def main(argv=None):
     except ModemError as e:
         print(f"mip-peer: error: {e}", file=sys.stderr)
         return 1
+    except _Stop:
+        stopped = 0      # SIGTERM: the normal way a test or a supervisor ends the peer
     except KeyboardInterrupt:
-        return 130
+        stopped = 130
     finally:
         modem.close()
     if a.out and peer.receiver:
-        with open(a.out, "w") as f:
-            json.dump({"transfers": peer.receiver.transfers, "aborted": peer.receiver.aborted,
-                       "duplicates": peer.receiver.duplicates}, f)
+        _write_out(a.out, peer)
+    if stopped is not None:
+        return stopped
     print(f"mip-peer: {a.role} done: sent={'yes' if records else 'nothing'} "
           f"received_transfers={len(peer.receiver.transfers) if peer.receiver else 0} "
-          f"writes={peer.writes} "
-          f"aborted_transfers={len(peer.receiver.aborted) if peer.receiver else 0} "
-          f"peer_resets={peer.sender.peer_resets if peer.sender else 0}")
+          f"writes={peer.writes} repeats={peer.repeats} "
+          f"duplicates={peer.receiver.duplicates if peer.receiver else 0} "
+          f"unexpected={peer.receiver.unexpected if peer.receiver else 0}")
     return 0
 
 

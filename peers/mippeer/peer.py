@@ -2,6 +2,20 @@
 
 Still no I/O: `Peer.step(now, read)` takes the result of one read at the read-status register
 (status, count, data...) and returns the register block to write, or None.
+
+Layouts (note 2.1 / 2.2):
+  uni  outstation writes [record counter, payload...]; central writes [acknowledgement].
+  bi   outstation writes [its record counter, its ack of the central's records, payload...];
+       central writes [its ack of the outstation's records, its record counter, payload...].
+A side with nothing (more) to send writes counter 0 ("undefined") and no payload.
+
+MIP modes: dynamic writes exactly the block (FC16 at the first write register); static writes
+the configured number of registers every time (the block, padded with zeros).
+
+Drives: spontaneous: the sender writes a record at once and repeats it after `retransmit_s`
+without its number coming back; polled: the central writes its block every `request_s` (its
+acknowledgement is the request) and the outstation writes only in answer to a received block.
+A receiver always answers a received record with its (possibly unchanged) acknowledgement.
 """
 
 from .protocol import Receiver, Sender
@@ -10,13 +24,7 @@ NEW_READ_DATA = 0x0001
 
 
 class Peer:
-    """Outstation or central, unidirectional (note 2.1) or bidirectional (note 2.2) layout.
-
-    Streams: stream 0 runs outstation -> central, stream 1 central -> outstation. In a block,
-    register 0 belongs to stream 0 and (bidirectional only) register 1 to stream 1; payload follows.
-    """
-
-    def __init__(self, role, records=None, layout="uni", drive="spontaneous",
+    def __init__(self, role, records=None, layout="uni", drive="spontaneous", lenient=False,
                  retransmit_s=2.0, request_s=1.0, static_registers=0):
         if role not in ("outstation", "central"):
             raise ValueError(f"role must be outstation or central, not {role!r}")
@@ -26,31 +34,38 @@ class Peer:
             raise ValueError(f"drive must be polled or spontaneous, not {drive!r}")
         self.role, self.layout, self.drive = role, layout, drive
         self.retransmit_s, self.request_s = retransmit_s, request_s
-        self.static_registers = static_registers  # 0: dynamic mode (write exactly the block)
+        self.static_registers = static_registers  # 0: dynamic mode
+        self.header = 2 if layout == "bi" else 1
         sends = layout == "bi" or role == "outstation"
         receives = layout == "bi" or role == "central"
-        self.sender = Sender(records) if sends and records else None
-        self.receiver = Receiver() if receives else None
-        # Which register of a block carries my outgoing counter and which my acknowledgement.
-        mine, theirs = (0, 1) if role == "outstation" else (1, 0)
-        self._my_counter, self._my_ack = mine, theirs
-        self.header = 2 if layout == "bi" else 1
+        if records and not sends:
+            raise ValueError("the central sends records only in the bidirectional layout (--layout bi)")
+        if static_registers:
+            longest = max((len(r) for r in records or []), default=0)
+            if self.header + longest > static_registers:
+                raise ValueError(f"a record of {longest} registers does not fit "
+                                 f"{static_registers} static registers with {self.header} counter(s)")
+        self.sender = Sender(records, lenient) if sends and records else None
+        self.receiver = Receiver(lenient=lenient) if receives else None
+        # register of a block holding my record counter / my acknowledgement (bi layout)
+        self._counter_at, self._ack_at = (0, 1) if role == "outstation" else (1, 0)
         self._last_write = None
+        self._last_write_at = None
         self.writes = 0
-        self.retransmissions = 0
+        self.repeats = 0
 
     @property
     def done(self):
         return self.sender is None or self.sender.done
 
-    def _block(self):
+    def block(self):
         block = [0] * self.header
         payload = []
         if self.sender is not None and not self.sender.done:
             number, payload = self.sender.current()
-            block[self._my_counter if self.layout == "bi" else 0] = number
+            block[self._counter_at if self.layout == "bi" else 0] = number
         if self.receiver is not None:
-            block[self._my_ack if self.layout == "bi" else 0] = self.receiver.last_accepted
+            block[self._ack_at if self.layout == "bi" else 0] = self.receiver.last_ack
         block += payload
         if self.static_registers:
             block = (block + [0] * self.static_registers)[: self.static_registers]
@@ -58,38 +73,35 @@ class Peer:
 
     def step(self, now, read):
         """`read`: registers from the read-status register on (status, count, data...)."""
-        status, count, data = read[0], read[1], list(read[2 : 2 + read[1]])
-        got_block = bool(status & NEW_READ_DATA) and count >= self.header
+        status, count = read[0], read[1]
+        data = list(read[2 : 2 + count])
+        got = bool(status & NEW_READ_DATA) and count >= self.header
         record_arrived = False
-        if got_block:
+        if got:
             if self.layout == "uni":
-                counter = ack = data[0]
+                number = ack = data[0]
             else:
-                counter, ack = data[self._my_ack], data[self._my_counter]
-            if self.receiver is not None and (counter != 0 or self.receiver.last_accepted != 0):
-                # A record, or the reset record 0 while we still acknowledge something: both
-                # must be answered (the reset with acknowledgement 0).
-                self.receiver.on_record(counter, data[self.header :])
+                number, ack = data[self._ack_at], data[self._counter_at]
+            if self.receiver is not None and number != 0:
+                self.receiver.on_record(number, data[self.header :])
                 record_arrived = True
             if self.sender is not None:
                 self.sender.on_ack(ack)
-        block = self._block()
-        changed = block != self._last_write
+        block = self.block()
         sending = self.sender is not None and not self.sender.done
-        since = None if self._last_write is None else now - self._last_write_at
+        since = None if self._last_write_at is None else now - self._last_write_at
         if self.drive == "polled" and self.role == "outstation":
-            # Polled: the outstation only answers the central's requests.
-            want = got_block and (sending or record_arrived)
+            want = got and (sending or record_arrived)
         elif self.drive == "polled":
-            # The central's repeated block is the request for the next record.
-            want = changed or record_arrived or since is None or since >= self.request_s
+            want = (since is None or record_arrived or block != self._last_write
+                    or since >= self.request_s)
         else:
-            want = record_arrived or (sending and (
-                changed or got_block or since is None or since >= self.retransmit_s))
+            want = (since is None or record_arrived or block != self._last_write
+                    or (sending and since >= self.retransmit_s))
         if not want:
             return None
-        if sending and not changed and not got_block:
-            self.retransmissions += 1
+        if block == self._last_write:
+            self.repeats += 1
         self._last_write, self._last_write_at = block, now
         self.writes += 1
         return block

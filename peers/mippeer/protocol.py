@@ -1,19 +1,34 @@
-"""The chunked logger transfer of the Piciorgros note (section 2), as pure state machines.
+"""The chunked logger transfer of the Piciorgros note, section 2, as pure state machines.
 
-No Modbus, no clock: a front feeds in what it read from the modem and writes what these
-return. Written from the note and docs/protocol.md, independently of st_lib, so that the two
-implementations can be tested against each other.
+Written from the note alone (and the Modbus facts of the MDP-810 / TRM-810 register maps), NOT
+from st_lib: no reset record, no markers, no check values, no quiet waits. It is the peer an
+integrator would write from the note, so that interop tests catch our blocks' mistakes.
 
-Counters (register 0 of a block, or registers 0/1 in the bidirectional layout):
-  0      nothing accepted yet / nothing to send
-  1..    records of one transfer, +1 each
-  0xFFFF the last record of a transfer; acknowledged with 0xFFFF
+What the note says (section 2.1, our translation):
+  - the first register of a record is the "record counter": a first record always carries 1,
+    every further record +1, 0xFFFF (65535) marks the last record of the transfer;
+  - 0 marks an undefined state: the central sends it as its "acknowledgement" while it has not
+    received any logger data yet;
+  - the central always sends back exactly the number of the record it received last; then the
+    outstation knows that record was processed and sends the next one; if a record is lost the
+    central still sends the old number, "so the outstation sends its record again";
+  - the last record is acknowledged with 0xFFFF; after that the next transfer starts with 1.
+Section 2.2 runs the same scheme both ways with two counters in front of the payload.
+
+Two readings of the receiver (both are the note, they differ where it is silent):
+  strict:  accept only the next number: 1 after 0 or 0xFFFF, N+1 after N, 0xFFFF ("the last
+           record") after N or after 0 (a one-record transfer; after 0xFFFF it would be a
+           repeat of the last one); anything else is answered with the last acknowledgement.
+  lenient: in addition, a record 1 always starts a new transfer (an open one is abandoned).
+Senders are the same in both readings, except that a lenient sender takes an acknowledgement 0
+in the middle of a transfer as "the receiver has no data of mine" (the note's meaning of 0) and
+starts again with record 1; a strict sender just repeats its record.
 """
 
 from dataclasses import dataclass, field
 
 LAST = 0xFFFF
-MAX_NUMBERED = 0xFFFE  # records 1..65534 can carry their own number; the last one is 65535
+MAX_NUMBERED = 0xFFFE  # records 1..65534 carry their own number; the last one is 65535
 
 
 class TransferTooLong(ValueError):
@@ -21,30 +36,27 @@ class TransferTooLong(ValueError):
 
 
 def numbers_for(count):
-    """Record numbers of a transfer of `count` (>= 2) records: 1, 2, ..., count-1, 65535.
+    """Record numbers of a transfer of `count` records: 1, 2, ..., count-1, 0xFFFF.
 
-    A transfer always starts with 1; a one-record transfer is sent as [1] followed by an empty
-    last record (see Sender), because a lone 65535 right after a completed transfer would look
-    like a duplicate of that transfer's last record and be discarded.
+    A one-record transfer is a lone 0xFFFF: the note marks the last record with 0xFFFF, and a
+    record 1 that is never followed by a last record would leave the transfer open forever.
     """
-    if count < 2:
-        raise ValueError("a transfer has at least two numbered records (1 and the last)")
+    if count < 1:
+        raise ValueError("a transfer has at least one record")
     if count > MAX_NUMBERED + 1:
         raise TransferTooLong(f"{count} records: at most {MAX_NUMBERED + 1} fit one transfer")
     return list(range(1, count)) + [LAST]
 
 
 class Sender:
-    """Sends the records of one transfer after another, each only after the previous was acked."""
+    """Sends the records of one transfer, each only after the previous number came back."""
 
-    def __init__(self, records):
-        records = [list(r) for r in records]
-        if len(records) == 1:
-            records.append([])  # the empty last record, see numbers_for
-        self._numbers = numbers_for(len(records))
-        self._records = records
-        self.index = 0  # the record being sent
-        self.peer_resets = 0  # times the receiver restarted and the transfer began again
+    def __init__(self, records, lenient=False):
+        self._records = [list(r) for r in records]
+        self._numbers = numbers_for(len(self._records))
+        self.lenient = lenient
+        self.index = 0       # the record being sent
+        self.restarts = 0    # lenient: times an acknowledgement 0 sent us back to record 1
 
     @property
     def done(self):
@@ -57,63 +69,59 @@ class Sender:
         return self._numbers[self.index], self._records[self.index]
 
     def on_ack(self, ack):
-        """Take the receiver's acknowledgement. Returns True when it moved on to a new record."""
+        """Take the receiver's acknowledgement. Returns True when it moved to another record."""
         if self.done:
             return False
-        if ack == 0 and self.index > 0:
-            # The receiver restarted and forgot the open transfer; it keeps only complete
-            # transfers, so what it accepted before is gone too. Report it and send the whole
-            # transfer again from record 1 (as st_lib's MIP_ERR_PEER_RESET plus a new execute).
-            self.peer_resets += 1
-            self.index = 0
+        if ack == self._numbers[self.index]:
+            self.index += 1
             return True
-        if ack != self._numbers[self.index]:
-            return False
-        self.index += 1
-        return True
+        if self.lenient and ack == 0 and self.index > 0:
+            self.index = 0
+            self.restarts += 1
+            return True
+        return False  # the old number (record lost) or anything else: send the record again
 
 
 @dataclass
 class Receiver:
-    """Accepts each record once, mirrors the last accepted number, reports what it cannot deliver."""
+    """Accepts the next record only, mirrors the last accepted number."""
 
-    last_accepted: int = 0
-    current: list = field(default_factory=list)      # payloads of the transfer in progress
+    lenient: bool = False
+    last_ack: int = 0
+    current: list = field(default_factory=list)      # payloads of the open transfer
     transfers: list = field(default_factory=list)    # completed transfers: lists of payloads
-    aborted: list = field(default_factory=list)      # transfers cut off by a sender restart
+    abandoned: list = field(default_factory=list)    # lenient: open transfers a record 1 ended
+    accepted: list = field(default_factory=list)     # every accepted record number, in order
     duplicates: int = 0
     unexpected: int = 0
 
-    def expected(self, number):
-        if number == 1:
-            return True  # a transfer always starts with 1 (a restart of the sender, too)
-        if self.last_accepted in (0, LAST):
-            return False
-        return number == self.last_accepted + 1 or number == LAST
+    def is_next(self, number):
+        if self.last_ack in (0, LAST):
+            if number == 1:
+                return True
+            return number == LAST and self.last_ack == 0
+        return number == self.last_ack + 1 or number == LAST
 
     def on_record(self, number, payload):
         """Take one received record; returns the acknowledgement to send back."""
         if number == 0:
-            # Record 0 resets the receiver (the sender starts afresh, e.g. after it failed or
-            # restarted): an open transfer is reported aborted; a completed one is forgotten.
-            if self.last_accepted not in (0, LAST):
-                self.aborted.append(self.current)
-                self.current = []
-            self.last_accepted = 0
-            return 0
-        if number == self.last_accepted:
-            self.duplicates += 1
-            return self.last_accepted
-        if not self.expected(number):
-            self.unexpected += 1  # ignore it; the sender sees the old ack and goes back
-            return self.last_accepted
-        if number == 1 and self.last_accepted not in (0, LAST):
-            self.aborted.append(self.current)  # sender restarted mid-transfer: report, don't merge
+            return self.last_ack       # "undefined": the other side has nothing to send
+        if self.is_next(number):
+            pass
+        elif number == self.last_ack:
+            self.duplicates += 1       # the same record again (a repeat): the same answer
+            return self.last_ack
+        elif self.lenient and number == 1:
+            self.abandoned.append(self.current)
             self.current = []
-        elif number == 1:
+        else:
+            self.unexpected += 1
+            return self.last_ack
+        if number == 1 or (number == LAST and self.last_ack in (0, LAST)):
             self.current = []
         self.current.append(list(payload))
-        self.last_accepted = number
+        self.accepted.append(number)
+        self.last_ack = number
         if number == LAST:
             self.transfers.append(self.current)
             self.current = []

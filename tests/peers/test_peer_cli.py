@@ -41,3 +41,18 @@ def test_unreachable_modem_is_one_line():
     p = subprocess.run(PEER + ["outstation", "--port", str(port), "--records", "2"],
                        capture_output=True, text=True, timeout=30)
     assert p.returncode == 1 and p.stderr.strip() == f"mip-peer: error: cannot connect to 127.0.0.1:{port}"
+
+
+def test_strict_and_lenient_together_is_one_line():
+    p = subprocess.run(PEER + ["central", "--port", "1", "--strict", "--lenient"],
+                       capture_output=True, text=True, timeout=30)
+    assert p.returncode == 2 and len(p.stderr.splitlines()) == 1
+    assert p.stderr.startswith("mip-peer: error: argument --lenient: not allowed with argument --strict")
+
+
+def test_record_too_big_for_the_static_block_is_one_line():
+    p = subprocess.run(PEER + ["outstation", "--port", "1", "--records", "3", "--record-size",
+                               "30", "--static-registers", "24"],
+                       capture_output=True, text=True, timeout=30)
+    assert p.returncode == 2
+    assert p.stderr == "mip-peer: error: a record of 30 registers does not fit 24 static registers with 1 counter(s)\n"

@@ -1,0 +1,471 @@
+"""The interop matrix of issue 11: our blocks (plc/ programs in the soft-PLC, real time) against
+the note-only peer (peers/, `mip-peer`), both over build/emulator/mip-emulator on 127.0.0.1.
+
+Axes: ours {sender, receiver} x peer reading {strict, lenient} x fault {none, loss 30 %,
+restart of our soft-PLC, restart of the peer} x layout {uni, bi} x MIP mode {dynamic, static}.
+
+"ours = sender": our outstation (plc/outstation*.st, MIP_Sender / MIP_Link) against a note
+central; "ours = receiver": our central (plc/central*.st, MIP_Receiver / MIP_Link) against a note
+outstation. In the bidirectional layout both streams run and both are checked.
+
+A cell's outcome:
+  complete   every stream: the receiving side holds the sender's records exactly once, in
+             order, register for register, and the sending side saw its last record
+             acknowledged (our sender: "everything read out"; the peer: 0xFFFF came back);
+  error      one of our blocks reported a failure (xError, its error id) within the bound
+             (BOUND_FACTOR x tTimeout after the fault; after the start without a fault);
+  FAIL       data lost or duplicated silently (a completed transfer that differs), an error
+             later than the bound, or neither completion nor an error (a hang).
+"""
+from __future__ import annotations
+
+import itertools
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[2]
+for _p in (REPO / "plc", REPO / "cosim"):
+    if str(_p) not in sys.path:
+        sys.path.insert(0, str(_p))
+
+import demo                                   # noqa: E402  (plc/demo.py: Procs, Slave, free_port)
+from mipcosim import layout as L              # noqa: E402
+from mippeer.cli import logger_records        # noqa: E402
+
+EMU = REPO / "build" / "emulator" / "mip-emulator"
+PEER = [sys.executable, "-m", "mippeer.cli"]
+
+OURS = ("sender", "receiver")
+READINGS = ("strict", "lenient")
+FAULTS = ("none", "loss30", "restart-ours", "restart-peer")
+LAYOUTS = ("uni", "bi")
+MODES = ("dynamic", "static")
+FAULT_TEXT = {"none": "no fault", "loss30": "30 % loss", "restart-ours": "restart ours",
+              "restart-peer": "restart peer"}
+
+
+class MatrixError(Exception):
+    """The matrix could not run (build missing, a process would not start): not a cell result."""
+
+
+@dataclass(frozen=True)
+class Cell:
+    ours: str
+    reading: str
+    fault: str
+    layout: str
+    mode: str
+
+    @property
+    def key(self):
+        return "/".join((self.ours, self.reading, self.fault, self.layout, self.mode))
+
+    @classmethod
+    def parse(cls, key):
+        parts = key.split("/")
+        if len(parts) != 5:
+            raise ValueError(f"cell {key!r}: want ours/reading/fault/layout/mode")
+        c = cls(*parts)
+        for v, axis in zip(parts, (OURS, READINGS, FAULTS, LAYOUTS, MODES)):
+            if v not in axis:
+                raise ValueError(f"cell {key!r}: {v!r} is not one of {', '.join(axis)}")
+        return c
+
+
+def all_cells():
+    return [Cell(*v) for v in itertools.product(OURS, READINGS, FAULTS, LAYOUTS, MODES)]
+
+
+@dataclass
+class Config:
+    records: int = 6               # records per transfer
+    payload: int = 20              # payload registers per record, dynamic mode
+    static_registers: int = 24     # static mode: registers mirrored; payload = this - header
+    timeout_ms: int = 500          # the blocks' tTimeout
+    # the senders' uMaxRetries: unlimited (the demo's setting, and the hard case: a stuck
+    # sender must not be rescued by giving up, it must say that the peer is out of step)
+    max_retries: int = 0
+    # the bound: this many tTimeout after the fault. st_lib/PROTOCOL.md (P11, P21): an error
+    # after 3 tTimeout of out-of-step telegrams and the next telegram after that (at most one
+    # more tTimeout), plus one tTimeout for the restarted side to open its session.
+    bound_factor: float = 5.0
+    restart_after: int = 3         # restart once this record was acknowledged
+    loss: float = 0.3
+    peer_retransmit_s: float = 0.5
+    cap_s: float = 12.0            # give up on a cell this long after its start / its fault
+    cap_loss_s: float = 25.0
+    drive: str = "spontaneous"
+
+    @property
+    def bound_s(self):
+        return self.bound_factor * self.timeout_ms / 1000.0
+
+
+@dataclass
+class Result:
+    cell: str
+    outcome: str                   # complete | error | FAIL
+    passed: bool
+    text: str                      # the table's words: "complete", "error PEER_RESET after 1.2 s", ...
+    error: str = ""
+    error_after_s: float | None = None
+    errors: list = field(default_factory=list)
+    streams: dict = field(default_factory=dict)
+    seconds: float = 0.0
+    lost_telegrams: int = 0        # of them carrying a block (record or acknowledgement)
+    detail: str = ""               # counters at the end, to see where a cell got stuck
+
+
+# ----------------------------------------------------------------------------- processes
+
+class PeerProc:
+    """One life of mip-peer; its event lines are collected by a thread."""
+
+    def __init__(self, args, log):
+        self.events = []
+        self.log = log
+        self.p = subprocess.Popen(PEER + args + ["--events"], stdout=subprocess.PIPE,
+                                  stderr=open(log, "w"), stdin=subprocess.DEVNULL, text=True,
+                                  start_new_session=True)
+        self.t = threading.Thread(target=self._read, daemon=True)
+        self.t.start()
+
+    def _read(self):
+        for line in self.p.stdout:
+            self.events.append(line.split())
+
+    def seen(self, kind, number):
+        return any(e[:2] == [kind, str(number)] for e in list(self.events))
+
+    def alive_or_raise(self):
+        if self.p.poll() is not None and self.p.returncode != 0:
+            tail = Path(self.log).read_text().strip().splitlines()[-1:]
+            raise MatrixError(f"mip-peer exited with {self.p.returncode}: {' '.join(tail)}")
+
+    def stop(self):
+        if self.p.poll() is None:
+            self.p.send_signal(signal.SIGTERM)
+            try:
+                self.p.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                self.p.kill()
+                self.p.wait()
+        self.t.join(timeout=2)
+
+
+def build_programs(outdir):
+    from plcharness.build import BuildError, build_program
+    progs = {}
+    for role in ("outstation", "central"):
+        for bidi in (False, True):
+            try:
+                progs[role, bidi] = build_program(L.program_sources(role, bidi),
+                                                  Path(outdir) / f"{role}{'_bidi' if bidi else ''}")
+            except BuildError as e:
+                raise MatrixError(f"building plc/{role}{'_bidi' if bidi else ''}.st: {e}") from None
+    return progs
+
+
+class CellRun:
+    def __init__(self, cell: Cell, cfg: Config, progs, workdir: Path, seed: int):
+        self.cell, self.cfg, self.progs, self.dir = cell, cfg, progs, workdir
+        self.seed = seed
+        self.bidi = cell.layout == "bi"
+        self.static = cell.mode == "static"
+        header = 2 if self.bidi else 1
+        self.payload = cfg.static_registers - header if self.static else cfg.payload
+        self.session = 7
+        self.peer_seed = 11
+        self.procs = demo.Procs()
+        self.slave = None
+        self.peer = None
+        self.lives = 0
+        self.ours_restarted = self.peer_restarted = False
+
+    # -- what each stream should carry
+    def up_want(self):
+        if self.cell.ours == "sender":
+            return [L.log_record(n, self.payload, self.session, 1)
+                    for n in range(1, self.cfg.records + 1)]
+        return logger_records(self.cfg.records, self.payload, self.peer_seed)
+
+    def down_want(self):
+        if self.cell.ours == "receiver":
+            return [L.log_record(n, self.payload, self.session ^ 0x8000, 1)
+                    for n in range(1, self.cfg.records + 1)]
+        return logger_records(self.cfg.records, self.payload, self.peer_seed)
+
+    # -- processes
+    def start_emulator(self):
+        args = [str(EMU), "--mdp-port", "0", "--trm-base-port", "0", "--stations", "1",
+                "--seed", str(self.seed), "--bitrate", "1000000", "--slot-gap-ms", "1",
+                "--trace", str(self.dir / "trace.jsonl")]
+        loss = self.cfg.loss if self.cell.fault == "loss30" else 0.0
+        args += ["--loss-up", str(loss), "--loss-down", str(loss)]
+        if self.static:
+            args += ["--mode", "static", "--static-registers", str(self.cfg.static_registers)]
+        p = self.procs.start("mip-emulator", args, self.dir / "emulator.log",
+                             stdout=subprocess.PIPE, text=True)
+        line = p.stdout.readline().strip()
+        if not line.startswith("mip-emulator: listening"):
+            raise MatrixError(f"mip-emulator did not start: {line!r}")
+        fields = dict(kv.split("=", 1) for kv in line.split()[2:])
+        self.mdp = int(fields["mdp"].rsplit(":", 1)[1])
+        self.trm = int(fields["trm"].split(",")[0])
+
+    def start_plc(self):
+        role = "outstation" if self.cell.ours == "sender" else "central"
+        self.lives += 1
+        name = f"{role}-{self.lives}"
+        conf = self.dir / f"{name}.conf"
+        conf.write_text(L.outstation_config(self.trm) if role == "outstation"
+                        else L.central_config(self.mdp, 1))
+        port = demo.free_port()
+        exe = self.progs[role, self.bidi].executable
+        self.procs.start(name, [str(exe), "-c", str(conf), "-s", f"127.0.0.1:{port}"],
+                         self.dir / f"{name}.log")
+        self.slave = demo.Slave(port)
+        try:
+            self.slave.connect(time.monotonic() + 10)
+        except demo.DemoError as e:
+            raise MatrixError(str(e)) from None
+        self.plc_name = name
+        params = L.Params(records=self.cfg.records, payload=self.payload, session=self.session,
+                          station=1, polled=self.cfg.drive == "polled", static=self.static,
+                          timeout_ms=self.cfg.timeout_ms,
+                          chunk=self.cfg.static_registers if self.static else 123,
+                          max_retries=self.cfg.max_retries)
+        self.slave.write(0, params.words())
+
+    def stop_plc(self):
+        for i, (n, p, f, _) in enumerate(self.procs.procs):
+            if n == self.plc_name:
+                p.terminate()
+                p.wait(timeout=10)
+                f.close()
+                del self.procs.procs[i]
+                break
+        self.slave.close()
+
+    def start_peer(self):
+        role = "central" if self.cell.ours == "sender" else "outstation"
+        self.peer_life = getattr(self, "peer_life", 0) + 1
+        self.peer_out = self.dir / f"peer-{self.peer_life}.json"
+        args = [role, "--port", str(self.mdp if role == "central" else self.trm), "--unit", "1",
+                "--layout", self.cell.layout, f"--{self.cell.reading}", "--drive", self.cfg.drive,
+                "--period", "0.02", "--retransmit", str(self.cfg.peer_retransmit_s),
+                "--request", str(self.cfg.peer_retransmit_s), "--timeout", "600",
+                "--expect", "1000000", "--out", str(self.peer_out)]
+        if role == "outstation" or self.bidi:
+            args += ["--records", str(self.cfg.records), "--record-size", str(self.payload),
+                     "--seed", str(self.peer_seed)]
+        if self.static:
+            args += ["--static-registers", str(self.cfg.static_registers)]
+        self.peer = PeerProc(args, self.dir / f"peer-{self.peer_life}.log")
+
+    # -- observation
+    def plc_words(self):
+        b = L.peer_base(1)
+        return self.slave.read(b, L.W_BASE + L.WINDOW)
+
+    def peer_received(self):
+        try:
+            return json.loads(self.peer_out.read_text())
+        except (FileNotFoundError, json.JSONDecodeError):
+            return {"transfers": [], "open": []}
+
+    def plc_stream_state(self, w, want, resent):
+        """Our receiver's committed stream against `want` (a list of records). `resent`: the
+        stream's sender restarted in this cell, so the whole transfer may arrive again."""
+        stream = [v for r in want for v in r]
+        committed = w[L.R_COM_LO] + (w[L.R_COM_HI] << 16)
+        window = w[L.W_BASE:]
+        if committed == 0:
+            return "pending", ""
+        k, rest = divmod(committed, len(stream))
+        if rest:
+            return "bad", (f"our receiver committed {committed} registers: not whole transfers "
+                           f"of the {len(stream)} sent")
+        if k > 1 and not resent:
+            return "bad", f"our receiver committed the transfer {k} times"
+        full = stream * k
+        got = [window[p % L.WINDOW] for p in range(max(0, committed - L.WINDOW), committed)]
+        want_tail = full[max(0, committed - L.WINDOW):]
+        if got != want_tail:
+            i = next(i for i, (a, b) in enumerate(zip(got, want_tail)) if a != b)
+            p = max(0, committed - L.WINDOW) + i
+            return "bad", (f"our receiver's committed register {p} (record "
+                           f"{p % len(stream) // len(want[0]) + 1} of the transfer) is {got[i]}, "
+                           f"{want_tail[i]} was sent")
+        if (w[L.R_SUM_A], w[L.R_SUM_B]) != L.fletcher(full):
+            return "bad", "checksum of our receiver's committed stream differs"
+        return "held", ""
+
+    def peer_stream_state(self, got, want, resent):
+        transfers = got.get("transfers", [])
+        for t in transfers:
+            if t != want:
+                return "bad", (f"the peer completed a transfer of {len(t)} records that is not "
+                               f"the {len(want)} sent")
+        if len(transfers) > 1 and not resent:
+            return "bad", f"the peer received the transfer {len(transfers)} times"
+        return ("held", "") if transfers else ("pending", "")
+
+    def observe(self):
+        """(streams, errors, bad): per stream 'held'/'done'/'pending'; our failures so far."""
+        w = self.plc_words()
+        got = self.peer_received()
+        streams, bad = {}, ""
+        errors = []
+        # up stream: outstation -> central
+        if self.cell.ours == "sender":
+            state, why = self.peer_stream_state(got, self.up_want(), self.ours_restarted)
+            sender_done = w[L.S_ALL] == 1
+        else:
+            state, why = self.plc_stream_state(w, self.up_want(), self.peer_restarted)
+            sender_done = self.peer.seen("acknowledged", 0xFFFF)
+        streams["up"] = "complete" if state == "held" and sender_done else state
+        bad = bad or why
+        if self.bidi:
+            if self.cell.ours == "sender":
+                state, why = self.plc_stream_state(w, self.down_want(), self.peer_restarted)
+                sender_done = self.peer.seen("acknowledged", 0xFFFF)
+            else:
+                state, why = self.peer_stream_state(got, self.down_want(), self.ours_restarted)
+                sender_done = w[L.S_ALL] == 1
+            streams["down"] = "complete" if state == "held" and sender_done else state
+            bad = bad or why
+        if w[L.S_FAILED]:
+            errors.append(("sender", L.error_name(w[L.S_ERROR])))
+        if w[L.R_FAILED]:
+            errors.append(("receiver", L.error_name(w[L.R_ERROR])))
+        return streams, errors, bad
+
+    # -- the run
+    def run(self) -> Result:
+        t_begin = time.monotonic()
+        cfg, cell = self.cfg, self.cell
+        try:
+            self.start_emulator()
+            if cell.ours == "sender":      # the receiving side first, so the sender finds it
+                self.start_peer()
+                self.start_plc()
+            else:
+                self.start_plc()
+                self.start_peer()
+            t0 = time.monotonic()
+            cap = cfg.cap_loss_s if cell.fault == "loss30" else cfg.cap_s
+            restart_pending = cell.fault.startswith("restart")
+            first_error = None          # (seconds after t0, who, name)
+            errors_seen = []
+            streams = {}
+            while True:
+                self.procs.check_alive()
+                self.peer.alive_or_raise()
+                now = time.monotonic()
+                if restart_pending:
+                    kind = "accepted" if cell.ours == "sender" else "acknowledged"
+                    if self.peer.seen(kind, cfg.restart_after):
+                        if cell.fault == "restart-ours":
+                            self.stop_plc()
+                            self.ours_restarted = True
+                            self.start_plc()
+                        else:
+                            self.peer.stop()
+                            self.peer_restarted = True
+                            self.start_peer()
+                        restart_pending = False
+                        t0 = time.monotonic()
+                        first_error, errors_seen = None, []
+                        continue
+                    if now - t0 > cap:
+                        return self._result("FAIL", False, "no restart: record "
+                                            f"{cfg.restart_after} was never acknowledged",
+                                            streams, errors_seen, t_begin)
+                streams, errors, bad = self.observe()
+                if bad:
+                    return self._result("FAIL", False, f"data wrong: {bad}", streams,
+                                        errors, t_begin)
+                for e in errors:
+                    if e not in errors_seen:
+                        errors_seen.append(e)
+                        if first_error is None:
+                            first_error = (round(now - t0, 2), e[0], e[1])
+                if not restart_pending and all(s == "complete" for s in streams.values()):
+                    text = "complete"
+                    if errors_seen:
+                        text += " after " + ", ".join(n for _, n in errors_seen)
+                    return self._result("complete", True, text, streams, errors_seen, t_begin)
+                if first_error is not None and not restart_pending:
+                    t_err, who, name = first_error
+                    if now - t0 >= t_err + cfg.bound_s or now - t0 > cap:
+                        ok = t_err <= cfg.bound_s
+                        text = f"error {name} after {t_err:.1f} s"
+                        if not ok:
+                            text += f" (bound {cfg.bound_s:g} s)"
+                        r = self._result("error" if ok else "FAIL", ok, text, streams,
+                                         errors_seen, t_begin)
+                        r.error, r.error_after_s = name, t_err
+                        return r
+                if now - t0 > cap:
+                    pending = ", ".join(f"{k} {v}" for k, v in streams.items())
+                    return self._result("FAIL", False, f"hang: no completion and no error in "
+                                        f"{cap:g} s ({pending})", streams, errors_seen, t_begin)
+                time.sleep(0.05)
+        except demo.DemoError as e:
+            raise MatrixError(f"{cell.key}: {e}") from None
+        finally:
+            if self.peer is not None:
+                self.peer.stop()
+            if self.slave is not None:
+                self.slave.close()
+            self.procs.stop()
+
+    def _result(self, outcome, passed, text, streams, errors, t_begin):
+        trace = demo.TraceStats(self.dir / "trace.jsonl")
+        trace.update()
+        detail = ""
+        try:
+            w = self.plc_words()
+            got = self.peer_received()
+            detail = (f"ours: delivered {w[L.R_REC_LO]}, duplicates {w[L.R_DUP]}, unexpected "
+                      f"{w[L.R_UNEXP]}, retransmissions {w[L.S_RETRANS]}, read out "
+                      f"{w[L.S_OUT_LO]}; peer: accepted {got.get('accepted', [])}, "
+                      f"duplicates {got.get('duplicates', 0)}, unexpected "
+                      f"{got.get('unexpected', 0)}, acknowledged "
+                      f"{[e[1] for e in self.peer.events if e[0] == 'acknowledged']}")
+        except Exception as e:     # the PLC may be gone; the detail is only a help
+            detail = f"no counters: {e}"
+        return Result(cell=self.cell.key, outcome=outcome, passed=passed, text=text,
+                      errors=[f"{who}:{name}" for who, name in errors], streams=dict(streams),
+                      seconds=round(time.monotonic() - t_begin, 1),
+                      lost_telegrams=trace.blocks_lost, detail=detail)
+
+
+def run_cell(cell: Cell, cfg: Config, progs, workdir: Path, seed: int = 1) -> Result:
+    workdir.mkdir(parents=True, exist_ok=True)
+    if not EMU.is_file():
+        raise MatrixError(f"{EMU} missing: run make")
+    return CellRun(cell, cfg, progs, workdir, seed).run()
+
+
+def run_matrix(cells, cfg: Config, workdir: Path, progress=None):
+    progs = build_programs(workdir / "build")
+    results = []
+    t = time.monotonic()
+    for i, cell in enumerate(cells):
+        r = run_cell(cell, cfg, progs, workdir / cell.key.replace("/", "-"), seed=1 + i)
+        results.append(r)
+        if progress:
+            progress(i + 1, len(cells), r)
+    doc = {"config": asdict(cfg) | {"bound_s": cfg.bound_s},
+           "seconds": round(time.monotonic() - t, 1),
+           "results": [asdict(r) for r in results]}
+    return doc

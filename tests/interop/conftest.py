@@ -1,0 +1,31 @@
+import json
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+for p in (REPO / "interop", REPO / "cosim", REPO / "peers"):
+    if str(p) not in sys.path:
+        sys.path.insert(0, str(p))   # also before `make venv` installed them
+
+RESULTS = REPO / "build" / "interop" / "pytest-matrix.json"
+
+
+@pytest.fixture(scope="session")
+def matrix_results():
+    """Every cell the session ran; written as the matrix's JSON results at the end, so that
+    `python -m mipinterop --write-docs build/interop/pytest-matrix.json` makes the table
+    from this very run."""
+    collected = {"results": [], "seconds": 0.0}
+    yield collected
+    if collected["results"]:
+        from mipinterop.matrix import Config, all_cells
+        from dataclasses import asdict
+        cfg = Config()
+        order = {c.key: i for i, c in enumerate(all_cells())}
+        collected["results"].sort(key=lambda r: order[r["cell"]])
+        collected["config"] = asdict(cfg) | {"bound_s": cfg.bound_s}
+        collected["seconds"] = round(collected["seconds"], 1)
+        RESULTS.parent.mkdir(parents=True, exist_ok=True)
+        RESULTS.write_text(json.dumps(collected, indent=1) + "\n")
