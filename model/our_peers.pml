@@ -183,8 +183,8 @@ RCV_IN_TRANSFER:          /* also RCV_COMPLETE (L = 16#FFFF): one loop, L tells 
                 :: else ->
                     /* P20 unexpected: ignored, the last acknowledgement repeated; P21 */
                     if
-                    :: first -> skip
-                    :: !first && !uoos -> uoos = 1; otmr[R] = 1
+                    :: first && (nc == LAST || nc == 1) -> skip   /* an idle or new sender's block */
+                    :: (!first || (nc != LAST && nc != 1)) && !uoos -> uoos = 1; otmr[R] = 1   /* a first block mid-transfer counts too */
                     :: !first && uoos && otmr[R] >= OT -> r_stuck = 1; printf("@ receiver xError PEER_OUT_OF_STEP\n")
                     :: else -> skip
                     fi;
@@ -200,6 +200,10 @@ RCV_IN_TRANSFER:          /* also RCV_COMPLETE (L = 16#FFFF): one loop, L tells 
         :: else -> skip
         fi
     :: POLLED && !rnew[R] && tmr[R] >= TT -> mb_write(R, L, Lchk, 0, 0)   /* P3 polled */
+    :: uoos && otmr[R] >= OT && !r_stuck ->
+        /* P21 by time: the bound passed with only unexpected numbers and no telegram in step
+         * (a static-mode sender never sends its unchanged block again) */
+        r_stuck = 1; printf("@ receiver xError PEER_OUT_OF_STEP (bound)\n")
     :: rst_r > 0 ->
         printf("@ receiver PLC restarts\n");
         d_step { rst_r--; app_drop(1); first = 1; sempty = 0; nolone = 0; oldchk = 0 };

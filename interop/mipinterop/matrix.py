@@ -344,7 +344,9 @@ class CellRun:
             bad = bad or why
         if w[L.S_FAILED]:
             errors.append(("sender", L.error_name(w[L.S_ERROR])))
-        if w[L.R_FAILED]:
+        if w[L.R_FAILED] or w[L.R_ERROR]:
+            # a failed transfer, or an error with nothing open (e.g. P21 out of step after
+            # this side restarted): the central program shows the receiver's last error id
             errors.append(("receiver", L.error_name(w[L.R_ERROR])))
         return streams, errors, bad
 
