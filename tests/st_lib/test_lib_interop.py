@@ -261,11 +261,26 @@ def test_receiver_out_of_step_error_and_its_clearing(wd):
 
 def test_idle_stale_read_area_raises_no_out_of_step(wd):
     """What sits in the read area when the receiver starts is not a telegram of this session:
-    no delivery, no error, however long."""
+    an idle area (the last transfer's 16#FFFF) gives no delivery and no error, however long."""
     u = Uni(wd, [], timeout_ms=100)
-    u.mc.receive([7, 1, 2])
+    u.mc.receive([FFFF, 1, 2])
     u.bench.step(200)
     assert not u.rcv["xError"] and u.sink.records == [] and u.rcv["eWaitReason"] == W_RECORD
+
+
+def test_stale_read_area_mid_transfer_raises_out_of_step_after_the_bound(wd):
+    """P21: a first block that shows a sender mid-transfer (record 7) and nothing in step after
+    it (a static-mode sender never sends its unchanged block again): xError with
+    MIP_ERR_PEER_OUT_OF_STEP after 3 x tTimeout, nothing delivered; record 1 clears it."""
+    u = Uni(wd, [], timeout_ms=100)
+    u.mc.receive([7, 1, 2])
+    u.bench.step(20)
+    assert not u.rcv["xError"] and u.rcv["eWaitReason"] == W_OUT_OF_STEP
+    assert u.bench.run_until(lambda: u.rcv["xError"], 100)
+    assert u.rcv["eErrorId"] == E_OUT_OF_STEP and u.rcv["wAck"] == 0 and u.sink.records == []
+    u.mc.receive([1, 5, 6])
+    assert u.bench.run_until(lambda: not u.rcv["xError"], 50)
+    assert [n for n, _ in u.sink.records] == [1]
 
 
 def test_restarted_receiver_with_cyclic_reads_does_not_redeliver_the_last_record(wd):

@@ -447,6 +447,12 @@ def build_program(sources, outdir, compiler="auto", cflags=None, semantics=None)
             raise BuildError(f"{s}: error: {'a directory' if s.is_dir() else 'not a regular file'}, "
                              "not an ST source")
     compiler = resolve_compiler(compiler)
+    if semantics is None:
+        # PLCRT_SEMANTICS=iec runs a whole test suite under IEC values (make test does, for
+        # st_lib and the chain: an outcome that differs is a portability bug in our ST)
+        semantics = os.environ.get("PLCRT_SEMANTICS") or None
+    if semantics not in (None, "matiec", "iec"):
+        raise BuildError(f"semantics {semantics!r}: error: give matiec or iec")
     outdir = Path(outdir).resolve()
     _check_outdir(outdir)
     key = _hash_inputs(sources, compiler, _compiler_fingerprint(compiler) + repr(cflags) +
