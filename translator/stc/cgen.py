@@ -25,6 +25,11 @@ def cdecl(t, name):
     return f"{_c_elem(t)} {name}"
 
 
+def _own_copy(v):
+    """An in-out (not of a function block type) that an instance keeps a copy of."""
+    return not v.type.is_fb
+
+
 def ptr_decl(t, name):
     if t.is_array and not t.name:
         return cdecl(t, f"(*{name})")
@@ -237,6 +242,8 @@ class Gen:
             any_field = True
             if v.kind == "VAR_IN_OUT":
                 self.w(f"    {ptr_decl(v.type, v.name)};")
+                if _own_copy(v):
+                    self.w(f"    {cdecl(v.type, v.name + '__COPY')};")
             else:
                 self.w(f"    {cdecl(v.type, v.name)};")
         if not any_field:
@@ -344,6 +351,9 @@ class Gen:
         self.ind += 1
         self.w("memset(data, 0, sizeof *data);")
         for v in pou.vars.values():
+            if v.kind == "VAR_IN_OUT" and _own_copy(v):
+                # until a call binds it, an in-out refers to the instance's own copy
+                self.w(f"data->{v.name} = &data->{v.name}__COPY;")
             if v.kind in ("VAR_EXTERNAL", "VAR_IN_OUT") or v.location is not None:
                 continue
             self.init_storage(self.acc[v.name], v.type, v.init)
@@ -493,8 +503,9 @@ class Gen:
         ctype = "uint64_t" if st.is_elem and st.kind == "uint" and st.bits == 64 else "int64_t"
         self.w("{")
         self.ind += 1
-        # matiec: switch () on the C value, an 8/16-bit expression is not truncated
-        self.w(f"{ctype} {sel} = {self.ex(s.selector, wide=self.matiec)};")
+        # matiec stores the selector in a variable of its type first (INT __case_expression),
+        # so an 8/16-bit selector is truncated there, as it is in IEC semantics
+        self.w(f"{ctype} {sel} = {self.ex(s.selector)};")
         first = True
         for labels, body in s.groups:
             conds = []
@@ -608,9 +619,16 @@ class Gen:
         v = c.var
         base = self.var_access(v)
         pou = v.type.pou
+        copied = []
         for name, e in c.bound.items():
             p = pou.vars[name]
-            if p.kind == "VAR_IN_OUT":
+            if p.kind == "VAR_IN_OUT" and self.matiec and _own_copy(p):
+                # matiec passes an FB's in-out by copy in and copy out: the instance keeps its
+                # own copy, and a call that leaves the in-out out works on that copy alone
+                self.w(f"memcpy(&{base}.{name}__COPY, &{self.lv(e)}, sizeof {base}.{name}__COPY);")
+                self.w(f"{base}.{name} = &{base}.{name}__COPY;")
+                copied.append((name, e))
+            elif p.kind == "VAR_IN_OUT":
                 self.w(f"{base}.{name} = &{self.lv(e)};")
             else:
                 self.store(f"{base}.{name}", p.type, e)
@@ -639,6 +657,8 @@ class Gen:
             self.w("}")
         elif eno is not None:
             self.w(f"{self.lv(eno)} = 1;")
+        for name, e in copied:
+            self.w(f"memcpy(&{self.lv(e)}, &{base}.{name}__COPY, sizeof {base}.{name}__COPY);")
         for p, target in c.outs:
             tl = self.lv(target)
             if p.type.is_array:

@@ -673,8 +673,9 @@ class Checker:
         self.scope = pou.vars
         self.loop_depth = 0
         self.for_vars = []
-        if not pou.node.body and pou.kind != "function":
-            pass
+        if not pou.node.body:
+            self.err(pou.node.pos, f"a {pou.kind.replace('_', ' ').upper()} without statements is "
+                     "not portable (matiec rejects it): give it at least one statement")
         self.stmts(pou.node.body)
 
     def stmts(self, lst):
@@ -691,6 +692,9 @@ class Checker:
             self.coerce(s.value, vt, tt, "assignment")
         elif isinstance(s, S.CallStmt):
             self.call(s, statement=True)
+            if getattr(s, "kind", "fb") != "fb":
+                self.err(s.pos, "a FUNCTION call as a statement is not portable (matiec rejects "
+                         "it): assign its result to a variable")
         elif isinstance(s, S.If):
             for cond, body in s.branches:
                 self.cond(cond, "IF")
