@@ -37,6 +37,8 @@ def esc(s):
 
 def type_xml(t: TypeSpec, ind):
     pad = " " * ind
+    if t.kind == "elementary" and t.name in ("STRING", "WSTRING"):
+        return f"{pad}<{t.name.lower()}/>\n"      # TC6: <string/>, not <STRING/>
     if t.kind == "elementary":
         return f"{pad}<{TYPE_ALIASES.get(t.name, t.name)}/>\n"
     if t.kind == "string":

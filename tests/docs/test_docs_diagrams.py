@@ -48,7 +48,7 @@ def test_note_diagram_shows_the_lost_record_and_the_repeated_request(fresh):
     texts = svg_texts(fresh / "seq-note-2-1-1.svg")
     assert "answer: record 2 (123 regs): LOST" in texts
     # the central asks again with the old acknowledgement, as in the note
-    assert texts.count("write ack 1 (1 reg)") >= 2
+    assert texts.count("write ack 1 (3 regs)") >= 2   # [ack, 16#4D50, check] (P8)
     delivered = [t for t in texts if t.endswith("delivered (122 regs)") or "delivered (49" in t]
     assert delivered == ["record 1 delivered (122 regs)", "record 2 delivered (122 regs)",
                          "record 3 delivered (122 regs)", "record 4 delivered (122 regs)",
@@ -56,12 +56,15 @@ def test_note_diagram_shows_the_lost_record_and_the_repeated_request(fresh):
     assert "xDone: last record acknowledged" in texts
 
 
-def test_restart_diagram_shows_reset_record_and_the_receiver_error(fresh):
+def test_restart_diagram_shows_record_1_again_and_the_receiver_error(fresh):
     texts = svg_texts(fresh / "seq-restart.svg")
     assert "PLC restarted" in texts
     i = texts.index("PLC restarted")
-    assert any(t.startswith("write RESET record 0 (") for t in texts[i:])
+    # the restarted sender opens with record 1 at once (P6); the central reports the open
+    # transfer failed and starts the new one (P18)
+    assert next(t for t in texts[i:] if t.startswith("write record")) == "write record 1 (123 regs)"
     assert "xError: MIP_ERR_SENDER_RESET" in texts[i:]
+    assert not any("RESET record 0" in t for t in texts)
 
 
 def test_a_trace_line_that_is_not_json_is_reported_with_its_line(tmp_path):

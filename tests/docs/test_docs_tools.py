@@ -13,7 +13,7 @@ def test_clean_transfer_completes():
 
 def test_outstation_restart_is_reported_by_the_central(tmp_path):
     trace = tmp_path / "t.jsonl"
-    r = tool("mipsim", "--records", 4, "--restart", "outstation", "--restart-at-ms", 3000,
+    r = tool("mipsim", "--records", 4, "--restart", "outstation", "--restart-at-ms", 1000,
              "--trace", trace)
     assert r.returncode == 0, r.stdout + r.stderr
     assert "errors=['MIP_ERR_SENDER_RESET']" in r.stdout

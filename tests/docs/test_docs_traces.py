@@ -76,7 +76,7 @@ def test_restart_breaks_one_transfer_and_completes_the_next():
     restart = next(i for i, e in enumerate(ev) if e["ev"] == "plc" and e["what"] == "restart")
     first = next(e for e in ev[restart:] if e["ev"] == "plc" and e["what"] == "write"
                  and e["side"] == "outstation")
-    assert first["value"] == [0], "the restarted sender does not begin with the reset record"
+    assert first["value"] == [1], "the restarted sender does not open with record 1 (P6)"
 
 
 def test_throughput_data_reproduce():
