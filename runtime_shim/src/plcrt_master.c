@@ -199,17 +199,25 @@ static int device_connect(plcrt_t *rt, struct plcrt_master *m, plcrt_device_t *d
 static void put16(uint8_t *p, int v) { p[0] = (uint8_t)(v >> 8); p[1] = (uint8_t)v; }
 static int get16(const uint8_t *p) { return (p[0] << 8) | p[1]; }
 
+/* Frames unit id + PDU (n bytes) as a Modbus TCP ADU with the device's next transaction id
+ * (never 0 after wrapping); returns the ADU length. One framing for TCP and in process. */
+static int frame_adu(plcrt_device_t *d, const uint8_t *req, int n, uint8_t *adu)
+{
+    d->tid = (uint16_t)(d->tid + 1) ? (uint16_t)(d->tid + 1) : 1;
+    put16(adu, d->tid);
+    put16(adu + 2, 0);
+    put16(adu + 4, n);
+    memcpy(adu + 6, req, (size_t)n);
+    return n + 6;
+}
+
 /* Sends unit id + PDU with an MBAP header of our own: libmodbus's modbus_send_raw_request
  * always sends transaction id 0, so a stale reply could not be told from the right one. */
 static int send_adu(plcrt_device_t *d, const uint8_t *req, int n, uint16_t *tid)
 {
     uint8_t adu[MODBUS_TCP_MAX_ADU_LENGTH];
-    d->tid = (uint16_t)(d->tid + 1) ? (uint16_t)(d->tid + 1) : 1;
+    frame_adu(d, req, n, adu);
     *tid = d->tid;
-    put16(adu, d->tid);
-    put16(adu + 2, 0);
-    put16(adu + 4, n);
-    memcpy(adu + 6, req, (size_t)n);
     int fd = modbus_get_socket(d->ctx);
     for (int off = 0; off < n + 6;) {
         ssize_t k = send(fd, adu + off, (size_t)(n + 6 - off), MSG_NOSIGNAL);
@@ -290,12 +298,7 @@ static int do_request(struct plcrt_master *m, plcrt_device_t *d, request_t *q, i
          * with a new transaction id, protocol 0, length) to the handler; the reply ADU is
          * checked like a TCP reply (same transaction id), then parsed by the code below */
         uint8_t adu[MODBUS_TCP_MAX_ADU_LENGTH];
-        d->tid = (uint16_t)(d->tid + 1) ? (uint16_t)(d->tid + 1) : 1;
-        put16(adu, d->tid);
-        put16(adu + 2, 0);
-        put16(adu + 4, n);
-        memcpy(adu + 6, req, (size_t)n);
-        long r = d->transact(d->transact_user, adu, (size_t)n + 6, rsp, sizeof rsp);
+        long r = d->transact(d->transact_user, adu, (size_t)frame_adu(d, req, n, adu), rsp, sizeof rsp);
         if (r < 0) {
             *transport = 1;
             return STATUS_TRANSPORT(ETIMEDOUT);
