@@ -8,6 +8,8 @@ from rt_helpers import COMPILERS, ModbusServer
 PROG = """
 PROGRAM MAIN
 VAR a AT %IW500 : WORD; b AT %IW510 : WORD; END_VAR
+VAR n : UDINT; END_VAR
+n := n + 1;   (* matiec rejects a PROGRAM without statements *)
 END_PROGRAM
 CONFIGURATION Config0
 RESOURCE Res0 ON PLC
