@@ -43,4 +43,4 @@ emulator-unit: $(EMU_BUILD)/test_mipemu
 emulator-fuzz: $(EMU_BUILD)/fuzz_mipemu
 	@mkdir -p $(RESULTS)
 	@rm -rf $(EMU_BUILD)/fuzz-corpus && mkdir -p $(EMU_BUILD)/fuzz-corpus && cp $(EMU_DIR)/fuzz/corpus/* $(EMU_BUILD)/fuzz-corpus/
-	@$(EMU_DIR)/fuzz/run-ci.sh $(EMU_BUILD)/fuzz_mipemu $(EMU_BUILD)/fuzz-corpus $(EMU_FUZZ_RUNS) $(RESULTS)/emulator-fuzz.xml
+	@.ci/libfuzzer-run $(EMU_BUILD)/fuzz_mipemu $(EMU_BUILD)/fuzz-corpus $(EMU_FUZZ_RUNS) $(RESULTS)/emulator-fuzz.xml emulator.fuzz

@@ -68,5 +68,5 @@ runtime-fuzz: $(RT_BUILD)/fuzz_slave $(RT_BUILD)/fuzz_config
 	@fail=0; for t in slave config; do \
 	  rm -rf $(RT_BUILD)/fuzz-ci-$$t && mkdir -p $(RT_BUILD)/fuzz-ci-$$t && \
 	  cp runtime_shim/fuzz/corpus_$$t/* $(RT_BUILD)/fuzz-ci-$$t/ && \
-	  runtime_shim/fuzz/run-ci.sh $(RT_BUILD)/fuzz_$$t $(RT_BUILD)/fuzz-ci-$$t $(RT_FUZZ_RUNS) \
+	  .ci/libfuzzer-run $(RT_BUILD)/fuzz_$$t $(RT_BUILD)/fuzz-ci-$$t $(RT_FUZZ_RUNS) \
 	    $(RESULTS)/runtime-fuzz-$$t.xml runtime.fuzz_$$t || fail=1; done; exit $$fail
