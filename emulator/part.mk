@@ -20,11 +20,13 @@ $(EMU_BUILD)/mipemu.o: $(EMU_CORE_SRC) $(EMU_HDR)
 $(EMU_BUILD)/libmipemu.a: $(EMU_BUILD)/mipemu.o
 	rm -f $@ && ar rcs $@ $^
 
-$(EMU_BUILD)/mip-emulator: $(EMU_DIR)/src/server.c $(EMU_BUILD)/libmipemu.a $(EMU_HDR)
-	$(CC) $(EMU_CFLAGS) -o $@ $< $(EMU_BUILD)/libmipemu.a
+EMU_CLI := $(EMU_DIR)/src/cli_config.c $(EMU_DIR)/src/cli_config.h
 
-$(EMU_BUILD)/mipemu-sim: $(EMU_DIR)/src/sim.c $(EMU_BUILD)/libmipemu.a $(EMU_HDR)
-	$(CC) $(EMU_CFLAGS) -o $@ $< $(EMU_BUILD)/libmipemu.a
+$(EMU_BUILD)/mip-emulator: $(EMU_DIR)/src/server.c $(EMU_CLI) $(EMU_BUILD)/libmipemu.a $(EMU_HDR)
+	$(CC) $(EMU_CFLAGS) -o $@ $< $(EMU_DIR)/src/cli_config.c $(EMU_BUILD)/libmipemu.a
+
+$(EMU_BUILD)/mipemu-sim: $(EMU_DIR)/src/sim.c $(EMU_CLI) $(EMU_BUILD)/libmipemu.a $(EMU_HDR)
+	$(CC) $(EMU_CFLAGS) -o $@ $< $(EMU_DIR)/src/cli_config.c $(EMU_BUILD)/libmipemu.a
 
 $(EMU_BUILD)/test_mipemu: $(EMU_DIR)/tests/test_mipemu.c $(EMU_BUILD)/libmipemu.a $(EMU_HDR)
 	$(CC) $(EMU_CFLAGS) -o $@ $< $(EMU_BUILD)/libmipemu.a -lm

@@ -2,6 +2,7 @@
  * One listening port for the MDP-810, one per TRM-810. epoll, non-blocking sockets; the core
  * answers every frame, this file only moves bytes. */
 #define _GNU_SOURCE
+#include "cli_config.h"
 #include "mipemu.h"
 
 #include <arpa/inet.h>
@@ -59,41 +60,10 @@ static const char USAGE[] =
     "  mip-emulator: listening mdp=HOST:PORT trm=PORT1,PORT2,...\n"
     "Register maps, status bits, radio timing and trace format: emulator/README.md.\n";
 
-__attribute__((noreturn, format(printf, 1, 2))) static void die_usage(const char *fmt, ...)
-{
-    va_list ap;
-    fprintf(stderr, PROG ": error: ");
-    va_start(ap, fmt);
-    vfprintf(stderr, fmt, ap);
-    va_end(ap);
-    fprintf(stderr, " (see --help)\n");
-    exit(2);
-}
-
 __attribute__((noreturn)) static void die_sys(const char *what)
 {
     fprintf(stderr, PROG ": error: %s: %s\n", what, strerror(errno));
     exit(1);
-}
-
-static long parse_long(const char *opt, const char *s, long lo, long hi)
-{
-    char *e;
-    errno = 0;
-    long v = strtol(s, &e, 10);
-    if (errno || e == s || *e || v < lo || v > hi)
-        die_usage("%s expects an integer %ld..%ld, got '%s'", opt, lo, hi, s);
-    return v;
-}
-
-static double parse_double(const char *opt, const char *s, double lo, double hi)
-{
-    char *e;
-    errno = 0;
-    double v = strtod(s, &e);
-    if (errno || e == s || *e || !(v >= lo && v <= hi))
-        die_usage("%s expects a number %g..%g, got '%s'", opt, lo, hi, s);
-    return v;
 }
 
 /* ---- connections ---- */
@@ -345,7 +315,7 @@ static int listen_on(const char *host, int port, int *bound_port)
 {
     struct sockaddr_in a = { .sin_family = AF_INET, .sin_port = htons((uint16_t)port) };
     if (inet_pton(AF_INET, host, &a.sin_addr) != 1)
-        die_usage("--host expects an IPv4 address, got '%s'", host);
+        cli_usage_error("--host expects an IPv4 address, got '%s'", host);
     int fd = socket(AF_INET, SOCK_STREAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
     if (fd < 0)
         die_sys("socket");
@@ -365,87 +335,55 @@ static int listen_on(const char *host, int port, int *bound_port)
 
 int main(int argc, char **argv)
 {
+    cli_prog = PROG;
     mipemu_config cfg;
     mipemu_config_default(&cfg);
     const char *host = "127.0.0.1";
     const char *trace_path = NULL;
     int mdp_port = 15020, trm_base = 15021;
 
-    enum { O_HOST = 256, O_MDP, O_TRM, O_STATIONS, O_MODE, O_STATIC, O_LDOWN, O_LUP, O_BURST, O_SEED,
-           O_BITRATE, O_GAP, O_OVERHEAD, O_FAILS, O_127, O_LOSE_RECORD, O_TRACE, O_HELP };
-    static const struct option opts[] = {
+    /* own options, then the network options of cli_config.c (long index >= N_OWN) */
+    enum { O_HOST = 256, O_MDP, O_TRM, O_TRACE, O_HELP, O_NET };
+    static const struct option own[] = {
         { "host", required_argument, 0, O_HOST },
         { "mdp-port", required_argument, 0, O_MDP },
         { "trm-base-port", required_argument, 0, O_TRM },
-        { "stations", required_argument, 0, O_STATIONS },
-        { "mode", required_argument, 0, O_MODE },
-        { "static-registers", required_argument, 0, O_STATIC },
-        { "loss-down", required_argument, 0, O_LDOWN },
-        { "loss-up", required_argument, 0, O_LUP },
-        { "burst", required_argument, 0, O_BURST },
-        { "seed", required_argument, 0, O_SEED },
-        { "bitrate", required_argument, 0, O_BITRATE },
-        { "slot-gap-ms", required_argument, 0, O_GAP },
-        { "overhead-bytes", required_argument, 0, O_OVERHEAD },
-        { "fail-polls", required_argument, 0, O_FAILS },
-        { "allow-127", no_argument, 0, O_127 },
-        { "lose-record", required_argument, 0, O_LOSE_RECORD },
         { "trace", required_argument, 0, O_TRACE },
         { "help", no_argument, 0, O_HELP },
-        { 0, 0, 0, 0 },
     };
+    enum { N_OWN = sizeof own / sizeof own[0] };
+    struct option opts[N_OWN + 32];
+    memcpy(opts, own, sizeof own);
+    for (int i = 0; i < cli_net_option_count; i++)
+        opts[N_OWN + i] = (struct option){ cli_net_options[i].name,
+                                           cli_net_options[i].has_value ? required_argument
+                                                                        : no_argument,
+                                           0, O_NET };
+    opts[N_OWN + cli_net_option_count] = (struct option){ 0, 0, 0, 0 };
     opterr = 0;
-    int o;
-    while ((o = getopt_long(argc, argv, ":", opts, NULL)) != -1) {
+    int o, idx;
+    while ((o = getopt_long(argc, argv, ":", opts, &idx)) != -1) {
         switch (o) {
         case O_HOST: host = optarg; break;
-        case O_MDP: mdp_port = (int)parse_long("--mdp-port", optarg, 0, 65535); break;
-        case O_TRM: trm_base = (int)parse_long("--trm-base-port", optarg, 0, 65535); break;
-        case O_STATIONS: cfg.stations = (int)parse_long("--stations", optarg, 1, MIPEMU_MAX_STATIONS); break;
-        case O_MODE:
-            if (!strcmp(optarg, "dynamic")) cfg.mode = MIPEMU_DYNAMIC;
-            else if (!strcmp(optarg, "static")) cfg.mode = MIPEMU_STATIC;
-            else die_usage("--mode expects static or dynamic, got '%s'", optarg);
-            break;
-        case O_STATIC: cfg.static_registers = (int)parse_long("--static-registers", optarg, 1, MIPEMU_AREA_REGS); break;
-        case O_LDOWN: cfg.loss_down = parse_double("--loss-down", optarg, 0, 1); break;
-        case O_LUP: cfg.loss_up = parse_double("--loss-up", optarg, 0, 1); break;
-        case O_BURST:
-            cfg.burst = parse_double("--burst", optarg, 0, 1e6);
-            if (cfg.burst != 0 && cfg.burst < 1)
-                die_usage("--burst expects 0 or a mean burst length >= 1, got '%s'", optarg);
-            break;
-        case O_SEED: {
-            char *e;
-            errno = 0;
-            unsigned long long v = strtoull(optarg, &e, 0);
-            if (errno || e == optarg || *e || optarg[0] == '-')
-                die_usage("--seed expects an unsigned integer, got '%s'", optarg);
-            cfg.seed = v;
-            break;
-        }
-        case O_BITRATE: cfg.bitrate = (uint32_t)parse_long("--bitrate", optarg, 300, 10000000); break;
-        case O_GAP: cfg.slot_gap_ns = (uint64_t)(parse_double("--slot-gap-ms", optarg, 0, 60000) * 1e6 + 0.5); break;
-        case O_OVERHEAD: cfg.overhead_bytes = (int)parse_long("--overhead-bytes", optarg, 1, 255); break;
-        case O_FAILS: cfg.fail_polls = (int)parse_long("--fail-polls", optarg, 1, 255); break;
-        case O_127: cfg.allow_127 = 1; break;
-        case O_LOSE_RECORD: cfg.lose_record = (int)parse_long("--lose-record", optarg, 0, 65535); break;
+        case O_MDP: mdp_port = (int)cli_long("--mdp-port", optarg, 0, 65535); break;
+        case O_TRM: trm_base = (int)cli_long("--trm-base-port", optarg, 0, 65535); break;
         case O_TRACE: trace_path = optarg; break;
         case O_HELP: fputs(USAGE, stdout); return 0;
-        case ':': die_usage("option %s needs a value", argv[optind - 1]);
+        case O_NET: cli_net_option_apply(&cfg, idx - N_OWN, optarg); break;
+        case ':': cli_usage_error("option %s needs a value", argv[optind - 1]);
         default:
-            die_usage("unknown option '%s'", argv[optind - 1]);
+            cli_usage_error("unknown option '%s'", argv[optind - 1]);
         }
     }
     if (optind < argc)
-        die_usage("unexpected argument '%s'", argv[optind]);
+        cli_usage_error("unexpected argument '%s'", argv[optind]);
     if (trm_base != 0 && trm_base + cfg.stations - 1 > 65535)
-        die_usage("--trm-base-port %d leaves no room for %d stations", trm_base, cfg.stations);
+        cli_usage_error("--trm-base-port %d leaves no room for %d stations", trm_base, cfg.stations);
 
     char err[160];
     g_net = mipemu_net_new(&cfg, err, sizeof err);
     if (!g_net)
-        die_usage("%s", err);
+        cli_usage_error("%s", err);
 
     if (trace_path) {
         g_trace = strcmp(trace_path, "-") ? fopen(trace_path, "w") : stdout;

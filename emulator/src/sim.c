@@ -1,5 +1,6 @@
 /* mipemu-sim: runs the mipemu core in virtual time from a script and prints the trace.
  * Same seed and script: the same bytes on every machine (for docs and sequence diagrams). */
+#include "cli_config.h"
 #include "mipemu.h"
 
 #include <errno.h>
@@ -17,7 +18,7 @@ static const char USAGE[] =
     "\n"
     "Network options as for mip-emulator: --stations N, --mode static|dynamic,\n"
     "--static-registers N, --loss-down P, --loss-up P, --burst L, --seed S, --bitrate B,\n"
-    "--slot-gap-ms MS, --overhead-bytes N, --fail-polls N, --allow-127.\n"
+    "--slot-gap-ms MS, --overhead-bytes N, --fail-polls N, --allow-127, --lose-record N.\n"
     "\n"
     "Script lines ('#' starts a comment):\n"
     "  at SECONDS                  advance virtual time to SECONDS (never backwards)\n"
@@ -39,27 +40,6 @@ __attribute__((noreturn, format(printf, 2, 3))) static void script_error(int col
     va_end(ap);
     fputc('\n', stderr);
     exit(2);
-}
-
-__attribute__((noreturn, format(printf, 1, 2))) static void usage_error(const char *fmt, ...)
-{
-    va_list ap;
-    fprintf(stderr, PROG ": error: ");
-    va_start(ap, fmt);
-    vfprintf(stderr, fmt, ap);
-    va_end(ap);
-    fprintf(stderr, " (see --help)\n");
-    exit(2);
-}
-
-static double num(const char *opt, const char *s, double lo, double hi)
-{
-    char *e;
-    errno = 0;
-    double v = strtod(s, &e);
-    if (errno || e == s || *e || !(v >= lo && v <= hi))
-        usage_error("%s expects a number %g..%g, got '%s'", opt, lo, hi, s);
-    return v;
 }
 
 static void trace_out(void *user, const char *line, size_t len)
@@ -163,40 +143,29 @@ static void request(mipemu_net *net, tok_t *tk, int nt, unsigned tid)
 
 int main(int argc, char **argv)
 {
+    cli_prog = PROG;
     mipemu_config c;
     mipemu_config_default(&c);
     const char *script = NULL;
     for (int i = 1; i < argc; i++) {
         const char *o = argv[i];
         const char *v = i + 1 < argc ? argv[i + 1] : NULL;
-#define NEEDV() do { if (!v) usage_error("option %s needs a value", o); i++; } while (0)
+#define NEEDV() do { if (!v) cli_usage_error("option %s needs a value", o); i++; } while (0)
         if (!strcmp(o, "--help")) { fputs(USAGE, stdout); return 0; }
-        else if (!strcmp(o, "--allow-127")) c.allow_127 = 1;
-        else if (!strcmp(o, "--stations")) { NEEDV(); c.stations = (int)num(o, v, 1, MIPEMU_MAX_STATIONS); }
-        else if (!strcmp(o, "--mode")) {
-            NEEDV();
-            if (!strcmp(v, "static")) c.mode = MIPEMU_STATIC;
-            else if (!strcmp(v, "dynamic")) c.mode = MIPEMU_DYNAMIC;
-            else usage_error("--mode expects static or dynamic, got '%s'", v);
+        else if (o[0] == '-' && o[1] == '-' && cli_net_option_find(o + 2) >= 0) {
+            int k = cli_net_option_find(o + 2);
+            if (cli_net_options[k].has_value) NEEDV();
+            cli_net_option_apply(&c, k, cli_net_options[k].has_value ? v : NULL);
         }
-        else if (!strcmp(o, "--static-registers")) { NEEDV(); c.static_registers = (int)num(o, v, 1, MIPEMU_AREA_REGS); }
-        else if (!strcmp(o, "--loss-down")) { NEEDV(); c.loss_down = num(o, v, 0, 1); }
-        else if (!strcmp(o, "--loss-up")) { NEEDV(); c.loss_up = num(o, v, 0, 1); }
-        else if (!strcmp(o, "--burst")) { NEEDV(); c.burst = num(o, v, 0, 1e6); }
-        else if (!strcmp(o, "--seed")) { NEEDV(); c.seed = (uint64_t)num(o, v, 0, 9007199254740992.0); }
-        else if (!strcmp(o, "--bitrate")) { NEEDV(); c.bitrate = (uint32_t)num(o, v, 300, 10000000); }
-        else if (!strcmp(o, "--slot-gap-ms")) { NEEDV(); c.slot_gap_ns = (uint64_t)(num(o, v, 0, 60000) * 1e6 + 0.5); }
-        else if (!strcmp(o, "--overhead-bytes")) { NEEDV(); c.overhead_bytes = (int)num(o, v, 1, 255); }
-        else if (!strcmp(o, "--fail-polls")) { NEEDV(); c.fail_polls = (int)num(o, v, 1, 255); }
-        else if (o[0] == '-' && o[1]) usage_error("unknown option '%s'", o);
-        else if (script) usage_error("unexpected argument '%s'", o);
+        else if (o[0] == '-' && o[1]) cli_usage_error("unknown option '%s'", o);
+        else if (script) cli_usage_error("unexpected argument '%s'", o);
         else script = o;
 #undef NEEDV
     }
     char err[160];
     mipemu_net *net = mipemu_net_new(&c, err, sizeof err);
     if (!net)
-        usage_error("%s", err);
+        cli_usage_error("%s", err);
     FILE *f = stdin;
     if (script && strcmp(script, "-")) {
         f = fopen(script, "r");
