@@ -1,6 +1,8 @@
 """Fixtures of the runtime tests (helpers that tests import live in rt_helpers.py)."""
 import pytest
 
+from rt_helpers import ModbusServer
+
 
 @pytest.fixture
 def st_file(tmp_path):
@@ -10,3 +12,11 @@ def st_file(tmp_path):
         p.write_text(text)
         return p
     return write
+
+
+@pytest.fixture
+def server():
+    """A Modbus TCP server on 127.0.0.1 (rt_helpers.ModbusServer), closed after the test."""
+    srv = ModbusServer()
+    yield srv
+    srv.close()

@@ -38,6 +38,38 @@ def compiler_param(name):
 COMPILERS = [compiler_param("stc"), compiler_param("matiec")]
 
 
+def one_task(pou: str, interval: str = "T#10ms") -> str:
+    """ST source: the POUs (PROGRAM MAIN ...) and the configuration every runtime test uses, one
+    cyclic task running MAIN as instance0."""
+    return (pou + "CONFIGURATION Config0\nRESOURCE Res0 ON PLC\n"
+            f"TASK task0(INTERVAL := {interval}, PRIORITY := 0);\n"
+            "PROGRAM instance0 WITH task0 : MAIN;\nEND_RESOURCE\nEND_CONFIGURATION\n")
+
+
+# counts its scans in %QW100 (what the executable's tests read over Modbus)
+COUNTER = one_task("""
+PROGRAM MAIN
+VAR count AT %QW100 : WORD; END_VAR
+count := UINT_TO_WORD(WORD_TO_UINT(count) + 1);
+END_PROGRAM
+""")
+
+# the smallest program: one variable, one statement
+TINY = one_task("""
+PROGRAM MAIN
+VAR x : INT; END_VAR
+x := x + 1;
+END_PROGRAM
+""")
+
+
+def free_port() -> int:
+    import socket
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
 class ModbusServer:
     """A small Modbus TCP server on 127.0.0.1 (thread per connection) for the master's tests:
     holding and input registers, FC 3/4/6/16, a log of (function, address, count)."""

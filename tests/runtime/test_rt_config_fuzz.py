@@ -7,20 +7,8 @@ import subprocess
 import pytest
 
 from plcharness import build_program
-from rt_helpers import compiler_param
+from rt_helpers import TINY, compiler_param
 
-PROG = """
-PROGRAM MAIN
-VAR x : INT; END_VAR
-x := x + 1;
-END_PROGRAM
-CONFIGURATION Config0
-RESOURCE Res0 ON PLC
-TASK task0(INTERVAL := T#10ms, PRIORITY := 0);
-PROGRAM instance0 WITH task0 : MAIN;
-END_RESOURCE
-END_CONFIGURATION
-"""
 
 GOOD = """[master]
 polling_period = 100ms
@@ -85,7 +73,7 @@ def mangle(text, rng):
 
 @pytest.mark.parametrize("compiler", [compiler_param("stc")])
 def test_mangled_configs_never_crash(compiler, st_file, tmp_path):
-    exe = build_program([st_file(PROG)], tmp_path / "out", compiler=compiler).executable
+    exe = build_program([st_file(TINY)], tmp_path / "out", compiler=compiler).executable
     rng = random.Random(1234)
     cfg = tmp_path / "fuzz.conf"
     outcomes = {0: 0, 2: 0}

@@ -1,7 +1,8 @@
 """The example test of docs/runtime-harness.md, verbatim, so the page stays true."""
+from rt_helpers import one_task
 from plcharness import Plc
 
-PROG = """
+PROG = one_task("""
 PROGRAM MAIN
 VAR
   xStart : BOOL;
@@ -15,13 +16,7 @@ tWait(IN := xStart, PT := T#100ms);
 IF tWait.Q THEN nCount := nCount + 1; END_IF;
 wOut := UINT_TO_WORD(nCount);
 END_PROGRAM
-CONFIGURATION Config0
-RESOURCE Res0 ON PLC
-TASK task0(INTERVAL := T#10ms, PRIORITY := 0);
-PROGRAM instance0 WITH task0 : MAIN;
-END_RESOURCE
-END_CONFIGURATION
-"""
+""")
 
 
 def test_timer_fires_after_100ms_of_virtual_time(tmp_path):

@@ -4,20 +4,8 @@ import subprocess
 import pytest
 
 from plcharness import build_program
-from rt_helpers import COMPILERS, ModbusServer
+from rt_helpers import COMPILERS, COUNTER
 
-COUNTER = """
-PROGRAM MAIN
-VAR count AT %QW100 : WORD; END_VAR
-count := UINT_TO_WORD(WORD_TO_UINT(count) + 1);
-END_PROGRAM
-CONFIGURATION Config0
-RESOURCE Res0 ON PLC
-TASK task0(INTERVAL := T#10ms, PRIORITY := 0);
-PROGRAM instance0 WITH task0 : MAIN;
-END_RESOURCE
-END_CONFIGURATION
-"""
 
 CONFIG = """
 [device out]
@@ -30,13 +18,6 @@ size = 1
 image = %QW100
 policy = change
 """
-
-
-@pytest.fixture
-def server():
-    srv = ModbusServer()
-    yield srv
-    srv.close()
 
 
 def run(exe, *args):

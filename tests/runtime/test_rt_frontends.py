@@ -7,20 +7,9 @@ import sys
 
 import pytest
 
+from rt_helpers import TINY
 from plcharness import build_program
 
-PROG = """
-PROGRAM MAIN
-VAR x : INT; END_VAR
-x := x + 1;
-END_PROGRAM
-CONFIGURATION Config0
-RESOURCE Res0 ON PLC
-TASK task0(INTERVAL := T#10ms, PRIORITY := 0);
-PROGRAM instance0 WITH task0 : MAIN;
-END_RESOURCE
-END_CONFIGURATION
-"""
 
 GOOD = "[master]\npolling_period = 100ms\n[device d]\nhost = 127.0.0.1\n"
 
@@ -29,7 +18,7 @@ GOOD = "[master]\npolling_period = 100ms\n[device d]\nhost = 127.0.0.1\n"
 def exe(tmp_path_factory):
     out = tmp_path_factory.mktemp("fe")
     src = out / "p.st"
-    src.write_text(PROG)
+    src.write_text(TINY)
     return build_program([src], out / "out", compiler="stc").executable
 
 
@@ -43,8 +32,6 @@ def one_line(proc):
     assert proc.returncode == 2, proc
     assert proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr, proc.stderr
     return proc.stderr.strip()
-
-
 
 
 @pytest.mark.parametrize("what", ["directory", "dev_zero", "fifo", "nul", "large"])
@@ -92,7 +79,7 @@ def build_cli(*args):
 ])
 def test_build_to_a_bad_output_path_is_one_line(tmp_path, out, expect):
     src = tmp_path / "p.st"
-    src.write_text(PROG)
+    src.write_text(TINY)
     if out == "FILE":
         out = tmp_path / "afile"
         out.write_text("keep me")
@@ -123,7 +110,7 @@ def test_build_of_a_bad_source_is_one_line(tmp_path, src, expect):
 
 def test_build_can_rebuild_into_its_own_output(tmp_path):
     src = tmp_path / "p.st"
-    src.write_text(PROG)
+    src.write_text(TINY)
     for _ in range(2):
         proc = build_cli("-o", tmp_path / "out", src)
         assert proc.returncode == 0, proc.stderr

@@ -2,9 +2,9 @@
 import pytest
 
 from plcharness import BuildError, Plc, PlcError
-from rt_helpers import COMPILERS, compiler_param
+from rt_helpers import COMPILERS, compiler_param, one_task
 
-PROG = """
+PROG = one_task("""
 TYPE E_State : (ST_IDLE, ST_BUSY); END_TYPE
 FUNCTION_BLOCK FB_Count
 VAR_INPUT xIn : BOOL; END_VAR
@@ -25,13 +25,7 @@ bit := sender.xBusy;
 IF flag THEN big := big + 100000; END_IF;
 tElapsed := sender.tEt;
 END_PROGRAM
-CONFIGURATION Config0
-RESOURCE Res0 ON PLC
-TASK task0(INTERVAL := T#10ms, PRIORITY := 0);
-PROGRAM instance0 WITH task0 : MAIN;
-END_RESOURCE
-END_CONFIGURATION
-"""
+""")
 
 
 @pytest.fixture(params=COMPILERS)
@@ -121,7 +115,7 @@ def test_real_time_scans_run_the_program(plc):
         plc.scan()
 
 
-ARRAYS = """
+ARRAYS = one_task("""
 TYPE T_Buf : ARRAY[0..3] OF WORD; END_TYPE
 PROGRAM MAIN
 VAR buf : T_Buf; grid : ARRAY[1..2, 1..3] OF INT; sum : UINT; i : INT; END_VAR
@@ -129,13 +123,7 @@ sum := 0;
 FOR i := 0 TO 3 DO sum := sum + WORD_TO_UINT(buf[i]); END_FOR;
 grid[2, 3] := grid[2, 3] + 1;
 END_PROGRAM
-CONFIGURATION Config0
-RESOURCE Res0 ON PLC
-TASK task0(INTERVAL := T#20ms, PRIORITY := 0);
-PROGRAM instance0 WITH task0 : MAIN;
-END_RESOURCE
-END_CONFIGURATION
-"""
+""", "T#20ms")
 
 
 @pytest.mark.parametrize("compiler", COMPILERS)
@@ -181,7 +169,7 @@ def test_program_without_a_task_is_a_clear_error(compiler, st_file, tmp_path):
     assert "ABI" in msg or "no task" in msg, msg
 
 
-STRUCTS = """
+STRUCTS = one_task("""
 TYPE S_Point : STRUCT x : INT; tags : ARRAY[1..2] OF WORD; END_STRUCT; END_TYPE
 FUNCTION_BLOCK FB_Hold
 VAR_INPUT pIn : S_Point; END_VAR
@@ -194,13 +182,7 @@ VAR p : S_Point; h : FB_Hold; END_VAR
 p.x := p.x + 1;
 h(pIn := p);
 END_PROGRAM
-CONFIGURATION Config0
-RESOURCE Res0 ON PLC
-TASK task0(INTERVAL := T#10ms, PRIORITY := 0);
-PROGRAM instance0 WITH task0 : MAIN;
-END_RESOURCE
-END_CONFIGURATION
-"""
+""")
 
 
 @pytest.mark.parametrize("compiler", COMPILERS)

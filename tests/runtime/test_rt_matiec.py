@@ -2,9 +2,9 @@
 from plcharness import Plc, PlcError
 import pytest
 
-from rt_helpers import needs_matiec
+from rt_helpers import needs_matiec, one_task
 
-PROG = """
+PROG = one_task("""
 TYPE E_St : (IDLE, BUSY); END_TYPE
 FUNCTION_BLOCK FB_Count
 VAR_INPUT xIn : BOOL; END_VAR
@@ -22,13 +22,7 @@ x := x + 1;
 outw := inw;
 bit := sender.xBusy;
 END_PROGRAM
-CONFIGURATION Config0
-RESOURCE Res0 ON PLC
-TASK task0(INTERVAL := T#10ms, PRIORITY := 0);
-PROGRAM instance0 WITH task0 : MAIN;
-END_RESOURCE
-END_CONFIGURATION
-"""
+""")
 
 
 @needs_matiec

@@ -3,9 +3,9 @@ harness in virtual time against a Modbus TCP server on 127.0.0.1."""
 import pytest
 
 from plcharness import Plc, PlcError
-from rt_helpers import COMPILERS, ModbusServer, compiler_param
+from rt_helpers import COMPILERS, ModbusServer, compiler_param, one_task
 
-HANDSHAKE = """
+HANDSHAKE = one_task("""
 PROGRAM MAIN
 VAR
   xTrig AT %QX10.0 : BOOL;
@@ -34,13 +34,7 @@ ELSIF xTrig AND (xDone OR xErr) THEN
   xTrig := FALSE;
 END_IF;
 END_PROGRAM
-CONFIGURATION Config0
-RESOURCE Res0 ON PLC
-TASK task0(INTERVAL := T#10ms, PRIORITY := 0);
-PROGRAM instance0 WITH task0 : MAIN;
-END_RESOURCE
-END_CONFIGURATION
-"""
+""")
 
 CONFIG = """
 [master]
@@ -74,12 +68,6 @@ image = %IW300
 policy = cycle
 """
 
-
-@pytest.fixture
-def server():
-    srv = ModbusServer()
-    yield srv
-    srv.close()
 
 
 @pytest.mark.parametrize("compiler", COMPILERS)

@@ -13,26 +13,8 @@ import time
 
 import pytest
 
+from rt_helpers import COUNTER, free_port
 from plcharness import build_program
-
-COUNTER = """
-PROGRAM MAIN
-VAR count AT %QW100 : WORD; END_VAR
-count := UINT_TO_WORD(WORD_TO_UINT(count) + 1);
-END_PROGRAM
-CONFIGURATION Config0
-RESOURCE Res0 ON PLC
-TASK task0(INTERVAL := T#10ms, PRIORITY := 0);
-PROGRAM instance0 WITH task0 : MAIN;
-END_RESOURCE
-END_CONFIGURATION
-"""
-
-
-def free_port():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def read_counter(sock, tid):

@@ -3,21 +3,15 @@ first answer twice) is dropped and counted, and never lands in the next range's 
 import pytest
 
 from plcharness import Plc
-from rt_helpers import COMPILERS, ModbusServer
+from rt_helpers import COMPILERS, ModbusServer, one_task
 
-PROG = """
+PROG = one_task("""
 PROGRAM MAIN
 VAR a AT %IW500 : WORD; b AT %IW510 : WORD; END_VAR
 VAR n : UDINT; END_VAR
 n := n + 1;   (* matiec rejects a PROGRAM without statements *)
 END_PROGRAM
-CONFIGURATION Config0
-RESOURCE Res0 ON PLC
-TASK task0(INTERVAL := T#10ms, PRIORITY := 0);
-PROGRAM instance0 WITH task0 : MAIN;
-END_RESOURCE
-END_CONFIGURATION
-"""
+""")
 
 CONFIG = """
 [device modem]
