@@ -51,5 +51,19 @@ def test_matiec_rejects(path, tmp_path):
     r = _iec2c(path, str(tmp_path))
     if "(* MATIEC-ACCEPTS:" in text:
         assert r.returncode == 0, "marked MATIEC-ACCEPTS but matiec rejects it: remove the mark"
+        mark = text.split("(* MATIEC-ACCEPTS:", 1)[1].split("*)", 1)[0]
+        if "C does not compile" in mark:
+            # the reason stc refuses it must hold: matiec's C of it fails to compile
+            # a file without a CONFIGURATION gives only POUS.c: compile it the way a
+            # resource file includes it
+            unit = os.path.join(str(tmp_path), "unit.c")
+            with open(unit, "w") as u:
+                u.write('#include "iec_std_lib.h"\n#include "accessor.h"\n'
+                        '#include "POUS.h"\n#include "POUS.c"\n')
+            results = [subprocess.run(["cc", "-c", "-w", "-I", os.path.join(MATIEC_LIB, "C"),
+                                       "-I", str(tmp_path), "-o", os.devnull, unit],
+                                      capture_output=True, text=True).returncode]
+            assert any(rc != 0 for rc in results), \
+                f"marked 'C does not compile' but matiec's C of {path} compiles: remove the mark"
     else:
         assert r.returncode != 0, f"matiec accepts {path}, so stc should too"

@@ -403,9 +403,8 @@ class Checker:
             if pou.rtype.is_fb:
                 self.err(n.rtype.pos, "a FUNCTION cannot return a function block")
             elif pou.rtype.is_struct:
-                self.err(n.rtype.pos, "a FUNCTION returning a STRUCT is not portable (matiec "
-                         "accepts it but its C does not compile): use a VAR_IN_OUT or a "
-                         "FUNCTION_BLOCK")
+                self.err(n.rtype.pos, "a FUNCTION returning a STRUCT is not supported by stc: "
+                         "use a VAR_IN_OUT or a FUNCTION_BLOCK")
             elif pou.rtype.is_array and pou.rtype.name is None:
                 self.err(n.rtype.pos, "a FUNCTION returning an anonymous ARRAY cannot be "
                          "assigned anywhere (matiec rejects assigning anonymous ARRAY types): "
@@ -1119,11 +1118,10 @@ class Checker:
                 return T.TIME
             self.fail(e.pos, f"TIME {op} {rt}: the right operand must be a number")
         if op == "*" and rt.is_elem and rt.kind == "time" and (lt.is_lit or lt.is_elem and lt.is_num):
-            if lt.is_lit:
-                self.settle(e.left, T.DINT if lt.kind == "int" else T.ELEMENTARY["LREAL"])
-            e.swap = True
-            self._warn_time_scale(e, e.right, e.left)
-            return T.TIME
+            # matiec accepts it, but its C passes the number as the TIME argument of __time_mul
+            # and does not compile (checked with iec2c): refuse it here, where the line is known
+            self.fail(e.pos, "number * TIME: matiec's generated C does not compile this order; "
+                      "write TIME * number")
         if op in ("+", "-") and lt.is_elem and lt.kind == "time":
             if rt.is_elem and rt.kind == "time":
                 return T.TIME
