@@ -218,12 +218,16 @@ int plcrt_run_realtime(plcrt_t *rt, uint64_t max_scans, volatile int *stop)
             if (late > rt->stats.max_late_ns) rt->stats.max_late_ns = late;
         }
         pthread_mutex_lock(&rt->image_lock);
-        if (rt->master) {
-            plcrt_master_exchange_out(rt, rt->master);
+        if (rt->master)
             plcrt_master_exchange_in(rt, rt->master);
-        }
         rt->time_ns = due - t0;
         run_program(rt);
+        /* Outputs and trigger edges go to the master thread as soon as the scan ends (as a
+         * PLC writes its output image), so a request raised in scan k is done in the idle time
+         * after it and its result is in the image of scan k+1: the same scan-level timing as
+         * virtual time. Exchanging at the start of the next scan cost one scan per request. */
+        if (rt->master)
+            plcrt_master_exchange_out(rt, rt->master);
         pthread_mutex_unlock(&rt->image_lock);
         rt->tick++;
         rt->stats.scans++;
