@@ -55,6 +55,30 @@ class MatrixError(Exception):
     """The matrix could not run (build missing, a process would not start): not a cell result."""
 
 
+# mip-emulator radio timing: the matrix runs on the fast radio; timing.py also on the realistic
+# one (the co-simulation's Radio.realistic(): 9600 bit/s, 20 ms slot gap, 12 bytes overhead)
+FAST_RADIO = ("--bitrate", "1000000", "--slot-gap-ms", "1")
+REALISTIC_RADIO = ("--bitrate", "9600", "--slot-gap-ms", "20", "--overhead-bytes", "12")
+
+
+def start_emulator(procs, workdir: Path, seed: int, radio=FAST_RADIO, loss=0.0,
+                   static_registers=0):
+    """Starts mip-emulator (1 station, free ports, trace in workdir/trace.jsonl) under `procs`;
+    returns (mdp port, trm port)."""
+    args = [str(EMU), "--mdp-port", "0", "--trm-base-port", "0", "--stations", "1",
+            "--seed", str(seed), *radio, "--trace", str(workdir / "trace.jsonl"),
+            "--loss-up", str(loss), "--loss-down", str(loss)]
+    if static_registers:
+        args += ["--mode", "static", "--static-registers", str(static_registers)]
+    p = procs.start("mip-emulator", args, workdir / "emulator.log",
+                    stdout=subprocess.PIPE, text=True)
+    line = p.stdout.readline().strip()
+    if not line.startswith("mip-emulator: listening"):
+        raise MatrixError(f"mip-emulator did not start: {line!r}")
+    fields = dict(kv.split("=", 1) for kv in line.split()[2:])
+    return int(fields["mdp"].rsplit(":", 1)[1]), int(fields["trm"].split(",")[0])
+
+
 @dataclass(frozen=True)
 class Cell:
     ours: str
@@ -204,21 +228,10 @@ class CellRun:
 
     # -- processes
     def start_emulator(self):
-        args = [str(EMU), "--mdp-port", "0", "--trm-base-port", "0", "--stations", "1",
-                "--seed", str(self.seed), "--bitrate", "1000000", "--slot-gap-ms", "1",
-                "--trace", str(self.dir / "trace.jsonl")]
         loss = self.cfg.loss if self.cell.fault == "loss30" else 0.0
-        args += ["--loss-up", str(loss), "--loss-down", str(loss)]
-        if self.static:
-            args += ["--mode", "static", "--static-registers", str(self.cfg.static_registers)]
-        p = self.procs.start("mip-emulator", args, self.dir / "emulator.log",
-                             stdout=subprocess.PIPE, text=True)
-        line = p.stdout.readline().strip()
-        if not line.startswith("mip-emulator: listening"):
-            raise MatrixError(f"mip-emulator did not start: {line!r}")
-        fields = dict(kv.split("=", 1) for kv in line.split()[2:])
-        self.mdp = int(fields["mdp"].rsplit(":", 1)[1])
-        self.trm = int(fields["trm"].split(",")[0])
+        self.mdp, self.trm = start_emulator(
+            self.procs, self.dir, self.seed, FAST_RADIO, loss,
+            self.cfg.static_registers if self.static else 0)
 
     def start_plc(self):
         role = "outstation" if self.cell.ours == "sender" else "central"
