@@ -142,3 +142,58 @@ def test_block_doc_header(block):
         documented |= {n.strip() for n in row.split(",")}
     missing = [n for n in _declared(_code(text)) if n not in documented]
     assert not missing, f"not in the interface table of {block}: {missing}"
+
+
+# the naming scheme of st_lib/README.md ("Naming"): type prefixes of variables, library
+# prefixes of POUs, types and enumeration values
+_TYPE_PREFIX = {"BOOL": "x", "UINT": "u", "INT": "i", "DINT": "di", "UDINT": "udi",
+                "WORD": "w", "TIME": "t"}
+_STD_FB = {"R_TRIG": "rt", "F_TRIG": "ft", "TON": "ton", "TOF": "tof", "TP": "tp"}
+
+
+def _declarations():
+    """(file, name, type) of every variable declared in st_lib/, comments removed."""
+    out = []
+    for p in LIB_PATHS:
+        text = re.sub(r"\(\*.*?\*\)", "", Path(p).read_text(), flags=re.S)
+        for block in re.findall(r"\bVAR(?:_INPUT|_OUTPUT|_IN_OUT|_GLOBAL)?\b(.*?)\bEND_VAR\b",
+                                text, flags=re.S):
+            for m in re.finditer(r"([A-Za-z_]\w*(?:\s*,\s*[A-Za-z_]\w*)*)\s*:\s*([A-Za-z_]\w*)",
+                                 block):
+                for name in (n.strip() for n in m.group(1).split(",")):
+                    out.append((Path(p).name, name, m.group(2)))
+    return out
+
+
+def test_every_declaration_follows_the_naming_scheme():
+    decls = _declarations()
+    assert len(decls) > 100, "the declaration scan found too little: fix the test"
+    bad = []
+    for f, name, ty in decls:
+        if name == "i" and ty in ("INT", "UINT"):
+            continue                                    # loop counters
+        want = _TYPE_PREFIX.get(ty) or _STD_FB.get(ty)
+        if ty.startswith("E_MIP_"):
+            want = "e"
+        elif ty.startswith("MIP_T_") or ty == "ARRAY":
+            want = "a"
+        elif ty.startswith("MIP_"):
+            continue                                    # internal instances: named by role
+        if want is None:
+            bad.append(f"{f}: {name} : {ty} (a type the scheme does not name)")
+        elif not re.fullmatch(re.escape(want) + r"[A-Z0-9]\w*", name):
+            bad.append(f"{f}: {name} : {ty} (want the prefix {want!r})")
+    assert not bad, "names outside st_lib/README.md's scheme:\n" + "\n".join(bad)
+
+
+def test_every_pou_type_and_enum_value_carries_the_library_prefix():
+    text = "".join(re.sub(r"\(\*.*?\*\)", "", Path(p).read_text(), flags=re.S)
+                   for p in LIB_PATHS)
+    pous = re.findall(r"^\s*(?:FUNCTION_BLOCK|FUNCTION)\s+(\w+)", text, flags=re.M)
+    types = re.findall(r"^\s*(\w+)\s*:\s*(?:ARRAY|STRUCT|\()", text, flags=re.M)
+    assert pous and types
+    assert all(n.startswith("MIP_") for n in pous), pous
+    assert all(n.startswith(("MIP_T_", "E_MIP_")) for n in types), types
+    for body in re.findall(r"\bE_MIP_\w+\s*:\s*\((.*?)\)\s*;", text, flags=re.S):
+        values = [v.strip() for v in body.split(",")]
+        assert all(re.fullmatch(r"MIP_[A-Z]+_[A-Z0-9_]+", v) for v in values), values

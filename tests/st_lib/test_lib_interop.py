@@ -331,7 +331,7 @@ def test_one_scan_from_ack_to_next_write_request(wd, polled, buffer):
     data = pattern(6 * 122, seed=311)
     u = Uni(wd, data, polled=polled, timeout_ms=300, buffer=buffer)
     if buffer:
-        u.snd["uLength"] = 6 * 122
+        u.snd["udiLength"] = 6 * 122
     events = []
 
     class Probe:

@@ -54,7 +54,7 @@ def change_sender(fb):
 
 def test_buffer_sender_parameters_latched(wd):
     """The issue's case: MIP_BufferSender with 600 registers, uChunkSize 123 -> 61 after record
-    2 (plus uLength and every other parameter): exactly the 600 registers arrive, in records
+    2 (plus udiLength and every other parameter): exactly the 600 registers arrive, in records
     of 122, and record 3's two losses are retried as configured at the start (tTimeout 300 ms,
     unlimited retries), not with the new values (10 ms, 1 retry)."""
     u = Uni(wd, buffer=True, timeout_ms=300, fate=drop_n(3, 2))
@@ -62,11 +62,11 @@ def test_buffer_sender_parameters_latched(wd):
     u.plc_o["MAIN.bs_fill"] = True
     u.bench.step(1)
     u.plc_o["MAIN.bs_fill"] = False
-    u.snd["uLength"] = 600
+    u.snd["udiLength"] = 600
 
     def change():
         change_sender(u.snd)
-        u.snd["uLength"] = 100
+        u.snd["udiLength"] = 100
     u.bench.parts.insert(0, When(lambda: u.snd["udiRecords"] == 2, change))
     assert u.send(limit=5000) == "done"
     assert u.sink.transfers == [buffer_pattern(600, 3)]

@@ -178,18 +178,18 @@ def test_buffer_sender(wd, length):
     u.plc_o["MAIN.bs_fill"] = True
     u.bench.step(1)
     u.plc_o["MAIN.bs_fill"] = False
-    u.snd["uLength"] = length
+    u.snd["udiLength"] = length
     assert u.send(limit=40000) == "done"
     assert u.sink.transfers == [buffer_pattern(length, 5)]
 
 
 def test_buffer_sender_empty_and_too_long(wd):
     u = Uni(wd, buffer=True)
-    u.snd["uLength"] = 0
+    u.snd["udiLength"] = 0
     u.bench.step(2)
     assert u.send() == "done"
     assert [(n, len(p)) for n, p in u.sink.records] == [(1, 0), (FFFF, 0)]
-    u.snd["uLength"] = 8193
+    u.snd["udiLength"] = 8193
     u.snd["xExecute"] = True
     u.bench.step(3)
     assert u.snd["xError"] and u.snd["eErrorId"] == E_BUFFER_LEN
