@@ -865,11 +865,7 @@ class Gen:
                 return f"({a} {cop} {b})"
             return f"(({t.ctype})({a} {cop} {b}))"
         if t.kind == "time":
-            if getattr(e, "swap", False):
-                a, b = b, a
-                rt = e.left.ty
-            else:
-                rt = e.right.ty
+            rt = e.right.ty           # TIME op number: check.py refuses number * TIME
             if op in ("+", "-"):
                 return f"((int64_t)((uint64_t){a} {op} (uint64_t){b}))"
             if self.matiec:
