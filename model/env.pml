@@ -16,6 +16,16 @@
  * nothing: loss < 1), TT timer expiry in poll slots, RST_S / RST_R restarts of the sending /
  * receiving PLC, SSIDE the sender's modem (1 = outstation sends to the central, as in the
  * note's example; 0 = central sends to the outstation), POLLED drive (1) or spontaneous (0).
+ *
+ * Bidirectional layout (note 2.2, MIP_Link), BIDI = 1: every block carries both streams'
+ * registers, the checked stream's (c: record counter on the sender's side, acknowledgement on
+ * the receiver's) and the other stream's (abstracted away: x stays 0, no echo). The other
+ * stream shows only as NBW extra writes per side at any moment (its records and its
+ * acknowledgements), each carrying that side's current state of the checked stream: they
+ * overwrite unsent blocks, re-send records and acknowledgements and produce new telegrams
+ * with an unchanged number. C3 = 1 (configuration rule C3 of PROTOCOL.md: each side reads its
+ * read area at least once per poll cycle) keeps the radio from delivering a block into a read
+ * area that still holds unread data; C3 = 0 lets a PLC be arbitrarily slow.
  */
 
 #ifndef NREC
@@ -44,6 +54,15 @@
 #endif
 #ifndef POLLED
 #define POLLED 0
+#endif
+#ifndef BIDI
+#define BIDI 0
+#endif
+#ifndef NBW
+#define NBW 2
+#endif
+#ifndef C3
+#define C3 1
 #endif
 
 #define MDP 0
@@ -74,6 +93,9 @@ bool r_stuck;                      /* our receiver raised MIP_ERR_PEER_OUT_OF_ST
 
 /* ---- bounded faults ---- */
 byte rst_s = RST_S, rst_r = RST_R;
+#if BIDI
+byte nbw[2] = NBW;                 /* extra writes left per side (the other stream's traffic) */
+#endif
 
 /* ---- ghosts ---- */
 byte g_next;                       /* last transfer attempt id the sender used */
@@ -96,6 +118,18 @@ inline mb_write(wm, vc, vx, vt, vi) {
         :: (POLLED && wm == R) || (!POLLED && wm == S) -> tmr[wm] = 0
         :: else -> skip
         fi
+    }
+}
+
+/* BIDI: a write of the same side's block caused by the other stream (its record or its
+ * acknowledgement): carries the current state of the checked stream; the checked stream's
+ * repetition timer is not restarted (the other part of MIP_Link wrote). */
+inline mb_write_other(wm, vc, vt, vi) {
+    d_step {
+        printf("@ M%d PLC writes [%d] for the other stream (t%d#%d)\n", wm, vc, vt, vi);
+        wc[wm] = vc; wx[wm] = 0; wt[wm] = vt; wi[wm] = vi;
+        pend[wm] = 1; waitb[wm] = 1; onair[wm] = 0;
+        nbw[wm]--
     }
 }
 
@@ -156,7 +190,7 @@ inline endslot() {
 active proctype Radio() {
     bool lost;
     do
-    :: d_step { ph == 0 ->
+    :: d_step { ph == 0 && !(BIDI && C3 && pend[MDP] && rnew[TRM]) ->
         /* poll: the MDP sends its pending block (or an empty poll); bit 1 clears when sent */
         dhas = pend[MDP]; onair[MDP] = dhas;
         if :: dhas -> waitb[MDP] = 0 :: else -> skip fi;
@@ -165,7 +199,7 @@ active proctype Radio() {
         :: lost -> endslot()
         :: else -> if :: dhas -> deliver(MDP, TRM) :: else -> skip fi; ph = 1
         fi }
-    :: d_step { ph == 1 ->
+    :: d_step { ph == 1 && !(BIDI && C3 && pend[TRM] && rnew[MDP]) ->
         /* answer: the TRM sends its pending block (or an empty answer); it confirms the poll */
         uhas = pend[TRM]; onair[TRM] = uhas;
         if :: uhas -> waitb[TRM] = 0 :: else -> skip fi;

@@ -61,11 +61,17 @@ wait:
         :: else -> skip
         fi
     :: !POLLED && !rnew[S] && tmr[S] >= TT -> goto send
+#if BIDI
+    :: nbw[S] > 0 -> mb_write_other(S, ctr, t, cur)   /* note 2.2: its other stream's write */
+#endif
     :: rst_s > 0 -> printf("@ sender PLC restarts\n"); rst_s--; sabort = sabort | (1 << t); goto newt
     od;
 idle:
     do
     :: d_step { mb_read(S, nw, nc, nx, nt, ni); clr_read(nw, nc, nx, nt, ni) }
+#if BIDI
+    :: nbw[S] > 0 -> mb_write_other(S, ctr, t, cur)   /* keeps its last record */
+#endif
     od
 }
 
@@ -97,6 +103,9 @@ proctype NoteReceiver() {
         :: else -> skip
         fi
     :: POLLED && !rnew[R] && tmr[R] >= TT -> mb_write(R, last, 0, 0, 0)
+#if BIDI
+    :: nbw[R] > 0 -> mb_write_other(R, last, 0, 0)
+#endif
     :: rst_r > 0 -> printf("@ receiver PLC restarts\n"); rst_r--; d_step { app_drop(1) }; last = 0; mb_write(R, 0, 0, 0, 0)
     od
 }

@@ -1,5 +1,6 @@
-/* our_peers.pml: MIP_Sender and MIP_Receiver of st_lib/, unidirectional layout, as the rules
- * P1..P24 of st_lib/PROTOCOL.md define them. Labels are the state names of PROTOCOL.md section 9
+/* our_peers.pml: MIP_Sender and MIP_Receiver of st_lib/ as the rules P1..P24 of
+ * st_lib/PROTOCOL.md define them; with BIDI = 1 the two halves of MIP_Link (bidirectional
+ * layout: P9 instead of the echo P8, record 0 of an idle link P16, the other stream's writes). Labels are the state names of PROTOCOL.md section 9
  * (E_MIP_SenderState / E_MIP_ReceiverState without the MIP_ prefix); the rule numbers stand in
  * the comments.
  *
@@ -34,11 +35,34 @@
 #define P8_MODE 0
 #endif
 
+/* P9 variant for findings (bidirectional): 0 = as PROTOCOL.md (the own modem confirmed the
+ * record), 1 = the number alone counts (what the own-modem confirmation buys) */
+#ifndef P9_MODE
+#define P9_MODE 0
+#endif
+
 /* receiver's first read after xEnable: 0 = as PROTOCOL.md section 1 (a telegram; only P19 and
  * P21 leave it out), 1 = variant: a block already there at the first read (bit 0 clear) is
  * never taken as a record */
 #ifndef RFIRST_MODE
 #define RFIRST_MODE 0
+#endif
+
+/* the acknowledgement's register 1: the echo's check value (P24), none in the bidirectional
+ * layout (register 1 is the other stream's counter there) */
+#if BIDI
+#define ECHO(k) 0
+#else
+#define ECHO(k) (k)
+#endif
+
+/* BIDI: the sender's spontaneous repeat comes after a read (every scan of MIP_Link reads);
+ * otherwise weak fairness alone lets a PLC repeat forever without ever reading, which hides
+ * the out-of-step acknowledgement of P11 (a model artefact the uni configurations keep) */
+#if BIDI
+#define SCANREAD rd
+#else
+#define SCANREAD 1
 #endif
 
 #define A_RESET  5   /* P12: acknowledgement 0 after a counted record */
@@ -47,6 +71,8 @@
 proctype OurSender() {
     byte cur, t, ctr, prev, nc, nx, nt, ni, act;
     bool nw, first = 1, oos;
+    bool conf, fresh;        /* BIDI P9: own modem confirmed / a new telegram since the write */
+    bool rd;                 /* BIDI: read since the last write (a scan reads before it repeats) */
 SND_IDLE:
     if
     :: s_done + s_err == NT -> goto idle
@@ -54,7 +80,7 @@ SND_IDLE:
     fi;
 SND_GET_CHUNK:
     /* P6: a new transfer starts with record 1 at once */
-    d_step { g_next++; t = g_next; cur = 1; ctr = CTR(cur); oos = 0; otmr[S] = 0 };
+    d_step { g_next++; t = g_next; cur = 1; ctr = CTR(cur); oos = 0; otmr[S] = 0; conf = 0; fresh = 0 };
 #if POLLED
 SND_WAIT_REQUEST:
     /* P3 polled: record 1 goes out when a request telegram arrives (P6) */
@@ -66,6 +92,9 @@ SND_WAIT_REQUEST:
             clr_read(nw, nc, nx, nt, ni)
         };
         if :: act == A_SEND -> act = A_NONE; goto send :: else -> skip fi
+#if BIDI
+    :: nbw[S] > 0 -> mb_write_other(S, ctr, t, cur)   /* MIP_Link: the built record goes along */
+#endif
     :: rst_s > 0 -> goto restart
     od;
 #endif
@@ -73,19 +102,29 @@ send:
     mb_write(S, ctr, 0, t, cur);
 SND_WAIT_ACK:
     do
-    :: !(!POLLED && !rnew[S] && tmr[S] >= TT) ->
+    :: !(!POLLED && !rnew[S] && tmr[S] >= TT && SCANREAD) ->
         d_step {
             mb_read(S, nw, nc, nx, nt, ni);
             nw = nw || first; first = 0;     /* nw: a new telegram (section 1) */
+            rd = 1;
+#if BIDI
+            /* P9: bit 4 clear in a read after the write: the block reached the peer's modem */
+            if :: !pend[S] -> conf = 1 :: else -> skip fi;
+            if :: nw -> fresh = 1 :: else -> skip fi;
+#endif
             if :: cur == 1 -> prev = 0 :: else -> prev = CTR(cur - 1) fi;
             act = A_NONE;
             if
+#if BIDI
+            :: nc == ctr && fresh && (conf || P9_MODE == 1) ->
+#else
             :: nc == ctr && (nx == 0 || nx == CHK(t, cur) || P8_MODE == 1) ->
+#endif
                 /* P8: the acknowledgement of the record in flight counts */
                 oos = 0; otmr[S] = 0;
                 if
                 :: cur == NREC -> act = A_DONE
-                :: else -> act = A_NEXT; cur++; ctr = CTR(cur)       /* P25 */
+                :: else -> act = A_NEXT; cur++; ctr = CTR(cur); conf = 0; fresh = 0   /* P25 */
                 fi
             :: cur > 1 && nc == 0 -> act = A_RESET                   /* P12 peer reset */
             :: (cur == 1 && (nc == 0 || nc == LAST)) || (cur > 1 && nc == prev) ->
@@ -110,7 +149,10 @@ SND_WAIT_ACK:
         :: act == A_RESET || act == A_OOS -> act = A_NONE; goto SND_ERROR
         :: else -> skip
         fi
-    :: !POLLED && !rnew[S] && tmr[S] >= TT -> goto send          /* P3 spontaneous repeat */
+    :: !POLLED && !rnew[S] && tmr[S] >= TT && SCANREAD -> rd = 0; goto send   /* P3 spontaneous repeat */
+#if BIDI
+    :: nbw[S] > 0 -> mb_write_other(S, ctr, t, cur)   /* the other stream's write re-sends the record */
+#endif
     :: rst_s > 0 -> goto restart
     od;
 SND_DONE:
@@ -127,6 +169,9 @@ restart:
 idle:
     do
     :: d_step { mb_read(S, nw, nc, nx, nt, ni); clr_read(nw, nc, nx, nt, ni); first = 0 }
+#if BIDI
+    :: nbw[S] > 0 -> mb_write_other(S, 0, 0, 0)      /* an idle MIP_Link sends record 0 */
+#endif
     od
 }
 
@@ -140,7 +185,7 @@ RCV_WAIT_FIRST:
     skip;
     /* P23: acknowledge 0 once on start */
     d_step { L = 0; Lchk = CHK0; uoos = 0; otmr[R] = 0 };
-    mb_write(R, 0, CHK0, 0, 0);
+    mb_write(R, 0, ECHO(CHK0), 0, 0);
 RCV_IN_TRANSFER:          /* also RCV_COMPLETE (L = 16#FFFF): one loop, L tells them apart */
     do
     :: !(POLLED && !rnew[R] && tmr[R] >= TT) ->
@@ -149,7 +194,15 @@ RCV_IN_TRANSFER:          /* also RCV_COMPLETE (L = 16#FFFF): one loop, L tells 
             c = CHK(nt, ni);
             act = A_NONE;
             if
-            :: nc == 0 -> sempty = 1         /* an empty area (count 0): no telegram; P16 record 0 is never sent here */
+#if BIDI
+            :: nc == 0 && (nw || first) && L != 0 ->
+                /* P16 record 0 of an idle MIP_Link: an open transfer fails
+                 * (MIP_ERR_SENDER_RESET), a complete one is forgotten; acknowledge 0 */
+                sempty = 1;
+                if :: L != LAST -> app_drop(1) :: else -> skip fi;
+                L = 0; Lchk = CHK0; uoos = 0; otmr[R] = 0; act = A_ACK
+#endif
+            :: nc == 0 -> sempty = 1         /* an empty area (count 0), or record 0 with nothing open */
             :: nc != 0 && !(nw || first) -> skip                  /* no telegram */
             :: RFIRST_MODE == 1 && nc != 0 && first && !nw -> first = 0   /* variant: the first read's old block never counts */
             :: else ->
@@ -196,10 +249,13 @@ RCV_IN_TRANSFER:          /* also RCV_COMPLETE (L = 16#FFFF): one loop, L tells 
             clr_read(nw, nc, nx, nt, ni)
         };
         if
-        :: act == A_ACK -> act = A_NONE; mb_write(R, L, Lchk, 0, 0)
+        :: act == A_ACK -> act = A_NONE; mb_write(R, L, ECHO(Lchk), 0, 0)
         :: else -> skip
         fi
-    :: POLLED && !rnew[R] && tmr[R] >= TT -> mb_write(R, L, Lchk, 0, 0)   /* P3 polled */
+    :: POLLED && !rnew[R] && tmr[R] >= TT -> mb_write(R, L, ECHO(Lchk), 0, 0)   /* P3 polled */
+#if BIDI
+    :: nbw[R] > 0 -> mb_write_other(R, L, 0, 0)      /* the other stream's write carries L */
+#endif
     :: uoos && otmr[R] >= OT && !r_stuck ->
         /* P21 by time: the bound passed with only unexpected numbers and no telegram in step
          * (a static-mode sender never sends its unchanged block again) */

@@ -52,34 +52,52 @@ def _matrix():
         ("note-note-strict", {"SND": "NOTE", "RCV": "NOTE"}),
         ("note-note-lenient", {"SND": "NOTE", "RCV": "NOTE", "NS_LENIENT": 1, "NR_LENIENT": 1}),
     ]
-    for pn, pd in peers:
-        for dn, dd in drives:
-            for sn, sd in sides:
-                for fn, fd in faults:
-                    d = dict(pd); d.update(dd); d.update(sd); d.update(fd)
-                    if fd:
-                        d["NT"] = 1   # a restart makes the second attempt itself
-                    name = "%s/%s/%s%s" % (pn, dn, sn, fn)
-                    exp, why = expectation(name)
-                    out.append((name, d, exp, why))
+    # bidirectional layout (MIP_Link, note 2.2): one transfer and one write of the other
+    # stream per side (each more multiplies the states by about 3); "bidi-noC3" drops
+    # configuration rule C3 (PROTOCOL.md P9: each side reads once per poll cycle)
+    layouts = [("", {}), ("bidi/", {"BIDI": 1, "NBW": 1, "NT": 1})]
+    for ln, ld in layouts:
+        for pn, pd in peers:
+            for dn, dd in drives:
+                for sn, sd in sides:
+                    for fn, fd in faults:
+                        d = dict(pd); d.update(dd); d.update(sd); d.update(fd); d.update(ld)
+                        if fd:
+                            d["NT"] = 1   # a restart makes the second attempt itself
+                        name = "%s%s/%s/%s%s" % (ln, pn, dn, sn, fn)
+                        exp, why = expectation(name)
+                        out.append((name, d, exp, why))
+    for dn, dd in drives:
+        for fn, fd in faults[1:]:
+            d = {"SND": "OURS", "RCV": "OURS", "BIDI": 1, "NBW": 1, "NT": 1, "C3": 0}
+            d.update(dd); d.update(fd)
+            name = "bidi-noC3/ours-ours/%s/up%s" % (dn, fn)
+            exp, why = expectation(name)
+            out.append((name, d, exp, why))
     return out
 
 
 # Documented weaknesses (see docs/dev/model.md): (regular expression over the name, kind, why).
 # Everything else must hold.
 KNOWN = [
-    (r"^note-note-.*\+rst-snd$", "MIX",
+    (r"^(bidi/)?note-note-.*\+rst-snd$", "MIX",
      "N1: a restarted note sender counts the stale acknowledgement of the old record 1"),
-    (r"^note-note-strict/.*\+rst-rcv$", "progress",
+    (r"^(bidi/)?note-note-strict/.*\+rst-rcv$", "progress",
      "N2: a restarted strict note receiver waits for record 1, the sender repeats forever, silently"),
-    (r"^note-note-lenient/.*\+rst-rcv$", "SILENT",
+    (r"^(bidi/)?note-note-lenient/.*\+rst-rcv$", "SILENT",
      "N3: a lenient note receiver drops an open transfer without an error"),
     (r"^ours-noteR-.*\+rst-snd$", "MIX",
      "F2: a note receiver takes our restarted sender's record 1 for a duplicate; its ack has no echo"),
-    (r"^noteS-.*-ours/.*\+rst-snd$", "MIX",
+    (r"^bidi/ours-noteR-.*\+rst-snd$", "MIX",
+     "F2 (bidirectional): a note receiver takes our restarted sender's record 1 for a duplicate "
+     "and acknowledges it; once our block reached its modem (P9) the acknowledgement counts"),
+    (r"^(bidi/)?noteS-.*-ours/.*\+rst-snd$", "MIX",
      "F3: a restarted note sender counts a stale acknowledgement; its new record 1 never goes on air"),
-    (r"^noteS-lenient-ours/.*\+rst-rcv$", "GAP",
+    (r"^(bidi/)?noteS-lenient-ours/.*\+rst-rcv$", "GAP",
      "F4: a sender that goes back to record 1 on ack 0 then counts a stale acknowledgement"),
+    (r"^bidi-noC3/ours-ours/.*\+rst-snd$", "MIX",
+     "P9 residual without C3: a stale acknowledgement counted after record 1 reached the peer's "
+     "modem; record 2 overwrites the unread record 1 (C3 closes it: bidi/ours-ours/* hold)"),
 ]
 
 

@@ -57,3 +57,13 @@ def test_our_sender_without_the_echo_check_mixes_transfers_after_a_restart(tmp_p
     assert r.returncode == 1
     assert "VIOLATED MIX" in r.stdout
     assert "sender PLC restarts" in r.stdout
+
+
+def test_our_link_without_the_own_modem_confirmation_mixes_transfers_after_a_restart(tmp_path):
+    # bidirectional layout: no echo; P9 (count an acknowledgement only after the own modem
+    # confirmed the record) keeps a stale acknowledgement from counting after our restart.
+    # With the number alone (P9_MODE=1) the model must find the mix.
+    r = run("--exact", "-k", "bidi/ours-ours/spont/up+rst-snd", "-D", "P9_MODE=1", tmp_path=tmp_path)
+    assert r.returncode == 1, r.stdout
+    assert "VIOLATED MIX" in r.stdout
+    assert "sender PLC restarts" in r.stdout
