@@ -38,6 +38,7 @@ struct plcrt {
     uint64_t retain_period_ns;
     uint64_t retain_last_ns;    /* scan time of the last save */
     uint64_t retain_saves;
+    uint64_t retain_failures;
 };
 
 /* After each scan (the caller does not hold image_lock): saves when the period is due. */

@@ -247,7 +247,12 @@ void plcrt_retain_tick(plcrt_t *rt)
     if (!rt->retain_path || rt->retain_period_ns == 0) return;
     if (rt->time_ns - rt->retain_last_ns < rt->retain_period_ns) return;
     rt->retain_last_ns = rt->time_ns;
-    if (plcrt_retain_save_file(rt, rt->retain_path) != 0) plcrt_log(rt, "%s", rt->err);
+    if (plcrt_retain_save_file(rt, rt->retain_path) != 0) {
+        /* the first failure and every 100th: a full disk must not flood the log */
+        if (rt->retain_failures++ % 100 == 0)
+            plcrt_log(rt, "%s (%llu failed saves)", rt->err,
+                      (unsigned long long)rt->retain_failures);
+    }
 }
 
 int plcrt_retain_stop(plcrt_t *rt)

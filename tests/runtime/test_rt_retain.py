@@ -187,3 +187,17 @@ def test_matiec_programs_say_retain_is_not_supported(plc, server, compiler):
     proc = virtual(plc, plc(compiler=compiler, name="m"), 3)
     assert proc.returncode == 0, proc.stderr
     assert "retain is not supported for matiec-compiled programs" in proc.stderr
+
+
+def test_an_unwritable_retain_path_is_reported_without_flooding_or_crashing(plc, server, tmp_path):
+    exe = plc()
+    where = tmp_path / "a-directory"
+    where.mkdir()
+    proc = run(exe, plc.cfg, "-m", "virtual", "-n", "500", "--retain", str(where),
+               "--retain-period", "10")
+    # cold start (a directory is no snapshot), 500 failed periodic saves, the failed stop save
+    assert proc.returncode == 1, proc.stderr
+    assert "cold start" in proc.stderr and "not a regular file" in proc.stderr
+    failures = [l for l in proc.stderr.splitlines() if "failed saves" in l]
+    assert 1 <= len(failures) <= 5, proc.stderr
+    assert server.holding[0] == 500
