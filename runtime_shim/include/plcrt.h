@@ -142,6 +142,10 @@ void plcrt_retain_set_file(plcrt_t *rt, const char *path, uint64_t period_ns);
 /* Saves now if a file is set (the clean-stop save); 0 or -1. */
 int plcrt_retain_stop(plcrt_t *rt);
 uint64_t plcrt_retain_saves(const plcrt_t *rt);
+/* The file and period set by plcrt_retain_set_file or by a config's [retain] section
+ * (file = PATH, period = 1s); NULL when none. */
+const char *plcrt_retain_file(const plcrt_t *rt);
+uint64_t plcrt_retain_period_ns(const plcrt_t *rt);
 
 /* Logging: lines go to the callback (default: stderr with a "plcrt: " prefix). */
 typedef void (*plcrt_log_fn)(void *user, const char *line);

@@ -283,6 +283,7 @@ int plcrt_load_config_text(plcrt_t *rt, const char *name, const char *text)
     if (plcrt_master_parse(rt, name, text, &m) != 0) return -1;
     plcrt_master_free(rt->master);
     rt->master = m;
+    if (m->retain_file[0]) plcrt_retain_set_file(rt, m->retain_file, m->retain_period_ns);
     if (m->slave_enabled && !rt->slave &&
         plcrt_slave_start(rt, m->slave_host, m->slave_port) != 0) {
         char why[sizeof rt->err];

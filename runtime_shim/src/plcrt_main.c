@@ -36,6 +36,7 @@ int main(int argc, char **argv)
     const char *retain = NULL;
     int warm = 1;
     unsigned long long retain_ms = 1000;
+    int retain_ms_given = 0;
     static const struct option longopts[] = {
         {"check", no_argument, NULL, 'k'}, {"help", no_argument, NULL, 'h'},
         {"retain", required_argument, NULL, 'R'}, {"retain-period", required_argument, NULL, 'P'},
@@ -73,6 +74,7 @@ int main(int argc, char **argv)
                 fprintf(stderr, "%s: error: --retain-period takes milliseconds\n", argv[0]);
                 return 2;
             }
+            retain_ms_given = 1;
             break;
         }
         case 'h': usage(stdout, argv[0]); return 0;
@@ -90,6 +92,14 @@ int main(int argc, char **argv)
         return 2;
     }
     if (check) { plcrt_free(rt); return 0; }
+    /* the command line wins over the config's [retain] section */
+    char retain_cfg[1024];
+    uint64_t retain_period_ns = retain_ms * 1000000ull;
+    if (!retain && plcrt_retain_file(rt)) {
+        snprintf(retain_cfg, sizeof retain_cfg, "%s", plcrt_retain_file(rt));
+        retain = retain_cfg;
+        if (!retain_ms_given) retain_period_ns = plcrt_retain_period_ns(rt);
+    }
     if (retain) {
         if (plcrt_retain_count(rt) == 0)
             fprintf(stderr, "plcrt: retain: the program has no RETAIN variables (or was compiled "
@@ -104,7 +114,7 @@ int main(int argc, char **argv)
         } else {
             fprintf(stderr, "plcrt: cold start: no retain file %s yet\n", retain);
         }
-        plcrt_retain_set_file(rt, retain, retain_ms * 1000000ull);
+        plcrt_retain_set_file(rt, retain, retain_period_ns);
     }
     if (slave) {
         char host[256] = "127.0.0.1";

@@ -262,3 +262,5 @@ int plcrt_retain_stop(plcrt_t *rt)
 }
 
 uint64_t plcrt_retain_saves(const plcrt_t *rt) { return rt->retain_saves; }
+const char *plcrt_retain_file(const plcrt_t *rt) { return rt->retain_path; }
+uint64_t plcrt_retain_period_ns(const plcrt_t *rt) { return rt->retain_period_ns; }

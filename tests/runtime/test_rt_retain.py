@@ -201,3 +201,34 @@ def test_an_unwritable_retain_path_is_reported_without_flooding_or_crashing(plc,
     failures = [l for l in proc.stderr.splitlines() if "failed saves" in l]
     assert 1 <= len(failures) <= 5, proc.stderr
     assert server.holding[0] == 500
+
+
+def test_the_config_can_name_the_retain_file_and_period(plc, server, tmp_path):
+    exe = plc()
+    cfg = tmp_path / "with-retain.conf"
+    cfg.write_text(plc.cfg.read_text() + f"[retain]\nfile = {plc.retain}\nperiod = 50ms\n")
+    first = run(exe, cfg, "-m", "virtual", "-n", "20")
+    assert first.returncode == 0, first.stderr
+    assert "cold start: no retain file" in first.stderr
+    second = run(exe, cfg, "-m", "virtual", "-n", "5")
+    assert "warm start" in second.stderr, second.stderr
+    assert server.holding[0:3] == [25, 25, 5]
+    # the command line wins over the config
+    other = tmp_path / "other.retain"
+    third = run(exe, cfg, "-m", "virtual", "-n", "5", "--retain", str(other))
+    assert "cold start: no retain file" in third.stderr and other.exists()
+
+
+@pytest.mark.parametrize("text,message", [
+    ("[retain]\nperiod = 1s\n", "[retain]: missing key 'file'"),
+    ("[retain]\nfile = x\nsize = 3\n", "unknown key 'size' in [retain]"),
+    ("[retain]\nfile = x\nperiod = soon\n", "is not a duration"),
+    ("[retain]\nfile = x\n[retain]\nfile = y\n", "[retain] given twice"),
+])
+def test_retain_config_errors_are_one_line(plc, tmp_path, text, message):
+    cfg = tmp_path / "bad.conf"
+    cfg.write_text(text)
+    proc = run(plc(), cfg, "--check")
+    assert proc.returncode == 2
+    assert proc.stderr.count("\n") == 1 and message in proc.stderr, proc.stderr
+    assert f"{cfg}:" in proc.stderr
