@@ -232,3 +232,24 @@ def test_retain_config_errors_are_one_line(plc, tmp_path, text, message):
     assert proc.returncode == 2
     assert proc.stderr.count("\n") == 1 and message in proc.stderr, proc.stderr
     assert f"{cfg}:" in proc.stderr
+
+
+def test_the_harness_restarts_a_program_warm_from_a_snapshot_in_memory(st_file, tmp_path):
+    from plcharness import Plc, PlcError
+    res = build_program([st_file(PROG.replace("{extra}", ""), name="mem.st")], tmp_path / "mem")
+    for d in ("w1", "w2"):
+        (tmp_path / d).mkdir()
+    plc = Plc(res, tmp_path / "w1")
+    assert plc.retain_count() == 4
+    plc.scan(7)
+    snap = plc.retain_save()
+    plc.close()
+    warm = Plc(res, tmp_path / "w2")        # config_init__ again: a restart
+    assert warm["instance0.cnt"] == 0       # the restart reset the program
+    warm.retain_load(snap)
+    warm.scan(1)
+    assert [warm["instance0.cnt"], warm["instance0.kept.total"], warm["instance0.lost.total"]] \
+        == [8, 8, 1]
+    with pytest.raises(PlcError, match="checksum"):
+        warm.retain_load(snap[:-1] + bytes([snap[-1] ^ 1]))
+    warm.close()
