@@ -49,6 +49,13 @@ typedef struct plcrt_program {
     size_t n_symbols;
     const char *const *symbol_names;       /* upper-case IEC paths */
     void *(*symbol_addr)(size_t i);        /* valid after init */
+    /* Retained variables (RETAIN, and all of an FB instance declared RETAIN): path, type tag,
+     * address (valid after init, computed at run time) and size in bytes. 0 when none. */
+    size_t n_retain;
+    const char *const *retain_names;
+    const char *const *retain_types;
+    void *(*retain_addr)(size_t i);
+    size_t (*retain_size)(size_t i);
 } plcrt_program_t;
 
 /* The program linked into this executable / library (defined by the glue). */
@@ -109,6 +116,36 @@ int plcrt_unforce(plcrt_t *rt, void *addr);
 size_t plcrt_symbol_count(const plcrt_t *rt);
 const char *plcrt_symbol_name(const plcrt_t *rt, size_t i);
 void *plcrt_symbol_addr(const plcrt_t *rt, size_t i);
+
+/* ---- RETAIN (plcrt_retain.c) ----
+ * A snapshot is: "PLCRTRT1", u32 version, u64 layout hash (FNV-1a over every retained
+ * variable's path, type tag and size), u32 payload length, the payload (the retained
+ * variables' bytes in table order), u32 CRC-32 of everything before it. Little-endian. */
+size_t plcrt_retain_count(const plcrt_t *rt);
+/* Size of a snapshot of this program's retained variables. */
+size_t plcrt_retain_snapshot_size(const plcrt_t *rt);
+/* Writes a snapshot into buf (cap bytes); its length, or 0 with plcrt_errmsg set. Call
+ * between scans (the real-time loop and plcrt_retain_tick do). */
+size_t plcrt_retain_save_to(plcrt_t *rt, void *buf, size_t cap);
+/* Restores a snapshot: 0, or -1 with one line in plcrt_errmsg (truncated, bad checksum,
+ * foreign file, other program layout); on -1 no variable has been touched. */
+int plcrt_retain_load_from(plcrt_t *rt, const void *buf, size_t len);
+/* File layer: writes PATH.tmp, fsync, rename over PATH, fsync of the directory, so PATH
+ * always holds the last complete snapshot. 0 or -1. */
+int plcrt_retain_save_file(plcrt_t *rt, const char *path);
+/* 1 restored (warm), 0 nothing restored (no file: cold, silently; invalid file: cold, the
+ * reason in plcrt_errmsg as one line). Never touches the variables unless it returns 1. */
+int plcrt_retain_load_file(plcrt_t *rt, const char *path);
+/* Periodic saving: every period_ns of scan time (virtual or real) and by
+ * plcrt_retain_stop(). path NULL switches it off. */
+void plcrt_retain_set_file(plcrt_t *rt, const char *path, uint64_t period_ns);
+/* Saves now if a file is set (the clean-stop save); 0 or -1. */
+int plcrt_retain_stop(plcrt_t *rt);
+uint64_t plcrt_retain_saves(const plcrt_t *rt);
+/* The file and period set by plcrt_retain_set_file or by a config's [retain] section
+ * (file = PATH, period = 1s); NULL when none. */
+const char *plcrt_retain_file(const plcrt_t *rt);
+uint64_t plcrt_retain_period_ns(const plcrt_t *rt);
 
 /* Logging: lines go to the callback (default: stderr with a "plcrt: " prefix). */
 typedef void (*plcrt_log_fn)(void *user, const char *line);

@@ -134,7 +134,7 @@ static int claim(parser_t *p, int line, char area, char size, int first, int cou
 
 /* ------------------------------------------------------------------ plcrt format */
 
-typedef enum { SEC_NONE, SEC_MASTER, SEC_SLAVE, SEC_DEVICE, SEC_READ, SEC_WRITE } section_t;
+typedef enum { SEC_NONE, SEC_MASTER, SEC_SLAVE, SEC_DEVICE, SEC_READ, SEC_WRITE, SEC_RETAIN } section_t;
 
 /* keys given in the current range section, by line (0 = absent) */
 typedef struct range_keys {
@@ -292,7 +292,9 @@ static int parse_plcrt(parser_t *p, char *text)
     section_t sec = SEC_NONE;
     range_keys_t rk;
     device_keys_t dk;
-    int master_seen = 0, slave_seen = 0;
+    int master_seen = 0, slave_seen = 0, retain_seen = 0;
+    int retain_keys[2] = {0};
+    m->retain_period_ns = 1000000000ull;
     int master_keys[4] = {0};
     int slave_keys[4] = {0};
     uint64_t default_poll = 100000000ull, default_timeout = 1000000000ull;
@@ -326,7 +328,12 @@ static int parse_plcrt(parser_t *p, char *text)
             while (*name && !isspace((unsigned char)*name)) name++;
             if (*name) *name++ = 0;
             name = trim(name);
-            if (!strcmp(kind, "master") || !strcmp(kind, "slave")) {
+            if (!strcmp(kind, "retain")) {
+                if (*name) return perr(p, lineno, "[retain] takes no name");
+                if (retain_seen) return perr(p, lineno, "[retain] given twice (first on line %d)", retain_seen);
+                retain_seen = lineno;
+                sec = SEC_RETAIN;
+            } else if (!strcmp(kind, "master") || !strcmp(kind, "slave")) {
                 if (*name) return perr(p, lineno, "[%s] takes no name", kind);
                 int *seen = kind[0] == 'm' ? &master_seen : &slave_seen;
                 if (*seen) return perr(p, lineno, "[%s] given twice (first on line %d)", kind, *seen);
@@ -371,7 +378,7 @@ static int parse_plcrt(parser_t *p, char *text)
                     sec = rk.is_write ? SEC_WRITE : SEC_READ;
                 }
             } else {
-                return perr(p, lineno, "unknown section [%s] (master, slave, device, read, write)", kind);
+                return perr(p, lineno, "unknown section [%s] (master, slave, device, read, write, retain)", kind);
             }
             continue;
         }
@@ -406,6 +413,16 @@ static int parse_plcrt(parser_t *p, char *text)
                 return perr(p, lineno, "unknown key '%s' in [master] (polling_period, timeout, reconnect_min, reconnect_max)", key);
             if (m->n_devices > 0 && slot <= &master_keys[1])
                 return perr(p, lineno, "%s: put [master] before the devices it is a default for", key);
+            break;
+        case SEC_RETAIN:
+            if (!strcmp(key, "file")) {
+                slot = &retain_keys[0];
+                if (set_str(p, lineno, key, m->retain_file, sizeof m->retain_file, val)) return -1;
+            } else if (!strcmp(key, "period")) {
+                slot = &retain_keys[1];
+                if (parse_duration(p, lineno, key, val, &m->retain_period_ns)) return -1;
+            } else
+                return perr(p, lineno, "unknown key '%s' in [retain] (file, period)", key);
             break;
         case SEC_SLAVE:
             if (!strcmp(key, "host")) {
@@ -498,6 +515,7 @@ static int parse_plcrt(parser_t *p, char *text)
     if (in_range && finish_range(p, &rk, default_poll)) return -1;
     if (dev && !dk.host) return perr(p, dk.line, "[device %s]: missing key 'host'", dev->name);
     if (dev && !dk.host) return -1;
+    if (retain_seen && !retain_keys[0]) return perr(p, retain_seen, "[retain]: missing key 'file'");
     (void)master_seen;
     return 0;
 }

@@ -84,6 +84,7 @@ void plcrt_free(plcrt_t *rt)
     plcrt_master_free(rt->master);
     plcrt_slave_free(rt->slave);
     pthread_mutex_destroy(&rt->image_lock);
+    free(rt->retain_path);
     free(rt);
 }
 
@@ -180,6 +181,7 @@ int plcrt_scan(plcrt_t *rt, uint64_t n)
         rt->tick++;
         rt->time_ns += rt->tick_ns;
         rt->stats.scans++;
+        plcrt_retain_tick(rt);
     }
     set_current_time(rt);
     return 0;
@@ -231,6 +233,7 @@ int plcrt_run_realtime(plcrt_t *rt, uint64_t max_scans, volatile int *stop)
         pthread_mutex_unlock(&rt->image_lock);
         rt->tick++;
         rt->stats.scans++;
+        plcrt_retain_tick(rt);
         uint64_t end = plcrt_monotonic_ns();
         if (end - start > rt->stats.max_scan_ns) rt->stats.max_scan_ns = end - start;
         add_ns(&deadline, rt->tick_ns);
@@ -284,6 +287,7 @@ int plcrt_load_config_text(plcrt_t *rt, const char *name, const char *text)
     if (plcrt_master_parse(rt, name, text, &m) != 0) return -1;
     plcrt_master_free(rt->master);
     rt->master = m;
+    if (m->retain_file[0]) plcrt_retain_set_file(rt, m->retain_file, m->retain_period_ns);
     if (m->slave_enabled && !rt->slave &&
         plcrt_slave_start(rt, m->slave_host, m->slave_port) != 0) {
         char why[sizeof rt->err];

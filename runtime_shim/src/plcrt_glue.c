@@ -76,6 +76,13 @@ extern const char *const plcrt_gen_symbol_names[] __attribute__((weak));
 extern const size_t plcrt_gen_n_symbols __attribute__((weak));
 extern void *plcrt_gen_symbol_addr(size_t i) __attribute__((weak));
 
+/* From the generated RETAIN.c (stc); weak: a program without one retains nothing. */
+extern const char *const plcrt_gen_retain_names[] __attribute__((weak));
+extern const char *const plcrt_gen_retain_types[] __attribute__((weak));
+extern const size_t plcrt_gen_n_retain __attribute__((weak));
+extern void *plcrt_gen_retain_addr(size_t i) __attribute__((weak));
+extern size_t plcrt_gen_retain_size(size_t i) __attribute__((weak));
+
 static const plcrt_program_t program = {
     .init = config_init__,
     .run = config_run__,
@@ -85,6 +92,10 @@ static const plcrt_program_t program = {
     .n_symbols = 0, /* set below: a const object cannot take another object's value */
     .symbol_names = plcrt_gen_symbol_names,
     .symbol_addr = plcrt_gen_symbol_addr,
+    .retain_names = plcrt_gen_retain_names,
+    .retain_types = plcrt_gen_retain_types,
+    .retain_addr = plcrt_gen_retain_addr,
+    .retain_size = plcrt_gen_retain_size,
 };
 
 const plcrt_program_t *plcrt_linked_program(void)
@@ -92,5 +103,7 @@ const plcrt_program_t *plcrt_linked_program(void)
     static plcrt_program_t p;
     p = program;
     p.n_symbols = &plcrt_gen_n_symbols && plcrt_gen_symbol_addr ? plcrt_gen_n_symbols : 0;
+    p.n_retain = &plcrt_gen_n_retain && plcrt_gen_retain_addr && plcrt_gen_retain_size
+                     ? plcrt_gen_n_retain : 0;
     return &p;
 }

@@ -34,7 +34,15 @@ struct plcrt {
     struct plcrt_master *master;
     struct plcrt_slave *slave;
     char err[512];
+    char *retain_path;          /* plcrt_retain_set_file */
+    uint64_t retain_period_ns;
+    uint64_t retain_last_ns;    /* scan time of the last save */
+    uint64_t retain_saves;
+    uint64_t retain_failures;
 };
+
+/* After each scan (the caller does not hold image_lock): saves when the period is due. */
+void plcrt_retain_tick(plcrt_t *rt);
 
 void plcrt_seterr(plcrt_t *rt, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 void plcrt_log(plcrt_t *rt, const char *fmt, ...) __attribute__((format(printf, 2, 3)));

@@ -19,7 +19,11 @@ static void usage(FILE *f, const char *argv0)
             "  -m MODE     real (default): absolute deadlines; virtual: as fast as possible\n"
             "  -n SCANS    stop after SCANS scans (default: until SIGINT/SIGTERM; virtual: 1000)\n"
             "  -s ADDR     Modbus TCP slave exposing the image (default host 127.0.0.1)\n"
-            "  --check     load the config, report errors, exit\n",
+            "  --check     load the config, report errors, exit\n"
+            "  --retain FILE          keep the RETAIN variables in FILE (saved atomically)\n"
+            "  --retain-period MS     save every MS ms of scan time (default 1000; 0: on stop only)\n"
+            "  --warm | --cold        warm (default): restore FILE if it is a valid snapshot of\n"
+            "                         this program; cold: initial values, FILE is overwritten\n",
             argv0);
 }
 
@@ -29,8 +33,14 @@ int main(int argc, char **argv)
     int realtime = 1, check = 0;
     unsigned long long scans = 0;
     int scans_given = 0;
+    const char *retain = NULL;
+    int warm = 1;
+    unsigned long long retain_ms = 1000;
+    int retain_ms_given = 0;
     static const struct option longopts[] = {
-        {"check", no_argument, NULL, 'k'}, {"help", no_argument, NULL, 'h'}, {0, 0, 0, 0}};
+        {"check", no_argument, NULL, 'k'}, {"help", no_argument, NULL, 'h'},
+        {"retain", required_argument, NULL, 'R'}, {"retain-period", required_argument, NULL, 'P'},
+        {"warm", no_argument, NULL, 'W'}, {"cold", no_argument, NULL, 'C'}, {0, 0, 0, 0}};
     int opt;
     while ((opt = getopt_long(argc, argv, "c:m:n:s:h", longopts, NULL)) != -1) {
         switch (opt) {
@@ -53,6 +63,20 @@ int main(int argc, char **argv)
         }
         case 's': slave = optarg; break;
         case 'k': check = 1; break;
+        case 'R': retain = optarg; break;
+        case 'W': warm = 1; break;
+        case 'C': warm = 0; break;
+        case 'P': {
+            char *end;
+            errno = 0;
+            retain_ms = strtoull(optarg, &end, 10);
+            if (errno || *end || !*optarg || optarg[0] == '-') {
+                fprintf(stderr, "%s: error: --retain-period takes milliseconds\n", argv[0]);
+                return 2;
+            }
+            retain_ms_given = 1;
+            break;
+        }
         case 'h': usage(stdout, argv[0]); return 0;
         default: usage(stderr, argv[0]); return 2;
         }
@@ -68,6 +92,30 @@ int main(int argc, char **argv)
         return 2;
     }
     if (check) { plcrt_free(rt); return 0; }
+    /* the command line wins over the config's [retain] section */
+    char retain_cfg[1024];
+    uint64_t retain_period_ns = retain_ms * 1000000ull;
+    if (!retain && plcrt_retain_file(rt)) {
+        snprintf(retain_cfg, sizeof retain_cfg, "%s", plcrt_retain_file(rt));
+        retain = retain_cfg;
+        if (!retain_ms_given) retain_period_ns = plcrt_retain_period_ns(rt);
+    }
+    if (retain) {
+        if (plcrt_retain_count(rt) == 0)
+            fprintf(stderr, "plcrt: retain: the program has no RETAIN variables (or was compiled "
+                            "by matiec: retain is not supported for matiec-compiled programs)\n");
+        if (!warm) {
+            fprintf(stderr, "plcrt: cold start (--cold)\n");
+        } else if (plcrt_retain_load_file(rt, retain) == 1) {
+            fprintf(stderr, "plcrt: warm start: %zu retained variables restored from %s\n",
+                    plcrt_retain_count(rt), retain);
+        } else if (plcrt_errmsg(rt)[0]) {
+            fprintf(stderr, "plcrt: cold start: %s\n", plcrt_errmsg(rt));
+        } else {
+            fprintf(stderr, "plcrt: cold start: no retain file %s yet\n", retain);
+        }
+        plcrt_retain_set_file(rt, retain, retain_period_ns);
+    }
     if (slave) {
         char host[256] = "127.0.0.1";
         const char *colon = strrchr(slave, ':');
@@ -110,6 +158,10 @@ int main(int argc, char **argv)
                 (unsigned long long)plcrt_scan_count(rt), plcrt_time_ns(rt) / 1e9);
     }
     if (rc != 0) fprintf(stderr, "%s: error: %s\n", argv[0], plcrt_errmsg(rt));
+    if (retain && plcrt_retain_stop(rt) != 0) {
+        fprintf(stderr, "plcrt: %s\n", plcrt_errmsg(rt));
+        rc = rc ? rc : 1;
+    }
     plcrt_free(rt);
     return rc ? 1 : 0;
 }

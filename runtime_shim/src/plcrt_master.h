@@ -81,6 +81,8 @@ struct plcrt_master {
     char slave_host[256];
     int slave_port;
     uint64_t slave_idle_ns, slave_byte_ns; /* 0 = default */
+    char retain_file[1024];                /* [retain] file; "" = none */
+    uint64_t retain_period_ns;             /* [retain] period (default 1 s) */
 
     pthread_mutex_t lock;
     pthread_cond_t wake;

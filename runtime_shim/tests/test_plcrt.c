@@ -158,6 +158,104 @@ TEST(symbols_are_listed_by_path)
     plcrt_free(rt);
 }
 
+/* ------------------------------------------------------------------ retain */
+
+extern int16_t fake_counter;
+extern uint32_t fake_fast_count;
+
+TEST(retain_snapshot_round_trip_through_a_buffer)
+{
+    plcrt_t *rt = new_rt();
+    CHECK_EQ(plcrt_retain_count(rt), 2);
+    plcrt_scan(rt, 7);
+    uint8_t buf[256];
+    size_t len = plcrt_retain_save_to(rt, buf, sizeof buf);
+    CHECK_EQ(len, plcrt_retain_snapshot_size(rt));
+    CHECK_EQ(plcrt_retain_save_to(rt, buf, len - 1), 0); /* too small: refused */
+    plcrt_free(rt);
+    rt = new_rt(); /* config_init__ resets the program */
+    CHECK_EQ(fake_counter, 0);
+    CHECK_EQ(plcrt_retain_load_from(rt, buf, len), 0);
+    CHECK_EQ(fake_counter, 7);
+    CHECK_EQ(fake_fast_count, 7);
+    plcrt_scan(rt, 1);
+    CHECK_EQ(fake_counter, 8);
+    plcrt_free(rt);
+}
+
+TEST(retain_refuses_damaged_snapshots_without_touching_variables)
+{
+    plcrt_t *rt = new_rt();
+    plcrt_scan(rt, 5);
+    uint8_t buf[256], bad[256];
+    size_t len = plcrt_retain_save_to(rt, buf, sizeof buf);
+    plcrt_scan(rt, 1);
+    CHECK_EQ(plcrt_retain_load_from(rt, buf, len - 1), -1);
+    CHECK_STR_CONTAINS(plcrt_errmsg(rt), "truncated");
+    memcpy(bad, buf, len);
+    bad[len - 6] ^= 0x40;
+    CHECK_EQ(plcrt_retain_load_from(rt, bad, len), -1);
+    CHECK_STR_CONTAINS(plcrt_errmsg(rt), "checksum");
+    memset(bad, 'x', len);
+    CHECK_EQ(plcrt_retain_load_from(rt, bad, len), -1);
+    CHECK_STR_CONTAINS(plcrt_errmsg(rt), "not a plcrt retain snapshot");
+    CHECK_EQ(fake_counter, 6);
+    plcrt_free(rt);
+}
+
+TEST(retain_refuses_a_snapshot_of_another_variable_set)
+{
+    plcrt_t *rt = new_rt();
+    plcrt_scan(rt, 5);
+    uint8_t buf[256];
+    size_t len = plcrt_retain_save_to(rt, buf, sizeof buf);
+    plcrt_free(rt);
+    static const char *const other_types[] = {"UINT", "UDINT", 0}; /* same sizes, other type */
+    plcrt_program_t changed = *plcrt_linked_program();
+    changed.retain_types = other_types;
+    char err[256];
+    rt = plcrt_new(&changed, err, sizeof err);
+    CHECK_EQ(plcrt_retain_load_from(rt, buf, len), -1);
+    CHECK_STR_CONTAINS(plcrt_errmsg(rt), "program changed");
+    CHECK_EQ(fake_counter, 0);
+    plcrt_free(rt);
+}
+
+TEST(retain_file_is_replaced_atomically_and_read_back)
+{
+    char dir[] = "/tmp/plcrt-retain-XXXXXX";
+    CHECK(mkdtemp(dir) != NULL);
+    char path[300], tmp[310];
+    snprintf(path, sizeof path, "%s/r", dir);
+    snprintf(tmp, sizeof tmp, "%s.tmp", path);
+    plcrt_t *rt = new_rt();
+    CHECK_EQ(plcrt_retain_load_file(rt, path), 0); /* no file: cold, silently */
+    CHECK_EQ(plcrt_errmsg(rt)[0], 0);
+    plcrt_retain_set_file(rt, path, 30000000ull); /* every 30 ms of scan time */
+    plcrt_scan(rt, 10);                           /* 100 ms: saves at 30, 60, 90 */
+    CHECK_EQ(plcrt_retain_saves(rt), 3);
+    CHECK_EQ(access(tmp, F_OK), -1);
+    CHECK_EQ(plcrt_retain_stop(rt), 0);
+    plcrt_free(rt);
+    rt = new_rt();
+    CHECK_EQ(plcrt_retain_load_file(rt, path), 1);
+    CHECK_EQ(fake_counter, 10);
+    /* a leftover half-written .tmp (crash during a save) does not matter */
+    FILE *f = fopen(tmp, "w");
+    fputs("half", f);
+    fclose(f);
+    CHECK_EQ(plcrt_retain_load_file(rt, path), 1);
+    f = fopen(path, "w");
+    fputs("short", f);
+    fclose(f);
+    CHECK_EQ(plcrt_retain_load_file(rt, path), 0);
+    CHECK_STR_CONTAINS(plcrt_errmsg(rt), "5 bytes");
+    plcrt_free(rt);
+    unlink(tmp);
+    unlink(path);
+    rmdir(dir);
+}
+
 TEST(realtime_runs_scans_with_the_program)
 {
     plcrt_t *rt = new_rt();

@@ -80,8 +80,9 @@ def test_outputs_written(tmp_path):
     assert r.returncode == 0, r.stderr
     names = set(os.listdir(out))
     assert {"POUS.c", "POUS.h", "Config0.c", "RES0.c", "LOCATED_VARIABLES.h", "SYMBOLS.tsv",
-            "SOURCES.txt", "stc_rt.h"} <= names
-    assert (out / "SOURCES.txt").read_text().split() == ["POUS.c", "Config0.c", "RES0.c"]
+            "SOURCES.txt", "stc_rt.h", "RETAIN.c"} <= names
+    assert (out / "SOURCES.txt").read_text().split() == ["POUS.c", "Config0.c", "RES0.c",
+                                                         "RETAIN.c"]
     cfg = (out / "Config0.c").read_text()
     assert "common_ticktime__ = 20000000ULL" in cfg
     assert "void config_init__(void)" in cfg and "void config_run__(unsigned long tick)" in cfg

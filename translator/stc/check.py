@@ -427,6 +427,17 @@ class Checker:
             return
         constant = "CONSTANT" in blk.quals
         retain = "RETAIN" in blk.quals
+        if len(blk.quals) > 1:
+            self.err(blk.pos, f"{kind} {' '.join(blk.quals)}: one qualifier per block is "
+                     "portable (matiec rejects more)")
+        elif blk.quals and blk.quals[0] != "CONSTANT" and (
+                kind not in ("VAR", "VAR_INPUT", "VAR_OUTPUT", "VAR_GLOBAL")
+                or (pou is not None and pou.kind == "function")):
+            where_ = "in a FUNCTION" if pou is not None and pou.kind == "function" else f"on {kind}"
+            self.err(blk.pos, f"{blk.quals[0]} is not allowed {where_} (matiec rejects it)")
+        elif blk.quals == ["NON_RETAIN"] and kind == "VAR_GLOBAL":
+            self.err(blk.pos, "NON_RETAIN is not allowed on VAR_GLOBAL (matiec rejects it): "
+                     "a VAR_GLOBAL without a qualifier is not retained")
         if constant and kind not in ("VAR", "VAR_GLOBAL", "VAR_EXTERNAL"):
             self.err(blk.pos, f"CONSTANT is not allowed on {kind}")
         located = [d for d in blk.decls if d.location is not None]

@@ -675,6 +675,15 @@ def parse(text, filename, diags):
     if text is None:
         _depth_sink[0] = None
         return None
+    for m in _PERSISTENT.finditer(text):
+        at = m.start(1)
+        line = text.count("\n", 0, at) + 1
+        col = at - (text.rfind("\n", 0, at) + 1) + 1
+        report((line, col), "PERSISTENT is CODESYS/TwinCAT, not IEC 61131-3 (matiec rejects it): "
+               "use RETAIN (kept on a warm start)")
+    if errors:
+        _depth_sink[0] = None
+        return None
     try:
         tree = p.parse(text, on_error=rec)
     except UnexpectedInput as e:
@@ -688,6 +697,11 @@ def parse(text, filename, diags):
     if errors:
         return None
     return tree
+
+
+# PERSISTENT after a VAR keyword and its qualifiers (a CODESYS/TwinCAT qualifier)
+_PERSISTENT = re.compile(r"\bVAR(?:_GLOBAL|_INPUT|_OUTPUT)?(?:\s+(?:CONSTANT|RETAIN|NON_RETAIN))*"
+                         r"\s+(PERSISTENT)\b", re.I)
 
 
 # what the comment pass looks at: comment and pragma openers, and string literals and //

@@ -22,7 +22,8 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 RUNTIME_DIR = HERE.parent.parent  # runtime_shim/
 REPO_ROOT = RUNTIME_DIR.parent
-CORE_SOURCES = ["plcrt_core.c", "plcrt_image.c", "plcrt_config.c", "plcrt_master.c", "plcrt_slave.c"]
+CORE_SOURCES = ["plcrt_core.c", "plcrt_image.c", "plcrt_config.c", "plcrt_master.c", "plcrt_slave.c",
+                "plcrt_retain.c"]
 BUILD_FORMAT = "3"  # bump when the generated files change, to invalidate the cache
 
 ELEMENTARY = {

@@ -196,6 +196,12 @@ class Plc:
             ("plcrt_device_set_fd", ctypes.c_int, [ctypes.c_void_p, ctypes.c_char_p, ctypes.c_int,
                                                    ctypes.c_void_p, ctypes.c_void_p]),
             ("plcrt_free", None, [ctypes.c_void_p]),
+            ("plcrt_retain_count", ctypes.c_size_t, [ctypes.c_void_p]),
+            ("plcrt_retain_snapshot_size", ctypes.c_size_t, [ctypes.c_void_p]),
+            ("plcrt_retain_save_to", ctypes.c_size_t, [ctypes.c_void_p, ctypes.c_char_p,
+                                                       ctypes.c_size_t]),
+            ("plcrt_retain_load_from", ctypes.c_int, [ctypes.c_void_p, ctypes.c_char_p,
+                                                      ctypes.c_size_t]),
         ]:
             fn = getattr(lib, name)
             fn.restype = res
@@ -347,6 +353,26 @@ class Plc:
             raise PlcError(f"{name!r} is not forced")
         for addr in keys:
             self._lib.plcrt_unforce(self._rt, addr)
+
+    # ------------------------------------------------------------ retain
+
+    def retain_count(self) -> int:
+        """Number of retained variables (stc's RETAIN.c; 0 for matiec builds)."""
+        return self._lib.plcrt_retain_count(self._rt)
+
+    def retain_save(self) -> bytes:
+        """A snapshot of the retained variables (the format of plcrt's retain file)."""
+        buf = ctypes.create_string_buffer(self._lib.plcrt_retain_snapshot_size(self._rt))
+        n = self._lib.plcrt_retain_save_to(self._rt, buf, len(buf))
+        if n == 0:
+            raise PlcError(self._err())
+        return buf.raw[:n]
+
+    def retain_load(self, data: bytes):
+        """Restore a snapshot (a warm start of a freshly initialised program); PlcError with
+        one line when it is damaged or of another set of retained variables."""
+        if self._lib.plcrt_retain_load_from(self._rt, bytes(data), len(data)) != 0:
+            raise PlcError(self._err())
 
     # ------------------------------------------------------------ time
 

@@ -48,3 +48,17 @@ void config_run__(unsigned long tick)
 const char *const plcrt_gen_symbol_names[] = {"CONFIG0.RES0.INSTANCE0.COUNTER", 0};
 const size_t plcrt_gen_n_symbols = 1;
 void *plcrt_gen_symbol_addr(size_t i) { return i == 0 ? (void *)&fake_counter : NULL; }
+
+/* what stc generates in RETAIN.c: the retained variables, addresses at run time */
+const char *const plcrt_gen_retain_names[] = {"CONFIG0.RES0.INSTANCE0.COUNTER",
+                                              "CONFIG0.RES0.INSTANCE0.FAST", 0};
+const char *const plcrt_gen_retain_types[] = {"INT", "UDINT", 0};
+const size_t plcrt_gen_n_retain = 2;
+void *plcrt_gen_retain_addr(size_t i)
+{
+    return i == 0 ? (void *)&fake_counter : i == 1 ? (void *)&fake_fast_count : NULL;
+}
+size_t plcrt_gen_retain_size(size_t i)
+{
+    return i == 0 ? sizeof fake_counter : i == 1 ? sizeof fake_fast_count : 0;
+}
