@@ -322,7 +322,9 @@ def run(a):
             if (blk[L.R_SUM_A], blk[L.R_SUM_B]) != (want_a, want_b):
                 problems.append(f"station {s}: checksum {blk[L.R_SUM_A]}/{blk[L.R_SUM_B]}, "
                                 f"want {want_a}/{want_b}")
-            for pos in range(max(0, len(stream) - L.WINDOW), min(committed, len(stream))):
+            for pos in L.committed_positions(blk):
+                if pos >= len(stream):
+                    break
                 if win[pos % L.WINDOW] != stream[pos]:
                     problems.append(f"station {s}: register {pos} is {win[pos % L.WINDOW]}, "
                                     f"want {stream[pos]}")

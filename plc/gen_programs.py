@@ -155,7 +155,7 @@ def status_vars(s, receiver=True, sender=True):
     out = []
     if receiver:
         names = ["Seq", "Flags", "Number", "Len", "Error", "RecLo", "RecHi", "ComLo", "ComHi",
-                 "SumA", "SumB", "Transfers", "Failed", "Dup", "Unexp"]
+                 "SumA", "SumB", "Transfers", "Failed", "Dup", "Unexp", "OpenLo", "OpenHi"]
         out += [f"  mR{s}{n} AT %MW{b + i} : WORD;" for i, n in enumerate(names)]
         out += [f"  mWin{s}_{i} AT %MW{b + 40 + i} : WORD;" for i in range(WINDOW)]
     if sender:
@@ -198,6 +198,8 @@ def store_out(s, store, extra_failed=None):
         f"mR{s}SumA := {store}.wSumA;", f"mR{s}SumB := {store}.wSumB;",
         f"mR{s}Transfers := UINT_TO_WORD({store}.uTransfers);",
         f"mR{s}Failed := UINT_TO_WORD({store}.uFailed);",
+        f"mR{s}OpenLo := UDINT_TO_WORD({store}.udiOpen MOD 65536);",
+        f"mR{s}OpenHi := UDINT_TO_WORD({store}.udiOpen / 65536);",
     ]
     lines += [f"mWin{s}_{i} := {store}.aWindow[{i}];" for i in range(WINDOW)]
     return lines

@@ -21,7 +21,7 @@ F_POLLED, F_STATIC, F_CYCLIC = 1, 2, 4
 
 # offsets in a peer block (%MW 100 + 200 (s-1))
 R_SEQ, R_FLAGS, R_NUMBER, R_LEN, R_ERROR, R_REC_LO, R_REC_HI, R_COM_LO, R_COM_HI, R_SUM_A, \
-    R_SUM_B, R_TRANSFERS, R_FAILED, R_DUP, R_UNEXP = range(15)
+    R_SUM_B, R_TRANSFERS, R_FAILED, R_DUP, R_UNEXP, R_OPEN_LO, R_OPEN_HI = range(17)
 S_BASE = 20
 S_SEQ, S_FLAGS, S_ERROR, S_LOG_LO, S_LOG_HI, S_OUT_LO, S_OUT_HI, S_DONE, S_FAILED, S_RETRANS, \
     S_ALL = range(S_BASE, S_BASE + 11)
@@ -33,6 +33,17 @@ ERRORS = ["NONE", "CHUNK_SIZE", "CHUNK_LEN", "NO_ACK", "PEER_RESET", "TOO_MANY_R
 
 def error_name(code):
     return ERRORS[code] if 0 <= code < len(ERRORS) else f"#{code}"
+
+
+def committed_positions(blk):
+    """Stream positions whose committed registers the receiver's window still holds, given the
+    peer block `blk` (at least offsets 0..R_OPEN_HI). PLC_RecordStore writes the open transfer
+    into the same ring after the committed registers, so a transfer that opened after the last
+    commit has overwritten the oldest ones: only the positions above committed + open - WINDOW
+    are committed data."""
+    committed = blk[R_COM_LO] + (blk[R_COM_HI] << 16)
+    open_ = blk[R_OPEN_LO] + (blk[R_OPEN_HI] << 16)
+    return range(max(0, committed + open_ - WINDOW), committed)
 
 
 def peer_base(s):

@@ -309,14 +309,13 @@ class CellRun:
         if k > 1 and not resent:
             return "bad", f"our receiver committed the transfer {k} times"
         full = stream * k
-        got = [window[p % L.WINDOW] for p in range(max(0, committed - L.WINDOW), committed)]
-        want_tail = full[max(0, committed - L.WINDOW):]
-        if got != want_tail:
-            i = next(i for i, (a, b) in enumerate(zip(got, want_tail)) if a != b)
-            p = max(0, committed - L.WINDOW) + i
-            return "bad", (f"our receiver's committed register {p} (record "
-                           f"{p % len(stream) // len(want[0]) + 1} of the transfer) is {got[i]}, "
-                           f"{want_tail[i]} was sent")
+        # the ring positions an open transfer (e.g. the resend after a restart) has not
+        # overwritten yet
+        for p in L.committed_positions(w):
+            if window[p % L.WINDOW] != full[p]:
+                return "bad", (f"our receiver's committed register {p} (record "
+                               f"{p % len(stream) // len(want[0]) + 1} of the transfer) is "
+                               f"{window[p % L.WINDOW]}, {full[p]} was sent")
         if (w[L.R_SUM_A], w[L.R_SUM_B]) != L.fletcher(full):
             return "bad", "checksum of our receiver's committed stream differs"
         return "held", ""

@@ -12,13 +12,15 @@ def _run(key="receiver/strict/none/uni/dynamic"):
     return CellRun(Cell.parse(key), Config(), progs={}, workdir=None, seed=1)
 
 
-def _words(stream, transfers=1):
-    """A receiver's %MW block after committing `stream` (registers)."""
+def _words(stream, transfers=1, open_=()):
+    """A receiver's %MW block after committing `stream` (registers), with the registers
+    `open_` of a transfer still open after it, as PLC_RecordStore keeps them."""
     w = [0] * (L.W_BASE + L.WINDOW)
     w[L.R_COM_LO], w[L.R_COM_HI] = len(stream) % 65536, len(stream) // 65536
+    w[L.R_OPEN_LO], w[L.R_OPEN_HI] = len(open_) % 65536, len(open_) // 65536
     w[L.R_SUM_A], w[L.R_SUM_B] = L.fletcher(stream)
     w[L.R_TRANSFERS] = transfers
-    for p, v in enumerate(stream):
+    for p, v in enumerate(list(stream) + list(open_)):
         w[L.W_BASE + p % L.WINDOW] = v
     return w
 
@@ -46,6 +48,20 @@ def test_a_whole_second_transfer_is_bad_unless_its_sender_restarted():
     w = _words(flat(WANT) * 2, transfers=2)
     assert _run().plc_stream_state(w, WANT, False) == ("bad", "our receiver committed the transfer 2 times")
     assert _run().plc_stream_state(w, WANT, True) == ("held", "")
+
+
+def test_an_open_resend_after_a_complete_transfer_is_not_read_as_committed():
+    # CI found it: the restarted peer sent its 6 x 20 registers again; records 1..4 of the
+    # resend were open in the ring after the 120 committed registers, and record 3 had wrapped
+    # onto position 0. The committed positions it overwrote are not compared; the rest are.
+    want = [[n * 1000 + j for j in range(20)] for n in range(1, 7)]
+    resend = flat(want[:4])
+    w = _words(flat(want), open_=resend)
+    assert w[L.W_BASE] == want[2][0]              # the ring did wrap
+    assert _run().plc_stream_state(w, want, True) == ("held", "")
+    w[L.W_BASE + 119] ^= 1                        # the last committed register, not overwritten
+    state, text = _run().plc_stream_state(w, want, True)
+    assert state == "bad" and "register 119 (record 6" in text
 
 
 def test_the_peer_side():
