@@ -48,12 +48,20 @@
 #define RFIRST_MODE 0
 #endif
 
+/* which acknowledgements carry the echo (P24): 1 = as PROTOCOL.md, only acknowledgements 0 and
+ * 1 (a stale acknowledgement can pass for the record in flight only when that is record 1:
+ * after it, every number the sender waits for was written by the receiver in this session);
+ * 0 = variant: every acknowledgement (the rule before; two registers more per acknowledgement) */
+#ifndef ECHO_MODE
+#define ECHO_MODE 1
+#endif
+
 /* the acknowledgement's register 1: the echo's check value (P24), none in the bidirectional
  * layout (register 1 is the other stream's counter there) */
 #if BIDI
-#define ECHO(k) 0
+#define ECHO(l, k) 0
 #else
-#define ECHO(k) (k)
+#define ECHO(l, k) ((ECHO_MODE == 1 && (l) > 1) -> 0 : (k))
 #endif
 
 /* BIDI: the sender's spontaneous repeat comes after a read (every scan of MIP_Link reads);
@@ -185,7 +193,7 @@ RCV_WAIT_FIRST:
     skip;
     /* P23: acknowledge 0 once on start */
     d_step { L = 0; Lchk = CHK0; uoos = 0; otmr[R] = 0 };
-    mb_write(R, 0, ECHO(CHK0), 0, 0);
+    mb_write(R, 0, ECHO(0, CHK0), 0, 0);
 RCV_IN_TRANSFER:          /* also RCV_COMPLETE (L = 16#FFFF): one loop, L tells them apart */
     do
     :: !(POLLED && !rnew[R] && tmr[R] >= TT) ->
@@ -249,10 +257,10 @@ RCV_IN_TRANSFER:          /* also RCV_COMPLETE (L = 16#FFFF): one loop, L tells 
             clr_read(nw, nc, nx, nt, ni)
         };
         if
-        :: act == A_ACK -> act = A_NONE; mb_write(R, L, ECHO(Lchk), 0, 0)
+        :: act == A_ACK -> act = A_NONE; mb_write(R, L, ECHO(L, Lchk), 0, 0)
         :: else -> skip
         fi
-    :: POLLED && !rnew[R] && tmr[R] >= TT -> mb_write(R, L, ECHO(Lchk), 0, 0)   /* P3 polled */
+    :: POLLED && !rnew[R] && tmr[R] >= TT -> mb_write(R, L, ECHO(L, Lchk), 0, 0)   /* P3 polled */
 #if BIDI
     :: nbw[R] > 0 -> mb_write_other(R, L, 0, 0)      /* the other stream's write carries L */
 #endif
