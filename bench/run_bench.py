@@ -782,7 +782,8 @@ def fig_readout(quick, workdir):
              f" / {rec1['ours->ours'] * 1000:.0f} ms; from the sender's first request to 16#FFFF "
              f"acknowledged at its modem, less the wait for the first poll slot; a telegram "
              f"carrying an acknowledgement down: {air['ours->ours']:.1f} ms of air time from our "
-             f"receiver (its 3-register echo), {air['note->note']:.1f} ms from the note's; target "
+             f"receiver (mean; the echo only with acknowledgements 0 and 1), "
+             f"{air['note->note']:.1f} ms from the note's; target "
              f"ours->note <= 1.1 x, ours->ours <= note->note + one {scan_ms} ms scan)",
              "OK" if ok else "MISSED")
     try:

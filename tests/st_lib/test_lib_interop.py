@@ -177,9 +177,25 @@ def test_stale_ack_with_wrong_check_is_ignored(wd):
     u.radio.fate = lambda src, block: "ok"
     u.bench.run_until(lambda: u.snd["xDone"], 2000)
     assert u.snd["xDone"]
-    # the receiver's own echo carries exactly this check value (record 1 was acknowledged by
-    # the test above, so the receiver saw only the last record)
-    assert u.mc.write_area[:3] == [FFFF, MAGIC, check(u.port_o.writes[-1])]
+    # the receiver saw only the last record (record 1 was acknowledged by the test above): from
+    # acknowledgement 2 on it writes the note's one register, no echo (P24)
+    assert u.port_c.writes[-1] == [FFFF]
+
+
+def test_our_receiver_echo_of_record_1_carries_the_senders_check(wd):
+    """P8/P24: our receiver's echo of record 1 is [1, 16#4D50, check of the block as the sender
+    wrote it] (what lets our sender tell it from a stale one); acknowledgement 0 carries the
+    magic with check 0; the acknowledgements after 1 are the note's [ack]."""
+    data = pattern(3 * 122, seed=308)
+    u = Uni(wd, data, timeout_ms=300)
+    u.bench.step(3)
+    u.snd["xExecute"] = True
+    assert u.send() == "done"
+    rec1 = next(w for w in u.port_o.writes if w[0] == 1)
+    acks = u.port_c.writes
+    assert acks[0] == [0, MAGIC, 0]
+    assert [1, MAGIC, check(rec1)] in acks
+    assert [w for w in acks if w[0] not in (0, 1)] == [[2], [FFFF]]
 
 
 def test_stale_ack_after_sender_restart_cannot_mix_transfers(wd):
@@ -217,7 +233,7 @@ def test_lone_ffff_is_a_one_record_transfer(wd):
     u, note = uni_vs_note_outstation(wd, [[FFFF] + p1])
     assert u.bench.run_until(lambda: u.rcv["xDone"], 300)
     assert u.sink.transfers == [p1] and u.rcv["wAck"] == FFFF
-    assert u.mc.write_area[:3] == [FFFF, MAGIC, check([FFFF] + p1)]
+    assert u.port_c.writes[-1] == [FFFF]      # the note's acknowledgement, no echo (P24)
     note.todo.append([FFFF] + p2)
     assert u.bench.run_until(lambda: len(u.sink.transfers) == 2, 300)
     assert u.sink.transfers == [p1, p2] and u.rcv["udiTransfers"] == 2
