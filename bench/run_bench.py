@@ -31,7 +31,8 @@ EMU = REPO / "build" / "emulator" / "mip-emulator"
 COSIM_LIB = REPO / "build" / "cosim" / "libmipcosim.so"
 STC = REPO / ".venv" / "bin" / "stc"
 PY = sys.executable
-ST_LIB = [REPO / "st_lib" / f for f in ("MIP_Types.st", "MIP_Status.st", "MIP_Sender.st",
+ST_LIB = [REPO / "st_lib" / f for f in ("MIP_Types.st", "MIP_Status.st",
+                                        "MIP_WriteChannel.st", "MIP_Sender.st",
                                         "MIP_Receiver.st")]
 PAIR_ST = REPO / "bench" / "st" / "bench_pair.st"
 PAYLOAD = 122                      # payload registers of a full chunk (123 - record counter)

@@ -6,8 +6,8 @@ import subprocess
 from docs_helpers import EMU_SO, REPO
 
 SRC = REPO / "docs" / "examples" / "glue_outstation.st"
-LIB = ["MIP_Types.st", "MIP_Status.st", "MIP_Sender.st", "MIP_Receiver.st", "MIP_Link.st",
-       "MIP_BufferSender.st"]
+LIB = ["MIP_Types.st", "MIP_Status.st", "MIP_WriteChannel.st", "MIP_Sender.st",
+       "MIP_Receiver.st", "MIP_Link.st", "MIP_BufferSender.st"]
 
 
 def test_glue_example_translates(tmp_path):
