@@ -24,6 +24,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from mipcosim.layout import LIB_FILES   # st_lib in import order, the one list
 
 REPO = Path(__file__).resolve().parents[1]
 BUILD = REPO / "build" / "bench"
@@ -31,9 +32,7 @@ EMU = REPO / "build" / "emulator" / "mip-emulator"
 COSIM_LIB = REPO / "build" / "cosim" / "libmipcosim.so"
 STC = REPO / ".venv" / "bin" / "stc"
 PY = sys.executable
-ST_LIB = [REPO / "st_lib" / f for f in ("MIP_Types.st", "MIP_Status.st",
-                                        "MIP_WriteChannel.st", "MIP_Sender.st",
-                                        "MIP_Receiver.st")]
+ST_LIB = [REPO / "st_lib" / f for f in LIB_FILES]
 PAIR_ST = REPO / "bench" / "st" / "bench_pair.st"
 PAYLOAD = 122                      # payload registers of a full chunk (123 - record counter)
 MS = 1_000_000

@@ -18,8 +18,7 @@ from pathlib import Path
 from mipemu_ctypes import Net
 
 REPO = Path(__file__).resolve().parents[2]
-LIB_FILES = ["MIP_Types.st", "MIP_Status.st", "MIP_WriteChannel.st", "MIP_Sender.st",
-             "MIP_Receiver.st", "MIP_Link.st", "MIP_BufferSender.st"]
+from mipcosim.layout import LIB_FILES   # import order, the one list
 PROGRAM = Path(__file__).with_name("chain_main.st")
 # MIP_STLIB_DIR: take the blocks from another directory (e.g. an export of the last commit while
 # st_lib/ has work in progress); default st_lib/ of this checkout.

@@ -4,10 +4,10 @@ core, it sends its 1000 registers to a MIP_Receiver, register for register."""
 import subprocess
 
 from docs_helpers import EMU_SO, REPO
+from mipcosim.layout import LIB_FILES
 
 SRC = REPO / "docs" / "examples" / "glue_outstation.st"
-LIB = ["MIP_Types.st", "MIP_Status.st", "MIP_WriteChannel.st", "MIP_Sender.st",
-       "MIP_Receiver.st", "MIP_Link.st", "MIP_BufferSender.st"]
+LIB = LIB_FILES
 
 
 def test_glue_example_translates(tmp_path):

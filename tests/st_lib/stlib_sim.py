@@ -18,9 +18,7 @@ from plcharness import Plc
 
 REPO = Path(__file__).resolve().parents[2]
 LIB = REPO / "st_lib"
-# import order (st_lib/README.md)
-LIB_FILES = ["MIP_Types.st", "MIP_Status.st", "MIP_WriteChannel.st", "MIP_Sender.st",
-             "MIP_Receiver.st", "MIP_Link.st", "MIP_BufferSender.st"]
+from mipcosim.layout import LIB_FILES   # import order, the one list
 LIB_PATHS = [str(LIB / f) for f in LIB_FILES]
 
 HAS_WRITE = {"MIP_Sender", "MIP_Receiver", "MIP_Link", "MIP_BufferSender"}

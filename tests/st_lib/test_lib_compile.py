@@ -11,7 +11,8 @@ import pytest
 
 from stlib_sim import LIB, LIB_FILES, LIB_PATHS
 
-ALL_BLOCKS = ["MIP_Status", "MIP_WriteChannel", "MIP_Sender", "MIP_Receiver", "MIP_Link", "MIP_BufferSender"]
+ALL_BLOCKS = ["MIP_Status", "MIP_WriteChannel", "MIP_Layout", "MIP_ReadDecoder", "MIP_Sender",
+              "MIP_Receiver", "MIP_Link", "MIP_BufferSender"]
 USE_ALL = """
 PROGRAM CompileCheck
 VAR
