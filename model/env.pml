@@ -26,6 +26,16 @@
  * with an unchanged number. C3 = 1 (configuration rule C3 of PROTOCOL.md: each side reads its
  * read area at least once per poll cycle) keeps the radio from delivering a block into a read
  * area that still holds unread data; C3 = 0 lets a PLC be arbitrarily slow.
+ *
+ * Warm restarts (issue 16; our blocks only, our_peers.pml): WRST_S / WRST_R warm restarts of the
+ * sending / receiving PLC. Its retained state (the whole block instance and the application's
+ * retained data: the logger's read-out state, the receiver's store) is rolled back to the last
+ * snapshot, as after a `kill -9` of a soft-PLC that saves snapshots now and then; the modems keep
+ * running. DURABLE = 1: "durable before visible" (PROTOCOL.md W1, W2): a snapshot is taken before
+ * each first write of a new record and before each acknowledgement write; DURABLE = 0: snapshots
+ * at any moment only (a periodic save), which the model must find unsafe. With warm restarts and
+ * no cold ones (WARMONLY) any failure (an error of either block, an open transfer dropped) and any
+ * transfer completed twice is a violation (WARMFAIL, DUP_ORDER).
  */
 
 #ifndef NREC
@@ -64,6 +74,16 @@
 #ifndef C3
 #define C3 1
 #endif
+#ifndef WRST_S
+#define WRST_S 0
+#endif
+#ifndef WRST_R
+#define WRST_R 0
+#endif
+#ifndef DURABLE
+#define DURABLE 1
+#endif
+#define WARMONLY (RST_S == 0 && RST_R == 0 && (WRST_S > 0 || WRST_R > 0))
 
 #define MDP 0
 #define TRM 1
@@ -93,6 +113,7 @@ bool r_stuck;                      /* our receiver raised MIP_ERR_PEER_OUT_OF_ST
 
 /* ---- bounded faults ---- */
 byte rst_s = RST_S, rst_r = RST_R;
+byte wrst_s = WRST_S, wrst_r = WRST_R;
 #if BIDI
 byte nbw[2] = NBW;                 /* extra writes left per side (the other stream's traffic) */
 #endif
@@ -224,7 +245,7 @@ active proctype Radio() {
 /* ---- the receiving application (ghost) ---- */
 
 /* Never set: each names the property in the text spin prints for a violated assertion. */
-bool GAP, MIX, DUP_ORDER, LOST, SILENT, DONE;
+bool GAP, MIX, DUP_ORDER, LOST, SILENT, DONE, WARMFAIL;
 
 /* a record handed to the application */
 inline app_record(gt, gi) {
@@ -243,6 +264,7 @@ inline app_record(gt, gi) {
 /* the receiver reports the transfer complete */
 inline app_complete() {
     assert((a_t != 0 && a_i == NREC) || LOST); /* completed without every record */
+    assert(!WARMONLY || (compl & (1 << a_t)) == 0 || DUP_ORDER); /* a transfer stored twice */
     compl = compl | (1 << a_t);
     a_t = 0; a_i = 0
 }
@@ -250,6 +272,7 @@ inline app_complete() {
 /* the receiver drops the transfer it was delivering; err: it says so (xError) */
 inline app_drop(err) {
     assert(err || a_t == 0 || (sabort & (1 << a_t)) || SILENT); /* dropped although its sender goes on, no error */
+    assert(!WARMONLY || a_t == 0 || WARMFAIL);   /* warm restarts only: an open transfer dropped */
     if :: err && a_t != 0 -> r_err++ :: else -> skip fi;
     a_t = 0; a_i = 0
 }
@@ -262,6 +285,7 @@ inline app_sent(st) {
 }
 
 inline app_failed(ft) {
+    assert(!WARMONLY || WARMFAIL);               /* warm restarts only: the sender failed */
     sabort = sabort | (1 << ft);
     s_err++;
     if :: s_done + s_err == NT -> s_fin = 1 :: else -> skip fi

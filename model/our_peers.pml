@@ -76,11 +76,49 @@
 #define A_RESET  5   /* P12: acknowledgement 0 after a counted record */
 #define A_OOS    6   /* P11: out of step for the whole bound */
 
+/* ---- warm restarts (WRST_S / WRST_R, DURABLE; env.pml): the last retained snapshot of each
+ * side. The initial values are the snapshot of a PLC that has saved nothing yet (its start).
+ * A snapshot holds the whole block instance (IEC: an instance declared RETAIN) and the
+ * application's retained data; pc says where the block was (its state). ---- */
+#define PC_IDLE 0    /* SND_IDLE: between transfers */
+#define PC_SEND 1    /* the record is built, its first write follows (W1) */
+#define PC_ACK  2    /* SND_WAIT_ACK */
+#define PC_REQ  3    /* SND_WAIT_REQUEST (polled) */
+byte ss_cur, ss_t, ss_ctr, ss_pc, ss_gnext, ss_sdone, ss_serr;
+bool ss_oos, ss_conf, ss_fresh, ss_first = 1, ss_rd, ss_sfin;
+byte sr_L, sr_Lchk = CHK0, sr_oldchk, sr_at, sr_ai, sr_rerr;
+bool sr_first = 1, sr_uoos, sr_sempty, sr_nolone;
+int  sr_compl;
+
+/* the sender's state differs from its last snapshot (a periodic save would change it) */
+#define S_CHANGED (ss_t != t || ss_cur != cur || ss_conf != conf || ss_fresh != fresh || ss_oos != oos || ss_first != first)
+
+inline s_save(pc) {
+    d_step {
+        ss_cur = cur; ss_t = t; ss_ctr = ctr; ss_oos = oos; ss_conf = conf; ss_fresh = fresh;
+        ss_first = first; ss_rd = rd; ss_pc = pc;
+        ss_gnext = g_next; ss_sdone = s_done; ss_serr = s_err; ss_sfin = s_fin;
+        printf("@ sender snapshot (pc %d, record %d of t%d)\n", pc, cur, t)
+    }
+}
+
+#define R_CHANGED (sr_L != L || sr_Lchk != Lchk || sr_first != first || sr_uoos != uoos || sr_sempty != sempty || sr_nolone != nolone || sr_oldchk != oldchk || sr_at != a_t || sr_ai != a_i)
+
+inline r_save() {
+    d_step {
+        sr_L = L; sr_Lchk = Lchk; sr_oldchk = oldchk; sr_first = first; sr_uoos = uoos;
+        sr_sempty = sempty; sr_nolone = nolone;
+        sr_at = a_t; sr_ai = a_i; sr_compl = compl; sr_rerr = r_err;
+        printf("@ receiver snapshot (L %d)\n", L)
+    }
+}
+
 proctype OurSender() {
     byte cur, t, ctr, prev, nc, nx, nt, ni, act;
     bool nw, first = 1, oos;
     bool conf, fresh;        /* BIDI P9: own modem confirmed / a new telegram since the write */
     bool rd;                 /* BIDI: read since the last write (a scan reads before it repeats) */
+    bool newrec;             /* the record in aWrite was not written yet (W1) */
 SND_IDLE:
     if
     :: s_done + s_err == NT -> goto idle
@@ -88,7 +126,7 @@ SND_IDLE:
     fi;
 SND_GET_CHUNK:
     /* P6: a new transfer starts with record 1 at once */
-    d_step { g_next++; t = g_next; cur = 1; ctr = CTR(cur); oos = 0; otmr[S] = 0; conf = 0; fresh = 0 };
+    d_step { g_next++; t = g_next; cur = 1; ctr = CTR(cur); oos = 0; otmr[S] = 0; conf = 0; fresh = 0; newrec = 1 };
 #if POLLED
 SND_WAIT_REQUEST:
     /* P3 polled: record 1 goes out when a request telegram arrives (P6) */
@@ -104,9 +142,15 @@ SND_WAIT_REQUEST:
     :: nbw[S] > 0 -> mb_write_other(S, ctr, t, cur)   /* MIP_Link: the built record goes along */
 #endif
     :: rst_s > 0 -> goto restart
+    :: WRST_S > 0 && S_CHANGED -> s_save(PC_REQ)     /* a periodic snapshot */
+    :: wrst_s > 0 -> goto wrestart
     od;
 #endif
 send:
+    /* W1: the record's first write only after a snapshot that holds it (and the
+     * acknowledgement of the one before) */
+    if :: WRST_S > 0 && DURABLE && newrec -> s_save(PC_SEND) :: else -> skip fi;
+    newrec = 0;
     mb_write(S, ctr, 0, t, cur);
 SND_WAIT_ACK:
     do
@@ -132,7 +176,7 @@ SND_WAIT_ACK:
                 oos = 0; otmr[S] = 0;
                 if
                 :: cur == NREC -> act = A_DONE
-                :: else -> act = A_NEXT; cur++; ctr = CTR(cur); conf = 0; fresh = 0   /* P25 */
+                :: else -> act = A_NEXT; cur++; ctr = CTR(cur); conf = 0; fresh = 0; newrec = 1   /* P25 */
                 fi
             :: cur > 1 && nc == 0 -> act = A_RESET                   /* P12 peer reset */
             :: (cur == 1 && (nc == 0 || nc == LAST)) || (cur > 1 && nc == prev) ->
@@ -162,6 +206,8 @@ SND_WAIT_ACK:
     :: nbw[S] > 0 -> mb_write_other(S, ctr, t, cur)   /* the other stream's write re-sends the record */
 #endif
     :: rst_s > 0 -> goto restart
+    :: WRST_S > 0 && S_CHANGED -> s_save(PC_ACK)     /* a periodic snapshot */
+    :: wrst_s > 0 -> goto wrestart
     od;
 SND_DONE:
     app_sent(t);
@@ -174,12 +220,32 @@ restart:
     printf("@ sender PLC restarts\n");
     d_step { rst_s--; sabort = sabort | (1 << t); first = 1; oos = 0; otmr[S] = 0 };
     goto SND_IDLE;
+wrestart:
+    /* a warm restart: everything since the last snapshot is lost (kill -9); the timers start
+     * again; the write a restored handshake still asks for may or may not be repeated */
+    printf("@ sender PLC warm restart: back to the snapshot (pc %d, record %d of t%d)\n", ss_pc, ss_cur, ss_t);
+    d_step {
+        wrst_s--;
+        cur = ss_cur; t = ss_t; ctr = ss_ctr; conf = ss_conf; fresh = ss_fresh; first = ss_first;
+        rd = ss_rd; g_next = ss_gnext; s_done = ss_sdone; s_err = ss_serr; s_fin = ss_sfin;
+        oos = 0; otmr[S] = 0; newrec = 0
+    };
+    if
+    :: ss_pc == PC_IDLE -> goto SND_IDLE
+    :: ss_pc == PC_SEND -> newrec = 1; goto send
+    :: ss_pc == PC_ACK -> goto send
+    :: ss_pc == PC_ACK -> goto SND_WAIT_ACK
+#if POLLED
+    :: ss_pc == PC_REQ -> goto SND_WAIT_REQUEST
+#endif
+    fi;
 idle:
     do
     :: d_step { mb_read(S, nw, nc, nx, nt, ni); clr_read(nw, nc, nx, nt, ni); first = 0 }
 #if BIDI
     :: nbw[S] > 0 -> mb_write_other(S, 0, 0, 0)      /* an idle MIP_Link sends record 0 */
 #endif
+    :: wrst_s > 0 -> goto wrestart
     od
 }
 
@@ -246,7 +312,7 @@ RCV_IN_TRANSFER:          /* also RCV_COMPLETE (L = 16#FFFF): one loop, L tells 
                     if
                     :: first && (nc == LAST || nc == 1) -> skip   /* an idle or new sender's block */
                     :: (!first || (nc != LAST && nc != 1)) && !uoos -> uoos = 1; otmr[R] = 1   /* a first block mid-transfer counts too */
-                    :: !first && uoos && otmr[R] >= OT -> r_stuck = 1; printf("@ receiver xError PEER_OUT_OF_STEP\n")
+                    :: !first && uoos && otmr[R] >= OT -> assert(!WARMONLY || WARMFAIL); r_stuck = 1; printf("@ receiver xError PEER_OUT_OF_STEP\n")
                     :: else -> skip
                     fi;
                     act = A_ACK
@@ -257,7 +323,11 @@ RCV_IN_TRANSFER:          /* also RCV_COMPLETE (L = 16#FFFF): one loop, L tells 
             clr_read(nw, nc, nx, nt, ni)
         };
         if
-        :: act == A_ACK -> act = A_NONE; mb_write(R, L, ECHO(L, Lchk), 0, 0)
+        :: act == A_ACK ->
+            act = A_NONE;
+            /* W2: an acknowledgement only after a snapshot that holds what it confirms */
+            if :: WRST_R > 0 && DURABLE -> r_save() :: else -> skip fi;
+            mb_write(R, L, ECHO(L, Lchk), 0, 0)
         :: else -> skip
         fi
     :: POLLED && !rnew[R] && tmr[R] >= TT -> mb_write(R, L, ECHO(L, Lchk), 0, 0)   /* P3 polled */
@@ -267,10 +337,24 @@ RCV_IN_TRANSFER:          /* also RCV_COMPLETE (L = 16#FFFF): one loop, L tells 
     :: uoos && otmr[R] >= OT && !r_stuck ->
         /* P21 by time: the bound passed with only unexpected numbers and no telegram in step
          * (a static-mode sender never sends its unchanged block again) */
+        assert(!WARMONLY || WARMFAIL);
         r_stuck = 1; printf("@ receiver xError PEER_OUT_OF_STEP (bound)\n")
     :: rst_r > 0 ->
         printf("@ receiver PLC restarts\n");
         d_step { rst_r--; app_drop(1); first = 1; sempty = 0; nolone = 0; oldchk = 0 };
         goto RCV_WAIT_FIRST
+    :: WRST_R > 0 && R_CHANGED -> r_save()     /* a periodic snapshot */
+    :: wrst_r > 0 ->
+        /* a warm restart: block and store back to the last snapshot (kill -9); no
+         * acknowledgement 0 (xEnable did not rise); the restored handshake may repeat the
+         * write of the acknowledgement */
+        printf("@ receiver PLC warm restart: back to the snapshot (L %d)\n", sr_L);
+        d_step {
+            wrst_r--;
+            L = sr_L; Lchk = sr_Lchk; oldchk = sr_oldchk; first = sr_first; sempty = sr_sempty;
+            nolone = sr_nolone; a_t = sr_at; a_i = sr_ai; compl = sr_compl; r_err = sr_rerr;
+            uoos = 0; otmr[R] = 0
+        };
+        if :: mb_write(R, L, ECHO(L, Lchk), 0, 0) :: skip fi
     od
 }

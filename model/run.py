@@ -67,6 +67,24 @@ def _matrix():
                         name = "%s%s/%s/%s%s" % (ln, pn, dn, sn, fn)
                         exp, why = expectation(name)
                         out.append((name, d, exp, why))
+    # warm restarts with rollback to the last snapshot (issue 16, PROTOCOL.md W1..W3): our
+    # blocks, durable before visible (DURABLE=1) must lose, duplicate and fail nothing, also
+    # against note peers; with periodic snapshots only (DURABLE=0) the model must find the loss
+    warm = [("+wrst-snd", {"WRST_S": 1}), ("+wrst-rcv", {"WRST_R": 1}),
+            ("+wrst-both", {"WRST_S": 1, "WRST_R": 1})]
+    for pn, pd in peers[:5]:
+        for dn, dd in drives:
+            for sn, sd in sides:
+                for fn, fd in warm:
+                    if ("WRST_S" in fd and pd["SND"] == "NOTE") or ("WRST_R" in fd and pd["RCV"] == "NOTE"):
+                        continue   # a note peer has no retained state: its restarts are the cold ones
+                    for durn, durd in (("", {}), ("/periodic", {"DURABLE": 0})):
+                        if durn and (pn != "ours-ours" or fn == "+wrst-both"):
+                            continue   # W0 is shown by one side's rollback at a time
+                        d = dict(pd); d.update(dd); d.update(sd); d.update(fd); d.update(durd)
+                        name = "warm%s/%s/%s/%s%s" % (durn, pn, dn, sn, fn)
+                        exp, why = expectation(name)
+                        out.append((name, d, exp, why))
     for dn, dd in drives:
         for fn, fd in faults[1:]:
             d = {"SND": "OURS", "RCV": "OURS", "BIDI": 1, "NBW": 1, "NT": 1, "C3": 0}
@@ -95,6 +113,12 @@ KNOWN = [
      "F3: a restarted note sender counts a stale acknowledgement; its new record 1 never goes on air"),
     (r"^(bidi/)?noteS-lenient-ours/.*\+rst-rcv$", "GAP",
      "F4: a sender that goes back to record 1 on ack 0 then counts a stale acknowledgement"),
+    (r"^warm/periodic/.*\+wrst-snd$", "WARMFAIL",
+     "W0: without W1 a sender rolled back to an older snapshot sends a record the receiver "
+     "has passed: it takes it for a sender restart, the transfer fails and is sent again"),
+    (r"^warm/periodic/.*\+wrst-rcv$", "DONE",
+     "W0: without W2 a receiver rolled back to an older snapshot has lost a transfer it "
+     "acknowledged complete: the sender reported done, the data are gone"),
     (r"^bidi-noC3/ours-ours/.*\+rst-snd$", "MIX",
      "P9 residual without C3: a stale acknowledgement counted after record 1 reached the peer's "
      "modem; record 2 overwrites the unread record 1 (C3 closes it: bidi/ours-ours/* hold)"),
@@ -117,7 +141,7 @@ def kind_of(text):
     m = re.search(r"assertion violated (.*)", text)
     if not m:
         return None
-    for k in ("GAP", "MIX", "DUP_ORDER", "LOST", "SILENT", "DONE"):
+    for k in ("GAP", "MIX", "DUP_ORDER", "LOST", "SILENT", "DONE", "WARMFAIL"):
         if re.search(r"\b%s\b" % k, m.group(1)):
             return k
     return "assert " + m.group(1)
