@@ -155,6 +155,8 @@ int plcrt_retain_stop(plcrt_t *rt);
  * first at once, then at most one line a minute of scan time). */
 uint64_t plcrt_retain_saves(const plcrt_t *rt);
 uint64_t plcrt_retain_failures(const plcrt_t *rt);
+/* 1 when the config set [retain] request or saved (the durability handshake), else 0. */
+int plcrt_retain_handshake(const plcrt_t *rt);
 /* The file and period set by plcrt_retain_set_file or by a config's [retain] section
  * (file = PATH, period = 1s, request = %QXa.b, saved = %IWn); NULL when none. */
 const char *plcrt_retain_file(const plcrt_t *rt);

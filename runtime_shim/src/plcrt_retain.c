@@ -344,5 +344,6 @@ int plcrt_retain_stop(plcrt_t *rt)
 
 uint64_t plcrt_retain_saves(const plcrt_t *rt) { return rt->retain_saves; }
 uint64_t plcrt_retain_failures(const plcrt_t *rt) { return rt->retain_failures; }
+int plcrt_retain_handshake(const plcrt_t *rt) { return rt->retain_request >= 0 || rt->retain_saved >= 0; }
 const char *plcrt_retain_file(const plcrt_t *rt) { return rt->retain_path; }
 uint64_t plcrt_retain_period_ns(const plcrt_t *rt) { return rt->retain_period_ns; }

@@ -151,3 +151,19 @@ def test_handshake_config_errors_are_one_line_and_exit_2(prog, tmp_path, text, m
                           capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2
     assert proc.stderr.count("\n") == 1 and f"{cfg}{message}" in proc.stderr, proc.stderr
+
+
+def test_the_handshake_with_a_program_that_retains_nothing_is_refused(tmp_path, st_file):
+    """saved would count snapshots holding none of the program's state (also what a matiec
+    build would do: plcrt cannot save its retained variables)."""
+    from rt_helpers import COUNTER
+    exe = build_program([st_file(COUNTER, name="counter.st")], tmp_path / "counter").executable
+    cfg = tmp_path / "plc.conf"
+    cfg.write_text(HANDSHAKE.format(file=tmp_path / "plc.retain", period="1s"))
+    for mode in (["--check"], ["-m", "virtual", "-n", "3"]):
+        proc = subprocess.run([str(exe), "-c", str(cfg), *mode], capture_output=True, text=True,
+                              timeout=60)
+        assert proc.returncode == 2
+        assert proc.stderr.count("\n") == 1, proc.stderr
+        assert f"{cfg}: error: [retain] request/saved: the program has no RETAIN variables" in proc.stderr
+    assert not (tmp_path / "plc.retain").exists()
