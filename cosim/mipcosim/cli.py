@@ -1,7 +1,7 @@
 """mip-cosim: run the chain in co-simulation from the command line; `soak` is the long run.
 
     python -m mipcosim.cli run  [--records N] [--loss P] [--seed S] [--bidi] [--static] [--polled]
-    python -m mipcosim.cli soak [--records 100000] [--loss 0.3] [--restart-every 120] ...
+    python -m mipcosim.cli soak [--records 100000] [--loss 0.3] [--restart-every 120] [--warm] ...
 
 Both print the delivery counts and end with one line `result: ok ...` (exit 0) or
 `result: FAIL ...` (exit 1).
@@ -35,6 +35,9 @@ def parse(argv):
     p.add_argument("--restart-every", type=float,
                    help="virtual seconds between PLC restarts, alternating outstation / central "
                         "(run: none, soak: 120)")
+    p.add_argument("--warm", action="store_true",
+                   help="warm restarts: a PLC comes back with the RETAIN variables of its last "
+                        "snapshot (kill -9 semantics); default cold")
     p.add_argument("--limit", type=float, default=0, help="virtual seconds before giving up")
     p.add_argument("--trace", help="emulator trace (JSON lines) to this file")
     p.add_argument("--transport", choices=["inproc", "socketpair", "tcp"], default="inproc",
@@ -84,7 +87,7 @@ def main(argv=None):
                 ch.run_for(SEC)
                 if next_restart is not None and ch.now >= next_restart and not ch.finished():
                     who = ("out", 1 + (k // 2) % a.stations) if k % 2 == 0 else ("cen", 0)
-                    ch.restart(who)
+                    ch.restart(who, warm=a.warm)
                     k += 1
                     next_restart += a.restart_every * SEC
                 if time.monotonic() - last_report > 10:
@@ -116,6 +119,9 @@ def main(argv=None):
                   f"{radio['dup_up'] + radio['dup_down']}; {radio['scans']} scans, "
                   f"{radio['requests']} Modbus requests; {ch.now / SEC:.0f} s virtual in "
                   f"{wall:.0f} s wall")
+            rs = ch.retain_stats()
+            print(f"  retain: {rs['snapshots']} snapshots, {rs['warm_restarts']} warm restarts "
+                  f"({rs['restored']} restored a snapshot, the others had nothing retained)")
             line = (f"records={tot.get('records', 0)} lost={tot.get('lost', 0)} "
                     f"duplicated={tot.get('duplicated', 0)} "
                     f"failed_and_reported={tot.get('failed_reported', 0) + tot.get('cut_by_restart', 0)} "

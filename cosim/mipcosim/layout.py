@@ -156,7 +156,21 @@ reconnect_max = 1s
 """
 
 
-def outstation_config(trm_port, host="127.0.0.1", comment=""):
+# The durability handshake of the RETAIN snapshots (docs/retain.md#durability-handshake), the
+# same addresses in every program: the program sets RETAIN_REQUEST to have a snapshot taken at
+# the end of the scan; RETAIN_SAVED counts the completed snapshots since the start (mod 65536).
+RETAIN_REQUEST = "%QX8.0"
+RETAIN_SAVED = "%IW8"
+
+
+def retain_section(file, period_ms=1000):
+    """The [retain] section: snapshots in `file` every period_ms of scan time and on request."""
+    return (f"\n[retain]\nfile = {file}\nperiod = {period_ms}ms\n"
+            f"request = {RETAIN_REQUEST}\nsaved = {RETAIN_SAVED}\n")
+
+
+def outstation_config(trm_port, host="127.0.0.1", comment="", retain=""):
+    """retain: a retain_section(...) or ""."""
     return (f"# plcrt config of the outstation (plc/outstation*.st): the TRM-810 of its station.\n"
             f"{comment}" + MASTER + f"""
 [device trm]
@@ -165,12 +179,12 @@ port = {trm_port}
 unit_id = 1
 errors = %IW30
 online = %IX9.0
-""" + _read_write_ranges("trm", 1, 2198, 2001))
+""" + _read_write_ranges("trm", 1, 2198, 2001) + retain)
 
 
-def central_config(mdp_port, stations, host="127.0.0.1", comment=""):
+def central_config(mdp_port, stations, host="127.0.0.1", comment="", retain=""):
     text = (f"# plcrt config of the central (plc/central*.st): the MDP-810, one device per\n"
-            f"# outstation (unit id = station address).\n{comment}" + MASTER)
+            f"# outstation (unit id = station address).\n{comment}" + MASTER + retain)
     for s in range(1, stations + 1):
         text += f"""
 [device mdp{s}]

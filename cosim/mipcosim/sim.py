@@ -3,6 +3,7 @@ process, in lockstep virtual time (cosim/README.md)."""
 from __future__ import annotations
 
 import ctypes
+import hashlib
 import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -65,13 +66,16 @@ class _Stats(ctypes.Structure):
 _BUILDS = {}
 
 
-def build(role, bidi, workdir: Path, compiler="stc", tick_ms=10):
-    """The example program of `role`, its task interval (the scan tick) tick_ms."""
-    key = (role, bidi, compiler, tick_ms)
+def build(role, bidi, workdir: Path, compiler="stc", tick_ms=10, sources=None):
+    """The example program of `role`, its task interval (the scan tick) tick_ms; sources: other
+    ST files instead (the last one holds the CONFIGURATION), e.g. a test's variant."""
+    key = (role, bidi, compiler, tick_ms, tuple(map(str, sources or ())))
     if key not in _BUILDS:
         tag = f"{role}{'-bidi' if bidi else ''}-{compiler}" + (f"-{tick_ms}ms" if tick_ms != 10 else "")
+        if sources:
+            tag += "-" + hashlib.sha1("\n".join(key[4]).encode()).hexdigest()[:10]
         out = Path(workdir) / f"build-{tag}"
-        srcs = L.program_sources(role, bidi)
+        srcs = [str(f) for f in sources] if sources else L.program_sources(role, bidi)
         if tick_ms != 10:
             # the same program with another task interval: the PLC's clock (timers, timeouts)
             # goes on by one interval per scan, so it must be the kernel's scan tick
@@ -131,6 +135,11 @@ class Setup:
     # connection on 127.0.0.1
     transport: str = "inproc"
     tick_ms: int = 10          # scan tick = the programs' task interval
+    # RETAIN snapshots, in memory, where plcrt would save them: every retain_period_ms of scan
+    # time (0: only on request) and whenever a program sets [retain] request (L.RETAIN_REQUEST)
+    retain_period_ms: int = 1000
+    # role ("outstation" / "central") -> ST files replacing the example program (tests)
+    sources: dict = field(default_factory=dict)
 
     def params(self, station, session, start=0):
         down = (0, 0, 0, 0)
@@ -172,12 +181,18 @@ class Chain:
         if trace:
             self._check(self.lib.mipcosim_trace_file(self.sim, str(trace).encode()))
         self.tick_ns = setup.tick_ms * MS
-        self.out_build = build("outstation", setup.bidi, self.workdir, setup.compiler, setup.tick_ms)
-        self.cen_build = build("central", setup.bidi, self.workdir, setup.compiler, setup.tick_ms)
+        self.out_build = build("outstation", setup.bidi, self.workdir, setup.compiler, setup.tick_ms,
+                               setup.sources.get("outstation"))
+        self.cen_build = build("central", setup.bidi, self.workdir, setup.compiler, setup.tick_ms,
+                               setup.sources.get("central"))
+        # the [retain] sections give the period and the handshake addresses; their files are
+        # never written: the kernel keeps each PLC's snapshots in memory
         self.out_conf = self.workdir / "outstation.conf"
-        self.out_conf.write_text(L.outstation_config(15021))
+        self.out_conf.write_text(L.outstation_config(15021, retain=L.retain_section(
+            self.workdir / "outstation.retain", setup.retain_period_ms)))
         self.cen_conf = self.workdir / "central.conf"
-        self.cen_conf.write_text(L.central_config(15020, setup.stations))
+        self.cen_conf.write_text(L.central_config(15020, setup.stations, retain=L.retain_section(
+            self.workdir / "central.retain", setup.retain_period_ms)))
         self.events: list[Event] = []
         self.boots = {("out", s): 0 for s in range(1, setup.stations + 1)}
         self.boots[("cen", 0)] = 0
@@ -185,6 +200,9 @@ class Chain:
         self.ids = {}
         self.restarts = []   # (t, which)
         self.sessions = {}   # ("out", s) -> [sessions], ("cen", 0) -> [sessions]
+        self.warm_restarts = 0       # restart(..., warm=True) calls (retain_stats)
+        self.restored = 0            # of those, the ones that restored a snapshot
+        self._snapshots_before = 0   # snapshots of PLC instances that are gone
         for s in range(1, setup.stations + 1):
             self._start(("out", s))
         self._start(("cen", 0))
@@ -198,12 +216,16 @@ class Chain:
     def session(self, who):
         return 1 + self.boots[who]
 
-    def _start(self, who, start=None):
+    def _start(self, who, start=None, snapshot=None):
         role, s = who
         plc = Plc(self.out_build if role == "out" else self.cen_build, self.workdir,
                   config=self.out_conf if role == "out" else self.cen_conf)
         if plc.tick_ns != self.tick_ns:
             raise CosimError(f"{who}: the program scans every {plc.tick_ns} ns, the kernel every {self.tick_ns}")
+        plc.retain_in_memory(self.s.retain_period_ms * MS)
+        if snapshot is not None and plc.retain_count() > 0:
+            plc.retain_load(snapshot)         # after config_init__, before the first scan
+            self.restored += 1
         old = self.plcs.get(who)
         self.plcs[who] = plc
         scan = ctypes.cast(plc.library.plcrt_scan, ctypes.c_void_p)
@@ -223,6 +245,7 @@ class Chain:
             self._check(0 if pid >= 0 else -1)
             self.ids[who] = pid
         if old is not None:
+            self._snapshots_before += old.retain_saves
             old.close()
         pid = self.ids[who]
         if role == "out":
@@ -303,10 +326,15 @@ class Chain:
                 self.events.append(Event(t, tap, plc, list(buf[i + 3:i + 3 + k])))
                 i += 3 + k
 
-    def restart(self, who, down_ns=500 * MS):
+    def restart(self, who, down_ns=500 * MS, warm=False):
         """A PLC restart: off for down_ns (its modem keeps running), then a fresh instance of
-        the program (all state lost) with the next session number."""
+        the program with the next session number. Cold (default): all state lost. warm: the
+        fresh instance gets the RETAIN variables of the last complete snapshot the PLC took
+        (plcrt's kill -9 semantics: everything since that snapshot is lost); a program without
+        RETAIN variables (or without a snapshot yet) starts cold."""
         pid = self.ids[who]
+        snapshot = self.plcs[who].retain_last() if warm else None
+        self.warm_restarts += 1 if warm else 0
         # a logger keeps its data and read-out pointer (retained memory): the restarted
         # program resumes there, in a new session
         if who[0] == "out":
@@ -322,7 +350,14 @@ class Chain:
         self.events.append(Event(self.now, RESTART, pid, []))   # marker for the checker
         self.run_for(down_ns)
         self.boots[who] += 1
-        self._start(who, start)
+        self._start(who, start, snapshot)
+
+    def retain_stats(self):
+        """{"snapshots": RETAIN snapshots taken by all PLCs (all their restarts included),
+        "warm_restarts": warm restarts, "restored": those that restored a snapshot (the others
+        were cold: no RETAIN variables, or no snapshot yet)}."""
+        return {"snapshots": self._snapshots_before + sum(p.retain_saves for p in self.plcs.values()),
+                "warm_restarts": self.warm_restarts, "restored": self.restored}
 
     def mw(self, who, addr):
         return self.plcs[who][f"%MW{addr}"]

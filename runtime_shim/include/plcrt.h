@@ -136,14 +136,29 @@ int plcrt_retain_save_file(plcrt_t *rt, const char *path);
 /* 1 restored (warm), 0 nothing restored (no file: cold, silently; invalid file: cold, the
  * reason in plcrt_errmsg as one line). Never touches the variables unless it returns 1. */
 int plcrt_retain_load_file(plcrt_t *rt, const char *path);
-/* Periodic saving: every period_ns of scan time (virtual or real) and by
- * plcrt_retain_stop(). path NULL switches it off. */
+/* Saving to PATH: after a scan when period_ns of scan time (virtual or real) have passed
+ * since the last snapshot, or when the config's [retain] request bit is TRUE after the scan
+ * (at most one snapshot per scan), and by plcrt_retain_stop(). period_ns 0: on request and
+ * on stop only. path NULL switches saving off. */
 void plcrt_retain_set_file(plcrt_t *rt, const char *path, uint64_t period_ns);
-/* Saves now if a file is set (the clean-stop save); 0 or -1. */
+/* The same saving (same decisions, same counter), but the snapshots go to a buffer in the
+ * runtime instead of a file: the co-simulation's PLCs. Replaces a file set before. 0 or -1. */
+int plcrt_retain_set_memory(plcrt_t *rt, uint64_t period_ns);
+/* Copies the last complete in-memory snapshot into buf; its length, or 0 (none yet, buffer
+ * too small: plcrt_errmsg). Restore it with plcrt_retain_load_from (a warm restart). */
+size_t plcrt_retain_last(plcrt_t *rt, void *buf, size_t cap);
+/* Saves now if a file or memory is set (the clean-stop save); 0 or -1. */
 int plcrt_retain_stop(plcrt_t *rt);
+/* Snapshots completed since plcrt_new (periodic, requested, on stop, plcrt_retain_save_file);
+ * before every scan the runtime writes it, modulo 65536, into the config's [retain] saved
+ * word. Failed saves do not count; they count in plcrt_retain_failures and are logged (the
+ * first at once, then at most one line a minute of scan time). */
 uint64_t plcrt_retain_saves(const plcrt_t *rt);
+uint64_t plcrt_retain_failures(const plcrt_t *rt);
+/* 1 when the config set [retain] request or saved (the durability handshake), else 0. */
+int plcrt_retain_handshake(const plcrt_t *rt);
 /* The file and period set by plcrt_retain_set_file or by a config's [retain] section
- * (file = PATH, period = 1s); NULL when none. */
+ * (file = PATH, period = 1s, request = %QXa.b, saved = %IWn); NULL when none. */
 const char *plcrt_retain_file(const plcrt_t *rt);
 uint64_t plcrt_retain_period_ns(const plcrt_t *rt);
 

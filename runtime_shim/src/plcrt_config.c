@@ -293,7 +293,7 @@ static int parse_plcrt(parser_t *p, char *text)
     range_keys_t rk;
     device_keys_t dk;
     int master_seen = 0, slave_seen = 0, retain_seen = 0;
-    int retain_keys[2] = {0};
+    int retain_keys[4] = {0}; /* file, period, request, saved */
     m->retain_period_ns = 1000000000ull;
     int master_keys[4] = {0};
     int slave_keys[4] = {0};
@@ -421,8 +421,22 @@ static int parse_plcrt(parser_t *p, char *text)
             } else if (!strcmp(key, "period")) {
                 slot = &retain_keys[1];
                 if (parse_duration(p, lineno, key, val, &m->retain_period_ns)) return -1;
+            } else if (!strcmp(key, "request")) {
+                /* the program's %QX bit: TRUE after a scan = a snapshot at the end of it */
+                slot = &retain_keys[2];
+                if (!retain_keys[2] &&
+                    (parse_location(p, lineno, key, val, 'Q', 'X', &m->retain_request) ||
+                     claim(p, lineno, 'Q', 'X', m->retain_request, 1, key)))
+                    return -1;
+            } else if (!strcmp(key, "saved")) {
+                /* the runtime's %IW word: snapshots completed since the start, mod 65536 */
+                slot = &retain_keys[3];
+                if (!retain_keys[3] &&
+                    (parse_location(p, lineno, key, val, 'I', 'W', &m->retain_saved) ||
+                     claim(p, lineno, 'I', 'W', m->retain_saved, 1, key)))
+                    return -1;
             } else
-                return perr(p, lineno, "unknown key '%s' in [retain] (file, period)", key);
+                return perr(p, lineno, "unknown key '%s' in [retain] (file, period, request, saved)", key);
             break;
         case SEC_SLAVE:
             if (!strcmp(key, "host")) {
@@ -515,7 +529,10 @@ static int parse_plcrt(parser_t *p, char *text)
     if (in_range && finish_range(p, &rk, default_poll)) return -1;
     if (dev && !dk.host) return perr(p, dk.line, "[device %s]: missing key 'host'", dev->name);
     if (dev && !dk.host) return -1;
-    if (retain_seen && !retain_keys[0]) return perr(p, retain_seen, "[retain]: missing key 'file'");
+    if (retain_seen && !retain_keys[0])
+        return perr(p, retain_seen, "[retain]: missing key 'file'%s",
+                    retain_keys[2] || retain_keys[3]
+                        ? " (request and saved are about snapshots: they need somewhere to go)" : "");
     (void)master_seen;
     return 0;
 }
@@ -707,6 +724,7 @@ int plcrt_master_parse(plcrt_t *rt, const char *name, const char *text, struct p
     m->reconnect_min_ns = 100000000ull;
     m->reconnect_max_ns = 5000000000ull;
     m->slave_port = -1;
+    m->retain_request = m->retain_saved = -1;
     p->rt = rt;
     p->file = name;
     p->m = m;

@@ -65,6 +65,7 @@ plcrt_t *plcrt_new(const plcrt_program_t *prog, char *err, size_t errlen)
     rt->prog = prog;
     rt->tick_ns = *prog->ticktime_ns;
     rt->log_fn = default_log;
+    rt->retain_request = rt->retain_saved = -1;
     pthread_mutex_init(&rt->image_lock, NULL);
     if (prog->bind && prog->bind(&rt->img, err, errlen) != 0) {
         free(rt);
@@ -85,6 +86,7 @@ void plcrt_free(plcrt_t *rt)
     plcrt_slave_free(rt->slave);
     pthread_mutex_destroy(&rt->image_lock);
     free(rt->retain_path);
+    free(rt->retain_buf);
     free(rt);
 }
 
@@ -155,6 +157,7 @@ static void set_current_time(plcrt_t *rt)
 /* The program part of a scan; the caller holds image_lock. */
 static void run_program(plcrt_t *rt)
 {
+    plcrt_retain_before_scan(rt);
     apply_forces(rt);
     set_current_time(rt);
     rt->prog->run((unsigned long)rt->tick);
@@ -288,6 +291,8 @@ int plcrt_load_config_text(plcrt_t *rt, const char *name, const char *text)
     plcrt_master_free(rt->master);
     rt->master = m;
     if (m->retain_file[0]) plcrt_retain_set_file(rt, m->retain_file, m->retain_period_ns);
+    rt->retain_request = m->retain_request;
+    rt->retain_saved = m->retain_saved;
     if (m->slave_enabled && !rt->slave &&
         plcrt_slave_start(rt, m->slave_host, m->slave_port) != 0) {
         char why[sizeof rt->err];

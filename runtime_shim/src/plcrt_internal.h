@@ -37,11 +37,23 @@ struct plcrt {
     char *retain_path;          /* plcrt_retain_set_file */
     uint64_t retain_period_ns;
     uint64_t retain_last_ns;    /* scan time of the last save */
-    uint64_t retain_saves;
-    uint64_t retain_failures;
+    uint64_t retain_saves;      /* snapshots completed since plcrt_new ([retain] saved) */
+    uint64_t retain_failures;   /* failed saves since plcrt_new */
+    uint64_t retain_unlogged;   /* failed saves not reported yet (rate limit) */
+    uint64_t retain_log_ns;     /* scan time of the last failure line */
+    int retain_failing;         /* the last save failed */
+    int retain_request;         /* [retain] request: flat %QX bit index, -1 = none */
+    int retain_saved;           /* [retain] saved: %IW index, -1 = none */
+    int retain_mem;             /* snapshots go to retain_buf (plcrt_retain_set_memory) */
+    uint8_t *retain_buf;        /* the last complete in-memory snapshot */
+    size_t retain_len;          /* its length; 0 = none yet */
 };
 
-/* After each scan (the caller does not hold image_lock): saves when the period is due. */
+/* Before the program of every scan (the caller holds image_lock): writes [retain] saved. */
+void plcrt_retain_before_scan(plcrt_t *rt);
+/* After each scan (the caller does not hold image_lock): takes a snapshot when one is due -
+ * the period of scan time has passed or the program set [retain] request - to the file or to
+ * memory. The one place that decides; plcrt_scan and plcrt_run_realtime both call it. */
 void plcrt_retain_tick(plcrt_t *rt);
 
 void plcrt_seterr(plcrt_t *rt, const char *fmt, ...) __attribute__((format(printf, 2, 3)));

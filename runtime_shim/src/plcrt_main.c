@@ -91,6 +91,15 @@ int main(int argc, char **argv)
         plcrt_free(rt);
         return 2;
     }
+    /* saved would count snapshots that hold none of the program's state: a program relying
+     * on it would show a peer what a restart then forgets */
+    if (config && plcrt_retain_handshake(rt) && plcrt_retain_count(rt) == 0) {
+        fprintf(stderr, "%s: error: [retain] request/saved: the program has no RETAIN variables "
+                        "(or was compiled by matiec, whose retained variables plcrt cannot save): "
+                        "no snapshot would hold its state\n", config);
+        plcrt_free(rt);
+        return 2;
+    }
     if (check) { plcrt_free(rt); return 0; }
     /* the command line wins over the config's [retain] section */
     char retain_cfg[1024];

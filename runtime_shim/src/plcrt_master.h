@@ -83,6 +83,8 @@ struct plcrt_master {
     uint64_t slave_idle_ns, slave_byte_ns; /* 0 = default */
     char retain_file[1024];                /* [retain] file; "" = none */
     uint64_t retain_period_ns;             /* [retain] period (default 1 s) */
+    int retain_request;                    /* [retain] request: flat %QX bit index, -1 = none */
+    int retain_saved;                      /* [retain] saved: %IW index, -1 = none */
 
     pthread_mutex_t lock;
     pthread_cond_t wake;

@@ -234,33 +234,116 @@ int plcrt_retain_load_file(plcrt_t *rt, const char *path)
     return 1;
 }
 
+/* A failing save is logged at once, then at most once a minute of scan time with the count:
+ * a program that keeps its request up retries every scan, and a full disk must not flood the
+ * log. */
+#define RETAIN_LOG_INTERVAL_NS 60000000000ull
+
 void plcrt_retain_set_file(plcrt_t *rt, const char *path, uint64_t period_ns)
 {
     free(rt->retain_path);
     rt->retain_path = path ? strdup(path) : NULL;
+    if (path) rt->retain_mem = 0;
     rt->retain_period_ns = period_ns;
     rt->retain_last_ns = rt->time_ns;
 }
 
+int plcrt_retain_set_memory(plcrt_t *rt, uint64_t period_ns)
+{
+    if (!rt->retain_buf) {
+        rt->retain_buf = malloc(plcrt_retain_snapshot_size(rt));
+        if (!rt->retain_buf) {
+            plcrt_seterr(rt, "retain: out of memory");
+            return -1;
+        }
+        rt->retain_len = 0;
+    }
+    free(rt->retain_path);
+    rt->retain_path = NULL;
+    rt->retain_mem = 1;
+    rt->retain_period_ns = period_ns;
+    rt->retain_last_ns = rt->time_ns;
+    return 0;
+}
+
+size_t plcrt_retain_last(plcrt_t *rt, void *buf, size_t cap)
+{
+    if (!rt->retain_mem || rt->retain_len == 0) {
+        plcrt_seterr(rt, "retain: no snapshot in memory yet");
+        return 0;
+    }
+    if (cap < rt->retain_len) {
+        plcrt_seterr(rt, "retain: a snapshot needs %zu bytes, the buffer has %zu", rt->retain_len, cap);
+        return 0;
+    }
+    memcpy(buf, rt->retain_buf, rt->retain_len);
+    return rt->retain_len;
+}
+
+static int save_memory(plcrt_t *rt)
+{
+    pthread_mutex_lock(&rt->image_lock);
+    size_t len = plcrt_retain_save_to(rt, rt->retain_buf, plcrt_retain_snapshot_size(rt));
+    pthread_mutex_unlock(&rt->image_lock);
+    if (!len) return -1;
+    rt->retain_len = len;
+    rt->retain_saves++;
+    return 0;
+}
+
+/* one snapshot to wherever they go (file or memory); 0 or -1 with plcrt_errmsg */
+static int save_now(plcrt_t *rt)
+{
+    return rt->retain_mem ? save_memory(rt) : plcrt_retain_save_file(rt, rt->retain_path);
+}
+
+void plcrt_retain_before_scan(plcrt_t *rt)
+{
+    if (rt->retain_saved >= 0) rt->img.iw[rt->retain_saved] = (uint16_t)rt->retain_saves;
+}
+
 void plcrt_retain_tick(plcrt_t *rt)
 {
-    if (!rt->retain_path || rt->retain_period_ns == 0) return;
-    if (rt->time_ns - rt->retain_last_ns < rt->retain_period_ns) return;
-    rt->retain_last_ns = rt->time_ns;
-    if (plcrt_retain_save_file(rt, rt->retain_path) != 0) {
-        /* the first failure and every 100th: a full disk must not flood the log */
-        if (rt->retain_failures++ % 100 == 0)
-            plcrt_log(rt, "%s (%llu failed saves)", rt->err,
-                      (unsigned long long)rt->retain_failures);
+    if (!rt->retain_path && !rt->retain_mem) return;
+    int requested = 0;
+    if (rt->retain_request >= 0) {
+        pthread_mutex_lock(&rt->image_lock);
+        requested = rt->img.qx[rt->retain_request / 8][rt->retain_request % 8] != 0;
+        pthread_mutex_unlock(&rt->image_lock);
     }
+    int periodic = rt->retain_period_ns != 0 &&
+                   rt->time_ns - rt->retain_last_ns >= rt->retain_period_ns;
+    if (!requested && !periodic) return;
+    /* any snapshot restarts the period: it is as recent as a periodic one */
+    rt->retain_last_ns = rt->time_ns;
+    if (save_now(rt) == 0) {
+        if (rt->retain_failing)
+            plcrt_log(rt, "retain: saving again (%llu failed saves in all)",
+                      (unsigned long long)rt->retain_failures);
+        rt->retain_failing = 0;
+        rt->retain_unlogged = 0;
+        return;
+    }
+    rt->retain_failures++;
+    rt->retain_unlogged++;
+    if (!rt->retain_failing || rt->time_ns - rt->retain_log_ns >= RETAIN_LOG_INTERVAL_NS) {
+        plcrt_log(rt, "%s (%llu failed saves%s; [retain] saved does not change until a save succeeds)",
+                  rt->err, (unsigned long long)rt->retain_failures,
+                  rt->retain_unlogged > 1 ? ", the others since the last line not logged" : "");
+        rt->retain_log_ns = rt->time_ns;
+        rt->retain_unlogged = 0;
+    }
+    rt->retain_failing = 1;
 }
 
 int plcrt_retain_stop(plcrt_t *rt)
 {
-    if (!rt->retain_path) return 0;
-    return plcrt_retain_save_file(rt, rt->retain_path);
+    if (!rt->retain_path && !rt->retain_mem) return 0;
+    return save_now(rt);
 }
 
 uint64_t plcrt_retain_saves(const plcrt_t *rt) { return rt->retain_saves; }
+uint64_t plcrt_retain_failures(const plcrt_t *rt) { return rt->retain_failures; }
+int plcrt_retain_handshake(const plcrt_t *rt) { return rt->retain_request >= 0 || rt->retain_saved >= 0; }
 const char *plcrt_retain_file(const plcrt_t *rt) { return rt->retain_path; }
 uint64_t plcrt_retain_period_ns(const plcrt_t *rt) { return rt->retain_period_ns; }

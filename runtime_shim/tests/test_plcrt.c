@@ -256,6 +256,103 @@ TEST(retain_file_is_replaced_atomically_and_read_back)
     rmdir(dir);
 }
 
+/* the durability handshake: [retain] request = %QX8.0, saved = %IW8 (docs/retain.md) */
+#define HANDSHAKE "[retain]\nfile = /nonexistent-plcrt-dir/r\nperiod = 0\nrequest = %QX8.0\nsaved = %IW8\n"
+
+static uint8_t *request_bit(plcrt_t *rt) { return &plcrt_image(rt)->qx[8][0]; }
+static uint16_t saved_word(plcrt_t *rt) { return plcrt_image(rt)->iw[8]; }
+
+TEST(retain_request_saves_at_the_end_of_that_scan_and_saved_shows_it_in_the_next)
+{
+    plcrt_t *rt = new_rt();
+    CHECK_EQ(plcrt_load_config_text(rt, "t.cfg", HANDSHAKE), 0);
+    CHECK_EQ(plcrt_retain_set_memory(rt, 0), 0); /* period 0: on request only */
+    plcrt_scan(rt, 3);
+    CHECK_EQ(plcrt_retain_saves(rt), 0);
+    CHECK_EQ(saved_word(rt), 0);
+    uint8_t snap[256];
+    CHECK_EQ(plcrt_retain_last(rt, snap, sizeof snap), 0); /* nothing saved yet */
+    *request_bit(rt) = 1;   /* as if the program had set it in scan 3 */
+    plcrt_scan(rt, 1);      /* scan 4 keeps it set: a snapshot at its end */
+    CHECK_EQ(plcrt_retain_saves(rt), 1);
+    CHECK_EQ(saved_word(rt), 0);  /* what scan 4 saw: written before it ran */
+    *request_bit(rt) = 0;
+    plcrt_scan(rt, 1);            /* scan 5 sees the completed snapshot */
+    CHECK_EQ(saved_word(rt), 1);
+    CHECK_EQ(plcrt_retain_saves(rt), 1);
+    plcrt_scan(rt, 5);
+    CHECK_EQ(plcrt_retain_saves(rt), 1); /* no request, no period: no snapshot */
+    /* the snapshot holds the state at the end of scan 4 */
+    size_t len = plcrt_retain_last(rt, snap, sizeof snap);
+    CHECK(len > 0);
+    plcrt_free(rt);
+    rt = new_rt();
+    CHECK_EQ(plcrt_retain_load_from(rt, snap, len), 0);
+    CHECK_EQ(fake_counter, 4);
+    CHECK_EQ(saved_word(rt), 0); /* a new start counts from 0 */
+    plcrt_free(rt);
+}
+
+TEST(retain_period_and_request_share_one_counter_at_most_one_snapshot_per_scan)
+{
+    plcrt_t *rt = new_rt();
+    CHECK_EQ(plcrt_load_config_text(rt, "t.cfg", HANDSHAKE), 0);
+    CHECK_EQ(plcrt_retain_set_memory(rt, 30000000ull), 0); /* and every 30 ms */
+    *request_bit(rt) = 1;
+    plcrt_scan(rt, 10);          /* a request in every scan: 10 snapshots, not 10 + 3 */
+    CHECK_EQ(plcrt_retain_saves(rt), 10);
+    CHECK_EQ(saved_word(rt), 9);
+    *request_bit(rt) = 0;
+    plcrt_scan(rt, 10);          /* periodic again, 30 ms after the last one */
+    CHECK_EQ(plcrt_retain_saves(rt), 13);
+    CHECK_EQ(saved_word(rt), 13);
+    *request_bit(rt) = 1;
+    plcrt_scan(rt, 65536);       /* the word wraps around at 65536 */
+    CHECK_EQ(plcrt_retain_saves(rt), 13 + 65536);
+    CHECK_EQ(saved_word(rt), 12);
+    plcrt_free(rt);
+}
+
+TEST(retain_failed_saves_do_not_count_and_are_logged_once_a_minute)
+{
+    plcrt_t *rt = new_rt();
+    CHECK_EQ(plcrt_load_config_text(rt, "t.cfg", HANDSHAKE), 0); /* the file cannot be made */
+    *request_bit(rt) = 1;        /* the program waits for its snapshot, asking every scan */
+    plcrt_scan(rt, 12500);       /* 125 s */
+    CHECK_EQ(plcrt_retain_saves(rt), 0);
+    CHECK_EQ(plcrt_retain_failures(rt), 12500);
+    CHECK_EQ(saved_word(rt), 0);
+    int lines = 0;
+    for (const char *p = log_buf; (p = strstr(p, "failed saves")); p++) lines++;
+    CHECK_EQ(lines, 3); /* at 0 s, 60 s, 120 s */
+    CHECK_STR_CONTAINS(log_buf, "/nonexistent-plcrt-dir/r.tmp");
+    /* the disk comes back: the next request succeeds, saved moves, one line says so */
+    char dir[] = "/tmp/plcrt-retain-XXXXXX";
+    CHECK(mkdtemp(dir) != NULL);
+    char path[300];
+    snprintf(path, sizeof path, "%s/r", dir);
+    plcrt_retain_set_file(rt, path, 0);
+    plcrt_scan(rt, 2);
+    CHECK_EQ(plcrt_retain_saves(rt), 2);
+    CHECK_EQ(saved_word(rt), 1);
+    CHECK_STR_CONTAINS(log_buf, "retain: saving again (12500 failed saves in all)");
+    plcrt_free(rt);
+    unlink(path);
+    rmdir(dir);
+}
+
+TEST(retain_without_handshake_keys_leaves_the_image_alone)
+{
+    plcrt_t *rt = new_rt();
+    CHECK_EQ(plcrt_load_config_text(rt, "t.cfg", "[retain]\nfile = /nonexistent-plcrt-dir/r\n"), 0);
+    CHECK_EQ(plcrt_retain_set_memory(rt, 10000000ull), 0);
+    plcrt_scan(rt, 5);
+    CHECK_EQ(plcrt_retain_saves(rt), 5);
+    for (int i = 0; i < PLCRT_IMAGE_SIZE; i++)
+        if (plcrt_image(rt)->iw[i] != 0) CHECK_EQ(i, -1);
+    plcrt_free(rt);
+}
+
 TEST(realtime_runs_scans_with_the_program)
 {
     plcrt_t *rt = new_rt();
@@ -331,6 +428,33 @@ TEST(config_errors_name_file_and_line)
     expect_config_error(DEV "timeout = 5 parsecs\n", "bad.cfg:3: error: timeout: unknown unit");
     expect_config_error(DEV "errors = %IW100\n[read r]\ndevice = d\nstart = 0\nsize = 1\nimage = %IW100\n",
                         "bad.cfg:8: error: image: %IW100 overlaps what line 3 uses");
+}
+
+TEST(retain_handshake_config_errors_are_one_line)
+{
+    expect_config_error("[retain]\nrequest = %QX8.0\n",
+                        "bad.cfg:1: error: [retain]: missing key 'file' (request and saved");
+    expect_config_error("[retain]\nfile = r\nrequest = %QX1024.0\n",
+                        "bad.cfg:3: error: request: '%QX1024.0' is outside the image");
+    expect_config_error("[retain]\nfile = r\nrequest = %QX8.8\n",
+                        "bad.cfg:3: error: request: '%QX8.8' is outside the image");
+    expect_config_error("[retain]\nfile = r\nrequest = %IX8.0\n",
+                        "bad.cfg:3: error: request: '%IX8.0' must be a %QX address");
+    expect_config_error("[retain]\nfile = r\nsaved = %QW8\n",
+                        "bad.cfg:3: error: saved: '%QW8' must be a %IW address");
+    expect_config_error("[retain]\nfile = r\nsaved = %IW1024\n",
+                        "bad.cfg:3: error: saved: '%IW1024' is outside the image");
+    expect_config_error("[retain]\nfile = r\nsaved = %IW8\nsaved = %IW9\n",
+                        "bad.cfg:4: error: key 'saved' given twice (first on line 3)");
+    expect_config_error(DEV "[read r]\ndevice = d\nstart = 0\nsize = 10\nimage = %IW100\n"
+                            "[retain]\nfile = r\nsaved = %IW105\n",
+                        "bad.cfg:10: error: saved: %IW105 overlaps what line 7 uses");
+    expect_config_error("[retain]\nfile = r\nrequest = %QX1.0\n" DEV
+                            "[write w]\ndevice = d\nstart = 0\nsize = 1\nimage = %QW100\n"
+                            "policy = trigger\ntrigger = %QX1.0\ndone = %IX1.0\nerror = %IX1.1\n",
+                        "bad.cfg:12: error: trigger: %QX1.0 overlaps what line 3 uses");
+    expect_config_error("[retain]\nfile = r\nsaved = %IW30\n" DEV "errors = %IW30\n",
+                        "bad.cfg:6: error: errors: %IW30 overlaps what line 3 uses");
 }
 
 TEST(openplc_mbconfig_is_accepted_unchanged)

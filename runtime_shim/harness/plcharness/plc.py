@@ -202,6 +202,11 @@ class Plc:
                                                        ctypes.c_size_t]),
             ("plcrt_retain_load_from", ctypes.c_int, [ctypes.c_void_p, ctypes.c_char_p,
                                                       ctypes.c_size_t]),
+            ("plcrt_retain_set_memory", ctypes.c_int, [ctypes.c_void_p, ctypes.c_uint64]),
+            ("plcrt_retain_last", ctypes.c_size_t, [ctypes.c_void_p, ctypes.c_char_p,
+                                                    ctypes.c_size_t]),
+            ("plcrt_retain_saves", ctypes.c_uint64, [ctypes.c_void_p]),
+            ("plcrt_retain_failures", ctypes.c_uint64, [ctypes.c_void_p]),
         ]:
             fn = getattr(lib, name)
             fn.restype = res
@@ -373,6 +378,28 @@ class Plc:
         one line when it is damaged or of another set of retained variables."""
         if self._lib.plcrt_retain_load_from(self._rt, bytes(data), len(data)) != 0:
             raise PlcError(self._err())
+
+    def retain_in_memory(self, period_ns: int):
+        """Take snapshots as the runtime does (every period_ns of scan time, 0: never, and
+        whenever the config's [retain] request bit is TRUE after a scan), but into memory
+        instead of a file; retain_last() returns the last complete one."""
+        if self._lib.plcrt_retain_set_memory(self._rt, period_ns) != 0:
+            raise PlcError(self._err())
+
+    def retain_last(self):
+        """The last complete in-memory snapshot (bytes), or None when none was taken yet."""
+        buf = ctypes.create_string_buffer(self._lib.plcrt_retain_snapshot_size(self._rt))
+        n = self._lib.plcrt_retain_last(self._rt, buf, len(buf))
+        return buf.raw[:n] if n else None
+
+    @property
+    def retain_saves(self) -> int:
+        """Snapshots completed since this start (what [retain] saved shows, mod 65536)."""
+        return self._lib.plcrt_retain_saves(self._rt)
+
+    @property
+    def retain_failures(self) -> int:
+        return self._lib.plcrt_retain_failures(self._rt)
 
     # ------------------------------------------------------------ time
 
