@@ -50,6 +50,7 @@ def change_sender(fb):
     fb["xStatic"] = True
     fb["tTimeout"] = 10 * MS
     fb["uMaxRetries"] = 1
+    fb["xRetained"] = True     # live, it would hold every new record: nobody takes a snapshot
 
 
 def test_buffer_sender_parameters_latched(wd):
@@ -92,8 +93,9 @@ def test_sender_parameters_latched(wd):
 
 def test_receiver_parameters_latched(wd):
     """Mid-transfer the receiver is switched to the bidirectional outstation stream, polled,
-    static, tTimeout 10 ms, tTransferTimeout 10 ms and xAckByCaller (which would hold every
-    acknowledgement forever here: nobody sets xRecordProcessed); the sender pauses 1 s:
+    static, tTimeout 10 ms, tTransferTimeout 10 ms, xAckByCaller and xRetained (which would
+    hold every acknowledgement forever here: nobody sets xRecordProcessed, nobody takes a
+    snapshot); the sender pauses 1 s:
     nothing of this takes effect before xEnable rises again."""
     data = pattern(5 * 122, seed=402)
     u = Uni(wd, data, timeout_ms=300)
@@ -107,6 +109,7 @@ def test_receiver_parameters_latched(wd):
         r["tTimeout"] = 10 * MS
         r["tTransferTimeout"] = 10 * MS
         r["xAckByCaller"] = True
+        r["xRetained"] = True   # live, it would hold every acknowledgement: no snapshot comes
         u.src.hold_from = 3
     u.bench.parts.insert(0, When(lambda: r["udiRecords"] == 2, change))
     u.bench.parts.insert(0, When(lambda: u.bench.scans > 300,
@@ -123,6 +126,11 @@ def test_receiver_parameters_latched(wd):
     u.bench.step(2)
     r["xEnable"] = True
     u.bench.step(10)
+    n = len(u.port_c.writes)
+    assert r["eWaitReason"] == 9 and r["xSnapshotReq"]     # xRetained: acknowledgement 0 waits ...
+    r["wSnapshots"] = 1                                    # ... for a snapshot
+    u.bench.step(10)
+    assert len(u.port_c.writes) == n + 1
     assert len(u.port_c.writes[-1]) == 2                   # bidirectional now: two counters
 
 
