@@ -167,3 +167,40 @@ def test_the_handshake_with_a_program_that_retains_nothing_is_refused(tmp_path, 
         assert proc.stderr.count("\n") == 1, proc.stderr
         assert f"{cfg}: error: [retain] request/saved: the program has no RETAIN variables" in proc.stderr
     assert not (tmp_path / "plc.retain").exists()
+
+
+CLOCK_PROG = """
+PROGRAM MAIN
+VAR RETAIN
+  tmr : TON;
+END_VAR
+tmr(IN := TRUE, PT := T#5s);
+END_PROGRAM
+CONFIGURATION Config0
+RESOURCE Res0 ON PLC
+TASK task0(INTERVAL := T#10ms, PRIORITY := 0);
+PROGRAM instance0 WITH task0 : MAIN;
+END_RESOURCE
+END_CONFIGURATION
+"""
+
+
+def test_a_warm_start_starts_a_retained_timer_again(tmp_path):
+    """st_lib/PROTOCOL.md W3, "the timers start again": stc keeps a standard timer's IN, PT, Q
+    and ET, not its start time, and the scan clock starts at 0 on every start; so a TON 3 s
+    into its 5 s when the snapshot was taken times its 5 s anew after the warm start (never
+    a start time in the future that would hold it for the previous uptime)."""
+    from plcharness import Plc
+    src = tmp_path / "clock.st"
+    src.write_text(CLOCK_PROG)
+    plc = Plc.build([str(src)], workdir=tmp_path, compiler="stc")
+    plc.scan(300)                                # scans at 0 .. 2.99 s
+    assert plc["MAIN.tmr.ET"] == 2_990_000_000 and not plc["MAIN.tmr.Q"]
+    snap = plc.retain_save()
+    warm = Plc(plc.build_result, tmp_path)       # a fresh copy of the program: a restart
+    warm.retain_load(snap)
+    assert warm["MAIN.tmr.ET"] == 2_990_000_000  # restored ...
+    warm.scan(500)                               # ... then timed again: 0 .. 4.99 s
+    assert not warm["MAIN.tmr.Q"] and warm["MAIN.tmr.ET"] == 4_990_000_000
+    warm.scan(1)
+    assert warm["MAIN.tmr.Q"]
