@@ -67,6 +67,9 @@ PARAMS = """\
   pDownStart3Hi AT %MW21 : WORD;
   pDownStart4Lo AT %MW22 : WORD;
   pDownStart4Hi AT %MW23 : WORD;
+  (* the runtime's snapshot handshake (plcrt [retain] request / saved; flags bit 3) *)
+  snapReq AT %QX8.0 : BOOL;       (* a snapshot at the end of this scan, please *)
+  snapSaved AT %IW8 : WORD;       (* snapshots completed *)
 """
 
 PARAM_VARS = """\
@@ -74,6 +77,7 @@ PARAM_VARS = """\
   xPolled : BOOL;
   xStatic : BOOL;
   xCyclic : BOOL;
+  xRetain : BOOL;
   udiTotal : UDINT;
   uPerTransfer : UINT;
   uPayload : UINT;
@@ -116,6 +120,7 @@ IF NOT xRun THEN
   xPolled := (pFlags AND 16#0001) <> 0;
   xStatic := (pFlags AND 16#0002) <> 0;
   xCyclic := (pFlags AND 16#0004) <> 0;
+  xRetain := (pFlags AND 16#0008) <> 0;   (* warm restarts: the blocks wait for snapshots *)
   (* every TIME from seconds and milliseconds: matiec gets T#1ms * n wrong above n = 2147 *)
   tTimeout := MS_TIMEOUT;
   IF pTimeout = 0 THEN tTimeout := T#2s; END_IF;
@@ -221,11 +226,14 @@ def source_out(s, src, retrans):
 
 
 def var_blocks(decl):
-    """Located and unlocated variables in separate VAR blocks (matiec wants that)."""
+    """Located and unlocated variables in separate VAR blocks (matiec wants that). The
+    unlocated ones are RETAIN: the blocks, the logger and the store with the parameters they
+    run with, so that a warm start resumes where the last snapshot was (st_lib/PROTOCOL.md
+    W3); without retain in the runtime (or on OpenPLC, which ignores RETAIN) nothing changes."""
     lines = "\n".join(decl).split("\n")
     located = [l for l in lines if " AT %" in l]
     plain = [l for l in lines if " AT %" not in l and l.strip()]
-    return ("VAR\n" + "\n".join(plain) + "\nEND_VAR\nVAR\n" + "\n".join(located)
+    return ("VAR RETAIN\n" + "\n".join(plain) + "\nEND_VAR\nVAR\n" + "\n".join(located)
             + "\nEND_VAR\n")
 
 
@@ -275,13 +283,15 @@ def outstation(bidi):
         code.append("mR1Dup := UDINT_TO_WORD(link.udiDuplicates MOD 65536);")
         code.append("mR1Unexp := UDINT_TO_WORD(link.udiUnexpected MOD 65536);")
         code += source_out(1, "src", "link.udiRetransmissions")
+        code.append("snapReq := FALSE;   (* MIP_Link has no snapshot gate yet: no warm restarts *)")
     else:
         code.append(
             "snd(xExecute := src.xExecute, uChunkSize := uChunkSize, xPolled := xPolled,\n"
             "    xStatic := xStatic, tTimeout := tTimeout, uMaxRetries := WORD_TO_UINT(pMaxRetries),\n"
             "    xChunkValid := src.xChunkValid, aChunk := src.aChunk, uChunkLen := src.uChunkLen,\n"
             "    xChunkLast := src.xChunkLast, xWriteDone := xWrDone1, xWriteError := wrErr1,\n"
-            "    aRead := rd1, xReadValid := xRdValid1);")
+            "    aRead := rd1, xReadValid := xRdValid1, xRetained := xRetain, wSnapshots := snapSaved);")
+        code.append("snapReq := snd.xSnapshotReq;")
         code += source_out(1, "src", "snd.udiRetransmissions")
     code += io_after(1, fb)
     doc = ("    The outstation: a data logger read out over the TRM-810 "
@@ -334,7 +344,8 @@ def central(bidi):
             code.append(
                 f"rcv{s}(xEnable := xRun, xPolled := xPolled, xStatic := xStatic, tTimeout := tTimeout,\n"
                 f"     tTransferTimeout := tTransferTimeout, aRead := rd{s}, xReadValid := xRdValid{s},\n"
-                f"     xWriteDone := xWrDone{s}, xWriteError := wrErr{s});")
+                f"     xWriteDone := xWrDone{s}, xWriteError := wrErr{s}, xRetained := xRetain,\n"
+                f"     wSnapshots := snapSaved);")
             code.append(f"store{s}(xRecordValid := rcv{s}.xRecordValid, aRecord := rcv{s}.aRecord,\n"
                         f"      uRecordLen := rcv{s}.uRecordLen, wRecordNumber := rcv{s}.wRecordNumber,\n"
                         f"      udiFailed := rcv{s}.udiFailedTransfers, eLastError := rcv{s}.eLastErrorId);")
@@ -342,6 +353,10 @@ def central(bidi):
             code.append(f"mR{s}Dup := UDINT_TO_WORD(rcv{s}.udiDuplicates MOD 65536);")
             code.append(f"mR{s}Unexp := UDINT_TO_WORD(rcv{s}.udiUnexpected MOD 65536);")
             code += io_after(s, f"rcv{s}")
+    if bidi:
+        code.append("snapReq := FALSE;   (* MIP_Link has no snapshot gate yet: no warm restarts *)")
+    else:
+        code.append("snapReq := " + " OR ".join(f"rcv{s}.xSnapshotReq" for s in range(1, MAX_STATIONS + 1)) + ";")
     doc = (f"    The central: one {'MIP_Link' if bidi else 'MIP_Receiver'} per outstation "
            f"(MDP-810 unit ids 1..{MAX_STATIONS}),\n    each with a PLC_RecordStore"
            + (" and a logger of its own sent down to the station." if bidi else "."))

@@ -70,7 +70,7 @@ int mipcosim_connect_inproc(mipcosim *sim, int id, mipcosim_set_transport_fn set
 
 /* Taps: after every scan of PLC id, if the 16-bit word at seq changed, one entry is logged:
  * the nhdr words at hdr, then min(hdr[len_index], ndata_max) words at data (len_index < 0 or
- * data NULL: no data). tap is a slot number chosen by the caller (0..63); setting it again
+ * data NULL: no data), then the new value of seq. tap is a slot number chosen by the caller (0..63); setting it again
  * rebinds it (e.g. after a restart) and takes the current seq as seen. */
 int mipcosim_tap(mipcosim *sim, int tap, int id, const uint16_t *seq, const uint16_t *hdr,
                  int nhdr, int len_index, const uint16_t *data, int ndata_max);

@@ -12,6 +12,9 @@ receiver's events give the records it delivered. Demands:
   by a restart of the sender and the receiver reported it (MIP_ERR_SENDER_RESET) or never saw it;
 - at the end every sender has read out all its records and no transfer is open;
 - without restarts: no failure at all, and each record arrives exactly once.
+Warm restarts (Chain.restart(..., warm=True)) roll a PLC back to its last snapshot: what its
+taps logged after that snapshot is undone (the store and the logger lost it too) and is not
+counted; with warm restarts only, the demands are those of a run without restarts.
 """
 from __future__ import annotations
 
@@ -19,7 +22,7 @@ from collections import Counter
 from dataclasses import dataclass, field
 
 from . import layout as L
-from .sim import RESTART, Chain
+from .sim import RESTART, WARM, Chain
 
 
 @dataclass
@@ -38,6 +41,24 @@ class StreamReport:
     delivered_after_failure: int = 0                      # complete transfers of failed/cut attempts
     lost: int = 0
     problems: list = field(default_factory=list)
+
+
+def effective_events(events):
+    """The events minus those a warm restart undid: at a WARM marker of PLC p, each tap of p
+    is rolled back to the entry whose seq value (the entry's last word) is the restored one;
+    the entries after it are dropped (with none such, all of that tap's entries are)."""
+    out = []
+    by_key = {}                       # (plc, tap) -> indexes into out
+    for ev in events:
+        if ev.tap == WARM:
+            for tap, seq in zip(ev.words[0::2], ev.words[1::2]):
+                idx = by_key.get((ev.plc, tap), [])
+                while idx and out[idx[-1]].words[-1] != seq:
+                    out[idx.pop()] = None
+        elif ev.tap != RESTART:
+            by_key.setdefault((ev.plc, ev.tap), []).append(len(out))
+        out.append(ev)
+    return [e for e in out if e is not None]
 
 
 def _sender_attempts(events, pid, taps, total, per_transfer, sessions):
@@ -81,14 +102,15 @@ def check_stream(chain: Chain, name, sender, sender_tap, receiver, receiver_tap,
     s_pid, r_pid = chain.ids[sender], chain.ids[receiver]
     sessions = [(session_of(x), start if isinstance(start, int) else start.get(station, 0))
                 for x, start in chain.sessions[sender]]
-    attempts, pointer = _sender_attempts(chain.events, s_pid, {sender_tap}, total,
+    events = effective_events(chain.events)
+    attempts, pointer = _sender_attempts(events, s_pid, {sender_tap}, total,
                                          st.per_transfer, sessions)
     rep.attempts = len(attempts)
     # receiver side: complete transfers
     complete = []
     open_tr = None
     last = 0
-    for ev in chain.events:
+    for ev in events:
         if ev.plc != r_pid:
             continue
         if ev.tap == RESTART:

@@ -138,6 +138,9 @@ class Setup:
     # RETAIN snapshots, in memory, where plcrt would save them: every retain_period_ms of scan
     # time (0: only on request) and whenever a program sets [retain] request (L.RETAIN_REQUEST)
     retain_period_ms: int = 1000
+    # the blocks' xRetained (st_lib/PROTOCOL.md W1, W2: durable before visible), for warm
+    # restarts without loss or duplicate; unidirectional programs only (MIP_Link has no gate)
+    retain: bool = False
     # role ("outstation" / "central") -> ST files replacing the example program (tests)
     sources: dict = field(default_factory=dict)
 
@@ -148,7 +151,7 @@ class Setup:
             start = 0
         return L.Params(start=start, down_start=down, records=self.records, per_transfer=self.per_transfer,
                         payload=self.payload, session=session, station=station,
-                        polled=self.polled, static=self.static,
+                        polled=self.polled, static=self.static, retain=self.retain,
                         log_period_ms=self.log_period_ms, timeout_ms=self.timeout_ms,
                         chunk=self.static_registers if self.static else 123,
                         transfer_timeout_s=self.transfer_timeout_s)
@@ -156,6 +159,7 @@ class Setup:
 
 TICK_NS = 10 * MS
 RESTART = -1
+WARM = -2     # a warm restart: words = [tap, restored seq, ...] of the PLC's taps
 
 
 class Chain:
@@ -201,6 +205,9 @@ class Chain:
         self.restarts = []   # (t, which)
         self.sessions = {}   # ("out", s) -> [sessions], ("cen", 0) -> [sessions]
         self.warm_restarts = 0       # restart(..., warm=True) calls (retain_stats)
+        self.warm = []               # (t, which, graceful) of the warm restarts that restored
+        self.last_snapshot = {}      # who -> the last snapshot any instance of it took
+        self._taps_of = {}           # who -> [(tap slot, seq address name)]
         self.restored = 0            # of those, the ones that restored a snapshot
         self._snapshots_before = 0   # snapshots of PLC instances that are gone
         for s in range(1, setup.stations + 1):
@@ -216,7 +223,7 @@ class Chain:
     def session(self, who):
         return 1 + self.boots[who]
 
-    def _start(self, who, start=None, snapshot=None):
+    def _start(self, who, start=None, snapshot=None, warm=False):
         role, s = who
         plc = Plc(self.out_build if role == "out" else self.cen_build, self.workdir,
                   config=self.out_conf if role == "out" else self.cen_conf)
@@ -256,21 +263,30 @@ class Chain:
         if start is None:
             start = 0 if role == "out" else {}
         session = self.session(who)
-        self.sessions.setdefault(who, []).append((session, start))
+        if not warm:
+            self.sessions.setdefault(who, []).append((session, start))
         params = self.s.params(s if role == "out" else 0, session, start)
         for i, w in enumerate(params.words()):
             plc[f"%MW{i}"] = w
-        self._taps(who)
+        self._taps(who, warm)
 
     def _addr(self, plc, name):
         return plc.address(name)
 
-    def _taps(self, who):
+    def _taps(self, who, warm=False):
         role, s = who
         plc, pid = self.plcs[who], self.ids[who]
         bidi = self.s.bidi
+        prog = ("OUTSTATIONBIDI" if bidi else "OUTSTATION") if role == "out" else \
+            ("CENTRALBIDI" if bidi else "CENTRAL")
+        self._taps_of[who] = []
 
-        def tap(slot, base, nhdr, data_path=None):
+        def tap(slot, base, nhdr, data_path=None, seq_src=None):
+            self._taps_of[who].append((slot, base))
+            if warm and seq_src:
+                # the %MW mirror of the event counter is written by the first scan: a restored
+                # counter is put there now, so the tap does not take the restore for an event
+                plc[f"%MW{base}"] = plc[f"{prog}.{seq_src}.WSEQ"]
             seq = self._addr(plc, f"%MW{base}")
             hdr = self._addr(plc, f"%MW{base + 1}")
             data = self._addr(plc, data_path) if data_path else None
@@ -280,16 +296,16 @@ class Chain:
 
         if role == "out":
             b = L.peer_base(1)
-            tap(20 + s, b + L.S_SEQ, 2)                       # sender events: flags, error
+            tap(20 + s, b + L.S_SEQ, 2, seq_src="SRC")         # sender events: flags, error
             if bidi:
-                tap(30 + s, b + L.R_SEQ, 4, "OUTSTATIONBIDI.LINK.ARECORD")
+                tap(30 + s, b + L.R_SEQ, 4, "OUTSTATIONBIDI.LINK.ARECORD", "STORE")
         else:
             for st in range(1, self.s.stations + 1):
                 b = L.peer_base(st)
                 fb = f"CENTRALBIDI.LINK{st}" if bidi else f"CENTRAL.RCV{st}"
-                tap(st, b + L.R_SEQ, 4, f"{fb}.ARECORD")       # flags, number, len, error
+                tap(st, b + L.R_SEQ, 4, f"{fb}.ARECORD", f"STORE{st}")   # flags, number, len, error
                 if bidi:
-                    tap(10 + st, b + L.S_SEQ, 2)
+                    tap(10 + st, b + L.S_SEQ, 2, seq_src=f"SRC{st}")
 
     # ------------------------------------------------------------------ running
 
@@ -326,15 +342,32 @@ class Chain:
                 self.events.append(Event(t, tap, plc, list(buf[i + 3:i + 3 + k])))
                 i += 3 + k
 
-    def restart(self, who, down_ns=500 * MS, warm=False):
+    def restart(self, who, down_ns=500 * MS, warm=False, graceful=False):
         """A PLC restart: off for down_ns (its modem keeps running), then a fresh instance of
-        the program with the next session number. Cold (default): all state lost. warm: the
-        fresh instance gets the RETAIN variables of the last complete snapshot the PLC took
-        (plcrt's kill -9 semantics: everything since that snapshot is lost); a program without
-        RETAIN variables (or without a snapshot yet) starts cold."""
+        the program. Cold (default): all state lost, the next session number. warm: the fresh
+        instance gets the RETAIN variables of the last complete snapshot the PLC took (plcrt's
+        kill -9 semantics: everything since that snapshot is lost; an instance that took none
+        gets the one its predecessor restored) and goes on in the same session; graceful: a
+        snapshot is taken at the stop (plcrt's SIGTERM), so nothing is lost. A program without
+        RETAIN variables, or with no snapshot yet, starts cold."""
         pid = self.ids[who]
-        snapshot = self.plcs[who].retain_last() if warm else None
+        snapshot = None
+        if warm:
+            old = self.plcs[who]
+            snapshot = (old.retain_save() if graceful and old.retain_count() else
+                        old.retain_last() or self.last_snapshot.get(who))
         self.warm_restarts += 1 if warm else 0
+        if snapshot and self.plcs[who].retain_count() > 0:
+            self.last_snapshot[who] = snapshot
+            self._check(self.lib.mipcosim_plc_replace(self.sim, pid, None, None, 0))
+            self.warm.append((self.now, who, graceful))
+            self.run_for(down_ns)
+            self._start(who, None, snapshot, warm=True)
+            marker = []
+            for slot, base in self._taps_of[who]:
+                marker += [slot, self.mw(who, base)]
+            self.events.append(Event(self.now, WARM, pid, marker))   # for the checker
+            return
         # a logger keeps its data and read-out pointer (retained memory): the restarted
         # program resumes there, in a new session
         if who[0] == "out":

@@ -373,14 +373,15 @@ static int check_taps(mipcosim *sim, int id)
             nd = t->hdr[t->len_index];
             if (nd > t->ndata_max) nd = t->ndata_max;
         }
-        size_t n = 3 + (size_t)t->nhdr + (size_t)nd;
+        size_t n = 3 + (size_t)t->nhdr + (size_t)nd + 1;
         if (log_words(sim, n)) return -1;
         uint16_t *w = sim->log + sim->log_len;
         w[0] = (uint16_t)i;
         w[1] = (uint16_t)id;
-        w[2] = (uint16_t)(t->nhdr + nd);
+        w[2] = (uint16_t)(t->nhdr + nd + 1);
         memcpy(w + 3, t->hdr, (size_t)t->nhdr * 2);
         if (nd) memcpy(w + 3 + t->nhdr, t->data, (size_t)nd * 2);
+        w[n - 1] = *t->seq;   /* last: the seq value, so a rolled-back PLC's undone entries can be told */
         sim->log_len += n;
     }
     return 0;

@@ -215,14 +215,15 @@ static void test_taps_log_each_change_once(void)
     CHECK(mipcosim_run(sim, 30000000) == 0);  /* 3 scans, 3 changes */
     uint16_t buf[64];
     size_t n = mipcosim_tap_read(sim, buf, 64);
-    CHECK(n == 3 * (3 + 2 + 3));
-    CHECK(buf[0] == 5 && buf[1] == id && buf[2] == 5 && buf[3] == 1 && buf[5] == 10);
-    CHECK(buf[8 + 3] == 2 && buf[8 + 5] == 20 && buf[8 + 7] == 22);
+    CHECK(n == 3 * (3 + 2 + 3 + 1));
+    CHECK(buf[0] == 5 && buf[1] == id && buf[2] == 6 && buf[3] == 1 && buf[5] == 10);
+    CHECK(buf[8] == a.seq - 2);                     /* the seq value ends each entry */
+    CHECK(buf[9 + 3] == 2 && buf[9 + 5] == 20 && buf[9 + 7] == 22 && buf[9 + 8] == a.seq - 1);
     CHECK(mipcosim_tap_read(sim, buf, 64) == 0);
     /* a buffer too small for one entry gets none, and nothing is lost */
     CHECK(mipcosim_run(sim, 40000000) == 0);
     CHECK(mipcosim_tap_read(sim, buf, 4) == 0);
-    CHECK(mipcosim_tap_read(sim, buf, 64) == 8);
+    CHECK(mipcosim_tap_read(sim, buf, 64) == 9);
     mipcosim_untap(sim, 5);
     CHECK(mipcosim_run(sim, 60000000) == 0);
     CHECK(mipcosim_tap_read(sim, buf, 64) == 0);
