@@ -35,19 +35,39 @@ def probe_sources(tmp_path_factory):
     text = Path(srcs[-1]).read_text()
     line = "PROGRAM out0 WITH tMain : Outstation;"
     assert text.count(line) == 1, "plc/outstation.st: the resource's program line changed"
+    # the outstation's own handshake (its blocks' gate, off here) moves to unused addresses,
+    # so that the probe alone drives the runtime's
+    for own, free in (("snapReq AT %QX8.0", "snapReq AT %QX9.0"), ("snapSaved AT %IW8", "snapSaved AT %IW9")):
+        assert text.count(own) == 1, f"plc/outstation.st: {own} changed"
+        text = text.replace(own, free)
     (d / "probe.st").write_text(PROBE)
     (d / "outstation.st").write_text(text.replace(line, line + "\n    PROGRAM probe0 WITH tMain : RetainProbe;"))
     return srcs[:-1] + [str(d / "probe.st"), str(d / "outstation.st")]
 
 
-def chain(workdir, sources):
+@pytest.fixture(scope="module")
+def plain_central(tmp_path_factory):
+    """plc/central.st without RETAIN: a program that retains nothing."""
+    d = tmp_path_factory.mktemp("plain")
+    srcs = L.program_sources("central", False)
+    text = Path(srcs[-1]).read_text()
+    assert text.count("VAR RETAIN\n") == 1, "plc/central.st: its RETAIN block changed"
+    (d / "central.st").write_text(text.replace("VAR RETAIN\n", "VAR\n"))
+    return srcs[:-1] + [str(d / "central.st")]
+
+
+def chain(workdir, sources, central=None):
+    srcs = {"outstation": sources}
+    if central:
+        srcs["central"] = central
     return Chain(Setup(records=24, per_transfer=7, log_period_ms=50, loss=0.1, seed=3,
-                       sources={"outstation": sources}), workdir)
+                       sources=srcs), workdir)
 
 
-def test_warm_restart_rolls_back_to_the_last_snapshot_cold_restart_resets(chain_workdir, probe_sources):
+def test_warm_restart_rolls_back_to_the_last_snapshot_cold_restart_resets(chain_workdir, probe_sources,
+                                                                         plain_central):
     out = ("out", 1)
-    with chain(chain_workdir, probe_sources) as ch:
+    with chain(chain_workdir, probe_sources, plain_central) as ch:
         ch.run_until(2500 * 1_000_000)
         plc = ch.plcs[out]
         n = plc["probe0.n"]
