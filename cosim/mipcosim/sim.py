@@ -208,7 +208,6 @@ class Chain:
         self.warm = []               # (t, which, graceful) of the warm restarts that restored
         self.last_snapshot = {}      # who -> the last snapshot any instance of it took
         self._taps_of = {}           # who -> [(tap slot, seq address name)]
-        self.restored = 0            # of those, the ones that restored a snapshot
         self._snapshots_before = 0   # snapshots of PLC instances that are gone
         for s in range(1, setup.stations + 1):
             self._start(("out", s))
@@ -230,9 +229,8 @@ class Chain:
         if plc.tick_ns != self.tick_ns:
             raise CosimError(f"{who}: the program scans every {plc.tick_ns} ns, the kernel every {self.tick_ns}")
         plc.retain_in_memory(self.s.retain_period_ms * MS)
-        if snapshot is not None and plc.retain_count() > 0:
+        if snapshot is not None:              # a warm restart (restart() checked it applies)
             plc.retain_load(snapshot)         # after config_init__, before the first scan
-            self.restored += 1
         old = self.plcs.get(who)
         self.plcs[who] = plc
         scan = ctypes.cast(plc.library.plcrt_scan, ctypes.c_void_p)
@@ -383,14 +381,14 @@ class Chain:
         self.events.append(Event(self.now, RESTART, pid, []))   # marker for the checker
         self.run_for(down_ns)
         self.boots[who] += 1
-        self._start(who, start, snapshot)
+        self._start(who, start)
 
     def retain_stats(self):
         """{"snapshots": RETAIN snapshots taken by all PLCs (all their restarts included),
         "warm_restarts": warm restarts, "restored": those that restored a snapshot (the others
         were cold: no RETAIN variables, or no snapshot yet)}."""
         return {"snapshots": self._snapshots_before + sum(p.retain_saves for p in self.plcs.values()),
-                "warm_restarts": self.warm_restarts, "restored": self.restored}
+                "warm_restarts": self.warm_restarts, "restored": len(self.warm)}
 
     def mw(self, who, addr):
         return self.plcs[who][f"%MW{addr}"]
