@@ -1,24 +1,39 @@
-"""The MIP blocks of st_lib, running in two soft PLCs (plcharness), against the emulator core,
-all in one virtual time: the source of the traces behind the documentation's pictures.
+"""The MIP blocks of st_lib in two soft PLCs and the emulator core, run by the co-simulation
+kernel (cosim/, libmipcosim) in one virtual time: the source of the traces behind the
+documentation's pictures, the training tool mipsim and the blocks' chain tests.
 
 Each side is one PLC program (docs/tools/chain_main.st) that calls MIP_Sender, MIP_Receiver
-or MIP_Link. This driver plays the runtime's trigger policy (docs/dev/interfaces.md §4): a
-125-register FC3 read at the read-status register every `read_ms`, valid for one scan; one
-FC16 write of aWrite[0..uWriteLen-1] per rising edge of xWriteReq, answered with xWriteDone in
-the next scan. The emulator's trace is kept as is; the driver adds lines with "ev":"plc"
-(what a PLC saw or did) so the diagrams can say it in the application's words.
+or MIP_Link, compiled by stc into the soft-PLC runtime (plcrt). Its Modbus requests are the
+runtime's own: the master of each PLC has a read range (125 registers at the read-status
+register) and a write range (at the first write register) in a config written here, with the
+trigger policy (docs/dev/interfaces.md §4; the program raises a read every `read_ms` and a
+write per rising edge of the block's xWriteReq) or, for `cyclic_ms`, the cyclic policy
+(OpenPLC: both ranges every period, xReadValid always TRUE, a write done after
+`cyclic_done_periods` periods of xWriteReq). The kernel's in-process transport hands the
+requests to the emulator core. This driver only steps the kernel one scan tick at a time,
+feeds the application's side (xExecute, the data to send) and watches.
+
+The emulator's trace is kept as is; the driver adds lines with "ev":"plc" (what a PLC saw or
+did) so the diagrams can say it in the application's words: a read that found new data and a
+write (next to the emulator's line of that Modbus request, labelled from the PLC's image), a
+record delivered, xError, xDone (from the PLC's variables after the scan), a restart.
 """
 from __future__ import annotations
 
+import ctypes
 import json
 import os
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from mipemu_ctypes import Net
-
 REPO = Path(__file__).resolve().parents[2]
-from mipcosim.layout import LIB_FILES   # import order, the one list
+if str(REPO / "cosim") not in sys.path:
+    sys.path.insert(0, str(REPO / "cosim"))       # this checkout's mipcosim
+
+from mipcosim import sim as _sim  # noqa: E402
+from mipcosim.layout import LIB_FILES  # noqa: E402   import order, the one list
+
 PROGRAM = Path(__file__).with_name("chain_main.st")
 # MIP_STLIB_DIR: take the blocks from another directory (e.g. an export of the last commit while
 # st_lib/ has work in progress); default st_lib/ of this checkout.
@@ -27,30 +42,62 @@ MS = 1_000_000
 FFFF = 0xFFFF
 ROLE = {"sender": 1, "receiver": 2, "link": 3}
 FB = {1: "snd", 2: "rcv", 3: "lnk"}
+READ_IMAGE = 100          # %IW100..%IW224: the read range (chain_main.st)
+WRITE_IMAGE = 100         # %QW100..%QW222: the write range
+# the emulator's defaults (mipemu_config_default): the realistic radio, 9600 bit/s
+EMU_DEFAULTS = {"stations": 1, "mode": 0, "static_registers": 123, "loss_down": 0.0,
+                "loss_up": 0.0, "burst": 0.0, "seed": 1, "bitrate": 9600,
+                "slot_gap_ns": 20 * MS, "overhead_bytes": 12}
 
-_BUILD = {}
+TRACE_FN = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_char_p, ctypes.c_size_t)
 
 
 class ChainError(RuntimeError):
-    """The PLC program could not be built or loaded (one line, for the command line)."""
+    """The PLC program could not be built or loaded, or the kernel refused something (one
+    line, for the command line)."""
 
 
-def build_plc(workdir: Path):
-    """Builds st_lib + the chain program once per process, then loads a fresh PLC each call."""
+def build_plc(workdir: Path, config=None):
+    """st_lib + the chain program, built once per process (sim.build caches it), loaded as a
+    fresh PLC (its own library copy) with the runtime config `config`."""
     from plcharness import Plc
     from plcharness.build import BuildError
-    key = str(workdir)
-    if key not in _BUILD:
-        workdir.mkdir(parents=True, exist_ok=True)
-        try:
-            plc = Plc.build([str(LIB_DIR / f) for f in LIB_FILES] + [str(PROGRAM)],
-                            workdir=workdir, compiler="stc")
-        except BuildError as e:
-            first = str(e).strip().splitlines()[0] if str(e).strip() else "build failed"
-            raise ChainError(f"building st_lib + {PROGRAM.name} failed: {first}") from None
-        _BUILD[key] = plc.build_result
-        return plc
-    return Plc(_BUILD[key], workdir)
+    from plcharness.plc import PlcError
+    workdir = Path(workdir)
+    workdir.mkdir(parents=True, exist_ok=True)
+    try:
+        result = _sim.build("docs-chain", False, workdir,
+                            sources=[LIB_DIR / f for f in LIB_FILES] + [PROGRAM])
+        return Plc(result, workdir, config=config)
+    except BuildError as e:
+        first = str(e).strip().splitlines()[0] if str(e).strip() else "build failed"
+        raise ChainError(f"building st_lib + {PROGRAM.name} failed: {first}") from None
+    except PlcError as e:           # the config or the library did not load
+        raise ChainError(f"{PROGRAM.name}: {e}") from None
+
+
+def plc_config(side) -> str:
+    """The runtime config of one side: its modem as one device with a read and a write range
+    (the device's host and port are never used: the kernel's in-process transport)."""
+    central = side.name == "central"
+    rd, wr = (198, 10) if central else (2198, 2001)
+    if side.cyclic_ms:
+        size = side.chunk                        # the fixed write range (the static length)
+        pol_r = pol_w = "policy = cycle\n"
+        poll = f"polling_period = {side.cyclic_ms}ms\n"
+    else:
+        size = 123
+        pol_r = "policy = trigger\ntrigger = %QX1.0\ndone = %IX1.0\nerror = %IX1.1\n"
+        pol_w = ("policy = trigger\ntrigger = %QX1.1\ndone = %IX1.2\nerror = %IX1.3\n"
+                 "length = %QW1\n")
+        poll = ""
+    return (f"# {side.name} of docs/tools/chainsim.py (written by it)\n"
+            "[master]\ntimeout = 1s\n\n"
+            f"[device modem]\nhost = 127.0.0.1\nport = 502\nunit_id = 1\n{poll}\n"
+            f"[read modem_read]\ndevice = modem\nstart = {rd}\nsize = 125\n"
+            f"image = %IW{READ_IMAGE}\n{pol_r}\n"
+            f"[write modem_write]\ndevice = modem\nstart = {wr}\nsize = {size}\n"
+            f"image = %QW{WRITE_IMAGE}\n{pol_w}")
 
 
 @dataclass
@@ -62,57 +109,50 @@ class Side:
     polled: bool = False
     timeout_ms: int = 2000
     chunk: int = 123
-    read_ms: int = 100
-    read_phase_ms: int = 0
+    read_ms: int = 100         # trigger policy: a read every read_ms (>= 20: a level handshake)
+    read_phase_ms: int = 0     # the PLC starts (its first scan, its first read) at this time
     start_ms: int = 0          # xExecute rises at this time (sending sides)
     static: bool = False       # static MIP mode (xStatic; the modems must be static too)
-    cyclic_ms: int = 0         # > 0: OpenPLC-style master: read and write every cyclic_ms,
-                               # xReadValid always TRUE, a write "done" after
+    cyclic_ms: int = 0         # > 0: OpenPLC-style master (cyclic policy): read and write every
+                               # cyclic_ms, xReadValid always TRUE, a write "done" after
     cyclic_done_periods: float = 1.5   # ... this many periods of xWriteReq
 
-    def attach(self, plc, net: Net, emit):
-        self.plc, self.net, self.emit = plc, net, emit
-        central = self.name == "central"
-        self.ep, self.unit = (0, 1) if central else (1, 1)
-        self.rd_addr, self.wr_addr = (198, 10) if central else (2198, 2001)
+    def attach(self, plc):
+        """A fresh program instance for this side (the first or after a restart)."""
+        self.plc = plc
         self.fb = FB[ROLE[self.role]]
         p = plc
         p["MAIN.role"] = ROLE[self.role]
-        p["MAIN.central"] = central
+        p["MAIN.central"] = self.name == "central"
         p["MAIN.polled"] = self.polled
         p["MAIN.static"] = self.static
-        self._req_since = None
-        self._last_cyclic = None
         p["MAIN.tmo"] = self.timeout_ms * MS
         p["MAIN.chunkSize"] = self.chunk
-        self.wr_done = False
+        p["MAIN.readEvery"] = self.read_ms * MS
+        p["MAIN.cyclic"] = bool(self.cyclic_ms)
+        p["MAIN.cyclicDone"] = int(self.cyclic_done_periods * self.cyclic_ms * MS)
+        p["MAIN.enable"] = self.role in ("receiver", "link")
+        self.ep = "mdp" if self.name == "central" else "trm"
         self.received: list[tuple[int, list]] = []
         self.transfers: list[list] = []
-        self._cur: list = []
         self.errors: list[str] = []
+        self._cur: list = []
         self._last_err = False
         self._last_done = False
         self._retry_at = None
+        # the write range as the last scan left it (the master writes it in the next I/O
+        # phase); the modem's write area starts at 0
+        self._out = [0] * (self.chunk if self.cyclic_ms else 2)
+        self._last_written = [0] * self.chunk
 
     def fbv(self, member):
         return self.plc[f"MAIN.{self.fb}.{member}"]
 
     def before_scan(self, t_ns):
+        """The application's inputs for the scan at t_ns."""
         p = self.plc
-        t_ms = t_ns // MS
-        period = self.cyclic_ms or self.read_ms
-        if (t_ms - self.read_phase_ms) % period == 0:
-            regs, exc = self.net.read(self.ep, self.unit, self.rd_addr, 125)
-            p["MAIN.rd"] = regs
-            p["MAIN.rdValid"] = True
-            if regs[0] & 1 and regs[1] >= 1:
-                self.emit(t_ns, self.name, "read",
-                          f"read: new data, {self.label(regs[2:2 + min(regs[1], 2)], True)}",
-                          regs[2])
-        else:
-            p["MAIN.rdValid"] = bool(self.cyclic_ms)
         if self.role in ("sender", "link") and self.data:
-            p["MAIN.execute"] = self.execute(t_ms)
+            p["MAIN.execute"] = self.execute(t_ns // MS)
             if self.fbv("xChunkRequest"):
                 idx, cmax = self.fbv("udiChunkIndex"), self.fbv("uChunkMax")
                 part = self.data[idx * cmax:(idx + 1) * cmax]
@@ -122,7 +162,6 @@ class Side:
                 p["MAIN.chunkValid"] = True
             else:
                 p["MAIN.chunkValid"] = False
-        p["MAIN.enable"] = self.role in ("receiver", "link")
 
     def execute(self, t_ms):
         """xExecute: TRUE from start_ms on; after an error FALSE for one read period, then
@@ -142,8 +181,37 @@ class Side:
         word = "record" if (self.role == "sender") != peer else "ack"
         return f"{word} {header[0]}"
 
+    def request(self, line):
+        """plc lines for one of this side's Modbus requests in the emulator's trace:
+        (before, after) the request's line."""
+        t = line["t"]
+        if line.get("fc") == 3 and not line.get("exc"):
+            p = self.plc
+            regs = [p[f"%IW{READ_IMAGE + i}"] for i in range(4)]   # what the read brought
+            if regs[0] & 1 and regs[1] >= 1:
+                what = self.label(regs[2:2 + min(regs[1], 2)], True)
+                if self.cyclic_ms and self.role != "link" and not any(
+                        p[f"%IW{READ_IMAGE + 2 + i}"] for i in range(min(regs[1], 123))):
+                    what = "zeros"          # a static block of zeros: a sender's idle block
+                return [], [self._line(t, "read", f"read: new data, {what}", regs[2])]
+        elif line.get("fc") == 16:
+            n = line.get("wq", 0)
+            hdr = self._out[:2 if self.role == "link" else 1]
+            regs = "1 reg" if n == 1 else f"{n} regs"
+            same = ""
+            what = self.label(hdr)
+            if self.cyclic_ms:
+                block = self._out[:n]
+                same = ", unchanged" if block == self._last_written[:n] else ""
+                self._last_written = block
+                if not any(block) and self.role != "link":
+                    what = "zeros"      # the image before the first scan, a sender's idle block
+            return [self._line(t, "write", f"write {what} ({regs}{same})", hdr)], []
+        return [], []
+
     def after_scan(self, t_ns):
-        p = self.plc
+        """plc lines from the program's state after its scan at t_ns."""
+        out = []
         if self.role in ("receiver", "link") and self.fbv("xRecordValid"):
             num, n = self.fbv("wRecordNumber"), self.fbv("uRecordLen")
             payload = self.fbv("aRecord")[:n]
@@ -151,7 +219,7 @@ class Side:
             if num == 1:
                 self._cur = []
             self._cur += payload
-            self.emit(t_ns, self.name, "deliver", f"record {num} delivered ({n} regs)", num)
+            out.append(self._line(t_ns, "deliver", f"record {num} delivered ({n} regs)", num))
             if num == FFFF:
                 self.transfers.append(self._cur)
                 self._cur = []
@@ -161,60 +229,27 @@ class Side:
             eid = self.fbv("eErrorId") if self.role != "link" else max(
                 self.fbv("eSendErrorId"), self.fbv("eRecvErrorId"))
             self.errors.append(ERRORS[eid])
-            self.emit(t_ns, self.name, "error", f"xError: {ERRORS[eid]}", eid)
+            out.append(self._line(t_ns, "error", f"xError: {ERRORS[eid]}", eid))
             if self.role in ("sender", "link") and self.data:
                 self._retry_at = t_ns // MS + self.read_ms
         self._last_err = err
         done = self.fbv("xDone") if self.role == "sender" else (
             self.fbv("xSendDone") if self.role == "link" else False)
         if done and not self._last_done:
-            self.emit(t_ns, self.name, "done", "xDone: last record acknowledged", 1)
+            out.append(self._line(t_ns, "done", "xDone: last record acknowledged", 1))
         self._last_done = done
-        if self.cyclic_ms:
-            self._cyclic_write(t_ns)
-            return
-        if self.fbv("xWriteReq"):
-            if not self.wr_done:
-                n = self.fbv("uWriteLen")
-                block = self.fbv("aWrite")[:n]
-                hdr = block[:2 if self.role == "link" else 1]
-                regs = "1 reg" if n == 1 else f"{n} regs"
-                self.emit(t_ns, self.name, "write", f"write {self.label(hdr)} ({regs})", hdr)
-                exc = self.net.write(self.ep, self.unit, self.wr_addr, block)
-                self.wr_done = True
-                p["MAIN.wrDone"] = exc == 0
-                p["MAIN.wrError"] = exc != 0
-        elif self.wr_done:
-            self.wr_done = False
-            p["MAIN.wrDone"] = False
-            p["MAIN.wrError"] = False
+        # what the master will write in the next I/O phase
+        self._out = [self.plc[f"%QW{WRITE_IMAGE + i}"] for i in range(len(self._out))]
+        return out
 
-    def _cyclic_write(self, t_ns):
-        """OpenPLC's master: the write range is written every period, whatever it holds; the
-        program counts a request as done when it has been up for cyclic_done_periods."""
-        p = self.plc
-        t_ms = t_ns // MS
-        n = self.chunk                      # the fixed write range (the static length)
-        block = self.fbv("aWrite")[:n]
-        if (t_ms - self.read_phase_ms) % self.cyclic_ms == self.cyclic_ms // 2:
-            hdr = block[:2 if self.role == "link" else 1]
-            last = self._last_cyclic if self._last_cyclic is not None else [0] * n  # modem starts at 0
-            same = ", unchanged" if block == last else ""
-            self.emit(t_ns, self.name, "write", f"write {self.label(hdr)} ({n} regs{same})", hdr)
-            self.net.write(self.ep, self.unit, self.wr_addr, block)
-            self._last_cyclic = block
-        if self.fbv("xWriteReq"):
-            if self._req_since is None:
-                self._req_since = t_ns
-            done = t_ns - self._req_since >= self.cyclic_done_periods * self.cyclic_ms * MS
-        else:
-            self._req_since = None
-            done = False
-        p["MAIN.wrDone"] = done
-        p["MAIN.wrError"] = False
+    def _line(self, t_ns, what, text, value):
+        return {"t": t_ns, "ev": "plc", "side": self.name, "what": what, "text": text,
+                "value": value}
 
     @property
     def send_done(self):
+        if getattr(self, "plc", None) is None:
+            return self.role == "receiver"
         if self.role == "sender":
             return bool(self.fbv("xDone"))
         if self.role == "link":
@@ -224,41 +259,140 @@ class Side:
 
 ERRORS = ["MIP_ERR_NONE", "MIP_ERR_CHUNK_SIZE", "MIP_ERR_CHUNK_LEN", "MIP_ERR_NO_ACK",
           "MIP_ERR_PEER_RESET", "MIP_ERR_TOO_MANY_RECORDS", "MIP_ERR_ABORTED",
-          "MIP_ERR_SENDER_RESET", "MIP_ERR_TRANSFER_TIMEOUT", "MIP_ERR_BUFFER_LEN"]
+          "MIP_ERR_SENDER_RESET", "MIP_ERR_TRANSFER_TIMEOUT", "MIP_ERR_BUFFER_LEN",
+          "MIP_ERR_PEER_OUT_OF_STEP"]
 
 
 class Chain:
-    """Outstation PLC -- TRM-810 ~~radio~~ MDP-810 -- central PLC, stepped every tick_ms."""
+    """Outstation PLC -- TRM-810 ~~radio~~ MDP-810 -- central PLC in the co-simulation kernel,
+    stepped one scan tick (tick_ms) at a time. emu: the emulator's configuration (keys of
+    EMU_DEFAULTS; slot_gap_ms for slot_gap_ns). outstation or central may be None (a test
+    that brings its own PLC: add_plc)."""
 
-    def __init__(self, workdir: Path, outstation: Side, central: Side, tick_ms=10, **emu):
-        self.plc_lines: list[tuple[int, dict]] = []
-        self.workdir = workdir
-        self.net = Net(stations=1, **emu)
-        self.sides = [outstation, central]
+    def __init__(self, workdir: Path, outstation: Side | None, central: Side | None,
+                 tick_ms=10, **emu):
+        if tick_ms != 10:
+            raise ChainError("tick_ms: chain_main.st's task runs every 10 ms")
+        cfg = dict(EMU_DEFAULTS)
+        for k, v in emu.items():
+            if k == "slot_gap_ms":
+                k, v = "slot_gap_ns", int(v * MS)
+            if k not in cfg:
+                raise ChainError(f"emulator option {k!r}: use one of {', '.join(cfg)}")
+            cfg[k] = v
+        self.workdir = Path(workdir)
         self.tick = tick_ms * MS
-        self.t = 0
+        self.sides = [s for s in (outstation, central) if s is not None]
+        try:
+            self.lib = _sim._lib()
+        except _sim.CosimError as e:
+            raise ChainError(str(e)) from None
+        self.lib.mipemu_net_set_trace.argtypes = [ctypes.c_void_p, TRACE_FN, ctypes.c_void_p]
+        self.lib.mipemu_net_set_trace.restype = None
+        err = ctypes.create_string_buffer(256)
+        self.sim = self.lib.mipcosim_new_args(
+            cfg["stations"], cfg["mode"], cfg["static_registers"], cfg["loss_down"],
+            cfg["loss_up"], cfg["burst"], cfg["seed"], cfg["bitrate"], cfg["slot_gap_ns"],
+            cfg["overhead_bytes"], err, len(err))
+        if not self.sim:
+            raise ChainError(err.value.decode())
+        self.net = self.lib.mipcosim_net(self.sim)
+        self._batch: list[dict] = []      # the emulator's lines of the current step
+        self._cb = TRACE_FN(lambda user, line, n: self._batch.append(
+            json.loads(ctypes.string_at(line, n))))
+        self.lib.mipemu_net_set_trace(self.net, self._cb, None)
+        self.lines: list[dict] = []       # the merged trace so far
+        self.ids = {}                     # side name -> kernel PLC id
+        self.plcs = []                    # every PLC instance loaded (closed at the end)
+        self.confs = {}
         for s in self.sides:
-            s.attach(build_plc(workdir), self.net, self._emit)
+            self.confs[s.name] = self.workdir / f"chain-{s.name}{'-cyclic' if s.cyclic_ms else ''}.conf"
+            self.workdir.mkdir(parents=True, exist_ok=True)
+            self.confs[s.name].write_text(plc_config(s))
+            s.plc, s.received, s.transfers, s.errors = None, [], [], []
+            self._start(s)
 
-    def _emit(self, t_ns, side, what, text, value):
-        self.plc_lines.append((len(self.net.lines), {"t": t_ns, "ev": "plc", "side": side,
-                                                     "what": what, "text": text,
-                                                     "value": value}))
+    @property
+    def t(self):
+        """Virtual time of the next scan."""
+        return self.lib.mipcosim_now(self.sim)
+
+    def _check(self, rc):
+        if rc != 0:
+            raise ChainError(self.lib.mipcosim_errmsg(self.sim).decode())
+
+    def _start(self, side: Side):
+        """A fresh program instance for side, wired to its modem; the first scan at
+        read_phase_ms (the first start) or now (a restart)."""
+        if side.name not in self.ids and self.t < side.read_phase_ms * MS:
+            side.plc = None                     # not started yet: step() starts it
+            return
+        plc = build_plc(self.workdir, self.confs[side.name])
+        self.plcs.append(plc)
+        side.attach(plc)
+        scan = ctypes.cast(plc.library.plcrt_scan, ctypes.c_void_p)
+        if side.name in self.ids:
+            self._check(self.lib.mipcosim_plc_replace(self.sim, self.ids[side.name], scan,
+                                                      plc.handle, self.tick))
+        else:
+            pid = self.lib.mipcosim_plc_add(self.sim, scan, plc.handle, self.tick)
+            self._check(0 if pid >= 0 else -1)
+            self.ids[side.name] = pid
+        set_transport = ctypes.cast(plc.library.plcrt_device_set_transport, ctypes.c_void_p)
+        self._check(self.lib.mipcosim_connect_inproc(self.sim, self.ids[side.name], set_transport,
+                                                     b"modem", 0 if side.name == "central" else 1))
+
+    def add_plc(self, plc):
+        """Another PLC (a plcharness Plc) scanned in the same lockstep from now on, every tick;
+        the caller serves its I/O between steps (e.g. a program without the runtime's master)."""
+        self.plcs.append(plc)
+        pid = self.lib.mipcosim_plc_add(self.sim, ctypes.cast(plc.library.plcrt_scan, ctypes.c_void_p),
+                                        plc.handle, self.tick)
+        self._check(0 if pid >= 0 else -1)
+        return pid
+
+    def _emit(self, line):
+        self.lines.append(line)
 
     def restart(self, side: Side):
-        """A PLC restart: a fresh program instance (all state lost); the modems keep theirs."""
-        self._emit(self.t, side.name, "restart", "PLC restarted", 0)
-        side.attach(build_plc(self.workdir), self.net, self._emit)
+        """A PLC restart: a fresh program instance (all state lost) from the next scan on;
+        the modems keep theirs."""
+        self._emit(side._line(self.t, "restart", "PLC restarted", 0))
+        self._start(side)
 
     def step(self):
-        self.net.advance(self.t)
+        """One scan tick: every PLC due scans once at t (its I/O phase first: the master's
+        requests go to the emulator core), the radio runs on to t + tick."""
+        t = self.t
         for s in self.sides:
-            s.before_scan(self.t)
-        for s in self.sides:
-            s.plc.scan()
-        for s in self.sides:
-            s.after_scan(self.t)
-        self.t += self.tick
+            if s.plc is None and t >= s.read_phase_ms * MS:
+                self._start(s)
+        live = [s for s in self.sides if s.plc is not None]
+        for s in live:
+            s.before_scan(t)
+        self._batch = []
+        rc = self.lib.mipcosim_run(self.sim, t + self.tick)
+        if rc != 0:
+            msg = self.lib.mipcosim_errmsg(self.sim).decode()
+            failed = self.lib.mipcosim_failed_plc(self.sim)
+            for s in live:
+                if self.ids.get(s.name) == failed:
+                    why = s.plc.library.plcrt_errmsg(s.plc.handle) or b""
+                    msg += f": {s.name}: {why.decode()}"
+            raise ChainError(msg)
+        # the emulator's lines of this step, each request with the plc lines of its PLC,
+        # then what the scans left (after every line up to t: the radio's later ones follow)
+        by_ep = {s.ep: s for s in live}
+        merged = []
+        for d in self._batch:
+            side = by_ep.get(d.get("ep")) if d.get("ev") == "modbus" and d.get("st") == 1 else None
+            before, after = side.request(d) if side else ([], [])
+            merged += before + [d] + after
+        cut = len(merged)
+        while cut and merged[cut - 1]["t"] > t:
+            cut -= 1
+        scanned = [line for s in live for line in s.after_scan(t)]
+        self.lines += merged[:cut] + scanned + merged[cut:]
 
     def run_until(self, cond, limit_ms):
         end = self.t + limit_ms * MS
@@ -268,20 +402,26 @@ class Chain:
             self.step()
         return cond()
 
+    def stats(self, station=1):
+        """The emulator's radio counters of `station`."""
+        st = _sim._Stats()
+        self.lib.mipemu_net_stats(self.net, station, ctypes.byref(st))
+        return {n: getattr(st, n) for n, _ in _sim._Stats._fields_}
+
     def trace(self) -> list[str]:
-        """The emulator's lines with the driver's plc lines merged in time order, renumbered."""
-        items = []
-        for i, line in enumerate(self.net.lines):
-            items.append((i, 1, i, json.loads(line)))
-        for i, (pos, d) in enumerate(self.plc_lines):
-            items.append((pos, 0, i, dict(d)))
-        items.sort(key=lambda x: x[:3])
+        """The emulator's lines with the plc lines merged in, numbered."""
         out = []
-        for seq, (_, _, _, d) in enumerate(items):
+        for seq, d in enumerate(self.lines):
+            d = dict(d)
             d["seq"] = seq
             keys = ["t", "seq"] + [k for k in d if k not in ("t", "seq")]
             out.append(json.dumps({k: d[k] for k in keys}, separators=(",", ":")))
         return out
 
     def close(self):
-        self.net.close()
+        if self.sim:
+            self.lib.mipcosim_free(self.sim)
+            self.sim = None
+        for p in self.plcs:
+            p.close()
+        self.plcs = []

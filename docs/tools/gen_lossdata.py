@@ -8,8 +8,8 @@ docs/data/throughput-vs-loss.json (draw it with docs/tools/lossplot.py).
 example programs plc/outstation.st and plc/central.st (st_lib's MIP_Sender / MIP_Receiver with
 the logger and the record store) in the soft-PLC runtime with its Modbus master, against the
 emulator core, with the realistic radio (9600 bit/s, 20 ms gaps).
---source blocks: the st_lib blocks alone in two soft PLCs against the emulator core
-(docs/tools/chainsim.py), the Modbus requests played by the driver.
+--source blocks: the st_lib blocks alone in two soft PLCs (docs/tools/chainsim.py: the same
+kernel and runtime, the program docs/tools/chain_main.st reads every 100 ms).
 
 For each loss probability p (both directions, independent losses) and each drive
 (spontaneous, polled) one transfer of `records` records of 122 payload registers is run per
@@ -74,7 +74,6 @@ def run_cosim(p, drive, seed, records, workdir):
 def run_blocks(p, drive, seed, records, workdir=None):
     from chainsim import Chain, ChainError, Side
     from gen_traces import WORK, logger_data
-    from mipemu_ctypes import EmuError
     polled = drive == "polled"
     data = logger_data(records * PAYLOAD, seed)
     o = Side("outstation", "sender", data=data, polled=polled, timeout_ms=1500, read_ms=100)
@@ -82,7 +81,7 @@ def run_blocks(p, drive, seed, records, workdir=None):
              read_phase_ms=50)
     try:
         ch = Chain(WORK, o, c, loss_up=p, loss_down=p, seed=seed)
-    except (ChainError, EmuError) as e:
+    except ChainError as e:
         raise DataError(str(e)) from None
     ok = ch.run_until(lambda: o.send_done, LIMIT_S * 1000)
     t_end = ch.t
@@ -99,8 +98,8 @@ SOURCES = {
     "cosim": (run_cosim, "cosim/ (plc/outstation.st + plc/central.st in the soft-PLC runtime "
                          "with its Modbus master, emulator core), virtual time",
               "10 ms scan, tTimeout 1.5 s (the example programs' wiring)"),
-    "blocks": (run_blocks, "st_lib MIP_Sender/MIP_Receiver in plcharness + emulator core, "
-                           "virtual time",
+    "blocks": (run_blocks, "st_lib MIP_Sender/MIP_Receiver in the soft-PLC runtime with its "
+                           "Modbus master (docs/tools/chain_main.st), emulator core, virtual time",
                "10 ms scan, read every 100 ms, tTimeout 1.5 s"),
 }
 

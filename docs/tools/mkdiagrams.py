@@ -15,8 +15,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import seqdiag  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
-COMMON = ("st_lib blocks in two soft PLCs + emulator core, virtual time "
-          "(docs/tools/gen_traces.py); empty polls/answers and reads without new data omitted.")
+COMMON = ("st_lib blocks in two soft PLCs (plcrt, its Modbus master does the requests) + "
+          "emulator core in the co-simulation kernel, virtual time (docs/tools/gen_traces.py); "
+          "empty polls/answers and reads without new data omitted.")
 DIAGRAMS = [
     ("note-2-1-1", "Note 2.1.1: five records, polled by the central, record 2 lost on the radio",
      "Trace docs/traces/note-2-1-1.jsonl (uplink loss 20 %, bursts of 4, seed found by the "
@@ -27,8 +28,9 @@ DIAGRAMS = [
     ("restart", "Restart: the outstation PLC restarts in the middle of a transfer",
      "Trace docs/traces/restart.jsonl (no loss, spontaneous drive). " + COMMON),
     ("static-openplc", "Static mode with OpenPLC-style cyclic I/O: only changed blocks go on air",
-     "Trace docs/traces/static-openplc.jsonl (static mode, 40 registers; both PLCs write their "
-     "whole range every 500 ms and count a write done after 750 ms; no loss). " + COMMON),
+     "Trace docs/traces/static-openplc.jsonl (static mode, 40 registers; the runtime's cyclic "
+     "policy reads and writes each PLC's whole ranges every 500 ms, the first write before the "
+     "program ran; a write counts done after 750 ms; no loss). " + COMMON),
 ]
 
 

@@ -10,7 +10,8 @@ TOOLS = REPO / "docs" / "tools"
 PY = sys.executable
 ST_LIB = sorted(str(p) for p in (REPO / "st_lib").glob("*.st"))
 XSD = REPO / "build" / "docs" / "tc6_xml_v201.xsd"
-EMU_SO = REPO / "build" / "docs" / "libmipemu.so"
+# the co-simulation kernel (its emulator core runs the docs' chains: docs/tools/chainsim.py)
+KERNEL_SO = REPO / "build" / "cosim" / "libmipcosim.so"
 
 if str(TOOLS) not in sys.path:
     sys.path.insert(0, str(TOOLS))

@@ -1,18 +1,18 @@
-"""The traces behind the diagrams come from st_lib itself (two soft PLCs, the emulator core,
-virtual time). Running the scenarios again must give the checked-in bytes, so the pictures
+"""The traces behind the diagrams come from st_lib itself (two soft PLCs with the runtime's
+Modbus master and the emulator core in the co-simulation kernel, virtual time). Running the scenarios again must give the checked-in bytes, so the pictures
 always show what the code does; and the scenarios must show what the guide says they show."""
 import json
 
 import pytest
 
-from docs_helpers import EMU_SO, REPO, tool
+from docs_helpers import KERNEL_SO, REPO, tool
 
 TRACES = REPO / "docs" / "traces"
 
 
 @pytest.fixture(scope="module")
 def fresh(tmp_path_factory):
-    assert EMU_SO.exists(), f"{EMU_SO} missing: run `make {EMU_SO.relative_to(REPO)}`"
+    assert KERNEL_SO.exists(), f"{KERNEL_SO} missing: run `make {KERNEL_SO.relative_to(REPO)}`"
     out = tmp_path_factory.mktemp("traces")
     r = tool("gen_traces", "-o", out)
     assert r.returncode == 0, r.stderr

@@ -5,8 +5,9 @@ periods after it raised xWriteReq. The record can thus reach the receiver, and i
 acknowledgement be read, before xWriteDone. MIP_Sender counted an acknowledgement only when
 read after the write was done, and static mode never sends the unchanged block again (nor
 the receiver its unchanged acknowledgement): the transfer stalled after record 1. Run through
-the virtual-time chain of docs/tools/chainsim.py (the emulator core and the program built
-from st_lib)."""
+the virtual-time chain of docs/tools/chainsim.py (the program built from st_lib in the
+soft-PLC runtime, whose master has the cyclic policy, and the emulator core, in the
+co-simulation kernel)."""
 import sys
 from pathlib import Path
 
@@ -15,8 +16,8 @@ import pytest
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO / "docs" / "tools"))
 
-if not (REPO / "build" / "docs" / "libmipemu.so").is_file():
-    pytest.fail("build/docs/libmipemu.so not built: run make first (these tests cannot run without it)", pytrace=False)
+if not (REPO / "build" / "cosim" / "libmipcosim.so").is_file():
+    pytest.fail("build/cosim/libmipcosim.so not built: run make first (these tests cannot run without it)", pytrace=False)
 
 from chainsim import Chain, Side  # noqa: E402
 
