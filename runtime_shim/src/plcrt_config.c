@@ -195,6 +195,7 @@ static int finish_range(parser_t *p, range_keys_t *k, uint64_t default_poll)
     r->dev = find_device(m, k->v_device);
     if (r->dev < 0)
         return perr(p, k->device, "device: no [device %s] above this range", k->v_device);
+    r->out_unit = m->devices[r->dev].unit_word >= 0 ? -1 : m->devices[r->dev].unit_id;
     /* table */
     r->table = 'h';
     if (k->table) {
@@ -358,6 +359,7 @@ static int parse_plcrt(parser_t *p, char *text)
                     dev->line = lineno;
                     dev->port = 502;
                     dev->unit_id = 1;
+                    dev->unit_word = -1;
                     dev->timeout_ns = default_timeout;
                     dev->poll_ns = default_poll;
                     dev->errors_word = -1;
@@ -465,8 +467,16 @@ static int parse_plcrt(parser_t *p, char *text)
                 dev->port = (int)x;
             } else if (!strcmp(key, "unit_id")) {
                 slot = &dk.unit_id;
-                if (parse_int(p, lineno, key, val, 0, 255, &x)) return -1;
-                dev->unit_id = (int)x;
+                if (val[0] == '%' || isalpha((unsigned char)val[0])) {
+                    /* unit_id = %QWn: the program chooses the unit id of each request */
+                    if (!dk.unit_id &&
+                        (parse_location(p, lineno, key, val, 'Q', 'W', &dev->unit_word) ||
+                         claim(p, lineno, 'Q', 'W', dev->unit_word, 1, key)))
+                        return -1;
+                } else {
+                    if (parse_int(p, lineno, key, val, 0, 255, &x)) return -1;
+                    dev->unit_id = (int)x;
+                }
             } else if (!strcmp(key, "timeout")) {
                 slot = &dk.timeout;
                 if (parse_duration(p, lineno, key, val, &dev->timeout_ns)) return -1;
@@ -670,7 +680,7 @@ static int parse_mbconfig(parser_t *p, char *text)
         dev->unit_id = (int)d->slave_id;
         dev->timeout_ns = timeout_ns;
         dev->poll_ns = poll_ns;
-        dev->errors_word = dev->online_bit = dev->ext_fd = -1;
+        dev->errors_word = dev->online_bit = dev->ext_fd = dev->unit_word = -1;
         /* OpenPLC's order per device: DI, coils, IR, HR read, HR write */
         static const char tables[5] = {'d', 'c', 'i', 'h', 'h'};
         static const int writes[5] = {0, 1, 0, 0, 1};
@@ -688,6 +698,7 @@ static int parse_mbconfig(parser_t *p, char *text)
             r->policy = POLICY_CYCLE;
             r->trigger = r->done = r->error = r->status = r->length = -1;
             r->dev = m->n_devices - 1;
+            r->out_unit = dev->unit_id;
             int limit = range_limit(r);
             if (r->size > limit)
                 return perr(p, line, "%s_Size: %d in one request (at most %d)", mb_block[b], r->size, limit);

@@ -41,6 +41,13 @@ int plcrt_master_is_empty(const struct plcrt_master *m) { return !m || m->n_rang
 
 /* ------------------------------------------------------------------ exchange (image side) */
 
+/* The unit id of a request taken now (image_lock held): the device's constant, or the value of
+ * its unit_id = %QWn word, which may be outside 0..255 (the request then fails in step). */
+static int unit_now(plcrt_t *rt, const plcrt_device_t *d)
+{
+    return d->unit_word >= 0 ? rt->img.qw[d->unit_word] : d->unit_id;
+}
+
 void plcrt_master_exchange_out(plcrt_t *rt, struct plcrt_master *m)
 {
     int wake = 0;
@@ -53,13 +60,17 @@ void plcrt_master_exchange_out(plcrt_t *rt, struct plcrt_master *m)
                 r->out[j] = bits ? qx_bits(rt)[r->image + j] : rt->img.qw[r->image + j];
             r->out_len = r->length >= 0 ? rt->img.qw[r->length] : r->size;
         }
-        if (r->policy != POLICY_TRIGGER) continue;
+        if (r->policy != POLICY_TRIGGER) {
+            r->out_unit = unit_now(rt, &m->devices[r->dev]); /* with the data, as they are now */
+            continue;
+        }
         int level = qx_bits(rt)[r->trigger] != 0;
         if (level && !r->trig_level && !r->pending) {
-            /* rising edge: the request takes the data and length as they are now */
+            /* rising edge: the request takes the data, length and unit id as they are now */
             r->pending = 1;
             r->result = RESULT_NONE;
             r->req_len = r->is_write ? r->out_len : r->size;
+            r->req_unit = unit_now(rt, &m->devices[r->dev]);
             if (r->is_write) memcpy(r->req, r->out, sizeof r->req[0] * (size_t)r->size);
             wake = 1;
         }
@@ -115,7 +126,7 @@ void plcrt_master_exchange_in(plcrt_t *rt, struct plcrt_master *m)
 
 /* ------------------------------------------------------------------ rate-limited log */
 
-enum { LOG_CONNECTED, LOG_FAILING, LOG_RECOVERED, LOG_LENGTH };
+enum { LOG_CONNECTED, LOG_FAILING, LOG_RECOVERED, LOG_LENGTH, LOG_UNIT };
 
 /* Logs a device's transition line unless one of the same kind was logged less than
  * PLCRT_LOG_INTERVAL_NS ago (time now: virtual or monotonic); suppressed lines are counted
@@ -160,6 +171,9 @@ static int device_ensure_ctx(plcrt_t *rt, plcrt_device_t *d)
         plcrt_log(rt, "device %s: cannot create a Modbus context: %s", d->name, modbus_strerror(errno));
         return -1;
     }
+    /* (libmodbus's slave id is not used: send_adu frames unit id and PDU itself, with the
+     * request's unit id, and modbus_receive_confirmation does not check the unit id over TCP;
+     * do_request compares it with the request's) */
     modbus_set_slave(d->ctx, d->unit_id);
     modbus_set_error_recovery(d->ctx, MODBUS_ERROR_RECOVERY_NONE);
     modbus_set_response_timeout(d->ctx, (uint32_t)(d->timeout_ns / 1000000000ull),
@@ -266,6 +280,7 @@ static int receive_reply(struct plcrt_master *m, plcrt_device_t *d, uint16_t tid
 
 typedef struct request {
     int fc, addr, count;
+    int unit; /* unit id of this request (0..255 by the time it is sent) */
     uint16_t data[PLCRT_MAX_BITS]; /* write data in, read data out */
 } request_t;
 
@@ -277,7 +292,7 @@ static int do_request(struct plcrt_master *m, plcrt_device_t *d, request_t *q, i
     uint8_t rsp[MODBUS_TCP_MAX_ADU_LENGTH + 64]; /* + room for an in-process handler's cap */
     int n = 0;
     *transport = 0;
-    req[n++] = (uint8_t)d->unit_id;
+    req[n++] = (uint8_t)q->unit; /* the request's own: unit_id = %QWn may change per request */
     req[n++] = (uint8_t)q->fc;
     put16(req + n, q->addr); n += 2;
     put16(req + n, q->count); n += 2;
@@ -322,7 +337,7 @@ static int do_request(struct plcrt_master *m, plcrt_device_t *d, request_t *q, i
         }
         h = modbus_get_header_length(d->ctx); /* MBAP incl. unit id: the function code follows */
     }
-    if (len < h + 2 || rsp[h - 1] != (uint8_t)d->unit_id) goto bad;
+    if (len < h + 2 || rsp[h - 1] != (uint8_t)q->unit) goto bad;
     if (rsp[h] == (uint8_t)(q->fc | 0x80)) return rsp[h + 1] ? rsp[h + 1] : EPROTO + 1000;
     if (rsp[h] != q->fc) goto bad;
     if (q->fc == 3 || q->fc == 4) {
@@ -428,6 +443,7 @@ static void step(plcrt_t *rt, struct plcrt_master *m, uint64_t now, int writes_o
         q.addr = r->start;
         q.count = r->size;
         if (r->policy == POLICY_TRIGGER) {
+            q.unit = r->req_unit;
             if (r->pending) {
                 go = 1;
                 if (r->is_write) {
@@ -435,7 +451,10 @@ static void step(plcrt_t *rt, struct plcrt_master *m, uint64_t now, int writes_o
                     q.count = r->req_len;
                 }
             }
-        } else if (now >= r->next_due) {
+        } else if (r->out_unit >= 0 && now >= r->next_due) {
+            /* (out_unit < 0: unit_id = %QWn and no exchange yet, the real-time master thread's
+             * first pass before the first scan ended: nothing to take the unit id from) */
+            q.unit = r->out_unit;
             r->next_due = r->next_due + d->poll_ns > now ? r->next_due + d->poll_ns : now + d->poll_ns;
             if (r->next_due == 0) r->next_due = now + d->poll_ns;
             go = 1;
@@ -450,7 +469,15 @@ static void step(plcrt_t *rt, struct plcrt_master *m, uint64_t now, int writes_o
         pthread_mutex_unlock(&m->lock);
         if (!go) continue;
         int status;
-        if (q.count < 1 || q.count > r->size) {
+        if (q.unit < 0 || q.unit > 255) {
+            /* unit_id = %QWn held a value that is no unit id: the request is not sent */
+            pthread_mutex_lock(&m->lock);
+            d->n_errors++;
+            pthread_mutex_unlock(&m->lock);
+            log_limited(rt, d, LOG_UNIT, now, "device %s: unit id %d from %%QW%d out of range (0..255): request of range %s not sent",
+                        d->name, q.unit, d->unit_word, r->name);
+            status = STATUS_TRANSPORT(EINVAL);
+        } else if (q.count < 1 || q.count > r->size) {
             /* the length word asks for more than the range has */
             pthread_mutex_lock(&m->lock);
             d->n_errors++;

@@ -34,7 +34,9 @@ typedef struct plcrt_range {
     int have_last;
     int fresh;           /* in[] holds new data */
     int req_len;
+    int req_unit;        /* unit id of the trigger request (sampled at the edge; may be > 255) */
     int out_len;         /* length word as of the last exchange (size without one) */
+    int out_unit;        /* unit id as of the last exchange (cycle/change); -1 = none yet */
     uint64_t next_due;
     int trig_level;      /* trigger bit as of the last exchange */
     int pending;         /* a trigger edge waits for its request */
@@ -48,6 +50,7 @@ typedef struct plcrt_device {
     int line;
     char host[256];
     int port, unit_id;
+    int unit_word;   /* unit_id = %QWn: n, the unit id of each request is taken from it; -1 = constant */
     uint64_t timeout_ns, poll_ns;
     int errors_word; /* %IW index of the error counter, -1 = none */
     int online_bit;  /* flat %IX index, -1 = none */
@@ -66,8 +69,8 @@ typedef struct plcrt_device {
     int failing;     /* last request failed: log only transitions */
     /* rate limit of the transition lines (LOG_* in plcrt_master.c): one per kind and
      * PLCRT_LOG_INTERVAL_NS, the others counted and reported with the next one */
-    uint64_t log_last_ns[4], log_suppressed[4];
-    unsigned char log_seen[4];
+    uint64_t log_last_ns[5], log_suppressed[5];
+    unsigned char log_seen[5];
     char last_error[160];
 } plcrt_device_t;
 

@@ -1208,4 +1208,232 @@ TEST(reconnect_lines_are_rate_limited_per_device)
     plcrt_free(rt);
 }
 
+/* ------------------------------------------------------------------ unit id from the image */
+
+/* An in-process peer (plcrt_device_set_transport) standing in for a gateway whose unit id
+ * selects the station: it records the unit id of every request ADU and answers FC3 with
+ * registers 100 * unit + address offset, FC16 with the usual echo. */
+typedef struct unit_peer {
+    int n;
+    int unit[32];
+    int reply_unit_delta; /* answer with another unit id than asked (a wrong gateway) */
+    uint16_t *change_word;  /* during the request: the program's word changes (while pending) */
+    uint16_t change_to;
+} unit_peer_t;
+
+static long unit_peer_transact(void *user, const uint8_t *req, size_t len, uint8_t *rsp, size_t cap)
+{
+    unit_peer_t *p = user;
+    (void)cap;
+    if (len < 12) return -1;
+    if (p->n < 32) p->unit[p->n] = req[6];
+    p->n++;
+    if (p->change_word) *p->change_word = p->change_to;
+    memcpy(rsp, req, 7);
+    rsp[6] = (uint8_t)(req[6] + p->reply_unit_delta);
+    int fc = req[7], count = (req[10] << 8) | req[11], n;
+    if (fc == 3) {
+        rsp[7] = 3;
+        rsp[8] = (uint8_t)(2 * count);
+        for (int i = 0; i < count; i++) {
+            int v = 100 * req[6] + i;
+            rsp[9 + 2 * i] = (uint8_t)(v >> 8);
+            rsp[10 + 2 * i] = (uint8_t)v;
+        }
+        n = 9 + 2 * count;
+    } else {
+        memcpy(rsp + 7, req + 7, 5); /* FC16: function, address, quantity */
+        n = 12;
+    }
+    rsp[4] = (uint8_t)((n - 6) >> 8);
+    rsp[5] = (uint8_t)(n - 6);
+    return n;
+}
+
+#define UNIT_DEVICE "[device gw]\nhost = 127.0.0.1\nunit_id = %QW40\nerrors = %IW50\n"
+#define UNIT_TRIGGER_READ                                                                    \
+    "[read r]\ndevice = gw\nstart = 198\nsize = 3\nimage = %IW300\npolicy = trigger\n"        \
+    "trigger = %QX10.0\ndone = %IX10.0\nerror = %IX10.1\nstatus = %IW60\n"
+
+static plcrt_t *unit_rt(const char *ranges, unit_peer_t *peer)
+{
+    plcrt_t *rt = new_rt();
+    char cfg[1024];
+    snprintf(cfg, sizeof cfg, "%s%s", UNIT_DEVICE, ranges);
+    if (plcrt_load_config_text(rt, "unit.cfg", cfg) != 0) fprintf(stderr, "config: %s\n", plcrt_errmsg(rt));
+    if (plcrt_device_set_transport(rt, "gw", unit_peer_transact, peer) != 0)
+        fprintf(stderr, "transport: %s\n", plcrt_errmsg(rt));
+    return rt;
+}
+
+TEST(unit_id_from_qw_is_taken_per_trigger_request)
+{
+    unit_peer_t peer = {0};
+    plcrt_t *rt = unit_rt(UNIT_TRIGGER_READ, &peer);
+    plcrt_image_t *img = plcrt_image(rt);
+    img->qw[40] = 7;
+    qx(rt)[80] = 1;
+    plcrt_scan(rt, 1);
+    CHECK_EQ(peer.n, 1);
+    CHECK_EQ(peer.unit[0], 7);
+    CHECK_EQ(ix(rt)[80], 1); /* done: the reply's unit id is the request's */
+    CHECK_EQ(img->iw[300], 700);
+    CHECK_EQ(img->iw[302], 702);
+    qx(rt)[80] = 0;
+    plcrt_scan(rt, 1);
+    /* the next request, to another station */
+    img->qw[40] = 9;
+    qx(rt)[80] = 1;
+    /* and while it is pending, the program's word changes: not this request's business */
+    peer.change_word = &img->qw[40];
+    peer.change_to = 11;
+    plcrt_scan(rt, 1);
+    CHECK_EQ(peer.n, 2);
+    CHECK_EQ(peer.unit[1], 9);
+    CHECK_EQ(ix(rt)[80], 1);
+    CHECK_EQ(ix(rt)[81], 0);
+    CHECK_EQ(img->iw[60], 0);
+    CHECK_EQ(img->iw[300], 900);
+    CHECK_EQ(img->qw[40], 11);
+    peer.change_word = NULL;
+    plcrt_scan(rt, 5); /* no new edge, no request */
+    CHECK_EQ(peer.n, 2);
+    qx(rt)[80] = 0;
+    plcrt_scan(rt, 1);
+    qx(rt)[80] = 1;
+    plcrt_scan(rt, 1);
+    CHECK_EQ(peer.n, 3);
+    CHECK_EQ(peer.unit[2], 11); /* the new edge takes the word as it is now */
+    CHECK_EQ(img->iw[300], 1100);
+    plcrt_free(rt);
+}
+
+TEST(unit_id_from_qw_out_of_range_fails_the_request_like_any_error)
+{
+    unit_peer_t peer = {0};
+    plcrt_t *rt = unit_rt(UNIT_TRIGGER_READ, &peer);
+    plcrt_image_t *img = plcrt_image(rt);
+    img->qw[40] = 300;
+    qx(rt)[80] = 1;
+    plcrt_scan(rt, 1);
+    CHECK_EQ(peer.n, 0);      /* not sent */
+    CHECK_EQ(ix(rt)[80], 0);  /* done */
+    CHECK_EQ(ix(rt)[81], 1);  /* error */
+    CHECK_EQ(img->iw[60], 1022); /* 1000 + EINVAL, as for a length word outside 1..size */
+    CHECK_EQ(img->iw[50], 1);    /* the device's error counter */
+    CHECK_STR_CONTAINS(log_buf, "device gw: unit id 300 from %QW40 out of range (0..255)");
+    img->qw[40] = 4; /* too late for this request: the handshake still shows its error */
+    plcrt_scan(rt, 3);
+    CHECK_EQ(peer.n, 0);
+    CHECK_EQ(ix(rt)[81], 1);
+    CHECK_EQ(img->iw[60], 1022);
+    qx(rt)[80] = 0;
+    plcrt_scan(rt, 1);
+    CHECK_EQ(ix(rt)[80], 0);
+    CHECK_EQ(ix(rt)[81], 0);
+    qx(rt)[80] = 1;
+    plcrt_scan(rt, 1);
+    CHECK_EQ(peer.n, 1);
+    CHECK_EQ(peer.unit[0], 4);
+    CHECK_EQ(ix(rt)[80], 1);
+    CHECK_EQ(ix(rt)[81], 0);
+    CHECK_EQ(img->iw[60], 0);
+    CHECK_EQ(img->iw[300], 400);
+    /* 0 (broadcast) and 255 are unit ids the master sends like any other */
+    img->qw[40] = 255;
+    qx(rt)[80] = 0;
+    plcrt_scan(rt, 1);
+    qx(rt)[80] = 1;
+    plcrt_scan(rt, 1);
+    CHECK_EQ(peer.unit[1], 255);
+    CHECK_EQ(ix(rt)[80], 1);
+    plcrt_free(rt);
+}
+
+TEST(unit_id_from_qw_reply_must_carry_the_requests_unit_id)
+{
+    unit_peer_t peer = {0};
+    peer.reply_unit_delta = 1;
+    plcrt_t *rt = unit_rt(UNIT_TRIGGER_READ, &peer);
+    plcrt_image(rt)->qw[40] = 5;
+    qx(rt)[80] = 1;
+    plcrt_scan(rt, 1);
+    CHECK_EQ(peer.n, 1);
+    CHECK_EQ(ix(rt)[81], 1);
+    CHECK_EQ(plcrt_image(rt)->iw[60], 1071); /* a reply from unit 6: malformed for this request */
+    CHECK_EQ(plcrt_image(rt)->iw[300], 0);
+    plcrt_free(rt);
+}
+
+TEST(unit_id_from_qw_cycle_ranges_take_it_with_each_poll)
+{
+    unit_peer_t peer = {0};
+    plcrt_t *rt = unit_rt("[read c]\ndevice = gw\nstart = 0\nsize = 1\nimage = %IW300\n"
+                          "[write w]\ndevice = gw\nstart = 10\nsize = 1\nimage = %QW41\npolicy = cycle\n", &peer);
+    plcrt_image(rt)->qw[40] = 2;
+    plcrt_scan(rt, 10); /* 100 ms: one poll of each */
+    plcrt_image(rt)->qw[40] = 3;
+    plcrt_scan(rt, 10);
+    plcrt_image(rt)->qw[40] = 1000;
+    plcrt_scan(rt, 10);
+    CHECK_EQ(peer.n, 4);
+    CHECK_EQ(peer.unit[0], 2);
+    CHECK_EQ(peer.unit[1], 2);
+    CHECK_EQ(peer.unit[2], 3);
+    CHECK_EQ(peer.unit[3], 3);
+    CHECK_EQ(plcrt_image(rt)->iw[300], 300);
+    CHECK_EQ(plcrt_image(rt)->iw[50], 2); /* both polls with unit id 1000 failed */
+    plcrt_free(rt);
+}
+
+/* over TCP the request goes through send_adu and the reply through libmodbus's
+ * modbus_receive_confirmation: a libmodbus server sees each request's unit id, even one that
+ * modbus_set_slave would refuse for a TCP context (248..254), and its replies are accepted */
+TEST(unit_id_from_qw_over_tcp)
+{
+    server_t *s = server_new(1);
+    plcrt_t *rt = new_rt();
+    char cfg[1024];
+    snprintf(cfg, sizeof cfg,
+             "[device gw]\nhost = 127.0.0.1\nport = %d\nunit_id = %%QW40\ntimeout = 500ms\n"
+             "[write w]\ndevice = gw\nstart = 10\nsize = 2\nimage = %%QW200\npolicy = trigger\n"
+             "trigger = %%QX10.0\ndone = %%IX10.0\nerror = %%IX10.1\nstatus = %%IW60\n", s->port);
+    CHECK_EQ(plcrt_load_config_text(rt, "tcp.cfg", cfg), 0);
+    int units[3] = {17, 250, 42};
+    for (int k = 0; k < 3; k++) {
+        plcrt_image(rt)->qw[40] = (uint16_t)units[k];
+        plcrt_image(rt)->qw[200] = (uint16_t)(k + 1);
+        qx(rt)[80] = 1;
+        plcrt_scan(rt, 1);
+        CHECK_EQ(ix(rt)[80], 1);
+        CHECK_EQ(plcrt_image(rt)->iw[60], 0);
+        qx(rt)[80] = 0;
+        plcrt_scan(rt, 1);
+    }
+    CHECK_EQ(server_count(s, 16), 3);
+    for (int k = 0; k < 3; k++) CHECK_EQ(s->log_unit[k], units[k]);
+    CHECK_EQ(s->map->tab_registers[10], 3);
+    plcrt_free(rt);
+    server_free(s);
+}
+
+TEST(unit_id_from_qw_config_errors)
+{
+    expect_config_error("[device d]\nhost = 127.0.0.1\nunit_id = %IW5\n",
+                        "bad.cfg:3: error: unit_id: '%IW5' must be a %QW address");
+    expect_config_error("[device d]\nhost = 127.0.0.1\nunit_id = %QX5.0\n",
+                        "bad.cfg:3: error: unit_id: '%QX5.0' must be a %QW address");
+    expect_config_error("[device d]\nhost = 127.0.0.1\nunit_id = %QW1024\n",
+                        "bad.cfg:3: error: unit_id: '%QW1024' is outside the image (n < 1024)");
+    expect_config_error("[device d]\nhost = 127.0.0.1\nunit_id = %QW\n",
+                        "bad.cfg:3: error: unit_id: bad address '%QW' (expected e.g. %QW100)");
+    expect_config_error("[device d]\nhost = 127.0.0.1\nunit_id = 256\n",
+                        "bad.cfg:3: error: unit_id: 256 is out of range (0..255)");
+    expect_config_error("[device d]\nhost = 127.0.0.1\nunit_id = %QW5\nunit_id = %QW6\n",
+                        "bad.cfg:4: error: key 'unit_id' given twice (first on line 3)");
+    expect_config_error("[device d]\nhost = 127.0.0.1\nunit_id = %QW5\n"
+                        "[write w]\ndevice = d\nstart = 0\nsize = 10\nimage = %QW0\n",
+                        "bad.cfg:8: error: image: %QW5 overlaps what line 3 uses");
+}
+
 int main(int argc, char **argv) { return mt_main(argc, argv, "runtime_shim"); }

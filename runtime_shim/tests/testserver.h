@@ -27,7 +27,7 @@ typedef struct server {
     volatile int mute; /* receive, never answer (timeout tests) */
     pthread_mutex_t lock;
     int n_log;
-    int log_fc[SRV_LOG], log_addr[SRV_LOG], log_count[SRV_LOG];
+    int log_fc[SRV_LOG], log_addr[SRV_LOG], log_count[SRV_LOG], log_unit[SRV_LOG];
 } server_t;
 
 static void server_record(server_t *s, const uint8_t *q, int hl)
@@ -37,6 +37,7 @@ static void server_record(server_t *s, const uint8_t *q, int hl)
         s->log_fc[s->n_log] = q[hl];
         s->log_addr[s->n_log] = (q[hl + 1] << 8) | q[hl + 2];
         s->log_count[s->n_log] = (q[hl + 3] << 8) | q[hl + 4];
+        s->log_unit[s->n_log] = q[hl - 1];
         s->n_log++;
     }
     pthread_mutex_unlock(&s->lock);
