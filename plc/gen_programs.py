@@ -172,10 +172,13 @@ def status_vars(s, receiver=True, sender=True):
 
 def io_before(s):
     """Read handshake and read block copy, before the MIP block is called."""
-    lines = [f"(* station {s}: read handshake (trigger policy): a read every other scan *)"]
-    lines += [f"rd{s}[{i}] := r{s}_{i};" for i in range(READ_REGS)]
+    lines = [f"(* station {s}: read handshake (trigger policy): a read every other scan; the block is"
+             f" copied when it is valid (the MIP blocks look at aRead only with xReadValid) *)",
+             f"xRdValid{s} := rdDone{s} OR xCyclic;",
+             f"IF xRdValid{s} THEN"]
+    lines += [f"  rd{s}[{i}] := r{s}_{i};" for i in range(READ_REGS)]
     lines += [
-        f"xRdValid{s} := rdDone{s} OR xCyclic;",
+        "END_IF;",
         f"rdTrig{s} := xRun AND NOT (rdDone{s} OR rdErr{s});",
         f"tonWr{s}(IN := xCyclic AND wrTrig{s}, PT := tCyclicWrite);",
         f"xWrDone{s} := wrDone{s} OR tonWr{s}.Q;",
@@ -184,10 +187,13 @@ def io_before(s):
 
 
 def io_after(s, fb):
-    lines = [f"(* station {s}: write handshake and block *)",
+    lines = [f"(* station {s}: write handshake and block; the runtime takes the block at the"
+             f" request's rising edge, OpenPLC's cyclic master whenever it polls *)",
              f"wrTrig{s} := {fb}.xWriteReq;",
-             f"wrLen{s} := UINT_TO_WORD({fb}.uWriteLen);"]
-    lines += [f"w{s}_{i} := {fb}.aWrite[{i}];" for i in range(WRITE_REGS)]
+             f"IF wrTrig{s} OR xCyclic THEN",
+             f"  wrLen{s} := UINT_TO_WORD({fb}.uWriteLen);"]
+    lines += [f"  w{s}_{i} := {fb}.aWrite[{i}];" for i in range(WRITE_REGS)]
+    lines += ["END_IF;"]
     return lines
 
 
