@@ -196,3 +196,55 @@ errors = %IW{30 + s}
 online = %IX9.{s}
 """ + _read_write_ranges(f"mdp{s}", s, 198, 10)
     return text
+
+
+# The central of a large network (plc/central_many.st, plc/gen_programs.py central_many()):
+# one shared client, %MW100.. statistics
+M_STATIONS, M_READS, M_READ_ERRS, M_WRITES, M_WRITE_ERRS, M_REC_LO, \
+    M_REC_HI, M_TRANSFERS, M_FAILED, M_ERR_STATION, M_ROUNDS = range(100, 111)
+
+
+def central_many_config(mdp_port, host="127.0.0.1", comment="", retain=""):
+    """plcrt config of plc/central_many.st: two devices on the MDP-810, one for the reads and
+    one for the acknowledgement writes, each taking its unit id (the station) from the image
+    at the trigger's rising edge; a read and a write may so start in the same scan."""
+    return (f"# plcrt config of the central of a large network (plc/central_many.st): ONE\n"
+            f"# Modbus client for all stations; the program chooses the unit id per request.\n"
+            f"{comment}" + MASTER + retain + f"""
+[device mdp]
+host = {host}
+port = {mdp_port}
+unit_id = %QW2
+errors = %IW31
+online = %IX9.1
+
+[device mdp_ack]
+host = {host}
+port = {mdp_port}
+unit_id = %QW3
+errors = %IW32
+online = %IX9.2
+
+[read mdp_read]
+device = mdp
+start = 198
+size = 125
+image = %IW100
+policy = trigger
+trigger = %QX1.0
+done = %IX1.0
+error = %IX1.1
+status = %IW11
+
+[write mdp_write]
+device = mdp_ack
+start = 10
+size = 123
+image = %QW100
+policy = trigger
+trigger = %QX1.1
+done = %IX1.2
+error = %IX1.3
+status = %IW21
+length = %QW1
+""")

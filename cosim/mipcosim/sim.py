@@ -434,3 +434,147 @@ class Chain:
 
     def __exit__(self, *exc):
         self.close()
+
+
+class Network:
+    """The largest MIP network: `stations` outstation soft-PLCs (plc/outstation.st, one per
+    TRM-810) and ONE central program for all of them (plc/gen_programs.py central_many(n):
+    n receivers behind one shared Modbus client) on one MDP-810, in lockstep virtual time.
+    Stations per central and the scan tick are parameters. Delivery is checked per station
+    from the central's record stores: registers committed and their Fletcher sums against
+    what each logger wrote (check()); Chain's per-event taps need a %MW block per station,
+    which 247 stations do not have."""
+
+    def __init__(self, stations, workdir: Path, *, records=5, per_transfer=0, payload=16,
+                 loss=0.0, seed=1, radio=None, tick_ms=100, timeout_ms=2000, compiler="stc",
+                 transfer_timeout_s=0):
+        import sys
+        if not 1 <= stations <= 247:
+            raise CosimError(f"stations {stations}: one MDP-810 serves unit ids 1..247")
+        if not 1 <= tick_ms <= 1000:
+            raise CosimError(f"tick_ms {tick_ms}: use 1..1000")
+        self.n = stations
+        self.workdir = Path(workdir)
+        self.workdir.mkdir(parents=True, exist_ok=True)
+        self.tick_ns = tick_ms * MS
+        self.params = L.Params(records=records, per_transfer=per_transfer, payload=payload,
+                               timeout_ms=timeout_ms, transfer_timeout_s=transfer_timeout_s)
+        self.lib = _lib()
+        radio = radio or Radio.realistic()
+        err = ctypes.create_string_buffer(256)
+        self.sim = self.lib.mipcosim_new_args(stations, 0, 123, loss, loss, 0.0, seed,
+                                              radio.bitrate, radio.slot_gap_ns,
+                                              radio.overhead_bytes, err, len(err))
+        if not self.sim:
+            raise CosimError(err.value.decode())
+        self.plcs = {}
+        try:
+            sys.path.insert(0, str(L.PLC_DIR))
+            import gen_programs
+            src = self.workdir / f"src-many-{stations}" / "central_many.st"
+            src.parent.mkdir(parents=True, exist_ok=True)
+            text = gen_programs.central_many(stations)
+            if not src.is_file() or src.read_text() != text:
+                src.write_text(text)
+            lib_src = [str(L.ST_LIB / f) for f in L.LIB_FILES] + [str(L.PLC_DIR / "PLC_Logger.st")]
+            out_b = build("outstation", False, self.workdir, compiler, tick_ms)
+            cen_b = build("central_many", False, self.workdir, compiler, tick_ms,
+                          lib_src + [str(src)])
+            oconf = self.workdir / "outstation.conf"
+            oconf.write_text(L.outstation_config(15021))
+            cconf = self.workdir / "central_many.conf"
+            cconf.write_text(L.central_many_config(15020))
+            for s in range(1, stations + 1):
+                self._add(("out", s), out_b, oconf, [("trm", s)],
+                          L.Params(**{**self.params.__dict__, "station": s}))
+            self._add(("cen", 0), cen_b, cconf, [("mdp", 0), ("mdp_ack", 0)],
+                      L.Params(**{**self.params.__dict__, "station": 0}))
+        except BaseException:
+            self.close()
+            raise
+
+    def _add(self, who, build_result, conf, wires, params):
+        plc = Plc(build_result, self.workdir, config=conf)
+        self.plcs[who] = plc
+        if plc.tick_ns != self.tick_ns:
+            raise CosimError(f"{who}: the program scans every {plc.tick_ns} ns, the kernel every {self.tick_ns}")
+        pid = self.lib.mipcosim_plc_add(self.sim, ctypes.cast(plc.library.plcrt_scan, ctypes.c_void_p),
+                                        plc.handle, self.tick_ns)
+        if pid < 0:
+            raise CosimError(self.lib.mipcosim_errmsg(self.sim).decode())
+        setter = ctypes.cast(plc.library.plcrt_device_set_transport, ctypes.c_void_p)
+        for dev, ep in wires:
+            if self.lib.mipcosim_connect_inproc(self.sim, pid, setter, dev.encode(), ep) != 0:
+                raise CosimError(self.lib.mipcosim_errmsg(self.sim).decode())
+        for i, w in enumerate(params.words()):
+            plc[f"%MW{i}"] = w
+
+    @property
+    def now(self):
+        return self.lib.mipcosim_now(self.sim)
+
+    def run_for(self, ns):
+        if self.lib.mipcosim_run(self.sim, self.now + ns) != 0:
+            raise CosimError(self.lib.mipcosim_errmsg(self.sim).decode())
+
+    def central(self, addr):
+        """%MW addr of the central (layout M_*: its shared client's statistics)."""
+        return self.plcs[("cen", 0)][f"%MW{addr}"]
+
+    def station(self, s):
+        """What the central holds of station s: {"committed", "sum", "transfers", "failed",
+        "records"} from its PLC_RecordStore; and whether the outstation read out all."""
+        cen = self.plcs[("cen", 0)]
+        p = f"CEN0.STORE{s}."
+        return {"committed": cen[p + "UDICOMMITTED"], "sum": (cen[p + "WSUMA"], cen[p + "WSUMB"]),
+                "transfers": cen[p + "UTRANSFERS"], "failed": cen[p + "UFAILED"],
+                "records": cen[p + "UDIRECORDS"],
+                "all_out": self.plcs[("out", s)][f"%MW{L.peer_base(1) + L.S_ALL}"] == 1}
+
+    def finished(self):
+        return all(self.plcs[("out", s)][f"%MW{L.peer_base(1) + L.S_ALL}"] == 1
+                   for s in range(1, self.n + 1))
+
+    def check(self):
+        """Problems (one line each) of the delivery: every station's registers committed once,
+        in order (the Fletcher sums of all its logger's records), no failed transfer."""
+        problems = []
+        p = self.params
+        for s in range(1, self.n + 1):
+            stream = []
+            for k in range(1, p.records + 1):
+                stream += L.log_record(k, p.payload, p.session, s)
+            got = self.station(s)
+            if got["committed"] != len(stream):
+                problems.append(f"station {s}: the central holds {got['committed']} registers, "
+                                f"the logger wrote {len(stream)}")
+            elif got["sum"] != L.fletcher(stream):
+                problems.append(f"station {s}: checksum {got['sum']}, want {L.fletcher(stream)}")
+            if got["failed"]:
+                problems.append(f"station {s}: {got['failed']} failed transfer(s)")
+        return problems
+
+    def radio_stats(self):
+        tot = {}
+        for s in range(1, self.n + 1):
+            st = _Stats()
+            self.lib.mipemu_net_stats(self.lib.mipcosim_net(self.sim), s, ctypes.byref(st))
+            for name, _ in _Stats._fields_:
+                tot[name] = tot.get(name, 0) + getattr(st, name)
+        tot["requests"] = self.lib.mipcosim_requests(self.sim)
+        tot["scans"] = self.lib.mipcosim_scans(self.sim)
+        return tot
+
+    def close(self):
+        for plc in self.plcs.values():
+            plc.close()
+        self.plcs = {}
+        if self.sim:
+            self.lib.mipcosim_free(self.sim)
+            self.sim = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()

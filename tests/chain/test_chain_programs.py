@@ -10,7 +10,8 @@ from mipcosim import layout as L
 from plcharness.build import build_program, matiec_available
 
 REPO = Path(__file__).resolve().parents[2]
-PROGRAMS = [("outstation", False), ("central", False), ("outstation", True), ("central", True)]
+PROGRAMS = [("outstation", False), ("central", False), ("outstation", True), ("central", True),
+            ("central_many", False)]
 
 
 def test_chain_generated_programs_are_up_to_date(tmp_path, monkeypatch):
@@ -18,7 +19,8 @@ def test_chain_generated_programs_are_up_to_date(tmp_path, monkeypatch):
     import gen_programs
     monkeypatch.setattr(gen_programs, "HERE", tmp_path)
     gen_programs.main()
-    for name in ("outstation.st", "central.st", "outstation_bidi.st", "central_bidi.st"):
+    for name in ("outstation.st", "central.st", "outstation_bidi.st", "central_bidi.st",
+                 "central_many.st"):
         assert (tmp_path / name).read_text() == (REPO / "plc" / name).read_text(), \
             f"plc/{name} differs from what plc/gen_programs.py writes: run it and commit"
 
@@ -33,6 +35,7 @@ def test_chain_programs_compile_with_matiec(tmp_path, role, bidi):
 
 @pytest.mark.parametrize("conf,role", [("plc/outstation.conf", "outstation"),
                                        ("plc/central.conf", "central"),
+                                       ("plc/central_many.conf", "central_many"),
                                        ("plc/openplc/outstation-mbconfig.cfg", "outstation"),
                                        ("plc/openplc/central-mbconfig.cfg", "central")])
 def test_chain_committed_configs_load(tmp_path, conf, role):
