@@ -73,6 +73,32 @@
 #define SCANREAD 1
 #endif
 
+/* the sender's window (issue 15): 1 = stop and wait (P3..P8), 2 = pipelined (P27): the next
+ * record is written as soon as the own modem confirmed the one in flight (read-status bit 4
+ * clear after its write), before the acknowledgement came; never the last record (16#FFFF),
+ * which waits for the acknowledgement of the one before it. Spontaneous drive, unidirectional
+ * layout only (so far). */
+#ifndef WIN
+#define WIN 1
+#endif
+/* P27 variants for findings: PIPE_LAST 1 = the last record is pipelined too; PIPE_FIRST 1 =
+ * record 2 is pipelined before record 1 was acknowledged (as PROTOCOL.md: only from record 2
+ * on, after an acknowledgement of this session was seen) */
+#ifndef PIPE_LAST
+#define PIPE_LAST 0
+#endif
+#ifndef PIPE_FIRST
+#define PIPE_FIRST 0
+#endif
+/* PIPE_KEEP 1 = the window stays open after a repeat went back (a receiving PLC that reads
+ * slower than the records arrive then sees every record overwritten by the next one) */
+#ifndef PIPE_KEEP
+#define PIPE_KEEP 0
+#endif
+#if WIN == 2 && (BIDI || POLLED || WRST_S)
+#error WIN 2: spontaneous drive, unidirectional layout, no warm restarts of the sender
+#endif
+
 #define A_RESET  5   /* P12: acknowledgement 0 after a counted record */
 #define A_OOS    6   /* P11: out of step for the whole bound */
 
@@ -119,6 +145,13 @@ proctype OurSender() {
     bool conf, fresh;        /* BIDI P9: own modem confirmed / a new telegram since the write */
     bool rd;                 /* BIDI: read since the last write (a scan reads before it repeats) */
     bool newrec;             /* the record in aWrite was not written yet (W1) */
+    bool ahead;              /* WIN 2: the last write was record cur + 1 (P27) */
+    bool sent2;              /* WIN 2: record cur + 1 was written in this attempt: its
+                              * acknowledgement counts for both, also after a repeat went back */
+    bool sconf;              /* WIN 2: the own modem confirmed the last write (bit 4 clear) */
+    byte pc2, pi2;           /* WIN 2: counter and index of the pipelined record (for mb_write) */
+    bool nopipe;             /* WIN 2: a repeat went back: stop and wait for the rest of the
+                              * transfer (the receiving PLC reads slower than records arrive) */
 SND_IDLE:
     if
     :: s_done + s_err == NT -> goto idle
@@ -126,7 +159,7 @@ SND_IDLE:
     fi;
 SND_GET_CHUNK:
     /* P6: a new transfer starts with record 1 at once */
-    d_step { g_next++; t = g_next; cur = 1; ctr = CTR(cur); oos = 0; otmr[S] = 0; conf = 0; fresh = 0; newrec = 1 };
+    d_step { g_next++; t = g_next; cur = 1; ctr = CTR(cur); oos = 0; otmr[S] = 0; conf = 0; fresh = 0; newrec = 1; sent2 = 0; nopipe = 0 };
 #if POLLED
 SND_WAIT_REQUEST:
     /* P3 polled: record 1 goes out when a request telegram arrives (P6) */
@@ -152,6 +185,8 @@ send:
     if :: WRST_S > 0 && DURABLE && newrec -> s_save(PC_SEND) :: else -> skip fi;
     newrec = 0;
     mb_write(S, ctr, 0, t, cur);
+    ahead = 0; sconf = 0;    /* P27: a repeat goes back to the oldest unacknowledged record;
+                              * an acknowledgement of the one after it still counts (sent2) */
 SND_WAIT_ACK:
     do
     :: !(!POLLED && !rnew[S] && tmr[S] >= TT && SCANREAD) ->
@@ -166,7 +201,16 @@ SND_WAIT_ACK:
 #endif
             if :: cur == 1 -> prev = 0 :: else -> prev = CTR(cur - 1) fi;
             act = A_NONE;
+            if :: WIN == 2 && !pend[S] -> sconf = 1 :: else -> skip fi;
             if
+            :: WIN == 2 && sent2 && nc == CTR(cur + 1) && (nx == 0 || nx == CHK(t, cur + 1) || P8_MODE == 1) ->
+                /* P27: the pipelined record is acknowledged, and with it the one before (the
+                 * receiver accepts only the next number) */
+                oos = 0; otmr[S] = 0; ahead = 0; sent2 = 0;
+                if
+                :: cur + 1 == NREC -> act = A_DONE
+                :: else -> act = A_NEXT; cur = cur + 2; ctr = CTR(cur); newrec = 1
+                fi
 #if BIDI
             :: nc == ctr && fresh && (conf || P9_MODE == 1) ->
 #else
@@ -176,7 +220,8 @@ SND_WAIT_ACK:
                 oos = 0; otmr[S] = 0;
                 if
                 :: cur == NREC -> act = A_DONE
-                :: else -> act = A_NEXT; cur++; ctr = CTR(cur); conf = 0; fresh = 0; newrec = 1   /* P25 */
+                :: ahead -> cur++; ctr = CTR(cur); ahead = 0; sent2 = 0   /* P27: the next one is on its way already */
+                :: else -> act = A_NEXT; cur++; ctr = CTR(cur); conf = 0; fresh = 0; newrec = 1; sent2 = 0   /* P25 */
                 fi
             :: cur > 1 && nc == 0 -> act = A_RESET                   /* P12 peer reset */
             :: (cur == 1 && (nc == 0 || nc == LAST)) || (cur > 1 && nc == prev) ->
@@ -201,7 +246,18 @@ SND_WAIT_ACK:
         :: act == A_RESET || act == A_OOS -> act = A_NONE; goto SND_ERROR
         :: else -> skip
         fi
-    :: !POLLED && !rnew[S] && tmr[S] >= TT && SCANREAD -> rd = 0; goto send   /* P3 spontaneous repeat */
+    :: !POLLED && !rnew[S] && tmr[S] >= TT && SCANREAD ->   /* P3 spontaneous repeat */
+        rd = 0;
+        if :: sent2 && !PIPE_KEEP -> nopipe = 1 :: else -> skip fi;   /* P27: the window closes */
+        goto send
+    :: WIN == 2 && !ahead && !nopipe && sconf && (cur >= 2 || PIPE_FIRST) && (cur + 1 < NREC || (PIPE_LAST && cur < NREC)) ->
+        /* P27: record cur reached the peer's modem; the next one goes up before the
+         * acknowledgement. Not the last record (a receiver takes 16#FFFF after any number),
+         * not before record 1 was acknowledged (a stale acknowledgement 2 of an earlier
+         * session would pass for the pipelined record 2) */
+        d_step { pc2 = CTR(cur + 1); pi2 = cur + 1 };
+        mb_write(S, pc2, 0, t, pi2);
+        d_step { ahead = 1; sent2 = 1; sconf = 0; pc2 = 0; pi2 = 0 }
 #if BIDI
     :: nbw[S] > 0 -> mb_write_other(S, ctr, t, cur)   /* the other stream's write re-sends the record */
 #endif

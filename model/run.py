@@ -85,6 +85,27 @@ def _matrix():
                         name = "warm%s/%s/%s/%s%s" % (durn, pn, dn, sn, fn)
                         exp, why = expectation(name)
                         out.append((name, d, exp, why))
+    # the pipelined sender (issue 15, PROTOCOL.md P27: window 2): our sender against our
+    # receiver and the note receivers, spontaneous drive, 4 records per transfer (the window
+    # opens from record 2 on and closes before 16#FFFF: record 3 goes up before ack 2); and
+    # the two variants the rule excludes, which must fail
+    for pn, pd in peers[:3]:
+        for sn, sd in sides:
+            for fn, fd in faults:
+                d = dict(pd); d.update(sd); d.update(fd); d.update({"WIN": 2, "NREC": 4})
+                if fd:
+                    d["NT"] = 1
+                name = "win2/%s/spont/%s%s" % (pn, sn, fn)
+                exp, why = expectation(name)
+                out.append((name, d, exp, why))
+    for vn, vd, fn, fd in (("pipefirst", {"PIPE_FIRST": 1}, "+rst-snd", {"RST_S": 1, "NT": 1}),
+                           ("pipelast", {"PIPE_LAST": 1}, "", {}),
+                           ("pipekeep", {"PIPE_KEEP": 1, "RCV": "NOTE"}, "", {})):
+        d = {"SND": "OURS", "RCV": "OURS", "WIN": 2, "NREC": 4}
+        d.update(vd); d.update(fd)
+        name = "win2-%s/ours-%s/spont/up%s" % (vn, "noteR-strict" if d["RCV"] == "NOTE" else "ours", fn)
+        exp, why = expectation(name)
+        out.append((name, d, exp, why))
     for dn, dd in drives:
         for fn, fd in faults[1:]:
             d = {"SND": "OURS", "RCV": "OURS", "BIDI": 1, "NBW": 1, "NT": 1, "C3": 0}
@@ -104,7 +125,7 @@ KNOWN = [
      "N2: a restarted strict note receiver waits for record 1, the sender repeats forever, silently"),
     (r"^(bidi/)?note-note-lenient/.*\+rst-rcv$", "SILENT",
      "N3: a lenient note receiver drops an open transfer without an error"),
-    (r"^ours-noteR-.*\+rst-snd$", "MIX",
+    (r"^(win2/)?ours-noteR-.*\+rst-snd$", "MIX",
      "F2: a note receiver takes our restarted sender's record 1 for a duplicate; its ack has no echo"),
     (r"^bidi/ours-noteR-.*\+rst-snd$", "MIX",
      "F2 (bidirectional): a note receiver takes our restarted sender's record 1 for a duplicate "
@@ -119,6 +140,16 @@ KNOWN = [
     (r"^warm/periodic/.*\+wrst-rcv$", "DONE",
      "W0: without W2 a receiver rolled back to an older snapshot has lost a transfer it "
      "acknowledged complete: the sender reported done, the data are gone"),
+    (r"^win2-pipefirst/", "MIX",
+     "P27: record 2 pipelined before record 1 was acknowledged: a stale acknowledgement 2 of "
+     "the restarted sender's old session counts for records 1 and 2"),
+    (r"^win2-pipelast/", "GAP",
+     "P27: the last record pipelined: it overwrites the unread record before it in the peer's "
+     "modem, and a receiver takes 16#FFFF after any number"),
+    (r"^win2-pipekeep/", "progress",
+     "P27: the window stays open after a repeat: a receiving PLC slower than the radio sees "
+     "each record overwritten by the pipelined next one, ignores it, and the sender repeats "
+     "forever (our receiver would report the peer out of step)"),
     (r"^bidi-noC3/ours-ours/.*\+rst-snd$", "MIX",
      "P9 residual without C3: a stale acknowledgement counted after record 1 reached the peer's "
      "modem; record 2 overwrites the unread record 1 (C3 closes it: bidi/ours-ours/* hold)"),
