@@ -157,7 +157,7 @@ static void set_current_time(plcrt_t *rt)
 /* The program part of a scan; the caller holds image_lock. */
 static void run_program(plcrt_t *rt)
 {
-    plcrt_retain_before_scan(rt);
+    if (rt->retain_saved >= 0) plcrt_retain_before_scan(rt);
     apply_forces(rt);
     set_current_time(rt);
     rt->prog->run((unsigned long)rt->tick);
@@ -173,14 +173,15 @@ int plcrt_scan(plcrt_t *rt, uint64_t n)
     rt->started = 1;
     for (uint64_t i = 0; i < n; i++) {
         if (rt->slave) plcrt_slave_poll(rt, 0);
-        pthread_mutex_lock(&rt->image_lock);
+        plcrt_lock(rt, &rt->image_lock); /* virtual mode: no other thread, no mutex */
         if (rt->master) {
-            plcrt_master_exchange_out(rt, rt->master);
-            plcrt_master_step(rt, rt->master, rt->time_ns);
+            /* an idle scan of trigger ranges (none pending): nothing for step to do */
+            if (plcrt_master_exchange_out(rt, rt->master))
+                plcrt_master_step(rt, rt->master, rt->time_ns);
             plcrt_master_exchange_in(rt, rt->master);
         }
         run_program(rt);
-        pthread_mutex_unlock(&rt->image_lock);
+        plcrt_unlock(rt, &rt->image_lock);
         rt->tick++;
         rt->time_ns += rt->tick_ns;
         rt->stats.scans++;
@@ -270,9 +271,9 @@ int plcrt_flush_outputs(plcrt_t *rt)
         plcrt_seterr(rt, "plcrt_flush_outputs: the real-time run is still going");
         return -1;
     }
-    pthread_mutex_lock(&rt->image_lock);
+    plcrt_lock(rt, &rt->image_lock);
     plcrt_master_exchange_out(rt, rt->master);
-    pthread_mutex_unlock(&rt->image_lock);
+    plcrt_unlock(rt, &rt->image_lock);
     plcrt_master_flush(rt, rt->master,
                        rt->mode == PLCRT_REALTIME ? plcrt_monotonic_ns() : rt->time_ns);
     return 0;

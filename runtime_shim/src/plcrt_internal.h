@@ -17,23 +17,19 @@ typedef struct plcrt_force_entry {
 struct plcrt_master; /* plcrt_master.c */
 struct plcrt_slave;  /* plcrt_slave.c */
 
+/* Field order: what every scan reads first, the image, forces and the error text last (an idle
+ * scan then touches a few cache lines of the runtime besides the image cells it uses). */
 struct plcrt {
     const plcrt_program_t *prog;
-    plcrt_image_t img;
     uint64_t tick_ns;
     uint64_t tick;      /* number of the next config_run__ tick */
     uint64_t time_ns;   /* virtual (or elapsed, in real-time mode) time */
     int started;        /* first scan done: config is frozen */
     plcrt_mode_t mode;
-    plcrt_rt_stats_t stats;
-    plcrt_force_entry_t forces[PLCRT_MAX_FORCES];
-    size_t n_forces;
-    pthread_mutex_t image_lock; /* held while the program or an exchange touches the image */
-    plcrt_log_fn log_fn;
-    void *log_user;
     struct plcrt_master *master;
     struct plcrt_slave *slave;
-    char err[512];
+    size_t n_forces;
+    plcrt_rt_stats_t stats;
     char *retain_path;          /* plcrt_retain_set_file */
     uint64_t retain_period_ns;
     uint64_t retain_last_ns;    /* scan time of the last save */
@@ -47,7 +43,29 @@ struct plcrt {
     int retain_mem;             /* snapshots go to retain_buf (plcrt_retain_set_memory) */
     uint8_t *retain_buf;        /* the last complete in-memory snapshot */
     size_t retain_len;          /* its length; 0 = none yet */
+    plcrt_log_fn log_fn;
+    void *log_user;
+    pthread_mutex_t image_lock; /* held while the program or an exchange touches the image */
+    plcrt_force_entry_t forces[PLCRT_MAX_FORCES];
+    char err[512];
+    plcrt_image_t img;
 };
+
+/* Locking of the state the real-time threads share with the scan (image_lock, the master's
+ * lock). Only real-time mode has other threads - the master and slave threads, started by
+ * plcrt_run_realtime after it set the mode, which never goes back - so a virtual (stepped) run,
+ * one thread by definition, takes no mutex at all: the co-simulation scans hundreds of PLCs per
+ * tick. Functions of the public API that other threads may call (stats, retain files) lock
+ * always. */
+static inline int plcrt_threaded(const plcrt_t *rt) { return rt->mode == PLCRT_REALTIME; }
+static inline void plcrt_lock(const plcrt_t *rt, pthread_mutex_t *mu)
+{
+    if (plcrt_threaded(rt)) pthread_mutex_lock(mu);
+}
+static inline void plcrt_unlock(const plcrt_t *rt, pthread_mutex_t *mu)
+{
+    if (plcrt_threaded(rt)) pthread_mutex_unlock(mu);
+}
 
 /* Before the program of every scan (the caller holds image_lock): writes [retain] saved. */
 void plcrt_retain_before_scan(plcrt_t *rt);
@@ -63,8 +81,10 @@ uint64_t plcrt_monotonic_ns(void);
 /* Master (plcrt_master.c). The config parser builds it; the scan loop drives it. */
 int plcrt_master_parse(plcrt_t *rt, const char *name, const char *text, struct plcrt_master **out);
 void plcrt_master_free(struct plcrt_master *m);
-/* image → master (outputs, trigger edges); called with image_lock held */
-void plcrt_master_exchange_out(plcrt_t *rt, struct plcrt_master *m);
+/* image → master (outputs, trigger edges); called with image_lock held. Returns 0 when no
+ * request can be due (no trigger request pending, no cycle/change range): plcrt_master_step
+ * would do nothing. */
+int plcrt_master_exchange_out(plcrt_t *rt, struct plcrt_master *m);
 /* master → image (read data, done/error/status, counters); image_lock held */
 void plcrt_master_exchange_in(plcrt_t *rt, struct plcrt_master *m);
 /* performs the requests that are due at time now_ns (virtual or monotonic) */

@@ -18,6 +18,11 @@
 static uint8_t *ix_bits(plcrt_t *rt) { return &rt->img.ix[0][0]; }
 static uint8_t *qx_bits(plcrt_t *rt) { return &rt->img.qx[0][0]; }
 
+/* m->lock guards what the real-time master thread shares with the scan; in virtual mode there
+ * is no such thread and no locking (plcrt_lock). */
+static void mlock(struct plcrt_master *m) { plcrt_lock(m->rt, &m->lock); }
+static void munlock(struct plcrt_master *m) { plcrt_unlock(m->rt, &m->lock); }
+
 void plcrt_master_free(struct plcrt_master *m)
 {
     if (!m) return;
@@ -48,41 +53,59 @@ static int unit_now(plcrt_t *rt, const plcrt_device_t *d)
     return d->unit_word >= 0 ? rt->img.qw[d->unit_word] : d->unit_id;
 }
 
-void plcrt_master_exchange_out(plcrt_t *rt, struct plcrt_master *m)
+/* the outputs of write range r as they are in the image now (registers, or 0/1 per coil) */
+static void take_outputs(plcrt_t *rt, const plcrt_range_t *r, uint16_t *dst)
 {
-    int wake = 0;
-    pthread_mutex_lock(&m->lock);
+    if (r->table == 'c') {
+        const uint8_t *src = qx_bits(rt) + r->image;
+        for (int j = 0; j < r->size; j++) dst[j] = src[j];
+    } else {
+        memcpy(dst, &rt->img.qw[r->image], sizeof dst[0] * (size_t)r->size);
+    }
+}
+
+int plcrt_master_exchange_out(plcrt_t *rt, struct plcrt_master *m)
+{
+    int wake = 0, busy = 0; /* busy: a request pending, or a cycle/change range */
+    mlock(m);
     for (int i = 0; i < m->n_ranges; i++) {
         plcrt_range_t *r = &m->ranges[i];
-        int bits = r->table == 'c' || r->table == 'd';
-        if (r->is_write) {
-            for (int j = 0; j < r->size; j++)
-                r->out[j] = bits ? qx_bits(rt)[r->image + j] : rt->img.qw[r->image + j];
-            r->out_len = r->length >= 0 ? rt->img.qw[r->length] : r->size;
-        }
         if (r->policy != POLICY_TRIGGER) {
-            r->out_unit = unit_now(rt, &m->devices[r->dev]); /* with the data, as they are now */
+            /* cycle/change: the data of the next poll, as they are now */
+            if (r->is_write) {
+                take_outputs(rt, r, r->out);
+                r->out_len = r->length >= 0 ? rt->img.qw[r->length] : r->size;
+            }
+            r->out_unit = unit_now(rt, &m->devices[r->dev]);
+            busy = 1;
             continue;
         }
         int level = qx_bits(rt)[r->trigger] != 0;
         if (level && !r->trig_level && !r->pending) {
-            /* rising edge: the request takes the data, length and unit id as they are now */
+            /* rising edge: the request takes the data, length and unit id as they are now
+             * (only here: an idle scan copies nothing) */
             r->pending = 1;
             r->result = RESULT_NONE;
-            r->req_len = r->is_write ? r->out_len : r->size;
+            if (r->is_write) {
+                take_outputs(rt, r, r->req);
+                r->req_len = r->length >= 0 ? rt->img.qw[r->length] : r->size;
+            } else {
+                r->req_len = r->size;
+            }
             r->req_unit = unit_now(rt, &m->devices[r->dev]);
-            if (r->is_write) memcpy(r->req, r->out, sizeof r->req[0] * (size_t)r->size);
             wake = 1;
         }
         r->trig_level = level;
+        busy |= r->pending;
     }
-    if (wake) pthread_cond_signal(&m->wake);
-    pthread_mutex_unlock(&m->lock);
+    if (wake && plcrt_threaded(rt)) pthread_cond_signal(&m->wake);
+    munlock(m);
+    return busy;
 }
 
 void plcrt_master_exchange_in(plcrt_t *rt, struct plcrt_master *m)
 {
-    pthread_mutex_lock(&m->lock);
+    mlock(m);
     for (int i = 0; i < m->n_ranges; i++) {
         plcrt_range_t *r = &m->ranges[i];
         int bits = r->table == 'c' || r->table == 'd';
@@ -121,7 +144,7 @@ void plcrt_master_exchange_in(plcrt_t *rt, struct plcrt_master *m)
         if (d->errors_word >= 0) rt->img.iw[d->errors_word] = (uint16_t)d->n_errors;
         if (d->online_bit >= 0) ix_bits(rt)[d->online_bit] = (uint8_t)d->connected;
     }
-    pthread_mutex_unlock(&m->lock);
+    munlock(m);
 }
 
 /* ------------------------------------------------------------------ rate-limited log */
@@ -194,10 +217,10 @@ static int device_connect(plcrt_t *rt, struct plcrt_master *m, plcrt_device_t *d
     if (d->connected) return 0;
     if (now < d->next_connect_ns) { *err = ENOTCONN; return -1; }
     if (modbus_connect(d->ctx) == 0) {
-        pthread_mutex_lock(&m->lock);
+        mlock(m);
         d->connected = 1;
         d->n_connects++;
-        pthread_mutex_unlock(&m->lock);
+        munlock(m);
         d->backoff_ns = 0;
         if (d->n_connects > 1 || d->failing)
             log_limited(rt, d, LOG_CONNECTED, now, "device %s: connected to %s:%d", d->name, d->host, d->port);
@@ -257,9 +280,9 @@ static int receive_reply(struct plcrt_master *m, plcrt_device_t *d, uint16_t tid
     for (;;) {
         len = modbus_receive_confirmation(d->ctx, rsp);
         if (len < 2 || get16(rsp) == tid) break;
-        pthread_mutex_lock(&m->lock);
+        mlock(m);
         uint64_t n = ++d->n_stale;
-        pthread_mutex_unlock(&m->lock);
+        munlock(m);
         if (n == 1 || n % 100 == 0)
             plcrt_log(m->rt, "device %s: dropped a reply with transaction id %d, expected %d "
                       "(%llu dropped so far)", d->name, get16(rsp), tid, (unsigned long long)n);
@@ -277,12 +300,6 @@ static int receive_reply(struct plcrt_master *m, plcrt_device_t *d, uint16_t tid
                                 (uint32_t)((d->timeout_ns % 1000000000ull) / 1000));
     return len;
 }
-
-typedef struct request {
-    int fc, addr, count;
-    int unit; /* unit id of this request (0..255 by the time it is sent) */
-    uint16_t data[PLCRT_MAX_BITS]; /* write data in, read data out */
-} request_t;
 
 /* One request over the device's transport. Returns 0, or the status for the program:
  * a Modbus exception code 1..255, or 1000+errno for transport errors (then *transport = 1). */
@@ -378,10 +395,10 @@ static int range_request(plcrt_t *rt, struct plcrt_master *m, plcrt_range_t *r, 
     } else {
         status = do_request(m, d, q, &transport);
     }
-    pthread_mutex_lock(&m->lock); /* counters and state are read by the exchange */
+    mlock(m); /* counters and state are read by the exchange */
     d->n_requests++;
     if (status != 0) d->n_errors++;
-    pthread_mutex_unlock(&m->lock);
+    munlock(m);
     if (status == 0) {
         if (d->failing)
             log_limited(rt, d, LOG_RECOVERED, now, "device %s: requests succeed again (%llu errors so far)",
@@ -408,9 +425,9 @@ static int range_request(plcrt_t *rt, struct plcrt_master *m, plcrt_range_t *r, 
         /* in process nothing can be left in a stream */
     } else if (transport && d->connected && d->ext_fd < 0) {
         /* the TCP stream may hold a late answer: start over on a new connection */
-        pthread_mutex_lock(&m->lock);
+        mlock(m);
         device_close(d);
-        pthread_mutex_unlock(&m->lock);
+        munlock(m);
         d->backoff_ns = m->reconnect_min_ns;
         d->next_connect_ns = now + d->backoff_ns;
     } else if (transport && d->ext_fd >= 0) {
@@ -432,79 +449,77 @@ static int function_code(const plcrt_range_t *r)
 
 static void step(plcrt_t *rt, struct plcrt_master *m, uint64_t now, int writes_only)
 {
-    static __thread request_t q; /* large: keep it off the stack */
+    request_t *q = &m->q; /* large: not on the stack */
     for (int i = 0; i < m->n_ranges; i++) {
         plcrt_range_t *r = &m->ranges[i];
         if (writes_only && (!r->is_write || r->policy == POLICY_TRIGGER)) continue;
         plcrt_device_t *d = &m->devices[r->dev];
-        pthread_mutex_lock(&m->lock);
+        mlock(m);
         int go = 0;
-        q.fc = function_code(r);
-        q.addr = r->start;
-        q.count = r->size;
         if (r->policy == POLICY_TRIGGER) {
-            q.unit = r->req_unit;
             if (r->pending) {
                 go = 1;
-                if (r->is_write) {
-                    memcpy(q.data, r->req, sizeof q.data[0] * (size_t)r->size);
-                    q.count = r->req_len;
-                }
+                q->count = r->req_len; /* the range's size for reads */
+                q->unit = r->req_unit;
+                if (r->is_write) memcpy(q->data, r->req, sizeof q->data[0] * (size_t)r->size);
             }
         } else if (r->out_unit >= 0 && now >= r->next_due) {
             /* (out_unit < 0: unit_id = %QWn and no exchange yet, the real-time master thread's
              * first pass before the first scan ended: nothing to take the unit id from) */
-            q.unit = r->out_unit;
             r->next_due = r->next_due + d->poll_ns > now ? r->next_due + d->poll_ns : now + d->poll_ns;
             if (r->next_due == 0) r->next_due = now + d->poll_ns;
             go = 1;
+            q->count = r->size;
+            q->unit = r->out_unit;
             if (r->is_write) {
-                memcpy(q.data, r->out, sizeof q.data[0] * (size_t)r->size);
-                q.count = r->out_len;
+                memcpy(q->data, r->out, sizeof q->data[0] * (size_t)r->size);
+                q->count = r->out_len;
                 if (r->policy == POLICY_CHANGE && r->have_last &&
-                    !memcmp(r->last, q.data, sizeof q.data[0] * (size_t)r->size))
+                    !memcmp(r->last, q->data, sizeof q->data[0] * (size_t)r->size))
                     go = 0;
             }
         }
-        pthread_mutex_unlock(&m->lock);
+        munlock(m);
         if (!go) continue;
+        q->fc = function_code(r);
+        q->addr = r->start;
         int status;
-        if (q.unit < 0 || q.unit > 255) {
+        if (q->unit < 0 || q->unit > 255) {
             /* unit_id = %QWn held a value that is no unit id: the request is not sent */
-            pthread_mutex_lock(&m->lock);
+            mlock(m);
             d->n_errors++;
-            pthread_mutex_unlock(&m->lock);
+            munlock(m);
             log_limited(rt, d, LOG_UNIT, now, "device %s: unit id %d from %%QW%d out of range (0..255): request of range %s not sent",
-                        d->name, q.unit, d->unit_word, r->name);
+                        d->name, q->unit, d->unit_word, r->name);
             status = STATUS_TRANSPORT(EINVAL);
-        } else if (q.count < 1 || q.count > r->size) {
+        } else if (q->count < 1 || q->count > r->size) {
             /* the length word asks for more than the range has */
-            pthread_mutex_lock(&m->lock);
+            mlock(m);
             d->n_errors++;
-            pthread_mutex_unlock(&m->lock);
+            munlock(m);
             log_limited(rt, d, LOG_LENGTH, now, "range %s: length word %%QW%d = %d is outside 1..%d",
-                        r->name, r->length, q.count, r->size);
+                        r->name, r->length, q->count, r->size);
             status = STATUS_TRANSPORT(EINVAL);
         } else {
-            status = range_request(rt, m, r, &q, now);
+            status = range_request(rt, m, r, q, now);
             if (status < 0) continue; /* skipped: device in reconnect backoff */
         }
-        pthread_mutex_lock(&m->lock);
+        mlock(m);
         if (r->policy == POLICY_TRIGGER) {
             r->pending = 0;
             r->status_value = status;
             r->result = status == 0 ? RESULT_OK : RESULT_ERROR;
-            if (status == 0 && !r->is_write) memcpy(r->in, q.data, sizeof q.data[0] * (size_t)r->size);
+            if (status == 0 && !r->is_write) memcpy(r->in, q->data, sizeof q->data[0] * (size_t)r->size);
         } else if (status == 0) {
             if (r->is_write) {
-                memcpy(r->last, q.data, sizeof q.data[0] * (size_t)r->size);
+                memcpy(r->last, q->data, sizeof q->data[0] * (size_t)r->size);
                 r->have_last = 1;
             } else {
-                memcpy(r->in, q.data, sizeof q.data[0] * (size_t)r->size);
+                memcpy(r->in, q->data, sizeof q->data[0] * (size_t)r->size);
                 r->fresh = 1;
             }
         }
-        pthread_mutex_unlock(&m->lock);
+        munlock(m);
     }
 }
 
@@ -567,10 +582,10 @@ void plcrt_master_stop_thread(struct plcrt_master *m)
 void plcrt_master_flush(plcrt_t *rt, struct plcrt_master *m, uint64_t now)
 {
     /* the outputs of the last scan reach the devices even if their period had not come */
-    pthread_mutex_lock(&m->lock);
+    mlock(m);
     for (int i = 0; i < m->n_ranges; i++)
         if (m->ranges[i].is_write && m->ranges[i].policy != POLICY_TRIGGER) m->ranges[i].next_due = 0;
-    pthread_mutex_unlock(&m->lock);
+    munlock(m);
     step(rt, m, now, 1);
 }
 

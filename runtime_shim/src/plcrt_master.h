@@ -14,71 +14,85 @@
 enum { POLICY_CYCLE, POLICY_CHANGE, POLICY_TRIGGER };
 enum { RESULT_NONE, RESULT_OK, RESULT_ERROR };
 
+/* Field order: what every scan reads (the policy, the handshake cells, the state) first, names
+ * and the large buffers last, so that an idle scan touches one or two cache lines per range
+ * and device (the co-simulation scans hundreds of PLCs per tick, each with its own copies). */
 typedef struct plcrt_range {
-    char name[PLCRT_NAME_MAX];
-    int line;
+    int policy;
     int is_write;
     char table;      /* 'h' holding, 'i' input registers, 'c' coils, 'd' discrete inputs */
     int start, size; /* Modbus address and count */
     int image;       /* first word index (%IW/%QW), or flat bit index a*8+b (%IX/%QX) */
-    int policy;
     int trigger, done, error; /* flat bit indexes, -1 = none */
     int status, length;       /* word indexes, -1 = none */
     int dev;
+    int line;
 
-    /* state; guarded by the master's lock */
-    uint16_t out[PLCRT_MAX_BITS];  /* outputs as of the last exchange (regs or 0/1 bits) */
-    uint16_t req[PLCRT_MAX_BITS];  /* data of the trigger request (snapshot at the edge) */
-    uint16_t last[PLCRT_MAX_BITS]; /* last successfully written (change policy) */
-    uint16_t in[PLCRT_MAX_BITS];   /* data read, waiting for the next exchange */
-    int have_last;
-    int fresh;           /* in[] holds new data */
-    int req_len;
-    int req_unit;        /* unit id of the trigger request (sampled at the edge; may be > 255) */
-    int out_len;         /* length word as of the last exchange (size without one) */
-    int out_unit;        /* unit id as of the last exchange (cycle/change); -1 = none yet */
-    uint64_t next_due;
+    /* state; guarded by the master's lock (real-time mode) */
     int trig_level;      /* trigger bit as of the last exchange */
     int pending;         /* a trigger edge waits for its request */
     int result;          /* RESULT_* of the trigger request, not yet shown */
     int status_value;
     int done_shown, error_shown;
+    int have_last;
+    int fresh;           /* in[] holds new data */
+    int req_len;
+    int req_unit;        /* unit id of the trigger request (sampled at the edge; may be > 255) */
+    int out_len;         /* cycle/change: length word as of the last exchange (size without one) */
+    int out_unit;        /* unit id as of the last exchange (cycle/change); -1 = none yet */
+    uint64_t next_due;
+
+    char name[PLCRT_NAME_MAX];
+    uint16_t out[PLCRT_MAX_BITS];  /* cycle/change: outputs as of the last exchange (regs or 0/1 bits) */
+    uint16_t req[PLCRT_MAX_BITS];  /* trigger: data of the request (taken from the image at the edge) */
+    uint16_t last[PLCRT_MAX_BITS]; /* last successfully written (change policy) */
+    uint16_t in[PLCRT_MAX_BITS];   /* data read, waiting for the next exchange */
 } plcrt_range_t;
 
 typedef struct plcrt_device {
-    char name[PLCRT_NAME_MAX];
-    int line;
-    char host[256];
-    int port, unit_id;
-    int unit_word;   /* unit_id = %QWn: n, the unit id of each request is taken from it; -1 = constant */
-    uint64_t timeout_ns, poll_ns;
     int errors_word; /* %IW index of the error counter, -1 = none */
     int online_bit;  /* flat %IX index, -1 = none */
+    int connected;
+    int port, unit_id;
+    int unit_word;   /* unit_id = %QWn: n, the unit id of each request is taken from it; -1 = constant */
+    uint64_t n_errors, n_requests, n_connects;
+    uint64_t n_stale; /* replies dropped: transaction id of an earlier request */
+    uint64_t timeout_ns, poll_ns;
+    int line;
 
     modbus_t *ctx;
-    int connected;
     int ext_fd; /* >= 0: transport seam, an fd given by plcrt_device_set_fd */
     plcrt_after_send_fn after_send;
     void *after_send_user;
     plcrt_transact_fn transact; /* in-process transport (plcrt_device_set_transport) */
     void *transact_user;
     uint64_t next_connect_ns, backoff_ns;
-    uint64_t n_errors, n_requests, n_connects;
-    uint64_t n_stale; /* replies dropped: transaction id of an earlier request */
     uint16_t tid;     /* transaction id of the last request */
     int failing;     /* last request failed: log only transitions */
     /* rate limit of the transition lines (LOG_* in plcrt_master.c): one per kind and
      * PLCRT_LOG_INTERVAL_NS, the others counted and reported with the next one */
     uint64_t log_last_ns[5], log_suppressed[5];
     unsigned char log_seen[5];
+    char name[PLCRT_NAME_MAX];
+    char host[256];
     char last_error[160];
 } plcrt_device_t;
+
+/* One request being built and done (step() in plcrt_master.c) */
+typedef struct request {
+    int fc, addr, count;
+    int unit; /* unit id of this request (0..255 by the time it is sent) */
+    uint16_t data[PLCRT_MAX_BITS]; /* write data in, read data out */
+} request_t;
 
 struct plcrt_master {
     plcrt_device_t *devices;
     int n_devices;
     plcrt_range_t *ranges;
     int n_ranges;
+    plcrt_t *rt;
+    int thread_running;
+    int stop;
     uint64_t reconnect_min_ns, reconnect_max_ns;
     int slave_enabled;
     char slave_host[256];
@@ -89,12 +103,14 @@ struct plcrt_master {
     int retain_request;                    /* [retain] request: flat %QX bit index, -1 = none */
     int retain_saved;                      /* [retain] saved: %IW index, -1 = none */
 
+    /* the request step() works on: one thread does the requests (the real-time master thread,
+     * else the scanning thread), and a plain member, unlike a thread-local one, costs no
+     * __tls_get_addr in a dlopen'ed libplc.so */
+    request_t q;
+
     pthread_mutex_t lock;
     pthread_cond_t wake;
     pthread_t thread;
-    int thread_running;
-    int stop;
-    plcrt_t *rt;
 };
 
 #endif

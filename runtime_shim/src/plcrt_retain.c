@@ -282,9 +282,9 @@ size_t plcrt_retain_last(plcrt_t *rt, void *buf, size_t cap)
 
 static int save_memory(plcrt_t *rt)
 {
-    pthread_mutex_lock(&rt->image_lock);
+    plcrt_lock(rt, &rt->image_lock);
     size_t len = plcrt_retain_save_to(rt, rt->retain_buf, plcrt_retain_snapshot_size(rt));
-    pthread_mutex_unlock(&rt->image_lock);
+    plcrt_unlock(rt, &rt->image_lock);
     if (!len) return -1;
     rt->retain_len = len;
     rt->retain_saves++;
@@ -307,9 +307,9 @@ void plcrt_retain_tick(plcrt_t *rt)
     if (!rt->retain_path && !rt->retain_mem) return;
     int requested = 0;
     if (rt->retain_request >= 0) {
-        pthread_mutex_lock(&rt->image_lock);
+        plcrt_lock(rt, &rt->image_lock);
         requested = rt->img.qx[rt->retain_request / 8][rt->retain_request % 8] != 0;
-        pthread_mutex_unlock(&rt->image_lock);
+        plcrt_unlock(rt, &rt->image_lock);
     }
     int periodic = rt->retain_period_ns != 0 &&
                    rt->time_ns - rt->retain_last_ns >= rt->retain_period_ns;

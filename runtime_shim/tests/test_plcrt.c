@@ -614,6 +614,43 @@ TEST(policy_trigger_reports_modbus_exceptions)
     server_free(s);
 }
 
+/* a trigger write takes its data from the image at the rising edge only (idle scans copy
+ * nothing): coils as bits, changes while the trigger stays up go nowhere */
+TEST(trigger_write_of_coils_takes_the_bits_at_the_edge)
+{
+    server_t *s = server_new(1);
+    plcrt_t *rt = new_rt();
+    CHECK_EQ(config_for(rt, s->port,
+                        "[write wc]\ndevice = dev\ntable = coils\nstart = 8\nsize = 3\nimage = %QX20.0\n"
+                        "policy = trigger\ntrigger = %QX10.0\ndone = %IX10.0\nerror = %IX10.1\n"), 0);
+    qx(rt)[160] = 1;
+    qx(rt)[162] = 1;
+    plcrt_scan(rt, 5);
+    CHECK_EQ(server_count(s, 15), 0);
+    qx(rt)[80] = 1;
+    plcrt_scan(rt, 1);
+    CHECK_EQ(ix(rt)[80], 1);
+    CHECK_EQ(server_count(s, 15), 1);
+    CHECK_EQ(s->map->tab_bits[8], 1);
+    CHECK_EQ(s->map->tab_bits[9], 0);
+    CHECK_EQ(s->map->tab_bits[10], 1);
+    qx(rt)[160] = 0;
+    qx(rt)[161] = 1;
+    plcrt_scan(rt, 5);
+    CHECK_EQ(server_count(s, 15), 1);
+    CHECK_EQ(s->map->tab_bits[8], 1);
+    qx(rt)[80] = 0;
+    plcrt_scan(rt, 1);
+    qx(rt)[80] = 1;
+    plcrt_scan(rt, 1);
+    CHECK_EQ(server_count(s, 15), 2);
+    CHECK_EQ(s->map->tab_bits[8], 0);
+    CHECK_EQ(s->map->tab_bits[9], 1);
+    CHECK_EQ(s->map->tab_bits[10], 1);
+    plcrt_free(rt);
+    server_free(s);
+}
+
 TEST(trigger_read_data_arrive_with_done)
 {
     server_t *s = server_new(1);
