@@ -1,9 +1,13 @@
 """The interop matrix of issue 11: our blocks (plc/ programs in the soft-PLC) against the note-only
 peer (peers/mippeer) over the emulated modems and radio.
 
-CellRun holds the judge and the classification; RealtimeRun brings the participants: the
-soft-PLC executable and the `mip-peer` process over build/emulator/mip-emulator on 127.0.0.1, in
-real time.
+Two ways to run a cell, one judge and one classification (CellRun.run):
+  kernel    (the default; kernel.py) our program as a soft-PLC of the co-simulation kernel
+            (cosim/, mipcosim.sim.Chain) and the peer as a participant of the same lockstep
+            virtual time, its requests handed to the kernel's emulator core: deterministic by
+            seed, every time (bound, caps, "error after t s") in virtual seconds;
+  realtime  (--realtime; RealtimeRun) the soft-PLC executable and the `mip-peer` process over
+            build/emulator/mip-emulator on 127.0.0.1, in real time.
 
 Axes: ours {sender, receiver} x peer reading {strict, lenient} x fault {none, loss 30 %,
 restart of our soft-PLC, restart of the peer} x layout {uni, bi} x MIP mode {dynamic, static}.
@@ -131,6 +135,9 @@ class Config:
     cap_loss_s: float = 25.0
     drive: str = "spontaneous"
     peer_period_s: float = 0.02    # the peer reads its modem (and may write) this often
+    # kernel: a restarted side is off this long (the soft-PLC: Chain.restart's down time; the
+    # peer: its process start); "after the fault" counts from when it runs again
+    down_s: float = 0.5
 
     @property
     def bound_s(self):
@@ -150,6 +157,7 @@ class Result:
     seconds: float = 0.0           # wall time of the cell
     lost_telegrams: int = 0        # of them carrying a block (record or acknowledgement)
     detail: str = ""               # counters at the end, to see where a cell got stuck
+    virtual_s: float | None = None  # kernel: the cell's virtual time (start to verdict)
 
 
 # ----------------------------------------------------------------------------- processes
@@ -204,8 +212,8 @@ def build_programs(outdir):
 
 class CellRun:
     """One cell: what each stream should carry, the judge, and the run loop that classifies the
-    outcome. Subclasses bring the participants and the clock (RealtimeRun: processes, real
-    time)."""
+    outcome. Subclasses bring the participants and the clock: RealtimeRun (processes, real
+    time) and kernel.KernelRun (the co-simulation kernel, virtual time)."""
 
     FAILURES = ()                  # exceptions of the subclass's machinery: MatrixError
 
@@ -296,6 +304,9 @@ class CellRun:
     def lost_blocks(self):
         """Radio telegrams carrying a block that were lost (the emulator's trace)."""
         raise NotImplementedError
+
+    def virtual_s(self):
+        return None
 
     # -- the judge
     def plc_stream_state(self, w, want, resent):
@@ -445,10 +456,12 @@ class CellRun:
                       f"{got.get('unexpected', 0)}, acknowledged {self.peer_acknowledged()}")
         except Exception as e:     # the PLC may be gone; the detail is only a help
             detail = f"no counters: {e}"
+        v = self.virtual_s()
         return Result(cell=self.cell.key, outcome=outcome, passed=passed, text=text,
                       errors=[f"{who}:{name}" for who, name in errors], streams=dict(streams),
                       seconds=round(time.monotonic() - t_begin, 1),
-                      lost_telegrams=self.lost_blocks(), detail=detail)
+                      lost_telegrams=self.lost_blocks(), detail=detail,
+                      virtual_s=None if v is None else round(v, 2))
 
 
 class RealtimeRun(CellRun):
@@ -573,23 +586,41 @@ class RealtimeRun(CellRun):
         return trace.blocks_lost
 
 
-def run_cell(cell: Cell, cfg: Config, progs, workdir: Path, seed: int = 1) -> Result:
+def run_cell(cell: Cell, cfg: Config, progs, workdir: Path, seed: int = 1,
+             realtime=False) -> Result:
+    """One cell; progs: what programs(..., realtime) returned."""
     workdir.mkdir(parents=True, exist_ok=True)
-    if not EMU.is_file():
-        raise MatrixError(f"{EMU} missing: run make")
-    return RealtimeRun(cell, cfg, progs, workdir, seed).run()
+    if realtime:
+        if not EMU.is_file():
+            raise MatrixError(f"{EMU} missing: run make")
+        return RealtimeRun(cell, cfg, progs, workdir, seed).run()
+    from .kernel import KernelRun
+    return KernelRun(cell, cfg, progs, workdir, seed).run()
 
 
-def run_matrix(cells, cfg: Config, workdir: Path, progress=None):
-    progs = build_programs(workdir / "build")
+def programs(outdir, realtime=False):
+    """The example programs for run_cell: soft-PLC executables (realtime) or the kernel's
+    builds (mipcosim.sim.build)."""
+    if realtime:
+        return build_programs(outdir)
+    from .kernel import build_programs as kernel_programs
+    return kernel_programs(outdir)
+
+
+def run_matrix(cells, cfg: Config, workdir: Path, progress=None, realtime=False):
+    progs = programs(workdir / "build", realtime)
     results = []
     t = time.monotonic()
     for i, cell in enumerate(cells):
-        r = run_cell(cell, cfg, progs, workdir / cell.key.replace("/", "-"), seed=1 + i)
+        r = run_cell(cell, cfg, progs, workdir / cell.key.replace("/", "-"), seed=1 + i,
+                     realtime=realtime)
         results.append(r)
         if progress:
             progress(i + 1, len(cells), r)
     doc = {"config": asdict(cfg) | {"bound_s": cfg.bound_s},
+           "clock": "real" if realtime else "virtual",
            "seconds": round(time.monotonic() - t, 1),
            "results": [asdict(r) for r in results]}
+    if not realtime:
+        doc["virtual_seconds"] = round(sum(r.virtual_s or 0 for r in results), 1)
     return doc
