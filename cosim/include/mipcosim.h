@@ -68,6 +68,18 @@ typedef int (*mipcosim_set_transport_fn)(void *rt, const char *device,
 int mipcosim_connect_inproc(mipcosim *sim, int id, mipcosim_set_transport_fn set_transport,
                             const char *device, int ep);
 
+/* One Modbus request of a participant that is not a plcrt PLC (e.g. a peer written in Python
+ * that the caller steps between runs, or a scan function of its own): the request ADU (MBAP
+ * header + PDU, one whole frame, as sent over Modbus TCP) goes to endpoint ep (0 = MDP, s = TRM
+ * of station s) of the emulator core at the current virtual time (mipemu_handle, as the
+ * in-process transport does for a PLC) and the response ADU is written to rsp (rsp_cap >=
+ * MIPEMU_RESPONSE_MAX). Returns its length, or -1 (mipcosim_errmsg): no such endpoint, not one
+ * whole frame, or a frame the emulator would close the connection for (no answer). May be
+ * called between runs or from a scan function during mipcosim_run. Counted in
+ * mipcosim_requests. */
+long mipcosim_request(mipcosim *sim, int ep, const uint8_t *req, size_t req_len, uint8_t *rsp,
+                      size_t rsp_cap);
+
 /* Taps: after every scan of PLC id, if the 16-bit word at seq changed, one entry is logged:
  * the nhdr words at hdr, then min(hdr[len_index], ndata_max) words at data (len_index < 0 or
  * data NULL: no data), then the new value of seq. tap is a slot number chosen by the caller (0..63); setting it again

@@ -333,6 +333,24 @@ int mipcosim_connect_inproc(mipcosim *sim, int id, mipcosim_set_transport_fn set
     return 0;
 }
 
+long mipcosim_request(mipcosim *sim, int ep, const uint8_t *req, size_t req_len, uint8_t *rsp,
+                      size_t rsp_cap)
+{
+    if (ep < 0 || ep > mipemu_net_stations(sim->net))
+        return fail(sim, "request: endpoint %d is not 0 (MDP) or a station 1..%d", ep,
+                    mipemu_net_stations(sim->net));
+    if (!req || !rsp || rsp_cap < MIPEMU_RESPONSE_MAX)
+        return fail(sim, "request: no request, or a response buffer under %d bytes",
+                    MIPEMU_RESPONSE_MAX);
+    long flen = mipemu_frame_length(req, req_len);
+    if (flen <= 0 || (size_t)flen != req_len)
+        return fail(sim, "request: %zu bytes are not one whole Modbus TCP frame", req_len);
+    long n = mipemu_handle(sim->net, ep, req, req_len, rsp, rsp_cap);
+    if (n < 0) return fail(sim, "request: the emulator closes the connection (no answer)");
+    sim->requests++;
+    return n;
+}
+
 int mipcosim_tap(mipcosim *sim, int tap, int id, const uint16_t *seq, const uint16_t *hdr,
                  int nhdr, int len_index, const uint16_t *data, int ndata_max)
 {

@@ -202,6 +202,80 @@ static void test_inproc_transport_answers_adus(void)
     mipcosim_free(sim);
 }
 
+/* A participant that is not a plcrt PLC: its scan makes its own requests (mipcosim_request). */
+typedef struct peer_part {
+    mipcosim *sim;
+    int ep;
+    int scans;
+    uint64_t t_last;
+    long rsp_len;
+    uint8_t rsp[MIPEMU_RESPONSE_MAX];
+} peer_part_t;
+
+static int peer_part_scan(void *rt, uint64_t n)
+{
+    peer_part_t *p = rt;
+    (void)n;
+    /* FC3 of 5 at TRM 2198, transaction id = scan number */
+    uint8_t r[] = {0, (uint8_t)++p->scans, 0, 0, 0, 6, 1, 3, 0x08, 0x96, 0, 5};
+    p->t_last = mipcosim_now(p->sim);
+    p->rsp_len = mipcosim_request(p->sim, p->ep, r, sizeof r, p->rsp, sizeof p->rsp);
+    return p->rsp_len < 0 ? -1 : 0;
+}
+
+static void test_request_of_a_participant_at_the_current_time(void)
+{
+    char path[] = "/tmp/mipcosim-request-XXXXXX";
+    int fd = mkstemp(path);
+    CHECK(fd >= 0);
+    close(fd);
+    mipcosim *sim = new_sim(2, 0, 1);
+    CHECK(sim);
+    CHECK(mipcosim_trace_file(sim, path) == 0);
+    uint8_t rsp[MIPEMU_RESPONSE_MAX];
+    /* between runs: FC16 of 3 registers at TRM 2001 of station 2 (tid 9), at 50 ms */
+    CHECK(mipcosim_run(sim, 50000000) == 0);
+    uint8_t w[] = {0, 9, 0, 0, 0, 13, 1, 16, 0x07, 0xD1, 0, 3, 6, 0, 42, 0, 43, 0, 44};
+    long n = mipcosim_request(sim, 2, w, sizeof w, rsp, sizeof rsp);
+    CHECK(n == 12 && rsp[1] == 9 && rsp[7] == 16);
+    CHECK(mipcosim_requests(sim) == 1);
+    /* the radio carries the block to the MDP: its read (unit 2) finds it */
+    CHECK(mipcosim_run(sim, 500000000) == 0);
+    uint8_t r[] = {0, 10, 0, 0, 0, 6, 2, 3, 0, 198, 0, 5};
+    n = mipcosim_request(sim, 0, r, sizeof r, rsp, sizeof rsp);
+    CHECK(n == 9 + 10 && rsp[6] == 2 && rsp[8] == 10);
+    CHECK((rsp[9] << 8 | rsp[10]) & MIPEMU_RS_NEW_DATA);
+    CHECK((rsp[11] << 8 | rsp[12]) == 3 && (rsp[13] << 8 | rsp[14]) == 42);
+    /* refused: no such endpoint, a short response buffer, not one whole frame (not counted) */
+    CHECK(mipcosim_request(sim, 3, r, sizeof r, rsp, sizeof rsp) == -1);
+    CHECK(strstr(mipcosim_errmsg(sim), "endpoint 3"));
+    CHECK(mipcosim_request(sim, 0, r, sizeof r, rsp, 20) == -1);
+    CHECK(mipcosim_request(sim, 0, r, sizeof r - 1, rsp, sizeof rsp) == -1);
+    CHECK(strstr(mipcosim_errmsg(sim), "whole"));
+    CHECK(mipcosim_requests(sim) == 2);
+    /* from a scan function during mipcosim_run: at the scan's virtual time */
+    peer_part_t p;
+    memset(&p, 0, sizeof p);
+    p.sim = sim;
+    p.ep = 1;
+    CHECK(mipcosim_plc_add(sim, peer_part_scan, &p, 20000000) == 0);
+    CHECK(mipcosim_run(sim, 560000000) == 0);                 /* 500, 520, 540 ms */
+    CHECK(p.scans == 3 && p.t_last == 540000000);
+    CHECK(p.rsp_len == 9 + 10 && p.rsp[1] == 3);
+    CHECK(mipcosim_requests(sim) == 5);
+    mipcosim_free(sim);                                        /* closes the trace */
+    static char trace[1 << 16];
+    FILE *f = fopen(path, "r");
+    CHECK(f);
+    size_t len = fread(trace, 1, sizeof trace - 1, f);
+    trace[len] = 0;
+    fclose(f);
+    unlink(path);
+    /* each request is traced at the virtual time it was made */
+    CHECK(strstr(trace, "{\"t\":50000000,") && strstr(trace, "\"ev\":\"modbus\",\"ep\":\"trm\",\"st\":2"));
+    CHECK(strstr(trace, "{\"t\":540000000,"));
+}
+
 static void test_taps_log_each_change_once(void)
 {
     mipcosim *sim = new_sim(1, 0, 1);
@@ -328,6 +402,8 @@ int main(int argc, char **argv)
     run("ticks_in_lockstep", test_ticks_in_lockstep);
     run("requests_answered_by_the_emulator", test_requests_answered_by_the_emulator);
     run("inproc_transport_answers_adus", test_inproc_transport_answers_adus);
+    run("request_of_a_participant_at_the_current_time",
+        test_request_of_a_participant_at_the_current_time);
     run("taps_log_each_change_once", test_taps_log_each_change_once);
     run("replace_switches_off_and_restarts", test_replace_switches_off_and_restarts);
     run("failed_scan_stops_the_run", test_failed_scan_stops_the_run);

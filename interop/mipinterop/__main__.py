@@ -1,7 +1,10 @@
 """python -m mipinterop: run the interop matrix, or write its table into docs/protocol.md.
 
-  python -m mipinterop --out results.json [--cells KEY,...] [--subset ci]
+  python -m mipinterop --out results.json [--cells KEY,...] [--realtime]
   python -m mipinterop --write-docs results.json
+
+By default every cell runs in the co-simulation kernel, in virtual time (deterministic by seed);
+--realtime runs the soft-PLC executable and the mip-peer process over mip-emulator instead.
 """
 import argparse
 import json
@@ -24,6 +27,9 @@ def main(argv=None):
     p.add_argument("--cells", help="only these cells: ours/reading/fault/layout/mode, comma-separated")
     p.add_argument("--drive", choices=["spontaneous", "polled"], default="spontaneous",
                    help="drive of both sides (the CI matrix: spontaneous)")
+    p.add_argument("--realtime", action="store_true",
+                   help="processes over mip-emulator on 127.0.0.1 in real time instead of the "
+                        "co-simulation kernel (virtual time)")
     p.add_argument("--workdir", help="logs of every cell (default: a temporary directory)")
     p.add_argument("--write-docs", metavar="RESULTS",
                    help="write the table of this results file into docs/protocol.md")
@@ -46,16 +52,19 @@ def main(argv=None):
             p.error(str(e))
 
         def progress(i, n, r):
-            print(f"[{i}/{n}] {r.cell}: {r.text} ({r.seconds:g} s)"
+            took = f"{r.seconds:g} s" if r.virtual_s is None else \
+                f"{r.virtual_s:g} s virtual, {r.seconds:g} s"
+            print(f"[{i}/{n}] {r.cell}: {r.text} ({took})"
                   f"{'' if r.passed else '  <-- FAIL'}", flush=True)
 
         with tempfile.TemporaryDirectory(prefix="mipinterop-") as tmp:
             work = Path(a.workdir) if a.workdir else Path(tmp)
-            doc = run_matrix(cells, Config(drive=a.drive), work, progress)
+            doc = run_matrix(cells, Config(drive=a.drive), work, progress, realtime=a.realtime)
         Path(a.out).write_text(json.dumps(doc, indent=1) + "\n")
         failed = [r for r in doc["results"] if not r["passed"]]
+        virtual = f" ({doc['virtual_seconds']:g} s virtual)" if "virtual_seconds" in doc else ""
         print(f"mipinterop: {len(cells) - len(failed)} of {len(cells)} cells pass "
-              f"in {doc['seconds']:g} s; results in {a.out}")
+              f"in {doc['seconds']:g} s{virtual}; results in {a.out}")
         return 1 if failed else 0
     except (MatrixError, docs.DocsError) as e:
         print(f"mipinterop: error: {e}", file=sys.stderr)

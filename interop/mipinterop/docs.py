@@ -27,6 +27,34 @@ def _cell_text(r):
     return text if r["passed"] else f"**FAIL** {text}"
 
 
+def _virtual(doc):
+    return doc.get("clock", "real") == "virtual"
+
+
+def _how(doc):
+    if _virtual(doc):
+        return ("Our blocks (plc/ programs, soft-PLCs of the co-simulation kernel) against the "
+                "note-only peer (peers/mippeer, a participant of the same kernel, its Modbus "
+                "requests built by pymodbus) over the kernel's emulator core on the fast radio, "
+                "in virtual time (deterministic by seed; the bound and the times in the cells are "
+                "virtual seconds): ")
+    return ("Our blocks (plc/ programs in the soft-PLC, real time) against the note-only peer "
+            "(`mip-peer`, peers/) over mip-emulator on the fast radio: ")
+
+
+def _after(doc):
+    if _virtual(doc) and "down_s" in doc["config"]:
+        return (f" (from when the restarted side runs again; it is off "
+                f"{doc['config']['down_s']:g} s)")
+    return ""
+
+
+def _took(doc):
+    if _virtual(doc) and "virtual_seconds" in doc:
+        return f"{doc['seconds']:g} s for {doc['virtual_seconds']:g} s of virtual time"
+    return f"{doc['seconds']:g} s"
+
+
 def table(doc) -> str:
     """The generated section (markers included) for the results `doc`."""
     by_key = {r["cell"]: r for r in doc["results"]}
@@ -45,13 +73,13 @@ def table(doc) -> str:
              "t seconds after the fault), or **FAIL** (data lost or duplicated silently, an "
              "error later than the bound, or a hang).",
              "",
-             f"Our blocks (plc/ programs in the soft-PLC, real time) against the note-only peer "
-             f"(`mip-peer`, peers/) over mip-emulator on the fast radio: {cfg['records']} records "
+             _how(doc) +
+             f"{cfg['records']} records "
              f"per transfer, tTimeout {cfg['timeout_ms']} ms, uMaxRetries {cfg['max_retries']}, "
              f"{cfg['drive']} drive, loss {cfg['loss']:.0%} both ways, restart after record "
              f"{cfg['restart_after']} was acknowledged. Bound for an error: {cfg['bound_s']:g} s "
-             f"({cfg['bound_factor']:g} x tTimeout) after the fault. "
-             f"{passed} of {len(doc['results'])} cells pass; the run took {doc['seconds']:g} s.",
+             f"({cfg['bound_factor']:g} x tTimeout) after the fault{_after(doc)}. "
+             f"{passed} of {len(doc['results'])} cells pass; the run took {_took(doc)}.",
              "",
              "| ours | peer | fault | " + " | ".join(f"{l}, {m}" for l, m in COLUMNS) + " |",
              "|---|---|---|" + "---|" * len(COLUMNS)]

@@ -1,5 +1,13 @@
-"""The interop matrix of issue 11: our blocks (plc/ programs in the soft-PLC, real time) against
-the note-only peer (peers/, `mip-peer`), both over build/emulator/mip-emulator on 127.0.0.1.
+"""The interop matrix of issue 11: our blocks (plc/ programs in the soft-PLC) against the note-only
+peer (peers/mippeer) over the emulated modems and radio.
+
+Two ways to run a cell, one judge and one classification (CellRun.run):
+  kernel    (the default; kernel.py) our program as a soft-PLC of the co-simulation kernel
+            (cosim/, mipcosim.sim.Chain) and the peer as a participant of the same lockstep
+            virtual time, its requests handed to the kernel's emulator core: deterministic by
+            seed, every time (bound, caps, "error after t s") in virtual seconds;
+  realtime  (--realtime; RealtimeRun) the soft-PLC executable and the `mip-peer` process over
+            build/emulator/mip-emulator on 127.0.0.1, in real time.
 
 Axes: ours {sender, receiver} x peer reading {strict, lenient} x fault {none, loss 30 %,
 restart of our soft-PLC, restart of the peer} x layout {uni, bi} x MIP mode {dynamic, static}.
@@ -126,6 +134,10 @@ class Config:
     cap_s: float = 12.0            # give up on a cell this long after its start / its fault
     cap_loss_s: float = 25.0
     drive: str = "spontaneous"
+    peer_period_s: float = 0.02    # the peer reads its modem (and may write) this often
+    # kernel: a restarted side is off this long (the soft-PLC: Chain.restart's down time; the
+    # peer: its process start); "after the fault" counts from when it runs again
+    down_s: float = 0.5
 
     @property
     def bound_s(self):
@@ -142,9 +154,10 @@ class Result:
     error_after_s: float | None = None
     errors: list = field(default_factory=list)
     streams: dict = field(default_factory=dict)
-    seconds: float = 0.0
+    seconds: float = 0.0           # wall time of the cell
     lost_telegrams: int = 0        # of them carrying a block (record or acknowledgement)
     detail: str = ""               # counters at the end, to see where a cell got stuck
+    virtual_s: float | None = None  # kernel: the cell's virtual time (start to verdict)
 
 
 # ----------------------------------------------------------------------------- processes
@@ -198,6 +211,12 @@ def build_programs(outdir):
 
 
 class CellRun:
+    """One cell: what each stream should carry, the judge, and the run loop that classifies the
+    outcome. Subclasses bring the participants and the clock: RealtimeRun (processes, real
+    time) and kernel.KernelRun (the co-simulation kernel, virtual time)."""
+
+    FAILURES = ()                  # exceptions of the subclass's machinery: MatrixError
+
     def __init__(self, cell: Cell, cfg: Config, progs, workdir: Path, seed: int):
         self.cell, self.cfg, self.progs, self.dir = cell, cfg, progs, workdir
         self.seed = seed
@@ -207,10 +226,7 @@ class CellRun:
         self.payload = cfg.static_registers - header if self.static else cfg.payload
         self.session = 7
         self.peer_seed = 11
-        self.procs = demo.Procs()
-        self.slave = None
         self.peer = None
-        self.lives = 0
         self.ours_restarted = self.peer_restarted = False
 
     # -- what each stream should carry
@@ -226,74 +242,73 @@ class CellRun:
                     for n in range(1, self.cfg.records + 1)]
         return logger_records(self.cfg.records, self.payload, self.peer_seed)
 
-    # -- processes
-    def start_emulator(self):
-        loss = self.cfg.loss if self.cell.fault == "loss30" else 0.0
-        self.mdp, self.trm = start_emulator(
-            self.procs, self.dir, self.seed, FAST_RADIO, loss,
-            self.cfg.static_registers if self.static else 0)
+    def ours_params(self, start=True):
+        """Our program's parameters (%MW0..), the same at every start: a restart loses all."""
+        return L.Params(records=self.cfg.records, payload=self.payload, session=self.session,
+                        station=1, polled=self.cfg.drive == "polled", static=self.static,
+                        timeout_ms=self.cfg.timeout_ms,
+                        chunk=self.cfg.static_registers if self.static else 123,
+                        max_retries=self.cfg.max_retries).words(start)
 
-    def start_plc(self):
-        role = "outstation" if self.cell.ours == "sender" else "central"
-        self.lives += 1
-        name = f"{role}-{self.lives}"
-        conf = self.dir / f"{name}.conf"
-        conf.write_text(L.outstation_config(self.trm) if role == "outstation"
-                        else L.central_config(self.mdp, 1))
-        port = demo.free_port()
-        exe = self.progs[role, self.bidi].executable
-        self.procs.start(name, [str(exe), "-c", str(conf), "-s", f"127.0.0.1:{port}"],
-                         self.dir / f"{name}.log")
-        self.slave = demo.Slave(port)
-        try:
-            self.slave.connect(time.monotonic() + 10)
-        except demo.DemoError as e:
-            raise MatrixError(str(e)) from None
-        self.plc_name = name
-        params = L.Params(records=self.cfg.records, payload=self.payload, session=self.session,
-                          station=1, polled=self.cfg.drive == "polled", static=self.static,
-                          timeout_ms=self.cfg.timeout_ms,
-                          chunk=self.cfg.static_registers if self.static else 123,
-                          max_retries=self.cfg.max_retries)
-        self.slave.write(0, params.words())
-
-    def stop_plc(self):
-        for i, (n, p, f, _) in enumerate(self.procs.procs):
-            if n == self.plc_name:
-                p.terminate()
-                p.wait(timeout=10)
-                f.close()
-                del self.procs.procs[i]
-                break
-        self.slave.close()
-
-    def start_peer(self):
+    def peer_args(self):
+        """(role, records or None, Peer keyword arguments) of the note peer of this cell."""
         role = "central" if self.cell.ours == "sender" else "outstation"
-        self.peer_life = getattr(self, "peer_life", 0) + 1
-        self.peer_out = self.dir / f"peer-{self.peer_life}.json"
-        args = [role, "--port", str(self.mdp if role == "central" else self.trm), "--unit", "1",
-                "--layout", self.cell.layout, f"--{self.cell.reading}", "--drive", self.cfg.drive,
-                "--period", "0.02", "--retransmit", str(self.cfg.peer_retransmit_s),
-                "--request", str(self.cfg.peer_retransmit_s), "--timeout", "600",
-                "--expect", "1000000", "--out", str(self.peer_out)]
-        if role == "outstation" or self.bidi:
-            args += ["--records", str(self.cfg.records), "--record-size", str(self.payload),
-                     "--seed", str(self.peer_seed)]
-        if self.static:
-            args += ["--static-registers", str(self.cfg.static_registers)]
-        self.peer = PeerProc(args, self.dir / f"peer-{self.peer_life}.log")
+        records = (logger_records(self.cfg.records, self.payload, self.peer_seed)
+                   if role == "outstation" or self.bidi else None)
+        kw = dict(layout=self.cell.layout, drive=self.cfg.drive,
+                  lenient=self.cell.reading == "lenient",
+                  retransmit_s=self.cfg.peer_retransmit_s, request_s=self.cfg.peer_retransmit_s,
+                  static_registers=self.cfg.static_registers if self.static else 0)
+        return role, records, kw
 
-    # -- observation
+    # -- what the subclass provides
+    def start(self):
+        """Both sides up (the receiving side first, so the sender finds it)."""
+        raise NotImplementedError
+
+    def stop(self):
+        raise NotImplementedError
+
+    def check(self):
+        """Raise MatrixError when a participant died."""
+
+    def clock(self):
+        """Seconds (real or virtual)."""
+        raise NotImplementedError
+
+    def pause(self):
+        """Let time go on until the next look."""
+        raise NotImplementedError
+
+    def restart_ours(self):
+        raise NotImplementedError
+
+    def restart_peer(self):
+        raise NotImplementedError
+
     def plc_words(self):
-        b = L.peer_base(1)
-        return self.slave.read(b, L.W_BASE + L.WINDOW)
+        """Our PLC's peer block (%MW peer_base(1) .., W_BASE + WINDOW words)."""
+        raise NotImplementedError
 
     def peer_received(self):
-        try:
-            return json.loads(self.peer_out.read_text())
-        except (FileNotFoundError, json.JSONDecodeError):
-            return {"transfers": [], "open": []}
+        """The peer's receiver (mippeer.cli.received of its current life)."""
+        raise NotImplementedError
 
+    def peer_seen(self, kind, number):
+        """The peer's current life saw ("accepted" | "acknowledged", number)."""
+        raise NotImplementedError
+
+    def peer_acknowledged(self):
+        raise NotImplementedError
+
+    def lost_blocks(self):
+        """Radio telegrams carrying a block that were lost (the emulator's trace)."""
+        raise NotImplementedError
+
+    def virtual_s(self):
+        return None
+
+    # -- the judge
     def plc_stream_state(self, w, want, resent):
         """Our receiver's committed stream against `want` (a list of records). `resent`: the
         stream's sender restarted in this cell, so the whole transfer may arrive again."""
@@ -342,13 +357,13 @@ class CellRun:
             sender_done = w[L.S_ALL] == 1
         else:
             state, why = self.plc_stream_state(w, self.up_want(), self.peer_restarted)
-            sender_done = self.peer.seen("acknowledged", 0xFFFF)
+            sender_done = self.peer_seen("acknowledged", 0xFFFF)
         streams["up"] = "complete" if state == "held" and sender_done else state
         bad = bad or why
         if self.bidi:
             if self.cell.ours == "sender":
                 state, why = self.plc_stream_state(w, self.down_want(), self.peer_restarted)
-                sender_done = self.peer.seen("acknowledged", 0xFFFF)
+                sender_done = self.peer_seen("acknowledged", 0xFFFF)
             else:
                 state, why = self.peer_stream_state(got, self.down_want(), self.ours_restarted)
                 sender_done = w[L.S_ALL] == 1
@@ -367,36 +382,27 @@ class CellRun:
         t_begin = time.monotonic()
         cfg, cell = self.cfg, self.cell
         try:
-            self.start_emulator()
-            if cell.ours == "sender":      # the receiving side first, so the sender finds it
-                self.start_peer()
-                self.start_plc()
-            else:
-                self.start_plc()
-                self.start_peer()
-            t0 = time.monotonic()
+            self.start()
+            t0 = self.clock()
             cap = cfg.cap_loss_s if cell.fault == "loss30" else cfg.cap_s
             restart_pending = cell.fault.startswith("restart")
             first_error = None          # (seconds after t0, who, name)
             errors_seen = []
             streams = {}
             while True:
-                self.procs.check_alive()
-                self.peer.alive_or_raise()
-                now = time.monotonic()
+                self.check()
+                now = self.clock()
                 if restart_pending:
                     kind = "accepted" if cell.ours == "sender" else "acknowledged"
-                    if self.peer.seen(kind, cfg.restart_after):
+                    if self.peer_seen(kind, cfg.restart_after):
                         if cell.fault == "restart-ours":
-                            self.stop_plc()
                             self.ours_restarted = True
-                            self.start_plc()
+                            self.restart_ours()
                         else:
-                            self.peer.stop()
                             self.peer_restarted = True
-                            self.start_peer()
+                            self.restart_peer()
                         restart_pending = False
-                        t0 = time.monotonic()
+                        t0 = self.clock()
                         first_error, errors_seen = None, []
                         continue
                     if now - t0 > cap:
@@ -432,19 +438,13 @@ class CellRun:
                     pending = ", ".join(f"{k} {v}" for k, v in streams.items())
                     return self._result("FAIL", False, f"hang: no completion and no error in "
                                         f"{cap:g} s ({pending})", streams, errors_seen, t_begin)
-                time.sleep(0.05)
-        except demo.DemoError as e:
+                self.pause()
+        except self.FAILURES as e:
             raise MatrixError(f"{cell.key}: {e}") from None
         finally:
-            if self.peer is not None:
-                self.peer.stop()
-            if self.slave is not None:
-                self.slave.close()
-            self.procs.stop()
+            self.stop()
 
     def _result(self, outcome, passed, text, streams, errors, t_begin):
-        trace = demo.TraceStats(self.dir / "trace.jsonl")
-        trace.update()
         detail = ""
         try:
             w = self.plc_words()
@@ -453,33 +453,174 @@ class CellRun:
                       f"{w[L.R_UNEXP]}, retransmissions {w[L.S_RETRANS]}, read out "
                       f"{w[L.S_OUT_LO]}; peer: accepted {got.get('accepted', [])}, "
                       f"duplicates {got.get('duplicates', 0)}, unexpected "
-                      f"{got.get('unexpected', 0)}, acknowledged "
-                      f"{[e[1] for e in self.peer.events if e[0] == 'acknowledged']}")
+                      f"{got.get('unexpected', 0)}, acknowledged {self.peer_acknowledged()}")
         except Exception as e:     # the PLC may be gone; the detail is only a help
             detail = f"no counters: {e}"
+        v = self.virtual_s()
         return Result(cell=self.cell.key, outcome=outcome, passed=passed, text=text,
                       errors=[f"{who}:{name}" for who, name in errors], streams=dict(streams),
                       seconds=round(time.monotonic() - t_begin, 1),
-                      lost_telegrams=trace.blocks_lost, detail=detail)
+                      lost_telegrams=self.lost_blocks(), detail=detail,
+                      virtual_s=None if v is None else round(v, 2))
 
 
-def run_cell(cell: Cell, cfg: Config, progs, workdir: Path, seed: int = 1) -> Result:
+class RealtimeRun(CellRun):
+    """A cell in real time: mip-emulator, the soft-PLC executable and the mip-peer process on
+    127.0.0.1 (`--realtime`)."""
+
+    FAILURES = (demo.DemoError,)
+
+    def __init__(self, cell: Cell, cfg: Config, progs, workdir: Path, seed: int):
+        super().__init__(cell, cfg, progs, workdir, seed)
+        self.procs = demo.Procs()
+        self.slave = None
+        self.lives = 0
+
+    # -- processes
+    def start(self):
+        self.start_emulator()
+        if self.cell.ours == "sender":      # the receiving side first, so the sender finds it
+            self.start_peer()
+            self.start_plc()
+        else:
+            self.start_plc()
+            self.start_peer()
+
+    def start_emulator(self):
+        loss = self.cfg.loss if self.cell.fault == "loss30" else 0.0
+        self.mdp, self.trm = start_emulator(
+            self.procs, self.dir, self.seed, FAST_RADIO, loss,
+            self.cfg.static_registers if self.static else 0)
+
+    def start_plc(self):
+        role = "outstation" if self.cell.ours == "sender" else "central"
+        self.lives += 1
+        name = f"{role}-{self.lives}"
+        conf = self.dir / f"{name}.conf"
+        conf.write_text(L.outstation_config(self.trm) if role == "outstation"
+                        else L.central_config(self.mdp, 1))
+        port = demo.free_port()
+        exe = self.progs[role, self.bidi].executable
+        self.procs.start(name, [str(exe), "-c", str(conf), "-s", f"127.0.0.1:{port}"],
+                         self.dir / f"{name}.log")
+        self.slave = demo.Slave(port)
+        try:
+            self.slave.connect(time.monotonic() + 10)
+        except demo.DemoError as e:
+            raise MatrixError(str(e)) from None
+        self.plc_name = name
+        self.slave.write(0, self.ours_params())
+
+    def stop_plc(self):
+        for i, (n, p, f, _) in enumerate(self.procs.procs):
+            if n == self.plc_name:
+                p.terminate()
+                p.wait(timeout=10)
+                f.close()
+                del self.procs.procs[i]
+                break
+        self.slave.close()
+
+    def start_peer(self):
+        role = "central" if self.cell.ours == "sender" else "outstation"
+        self.peer_life = getattr(self, "peer_life", 0) + 1
+        self.peer_out = self.dir / f"peer-{self.peer_life}.json"
+        args = [role, "--port", str(self.mdp if role == "central" else self.trm), "--unit", "1",
+                "--layout", self.cell.layout, f"--{self.cell.reading}", "--drive", self.cfg.drive,
+                "--period", str(self.cfg.peer_period_s),
+                "--retransmit", str(self.cfg.peer_retransmit_s),
+                "--request", str(self.cfg.peer_retransmit_s), "--timeout", "600",
+                "--expect", "1000000", "--out", str(self.peer_out)]
+        if role == "outstation" or self.bidi:
+            args += ["--records", str(self.cfg.records), "--record-size", str(self.payload),
+                     "--seed", str(self.peer_seed)]
+        if self.static:
+            args += ["--static-registers", str(self.cfg.static_registers)]
+        self.peer = PeerProc(args, self.dir / f"peer-{self.peer_life}.log")
+
+    def restart_ours(self):
+        self.stop_plc()
+        self.start_plc()
+
+    def restart_peer(self):
+        self.peer.stop()
+        self.start_peer()
+
+    def stop(self):
+        if self.peer is not None:
+            self.peer.stop()
+        if self.slave is not None:
+            self.slave.close()
+        self.procs.stop()
+
+    def check(self):
+        self.procs.check_alive()
+        self.peer.alive_or_raise()
+
+    def clock(self):
+        return time.monotonic()
+
+    def pause(self):
+        time.sleep(0.05)
+
+    # -- observation
+    def plc_words(self):
+        b = L.peer_base(1)
+        return self.slave.read(b, L.W_BASE + L.WINDOW)
+
+    def peer_received(self):
+        try:
+            return json.loads(self.peer_out.read_text())
+        except (FileNotFoundError, json.JSONDecodeError):
+            return {"transfers": [], "open": []}
+
+    def peer_seen(self, kind, number):
+        return self.peer.seen(kind, number)
+
+    def peer_acknowledged(self):
+        return [e[1] for e in self.peer.events if e[0] == "acknowledged"]
+
+    def lost_blocks(self):
+        trace = demo.TraceStats(self.dir / "trace.jsonl")
+        trace.update()
+        return trace.blocks_lost
+
+
+def run_cell(cell: Cell, cfg: Config, progs, workdir: Path, seed: int = 1,
+             realtime=False) -> Result:
+    """One cell; progs: what programs(..., realtime) returned."""
     workdir.mkdir(parents=True, exist_ok=True)
-    if not EMU.is_file():
-        raise MatrixError(f"{EMU} missing: run make")
-    return CellRun(cell, cfg, progs, workdir, seed).run()
+    if realtime:
+        if not EMU.is_file():
+            raise MatrixError(f"{EMU} missing: run make")
+        return RealtimeRun(cell, cfg, progs, workdir, seed).run()
+    from .kernel import KernelRun
+    return KernelRun(cell, cfg, progs, workdir, seed).run()
 
 
-def run_matrix(cells, cfg: Config, workdir: Path, progress=None):
-    progs = build_programs(workdir / "build")
+def programs(outdir, realtime=False):
+    """The example programs for run_cell: soft-PLC executables (realtime) or the kernel's
+    builds (mipcosim.sim.build)."""
+    if realtime:
+        return build_programs(outdir)
+    from .kernel import build_programs as kernel_programs
+    return kernel_programs(outdir)
+
+
+def run_matrix(cells, cfg: Config, workdir: Path, progress=None, realtime=False):
+    progs = programs(workdir / "build", realtime)
     results = []
     t = time.monotonic()
     for i, cell in enumerate(cells):
-        r = run_cell(cell, cfg, progs, workdir / cell.key.replace("/", "-"), seed=1 + i)
+        r = run_cell(cell, cfg, progs, workdir / cell.key.replace("/", "-"), seed=1 + i,
+                     realtime=realtime)
         results.append(r)
         if progress:
             progress(i + 1, len(cells), r)
     doc = {"config": asdict(cfg) | {"bound_s": cfg.bound_s},
+           "clock": "real" if realtime else "virtual",
            "seconds": round(time.monotonic() - t, 1),
            "results": [asdict(r) for r in results]}
+    if not realtime:
+        doc["virtual_seconds"] = round(sum(r.virtual_s or 0 for r in results), 1)
     return doc

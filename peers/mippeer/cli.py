@@ -67,10 +67,46 @@ def parse_args(argv):
     return a
 
 
-def _write_out(path, peer):
+def received(peer):
+    """What the peer's receiver holds (the --out document)."""
     r = peer.receiver
-    doc = {"transfers": r.transfers, "open": r.current, "abandoned": r.abandoned,
-           "accepted": r.accepted, "duplicates": r.duplicates, "unexpected": r.unexpected}
+    return {"transfers": r.transfers, "open": r.current, "abandoned": r.abandoned,
+            "accepted": r.accepted, "duplicates": r.duplicates, "unexpected": r.unexpected}
+
+
+class Loop:
+    """The peer's work one round at a time: read the modem, step the peer, write its block, and
+    note what happened (the --events lines). The command runs the rounds in real time; a
+    simulation can run them at its own (virtual) times on a Modem.in_process."""
+
+    def __init__(self, peer, modem):
+        self.peer, self.modem = peer, modem
+        self.events = []            # ("accepted" | "acknowledged", record number), in order
+        self._accepted = self._acked = 0
+
+    def round(self, now):
+        """One round at `now` (seconds, any origin); returns the events it added."""
+        block = self.peer.step(now, self.modem.read())
+        if block is not None:
+            self.modem.write(block)
+        new = []
+        r, s = self.peer.receiver, self.peer.sender
+        if r is not None and len(r.accepted) > self._accepted:
+            new += [("accepted", n) for n in r.accepted[self._accepted:]]
+            self._accepted = len(r.accepted)
+        if s is not None and s.index != self._acked:
+            if s.index > self._acked:
+                new += [("acknowledged", n) for n in s._numbers[self._acked : s.index]]
+            self._acked = s.index
+        self.events += new
+        return new
+
+    def seen(self, kind, number):
+        return (kind, number) in self.events
+
+
+def _write_out(path, peer):
+    doc = received(peer)
     tmp = path + ".tmp"
     with open(tmp, "w") as f:
         json.dump(doc, f)
@@ -97,30 +133,21 @@ def main(argv=None):
         return 2
     signal.signal(signal.SIGTERM, _on_term)
     modem = Modem(a.host, a.port, "trm" if a.role == "outstation" else "mdp", a.unit)
+    loop = Loop(peer, modem)
     start = time.monotonic()
     done_at = None
-    seen_accepted = seen_acked = 0
     stopped = None
     try:
         modem.connect()
         while True:
             now = time.monotonic() - start
-            block = peer.step(now, modem.read())
-            if block is not None:
-                modem.write(block)
-            r, s = peer.receiver, peer.sender
-            if r is not None and len(r.accepted) > seen_accepted:
-                if a.events:
-                    for n in r.accepted[seen_accepted:]:
-                        print(f"accepted {n}", flush=True)
-                seen_accepted = len(r.accepted)
-                if a.out:
-                    _write_out(a.out, peer)
-            if s is not None and s.index != seen_acked:
-                if a.events and s.index > seen_acked:
-                    for n in s._numbers[seen_acked : s.index]:
-                        print(f"acknowledged {n}", flush=True)
-                seen_acked = s.index
+            new = loop.round(now)
+            if a.events:
+                for kind, n in new:
+                    print(f"{kind} {n}", flush=True)
+            if a.out and any(kind == "accepted" for kind, _ in new):
+                _write_out(a.out, peer)
+            r = peer.receiver
             finished = peer.done and len(r.transfers if r else []) >= a.expect
             if finished and done_at is None:
                 done_at = now

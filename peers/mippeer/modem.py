@@ -1,10 +1,20 @@
-"""Register maps of the TRM-810 and MDP-810 in MIP mode, and block I/O through pymodbus."""
+"""Register maps of the TRM-810 and MDP-810 in MIP mode, and block I/O through pymodbus.
+
+Transports: Modbus TCP to the modem (pymodbus's ModbusTcpClient; the command), or a function that
+takes one request ADU and returns the response ADU (`Modem.in_process`; e.g. a simulation that
+hands it to an emulated modem at its virtual time). Either way pymodbus's own client builds and
+checks the frames (MBAP header + PDU); only the byte pipe differs, so the peer makes the same
+requests in a simulation as over TCP.
+"""
 
 import logging
 from dataclasses import dataclass
 
 from pymodbus.client import ModbusTcpClient
+from pymodbus.client.base import ModbusBaseSyncClient
 from pymodbus.exceptions import ModbusException
+from pymodbus.framer import FramerType
+from pymodbus.transport import CommParams, CommType
 
 READ_SPAN = 125  # read status + count + a whole 123-register chunk in one consistent FC3
 
@@ -29,13 +39,48 @@ class ModemError(RuntimeError):
     pass
 
 
-class Modem:
-    """One modem endpoint. At the MDP-810 the unit id selects the outstation."""
+class AduClient(ModbusBaseSyncClient):
+    """pymodbus's synchronous client with a function for its byte pipe: each request frame
+    (MBAP header + PDU, exactly what ModbusTcpClient writes to its socket) goes to
+    transact(adu), which returns the response frame, or None for no answer (pymodbus then reports
+    that no response came, as after a TCP timeout). No socket, no waiting."""
 
-    def __init__(self, host, port, device, unit=1, timeout=2.0):
+    def __init__(self, transact, name="in-process"):
+        params = CommParams(comm_type=CommType.TCP, comm_name=name, host=name, port=0,
+                            timeout_connect=0.0)
+        super().__init__(FramerType.SOCKET, 0, params, None, None, None)
+        self._transact = transact
+        self._response = b""
+
+    def connect(self):
+        return True
+
+    def close(self):
+        self._response = b""
+
+    def send(self, request, addr=None):
+        self._response = self._transact(bytes(request)) or b""
+        return len(request)
+
+    def recv(self, size):
+        data, self._response = self._response, b""
+        return data
+
+
+class Modem:
+    """One modem endpoint. At the MDP-810 the unit id selects the outstation. `client`: a
+    pymodbus synchronous client to use instead of Modbus TCP to host:port."""
+
+    def __init__(self, host, port, device, unit=1, timeout=2.0, client=None):
         self.map = {"trm": TRM810, "mdp": MDP810}[device]
         self.unit = unit
-        self.client = ModbusTcpClient(host, port=port, timeout=timeout, retries=0)
+        self.client = client if client is not None else \
+            ModbusTcpClient(host, port=port, timeout=timeout, retries=0)
+
+    @classmethod
+    def in_process(cls, transact, device, unit=1):
+        """The modem behind a function: transact(request ADU) -> response ADU or None."""
+        return cls(None, None, device, unit, client=AduClient(transact))
 
     def connect(self):
         if not self.client.connect():
