@@ -95,6 +95,12 @@
 #ifndef PIPE_KEEP
 #define PIPE_KEEP 0
 #endif
+/* PIPE_CLOSE: after a repeat went back, the window stays closed until this many records
+ * were acknowledged (MIP_Sender: 8). The configurations check 1, the earliest reopening: a
+ * sender that reopens later only leaves out pipelined writes this one may make */
+#ifndef PIPE_CLOSE
+#define PIPE_CLOSE 1
+#endif
 #if WIN == 2 && (BIDI || POLLED || WRST_S)
 #error WIN 2: spontaneous drive, unidirectional layout, no warm restarts of the sender
 #endif
@@ -150,8 +156,9 @@ proctype OurSender() {
                               * acknowledgement counts for both, also after a repeat went back */
     bool sconf;              /* WIN 2: the own modem confirmed the last write (bit 4 clear) */
     byte pc2, pi2;           /* WIN 2: counter and index of the pipelined record (for mb_write) */
-    bool nopipe;             /* WIN 2: a repeat went back: stop and wait for the rest of the
-                              * transfer (the receiving PLC reads slower than records arrive) */
+    byte nopipe;             /* WIN 2: a repeat went back: stop and wait for this many more
+                              * acknowledged records (the receiving PLC may read slower than
+                              * records arrive) */
 SND_IDLE:
     if
     :: s_done + s_err == NT -> goto idle
@@ -207,6 +214,7 @@ SND_WAIT_ACK:
                 /* P27: the pipelined record is acknowledged, and with it the one before (the
                  * receiver accepts only the next number) */
                 oos = 0; otmr[S] = 0; ahead = 0; sent2 = 0;
+                if :: nopipe > 1 -> nopipe = nopipe - 2 :: else -> nopipe = 0 fi;
                 if
                 :: cur + 1 == NREC -> act = A_DONE
                 :: else -> act = A_NEXT; cur = cur + 2; ctr = CTR(cur); newrec = 1
@@ -218,6 +226,7 @@ SND_WAIT_ACK:
 #endif
                 /* P8: the acknowledgement of the record in flight counts */
                 oos = 0; otmr[S] = 0;
+                if :: nopipe > 0 -> nopipe-- :: else -> skip fi;
                 if
                 :: cur == NREC -> act = A_DONE
                 :: ahead -> cur++; ctr = CTR(cur); ahead = 0; sent2 = 0   /* P27: the next one is on its way already */
@@ -248,9 +257,9 @@ SND_WAIT_ACK:
         fi
     :: !POLLED && !rnew[S] && tmr[S] >= TT && SCANREAD ->   /* P3 spontaneous repeat */
         rd = 0;
-        if :: sent2 && !PIPE_KEEP -> nopipe = 1 :: else -> skip fi;   /* P27: the window closes */
+        if :: sent2 && !PIPE_KEEP -> nopipe = PIPE_CLOSE :: else -> skip fi;   /* P27: the window closes */
         goto send
-    :: WIN == 2 && !ahead && !nopipe && sconf && (cur >= 2 || PIPE_FIRST) && (cur + 1 < NREC || (PIPE_LAST && cur < NREC)) ->
+    :: WIN == 2 && !ahead && nopipe == 0 && sconf && (cur >= 2 || PIPE_FIRST) && (cur + 1 < NREC || (PIPE_LAST && cur < NREC)) ->
         /* P27: record cur reached the peer's modem; the next one goes up before the
          * acknowledgement. Not the last record (a receiver takes 16#FFFF after any number),
          * not before record 1 was acknowledged (a stale acknowledgement 2 of an earlier

@@ -86,13 +86,14 @@ def _matrix():
                         exp, why = expectation(name)
                         out.append((name, d, exp, why))
     # the pipelined sender (issue 15, PROTOCOL.md P27: window 2): our sender against our
-    # receiver and the note receivers, spontaneous drive, 4 records per transfer (the window
-    # opens from record 2 on and closes before 16#FFFF: record 3 goes up before ack 2); and
-    # the two variants the rule excludes, which must fail
+    # receiver and the note receivers, spontaneous drive, 5 records per transfer (the window
+    # opens from record 2 on and closes before 16#FFFF: records 3 and 4 go up before the
+    # acknowledgement of the one before; after a repeat it opens again one acknowledged
+    # record later, PIPE_CLOSE=1); and the variants the rule excludes, which must fail
     for pn, pd in peers[:3]:
         for sn, sd in sides:
             for fn, fd in faults:
-                d = dict(pd); d.update(sd); d.update(fd); d.update({"WIN": 2, "NREC": 4})
+                d = dict(pd); d.update(sd); d.update(fd); d.update({"WIN": 2, "NREC": 5})
                 if fd:
                     d["NT"] = 1
                 name = "win2/%s/spont/%s%s" % (pn, sn, fn)

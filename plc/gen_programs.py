@@ -51,7 +51,7 @@ PARAMS = """\
   pPayload AT %MW4 : WORD;        (* payload registers per record (0: 16) *)
   pSession AT %MW5 : WORD;        (* session number, part of the data *)
   pStation AT %MW6 : WORD;        (* outstation: its address (0: 1) *)
-  pFlags AT %MW7 : WORD;          (* bit 0 polled, bit 1 static mode, bit 2 cyclic I/O (OpenPLC) *)
+  pFlags AT %MW7 : WORD;          (* bit 0 polled, bit 1 static mode, bit 2 cyclic I/O (OpenPLC), bit 3 retain, bit 4 window 2 *)
   pLogPeriod AT %MW8 : WORD;      (* ms between logged records (0: all at once) *)
   pTimeout AT %MW9 : WORD;        (* ms, tTimeout of the blocks (0: 2000) *)
   pChunkSize AT %MW10 : WORD;     (* registers per write block incl. header (0: 123); static: the static size *)
@@ -80,6 +80,7 @@ PARAM_VARS = """\
   xStatic : BOOL;
   xCyclic : BOOL;
   xRetain : BOOL;
+  uWindow : UINT;
   udiTotal : UDINT;
   uPerTransfer : UINT;
   uPayload : UINT;
@@ -123,6 +124,8 @@ IF NOT xRun THEN
   xStatic := (pFlags AND 16#0002) <> 0;
   xCyclic := (pFlags AND 16#0004) <> 0;
   xRetain := (pFlags AND 16#0008) <> 0;   (* warm restarts: the blocks wait for snapshots *)
+  uWindow := 1;
+  IF (pFlags AND 16#0010) <> 0 THEN uWindow := 2; END_IF;   (* the pipelined sender (P27) *)
   (* every TIME from seconds and milliseconds: matiec gets T#1ms * n wrong above n = 2147 *)
   tTimeout := MS_TIMEOUT;
   IF pTimeout = 0 THEN tTimeout := T#2s; END_IF;
@@ -296,6 +299,7 @@ def outstation(bidi):
         code.append(
             "snd(xExecute := src.xExecute, uChunkSize := uChunkSize, xPolled := xPolled,\n"
             "    xStatic := xStatic, tTimeout := tTimeout, uMaxRetries := WORD_TO_UINT(pMaxRetries),\n"
+            "    uWindow := uWindow,\n"
             "    xChunkValid := src.xChunkValid, aChunk := src.aChunk, uChunkLen := src.uChunkLen,\n"
             "    xChunkLast := src.xChunkLast, xWriteDone := xWrDone1, xWriteError := wrErr1,\n"
             "    aRead := rd1, xReadValid := xRdValid1, xRetained := xRetain, wSnapshots := snapSaved);")

@@ -32,6 +32,8 @@ def parse(argv):
     p.add_argument("--static", action="store_true")
     p.add_argument("--polled", action="store_true")
     p.add_argument("--realistic", action="store_true", help="9600 bit/s, 20 ms gaps")
+    p.add_argument("--window", type=int, choices=[1, 2], default=1,
+                   help="MIP_Sender's uWindow: 2 pipelines the records (st_lib/PROTOCOL.md P27)")
     p.add_argument("--restart-every", type=float,
                    help="virtual seconds between PLC restarts, alternating outstation / central "
                         "(run: none, soak: 120)")
@@ -74,7 +76,7 @@ def main(argv=None):
                seed=a.seed, records=a.records, per_transfer=a.per_transfer, payload=a.payload,
                radio=Radio.realistic() if a.realistic else Radio(),
                timeout_ms=3000 if a.realistic else 300, transport=a.transport, tick_ms=a.tick_ms,
-               retain=a.warm)
+               retain=a.warm, window=a.window)
     workdir = Path(a.workdir or tempfile.mkdtemp(prefix="mipcosim-"))
     limit = a.limit or (60 + a.records * a.stations * (8 if a.realistic else 0.5)
                         / (1 - a.loss) ** 2)
@@ -86,7 +88,7 @@ def main(argv=None):
             print(f"mip-cosim: {a.what}: {a.stations} station(s), {a.records} records each, "
                   f"loss {a.loss:.0%}, seed {a.seed}, {'bidirectional' if a.bidi else 'uni'}, "
                   f"{'static' if a.static else 'dynamic'}, {'polled' if a.polled else 'spontaneous'}"
-                  f"{restarts}",
+                  f"{', window 2' if a.window == 2 else ''}{restarts}",
                   flush=True)
             next_restart = a.restart_every * SEC if a.restart_every else None
             k = 0

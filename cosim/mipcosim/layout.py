@@ -20,7 +20,8 @@ FFFF = 0xFFFF
 P_START, P_TOTAL_LO, P_TOTAL_HI, P_PER_TRANSFER, P_PAYLOAD, P_SESSION, P_STATION, P_FLAGS, \
     P_LOG_PERIOD, P_TIMEOUT, P_CHUNK, P_TRANSFER_TIMEOUT, P_MAX_RETRIES, P_CYCLIC_WRITE, \
     P_START_LO, P_START_HI = range(16)
-F_POLLED, F_STATIC, F_CYCLIC, F_RETAIN = 1, 2, 4, 8   # F_RETAIN: the blocks' xRetained (W1, W2)
+F_POLLED, F_STATIC, F_CYCLIC, F_RETAIN, F_WINDOW2 = 1, 2, 4, 8, 16
+# F_RETAIN: the blocks' xRetained (W1, W2); F_WINDOW2: MIP_Sender's uWindow 2 (P27)
 
 # offsets in a peer block (%MW 100 + 200 (s-1))
 R_SEQ, R_FLAGS, R_NUMBER, R_LEN, R_ERROR, R_REC_LO, R_REC_HI, R_COM_LO, R_COM_HI, R_SUM_A, \
@@ -101,6 +102,7 @@ class Params:
     static: bool = False
     cyclic: bool = False
     retain: bool = False    # the blocks wait for a snapshot before each new record / acknowledgement
+    window: int = 1         # MIP_Sender's uWindow: 2 pipelines (P27)
     log_period_ms: int = 0
     timeout_ms: int = 2000
     chunk: int = 123
@@ -111,7 +113,8 @@ class Params:
 
     def words(self, start=True):
         flags = (F_POLLED if self.polled else 0) | (F_STATIC if self.static else 0) | \
-                (F_CYCLIC if self.cyclic else 0) | (F_RETAIN if self.retain else 0)
+                (F_CYCLIC if self.cyclic else 0) | (F_RETAIN if self.retain else 0) | \
+                (F_WINDOW2 if self.window >= 2 else 0)
         return [1 if start else 0, self.records % 65536, self.records // 65536, self.per_transfer,
                 self.payload, self.session, self.station, flags, self.log_period_ms,
                 self.timeout_ms, self.chunk, self.transfer_timeout_s, self.max_retries, 0,

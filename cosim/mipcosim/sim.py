@@ -141,6 +141,8 @@ class Setup:
     # the blocks' xRetained (st_lib/PROTOCOL.md W1, W2: durable before visible), for warm
     # restarts without loss or duplicate; unidirectional programs only (MIP_Link has no gate)
     retain: bool = False
+    # MIP_Sender's uWindow (st_lib/PROTOCOL.md P27): 2 pipelines the records of a transfer
+    window: int = 1
     # role ("outstation" / "central") -> ST files replacing the example program (tests)
     sources: dict = field(default_factory=dict)
 
@@ -152,6 +154,7 @@ class Setup:
         return L.Params(start=start, down_start=down, records=self.records, per_transfer=self.per_transfer,
                         payload=self.payload, session=session, station=station,
                         polled=self.polled, static=self.static, retain=self.retain,
+                        window=self.window,
                         log_period_ms=self.log_period_ms, timeout_ms=self.timeout_ms,
                         chunk=self.static_registers if self.static else 123,
                         transfer_timeout_s=self.transfer_timeout_s)
@@ -447,7 +450,7 @@ class Network:
 
     def __init__(self, stations, workdir: Path, *, records=5, per_transfer=0, payload=16,
                  loss=0.0, seed=1, radio=None, tick_ms=100, timeout_ms=2000, compiler="stc",
-                 transfer_timeout_s=0):
+                 transfer_timeout_s=0, window=1):
         import sys
         if not 1 <= stations <= 247:
             raise CosimError(f"stations {stations}: one MDP-810 serves unit ids 1..247")
@@ -458,7 +461,8 @@ class Network:
         self.workdir.mkdir(parents=True, exist_ok=True)
         self.tick_ns = tick_ms * MS
         self.params = L.Params(records=records, per_transfer=per_transfer, payload=payload,
-                               timeout_ms=timeout_ms, transfer_timeout_s=transfer_timeout_s)
+                               timeout_ms=timeout_ms, transfer_timeout_s=transfer_timeout_s,
+                               window=window)
         self.lib = _lib()
         radio = radio or Radio.realistic()
         err = ctypes.create_string_buffer(256)
