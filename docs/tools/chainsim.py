@@ -116,6 +116,7 @@ class Side:
     cyclic_ms: int = 0         # > 0: OpenPLC-style master (cyclic policy): read and write every
                                # cyclic_ms, xReadValid always TRUE, a write "done" after
     cyclic_done_periods: float = 1.5   # ... this many periods of xWriteReq
+    window: int = 1            # a sender's uWindow: 1 stop and wait, 2 pipelined (PROTOCOL.md P27)
 
     def attach(self, plc):
         """A fresh program instance for this side (the first or after a restart)."""
@@ -128,6 +129,7 @@ class Side:
         p["MAIN.static"] = self.static
         p["MAIN.tmo"] = self.timeout_ms * MS
         p["MAIN.chunkSize"] = self.chunk
+        p["MAIN.window"] = self.window
         p["MAIN.readEvery"] = self.read_ms * MS
         p["MAIN.cyclic"] = bool(self.cyclic_ms)
         p["MAIN.cyclicDone"] = int(self.cyclic_done_periods * self.cyclic_ms * MS)
