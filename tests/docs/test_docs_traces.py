@@ -158,3 +158,19 @@ def test_pipelined_slow_central_goes_back_once_and_then_waits():
     assert after[1]["t"] > first_ack_read(ev, 4) and after[2]["t"] > first_ack_read(ev, 5)
     assert not plc(ev, "outstation", "error") and not plc(ev, "central", "error")
 
+
+def test_protocol_page_quotes_the_pipelined_times(fresh):
+    """docs/protocol.md gives the xDone times of both pipelined pictures and of the same runs
+    with window 1 (gen_traces runs those and prints them)."""
+    import ast
+    info = {}
+    for line in (fresh / "gen_traces.out").read_text().splitlines():
+        name, _, rest = line.removeprefix("gen_traces: ").partition(": ")
+        info[name] = ast.literal_eval(rest[rest.index("{"):])
+    text = (REPO / "docs" / "protocol.md").read_text()
+    part = text[text.index("**Window 2"):text.index("img/seq-pipelined-slow-central.svg")]
+    for name in ("pipelined", "pipelined-slow-central"):
+        for key in ("done_ms", "window1_done_ms"):
+            assert f"{info[name][key]} ms" in part, (name, key, info[name][key])
+    ev = load("pipelined")
+    assert plc(ev, "outstation", "done")[0]["t"] // 1_000_000 == info["pipelined"]["done_ms"]
