@@ -15,8 +15,11 @@ feeds the application's side (xExecute, the data to send) and watches.
 
 The emulator's trace is kept as is; the driver adds lines with "ev":"plc" (what a PLC saw or
 did) so the diagrams can say it in the application's words: a read that found new data and a
-write (next to the emulator's line of that Modbus request, labelled from the PLC's image), a
-record delivered, xError, xDone (from the PLC's variables after the scan), a restart.
+write (next to the emulator's line of that Modbus request, labelled from the PLC's image; a
+pipelined sender's write of the next record says which record still waits for its
+acknowledgement), a record delivered, a record the receiver ignored (neither the next one nor
+a duplicate), a pipelined sender going back to an older record, xError, xDone (from the PLC's
+variables after the scan), a restart.
 """
 from __future__ import annotations
 
@@ -116,6 +119,7 @@ class Side:
     cyclic_ms: int = 0         # > 0: OpenPLC-style master (cyclic policy): read and write every
                                # cyclic_ms, xReadValid always TRUE, a write "done" after
     cyclic_done_periods: float = 1.5   # ... this many periods of xWriteReq
+    window: int = 1            # a sender's uWindow: 1 stop and wait, 2 pipelined (PROTOCOL.md P27)
 
     def attach(self, plc):
         """A fresh program instance for this side (the first or after a restart)."""
@@ -128,6 +132,7 @@ class Side:
         p["MAIN.static"] = self.static
         p["MAIN.tmo"] = self.timeout_ms * MS
         p["MAIN.chunkSize"] = self.chunk
+        p["MAIN.window"] = self.window
         p["MAIN.readEvery"] = self.read_ms * MS
         p["MAIN.cyclic"] = bool(self.cyclic_ms)
         p["MAIN.cyclicDone"] = int(self.cyclic_done_periods * self.cyclic_ms * MS)
@@ -139,6 +144,9 @@ class Side:
         self._cur: list = []
         self._last_err = False
         self._last_done = False
+        self._unexpected = 0      # the receiver's udiUnexpected after the last scan
+        self._retrans = 0         # the sender's udiRetransmissions after the last scan
+        self._last_rec = 0        # the record number of the sender's last write
         self._retry_at = None
         # the write range as the last scan left it (the master writes it in the next I/O
         # phase); the modem's write area starts at 0
@@ -197,16 +205,21 @@ class Side:
         elif line.get("fc") == 16:
             n = line.get("wq", 0)
             hdr = self._out[:2 if self.role == "link" else 1]
+            if self.role == "sender" and not line.get("exc"):
+                self._last_rec = hdr[0]
             regs = "1 reg" if n == 1 else f"{n} regs"
-            same = ""
+            same = ahead = ""
             what = self.label(hdr)
+            if self.role == "sender" and 0 < self.fbv("wRecord") < hdr[0]:
+                # the pipelined sender (P27) writes the next record while wRecord waits
+                ahead = f", before ack {self.fbv('wRecord')}"
             if self.cyclic_ms:
                 block = self._out[:n]
                 same = ", unchanged" if block == self._last_written[:n] else ""
                 self._last_written = block
                 if not any(block) and self.role != "link":
                     what = "zeros"      # the image before the first scan, a sender's idle block
-            return [self._line(t, "write", f"write {what} ({regs}{same})", hdr)], []
+            return [self._line(t, "write", f"write {what} ({regs}{same}){ahead}", hdr)], []
         return [], []
 
     def after_scan(self, t_ns):
@@ -223,6 +236,25 @@ class Side:
             if num == FFFF:
                 self.transfers.append(self._cur)
                 self._cur = []
+        if self.role == "receiver":
+            # a record that is neither the next one nor a duplicate: ignored (P20), e.g. a
+            # pipelined record that overwrote the one before it in the modem (P27)
+            unexpected = self.fbv("udiUnexpected")
+            if unexpected > self._unexpected:
+                num, ack = self.plc[f"%IW{READ_IMAGE + 2}"], self.fbv("wAck")
+                nxt = 1 if ack in (0, FFFF) else ack + 1
+                out.append(self._line(t_ns, "ignore", f"record {num} ignored: not the next one "
+                                      f"({nxt})", num))
+            self._unexpected = unexpected
+        if self.role == "sender":
+            # a retransmission that goes back to an older record: the pipelined sender closes
+            # its window (P27); a repeat of the record last written is not marked
+            retrans = self.fbv("udiRetransmissions")
+            rec = self.fbv("wRecord")
+            if retrans > self._retrans and 0 < rec < self._last_rec:
+                out.append(self._line(t_ns, "goback", f"no ack within tTimeout: back to record "
+                                      f"{rec}, window closed", rec))
+            self._retrans = retrans
         err = self.fbv("xError") if self.role != "link" else (
             self.fbv("xSendError") or self.fbv("xRecvError"))
         if err and not self._last_err:

@@ -31,6 +31,14 @@ DIAGRAMS = [
      "Trace docs/traces/static-openplc.jsonl (static mode, 40 registers; the runtime's cyclic "
      "policy reads and writes each PLC's whole ranges every 500 ms, the first write before the "
      "program ran; a write counts done after 750 ms; no loss). " + COMMON),
+    ("pipelined", "Window 2: the next record goes up while the one before waits for its ack",
+     "Trace docs/traces/pipelined.jsonl (MIP_Sender.uWindow = 2, spontaneous drive, no loss; "
+     "both PLCs read every 100 ms). " + COMMON),
+    ("pipelined-slow-central",
+     "Window 2 with a slow central: a record overwritten, the sender goes back to stop and wait",
+     "Trace docs/traces/pipelined-slow-central.jsonl (MIP_Sender.uWindow = 2, tTimeout 1.5 s, "
+     "spontaneous drive, no loss; the central's PLC reads every 600 ms, the outstation's every "
+     "100 ms). " + COMMON),
 ]
 
 

@@ -9,7 +9,8 @@ Four lifelines: outstation PLC, TRM-810, MDP-810, central PLC. Shown:
   the MDP's ack), and every lost telegram (red, ending in a cross);
 - "station" lines of the emulator (unreachable / reachable);
 - lines with "ev":"plc" if the trace has them (added by docs/tools/chainsim.py: what the PLC
-  read, delivered, finished or failed; the label of its writes).
+  read, delivered, ignored, finished or failed, a pipelined sender going back; the label of
+  its writes).
 Marked on top of that: the reset record (record 0, orange: it opens a session, it is not an
 idle block), a record a receiving PLC read again after delivering it (the discarded duplicate),
 and gaps of JUMP_MS or more between two rows (a break across the lifelines with the time that
@@ -43,7 +44,8 @@ GREY = "#7f8c8d"
 BLUE = "#1f5f99"
 GREEN = "#1e8449"
 NOTE_FILL = {"deliver": "#e8f6ef", "done": "#d5f5e3", "error": "#fadbd8", "restart": "#fdebd0",
-             "station": "#fdebd0", "duplicate": "#fef5e7"}
+             "station": "#fdebd0", "duplicate": "#fef5e7", "ignore": "#fef5e7",
+             "goback": "#fdebd0"}
 
 
 class TraceError(Exception):

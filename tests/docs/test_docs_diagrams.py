@@ -15,7 +15,8 @@ def test_sequence_diagrams_are_up_to_date(tmp_path):
     r = tool("mkdiagrams", "--outdir", tmp_path)
     assert r.returncode == 0, r.stderr
     made = sorted(p.name for p in tmp_path.glob("seq-*.svg"))
-    assert made == ["seq-bidirectional.svg", "seq-note-2-1-1.svg", "seq-restart.svg",
+    assert made == ["seq-bidirectional.svg", "seq-note-2-1-1.svg",
+                    "seq-pipelined-slow-central.svg", "seq-pipelined.svg", "seq-restart.svg",
                     "seq-static-openplc.svg"]
     for name in made:
         assert (tmp_path / name).read_bytes() == (IMG / name).read_bytes(), \
@@ -65,6 +66,30 @@ def test_restart_diagram_shows_record_1_again_and_the_receiver_error(fresh):
     assert next(t for t in texts[i:] if t.startswith("write record")) == "write record 1 (123 regs)"
     assert "xError: MIP_ERR_SENDER_RESET" in texts[i:]
     assert not any("RESET record 0" in t for t in texts)
+
+
+def texts_by_row(path):
+    """The texts of a diagram top to bottom (notes come first in the file, arrows after)."""
+    root = etree.parse(str(path)).getroot()
+    els = [(float(t.get("y")), k, t.text) for k, t in
+           enumerate(root.iter("{http://www.w3.org/2000/svg}text"))]
+    return [s for _, _, s in sorted(els)]
+
+
+def test_pipelined_diagrams_show_the_writes_ahead_and_the_go_back(fresh):
+    texts = texts_by_row(fresh / "seq-pipelined.svg")
+    # record 4 goes up in the answer to the poll that brings acknowledgement 3 down
+    i = texts.index("poll: ack 3 (1 reg)")
+    assert next(t for t in texts[i:] if t.startswith("answer:")) == "answer: record 4 (123 regs)"
+    assert texts.index("write record 4 (123 regs), before ack 3") < i
+    assert "write record 2 (123 regs)" in texts and "write record 65535 (123 regs)" in texts
+    texts = texts_by_row(fresh / "seq-pipelined-slow-central.svg")
+    assert texts.index("record 5 ignored: not the next one (4)") < texts.index(
+        "no ack within tTimeout: back to record 4, window closed")
+    i = texts.index("no ack within tTimeout: back to record 4, window closed")
+    writes = [t for t in texts[i:] if t.startswith("write record")]
+    assert writes == ["write record 4 (123 regs)", "write record 5 (123 regs)",
+                      "write record 65535 (123 regs)"]
 
 
 def test_a_trace_line_that_is_not_json_is_reported_with_its_line(tmp_path):

@@ -10,6 +10,8 @@ from lxml import etree
 from docs_helpers import tool
 
 SVG = "{http://www.w3.org/2000/svg}"
+NAMES = ["note-2-1-1", "bidirectional", "restart", "static-openplc", "pipelined",
+         "pipelined-slow-central"]
 
 
 @pytest.fixture(scope="module")
@@ -58,7 +60,7 @@ def test_discarded_duplicate_is_marked_once(diagrams):
     assert not [s for s, *_ in texts if "again: discarded" in s]
 
 
-@pytest.mark.parametrize("name", ["note-2-1-1", "bidirectional", "restart", "static-openplc"])
+@pytest.mark.parametrize("name", NAMES)
 def test_time_jumps_are_shown(diagrams, name):
     # since sessions open with record 1 (no quiet wait) the checked-in traces have no long
     # gap; test_a_long_gap_in_a_small_trace draws one
@@ -90,7 +92,7 @@ def test_a_long_gap_in_a_small_trace(tmp_path):
     assert "+75.0 s" in [s for s, *_ in texts]
 
 
-@pytest.mark.parametrize("name", ["note-2-1-1", "bidirectional", "restart", "static-openplc"])
+@pytest.mark.parametrize("name", NAMES)
 def test_no_note_covers_an_arrow_label(diagrams, name):
     texts, notes = parse(diagrams / f"seq-{name}.svg")
     labels = [(s, x, y, anchor, size) for s, x, y, _, anchor, size in texts
