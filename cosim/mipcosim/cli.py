@@ -57,6 +57,12 @@ def parse(argv):
     a.loss = a.loss if a.loss is not None else (0.3 if soak else 0.1)
     a.restart_every = a.restart_every if a.restart_every is not None else (
         (60 if a.warm else 120) if soak else 0)
+    if a.warm and a.window == 2:
+        p.error("--window 2 with --warm-restarts: MIP_Sender runs window 1 with xRetained "
+                "(st_lib/PROTOCOL.md P27)")
+    if a.window == 2 and (a.bidi or a.static or a.polled):
+        p.error("--window 2: the pipelined sender is for the unidirectional, dynamic, "
+                "spontaneous programs (st_lib/PROTOCOL.md P27)")
     if a.warm and a.bidi:
         p.error("--warm-restarts: MIP_Link (the bidirectional programs) has no snapshot gate yet")
     if a.per_transfer == 0 and a.records > 65534:

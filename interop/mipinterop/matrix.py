@@ -54,7 +54,10 @@ OURS = ("sender", "receiver")
 READINGS = ("strict", "lenient")
 FAULTS = ("none", "loss30", "restart-ours", "restart-peer")
 LAYOUTS = ("uni", "bi")
-MODES = ("dynamic", "static")
+MODES = ("dynamic", "static", "pipelined")
+# "pipelined": dynamic mode with MIP_Sender's uWindow 2 (st_lib/PROTOCOL.md P27), which applies
+# to our sender in the unidirectional layout only
+PIPELINED = ("sender", "uni")
 FAULT_TEXT = {"none": "no fault", "loss30": "30 % loss", "restart-ours": "restart ours",
               "restart-peer": "restart peer"}
 
@@ -108,11 +111,14 @@ class Cell:
         for v, axis in zip(parts, (OURS, READINGS, FAULTS, LAYOUTS, MODES)):
             if v not in axis:
                 raise ValueError(f"cell {key!r}: {v!r} is not one of {', '.join(axis)}")
+        if c.mode == "pipelined" and (c.ours, c.layout) != PIPELINED:
+            raise ValueError(f"cell {key!r}: pipelined is our sender's window 2, unidirectional")
         return c
 
 
 def all_cells():
-    return [Cell(*v) for v in itertools.product(OURS, READINGS, FAULTS, LAYOUTS, MODES)]
+    return [Cell(*v) for v in itertools.product(OURS, READINGS, FAULTS, LAYOUTS, MODES)
+            if v[4] != "pipelined" or (v[0], v[3]) == PIPELINED]
 
 
 @dataclass
@@ -248,7 +254,8 @@ class CellRun:
                         station=1, polled=self.cfg.drive == "polled", static=self.static,
                         timeout_ms=self.cfg.timeout_ms,
                         chunk=self.cfg.static_registers if self.static else 123,
-                        max_retries=self.cfg.max_retries).words(start)
+                        max_retries=self.cfg.max_retries,
+                        window=2 if self.cell.mode == "pipelined" else 1).words(start)
 
     def peer_args(self):
         """(role, records or None, Peer keyword arguments) of the note peer of this cell."""
