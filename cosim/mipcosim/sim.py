@@ -535,9 +535,12 @@ class Network:
                 "records": cen[p + "UDIRECORDS"],
                 "all_out": self.plcs[("out", s)][f"%MW{L.peer_base(1) + L.S_ALL}"] == 1}
 
+    def read_out(self, s):
+        """Outstation s has read out all its records (every transfer acknowledged)."""
+        return self.plcs[("out", s)][f"%MW{L.peer_base(1) + L.S_ALL}"] == 1
+
     def finished(self):
-        return all(self.plcs[("out", s)][f"%MW{L.peer_base(1) + L.S_ALL}"] == 1
-                   for s in range(1, self.n + 1))
+        return all(self.read_out(s) for s in range(1, self.n + 1))
 
     def check(self):
         """Problems (one line each) of the delivery: every station's registers committed once,
@@ -558,9 +561,10 @@ class Network:
                 problems.append(f"station {s}: {got['failed']} failed transfer(s)")
         return problems
 
-    def radio_stats(self):
+    def radio_stats(self, stations=None):
+        """Radio counters summed over `stations` (default all), and the kernel's."""
         tot = {}
-        for s in range(1, self.n + 1):
+        for s in stations or range(1, self.n + 1):
             st = _Stats()
             self.lib.mipemu_net_stats(self.lib.mipcosim_net(self.sim), s, ctypes.byref(st))
             for name, _ in _Stats._fields_:
