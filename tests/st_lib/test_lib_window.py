@@ -183,3 +183,19 @@ def test_window_is_latched_at_the_start(wd):
     assert u.sink.transfers == [data, data]
     assert pipelined(u.radio, first) == list(range(3, 10))
     assert u.src.served == list(range(10)) * 2
+
+
+def test_buffer_sender_passes_the_window_on(wd):
+    """MIP_BufferSender.uWindow goes to its MIP_Sender: 12 records of its buffer pipelined."""
+    u = Uni(wd, buffer=True, timeout_ms=300)
+    track_polls(u.radio)
+    u.plc_o["MAIN.bs_seed"] = 5
+    u.plc_o["MAIN.bs_fill"] = True
+    u.bench.step(1)
+    u.plc_o["MAIN.bs_fill"] = False
+    u.snd["udiLength"] = 12 * 122
+    u.snd["uWindow"] = 2
+    assert u.send() == "done"
+    want = [(i * 7 + 5) % 65536 for i in range(12 * 122)]
+    assert u.sink.transfers == [want]
+    assert pipelined(u.radio) == list(range(3, 12))
