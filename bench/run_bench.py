@@ -595,15 +595,9 @@ def cosim_speed_run(virt_s, workdir: Path, stations=8, transport="inproc", tick_
         ru1 = resource.getrusage(resource.RUSAGE_SELF)
         cpu = (ru1.ru_utime - ru0.ru_utime) + (ru1.ru_stime - ru0.ru_stime)
         sys_cpu = ru1.ru_stime - ru0.ru_stime
-        blocks = 0
-        polls = 0
-        for s in range(1, stations + 1):
-            st = S._Stats()
-            lib.mipemu_net_stats(lib.mipcosim_net(sim), s, ctypes.byref(st))
-            blocks += st.blocks_up
-            polls += st.polls
-        return dict(wall=wall, cpu=cpu, sys_cpu=sys_cpu, scans=lib.mipcosim_scans(sim),
-                    reqs=lib.mipcosim_requests(sim), polls=polls, blocks=blocks,
+        st = S.radio_stats(lib, sim, range(1, stations + 1))
+        return dict(wall=wall, cpu=cpu, sys_cpu=sys_cpu, scans=st["scans"],
+                    reqs=st["requests"], polls=st["polls"], blocks=st["blocks_up"],
                     rss_mb=ru1.ru_maxrss / 1024, centrals=(stations + 3) // 4)
     finally:
         for plc in plcs:

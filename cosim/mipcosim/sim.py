@@ -66,6 +66,20 @@ class _Stats(ctypes.Structure):
 _BUILDS = {}
 
 
+def radio_stats(lib, sim, stations):
+    """The emulator's radio counters summed over `stations`, and the kernel's scans and
+    Modbus requests."""
+    tot = {}
+    for s in stations:
+        st = _Stats()
+        lib.mipemu_net_stats(lib.mipcosim_net(sim), s, ctypes.byref(st))
+        for name, _ in _Stats._fields_:
+            tot[name] = tot.get(name, 0) + getattr(st, name)
+    tot["requests"] = lib.mipcosim_requests(sim)
+    tot["scans"] = lib.mipcosim_scans(sim)
+    return tot
+
+
 def build(role, bidi, workdir: Path, compiler="stc", tick_ms=10, sources=None):
     """The example program of `role`, its task interval (the scan tick) tick_ms; sources: other
     ST files instead (the last one holds the CONFIGURATION), e.g. a test's variant."""
@@ -415,15 +429,7 @@ class Chain:
         return False
 
     def radio_stats(self):
-        tot = {}
-        for s in range(1, self.s.stations + 1):
-            st = _Stats()
-            self.lib.mipemu_net_stats(self.lib.mipcosim_net(self.sim), s, ctypes.byref(st))
-            for name, _ in _Stats._fields_:
-                tot[name] = tot.get(name, 0) + getattr(st, name)
-        tot["requests"] = self.lib.mipcosim_requests(self.sim)
-        tot["scans"] = self.lib.mipcosim_scans(self.sim)
-        return tot
+        return radio_stats(self.lib, self.sim, range(1, self.s.stations + 1))
 
     def close(self):
         for plc in self.plcs.values():
@@ -563,15 +569,7 @@ class Network:
 
     def radio_stats(self, stations=None):
         """Radio counters summed over `stations` (default all), and the kernel's."""
-        tot = {}
-        for s in stations or range(1, self.n + 1):
-            st = _Stats()
-            self.lib.mipemu_net_stats(self.lib.mipcosim_net(self.sim), s, ctypes.byref(st))
-            for name, _ in _Stats._fields_:
-                tot[name] = tot.get(name, 0) + getattr(st, name)
-        tot["requests"] = self.lib.mipcosim_requests(self.sim)
-        tot["scans"] = self.lib.mipcosim_scans(self.sim)
-        return tot
+        return radio_stats(self.lib, self.sim, stations or range(1, self.n + 1))
 
     def close(self):
         for plc in self.plcs.values():

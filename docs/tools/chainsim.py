@@ -436,9 +436,7 @@ class Chain:
 
     def stats(self, station=1):
         """The emulator's radio counters of `station`."""
-        st = _sim._Stats()
-        self.lib.mipemu_net_stats(self.net, station, ctypes.byref(st))
-        return {n: getattr(st, n) for n, _ in _sim._Stats._fields_}
+        return _sim.radio_stats(self.lib, self.sim, [station])
 
     def trace(self) -> list[str]:
         """The emulator's lines with the plc lines merged in, numbered."""
