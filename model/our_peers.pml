@@ -151,6 +151,8 @@ proctype OurSender() {
     bool conf, fresh;        /* BIDI P9: own modem confirmed / a new telegram since the write */
     bool rd;                 /* BIDI: read since the last write (a scan reads before it repeats) */
     bool newrec;             /* the record in aWrite was not written yet (W1) */
+#if WIN == 2
+    /* (all WIN 2 code is in #if: with window 1 the model is the one checked before P27) */
     bool ahead;              /* WIN 2: the last write was record cur + 1 (P27) */
     bool sent2;              /* WIN 2: record cur + 1 was written in this attempt: its
                               * acknowledgement counts for both, also after a repeat went back */
@@ -159,6 +161,7 @@ proctype OurSender() {
     byte nopipe;             /* WIN 2: a repeat went back: stop and wait for this many more
                               * acknowledged records (the receiving PLC may read slower than
                               * records arrive) */
+#endif
 SND_IDLE:
     if
     :: s_done + s_err == NT -> goto idle
@@ -166,7 +169,10 @@ SND_IDLE:
     fi;
 SND_GET_CHUNK:
     /* P6: a new transfer starts with record 1 at once */
-    d_step { g_next++; t = g_next; cur = 1; ctr = CTR(cur); oos = 0; otmr[S] = 0; conf = 0; fresh = 0; newrec = 1; sent2 = 0; nopipe = 0 };
+    d_step { g_next++; t = g_next; cur = 1; ctr = CTR(cur); oos = 0; otmr[S] = 0; conf = 0; fresh = 0; newrec = 1 };
+#if WIN == 2
+    d_step { sent2 = 0; nopipe = 0 };
+#endif
 #if POLLED
 SND_WAIT_REQUEST:
     /* P3 polled: record 1 goes out when a request telegram arrives (P6) */
@@ -192,8 +198,10 @@ send:
     if :: WRST_S > 0 && DURABLE && newrec -> s_save(PC_SEND) :: else -> skip fi;
     newrec = 0;
     mb_write(S, ctr, 0, t, cur);
-    ahead = 0; sconf = 0;    /* P27: a repeat goes back to the oldest unacknowledged record;
-                              * an acknowledgement of the one after it still counts (sent2) */
+#if WIN == 2
+    d_step { ahead = 0; sconf = 0 };  /* P27: a repeat goes back to the oldest unacknowledged
+                              * record; an acknowledgement of the one after it still counts (sent2) */
+#endif
 SND_WAIT_ACK:
     do
     :: !(!POLLED && !rnew[S] && tmr[S] >= TT && SCANREAD) ->
@@ -208,9 +216,12 @@ SND_WAIT_ACK:
 #endif
             if :: cur == 1 -> prev = 0 :: else -> prev = CTR(cur - 1) fi;
             act = A_NONE;
-            if :: WIN == 2 && !pend[S] -> sconf = 1 :: else -> skip fi;
+#if WIN == 2
+            if :: !pend[S] -> sconf = 1 :: else -> skip fi;
+#endif
             if
-            :: WIN == 2 && sent2 && nc == CTR(cur + 1) && (nx == 0 || nx == CHK(t, cur + 1) || P8_MODE == 1) ->
+#if WIN == 2
+            :: sent2 && nc == CTR(cur + 1) && (nx == 0 || nx == CHK(t, cur + 1) || P8_MODE == 1) ->
                 /* P27: the pipelined record is acknowledged, and with it the one before (the
                  * receiver accepts only the next number) */
                 oos = 0; otmr[S] = 0; ahead = 0; sent2 = 0;
@@ -219,6 +230,7 @@ SND_WAIT_ACK:
                 :: cur + 1 == NREC -> act = A_DONE
                 :: else -> act = A_NEXT; cur = cur + 2; ctr = CTR(cur); newrec = 1
                 fi
+#endif
 #if BIDI
             :: nc == ctr && fresh && (conf || P9_MODE == 1) ->
 #else
@@ -226,12 +238,19 @@ SND_WAIT_ACK:
 #endif
                 /* P8: the acknowledgement of the record in flight counts */
                 oos = 0; otmr[S] = 0;
+#if WIN == 2
                 if :: nopipe > 0 -> nopipe-- :: else -> skip fi;
                 if
                 :: cur == NREC -> act = A_DONE
                 :: ahead -> cur++; ctr = CTR(cur); ahead = 0; sent2 = 0   /* P27: the next one is on its way already */
                 :: else -> act = A_NEXT; cur++; ctr = CTR(cur); conf = 0; fresh = 0; newrec = 1; sent2 = 0   /* P25 */
                 fi
+#else
+                if
+                :: cur == NREC -> act = A_DONE
+                :: else -> act = A_NEXT; cur++; ctr = CTR(cur); conf = 0; fresh = 0; newrec = 1   /* P25 */
+                fi
+#endif
             :: cur > 1 && nc == 0 -> act = A_RESET                   /* P12 peer reset */
             :: (cur == 1 && (nc == 0 || nc == LAST)) || (cur > 1 && nc == prev) ->
                 /* P7 / P3: the previous acknowledgement; polled: a request, repeat */
@@ -255,11 +274,14 @@ SND_WAIT_ACK:
         :: act == A_RESET || act == A_OOS -> act = A_NONE; goto SND_ERROR
         :: else -> skip
         fi
+#if WIN == 2
     :: !POLLED && !rnew[S] && tmr[S] >= TT && SCANREAD ->   /* P3 spontaneous repeat */
-        rd = 0;
-        if :: sent2 && !PIPE_KEEP -> nopipe = PIPE_CLOSE :: else -> skip fi;   /* P27: the window closes */
+        d_step {
+            rd = 0;
+            if :: sent2 && !PIPE_KEEP -> nopipe = PIPE_CLOSE :: else -> skip fi   /* P27: the window closes */
+        };
         goto send
-    :: WIN == 2 && !ahead && nopipe == 0 && sconf && (cur >= 2 || PIPE_FIRST) && (cur + 1 < NREC || (PIPE_LAST && cur < NREC)) ->
+    :: !ahead && nopipe == 0 && sconf && (cur >= 2 || PIPE_FIRST) && (cur + 1 < NREC || (PIPE_LAST && cur < NREC)) ->
         /* P27: record cur reached the peer's modem; the next one goes up before the
          * acknowledgement. Not the last record (a receiver takes 16#FFFF after any number),
          * not before record 1 was acknowledged (a stale acknowledgement 2 of an earlier
@@ -267,6 +289,9 @@ SND_WAIT_ACK:
         d_step { pc2 = CTR(cur + 1); pi2 = cur + 1 };
         mb_write(S, pc2, 0, t, pi2);
         d_step { ahead = 1; sent2 = 1; sconf = 0; pc2 = 0; pi2 = 0 }
+#else
+    :: !POLLED && !rnew[S] && tmr[S] >= TT && SCANREAD -> rd = 0; goto send   /* P3 spontaneous repeat */
+#endif
 #if BIDI
     :: nbw[S] > 0 -> mb_write_other(S, ctr, t, cur)   /* the other stream's write re-sends the record */
 #endif
