@@ -179,7 +179,30 @@ RESTART = -1
 WARM = -2     # a warm restart: words = [tap, restored seq, ...] of the PLC's taps
 
 
-class Chain:
+class _Kernel:
+    """What Chain and Network share: the kernel (self.lib, self.sim) and their PLCs
+    (self.plcs), virtual time, closing."""
+
+    @property
+    def now(self):
+        return self.lib.mipcosim_now(self.sim)
+
+    def close(self):
+        for plc in self.plcs.values():
+            plc.close()
+        self.plcs = {}
+        if self.sim:
+            self.lib.mipcosim_free(self.sim)
+            self.sim = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+class Chain(_Kernel):
     """Outstation PLC(s) + central PLC + emulator network in one process."""
 
     def __init__(self, setup: Setup, workdir: Path, trace=None):
@@ -324,10 +347,6 @@ class Chain:
 
     # ------------------------------------------------------------------ running
 
-    @property
-    def now(self):
-        return self.lib.mipcosim_now(self.sim)
-
     def run_until(self, t_ns):
         rc = self.lib.mipcosim_run(self.sim, t_ns)
         self._drain()
@@ -431,21 +450,8 @@ class Chain:
     def radio_stats(self):
         return radio_stats(self.lib, self.sim, range(1, self.s.stations + 1))
 
-    def close(self):
-        for plc in self.plcs.values():
-            plc.close()
-        if self.sim:
-            self.lib.mipcosim_free(self.sim)
-            self.sim = None
 
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.close()
-
-
-class Network:
+class Network(_Kernel):
     """The largest MIP network: `stations` outstation soft-PLCs (plc/outstation.st, one per
     TRM-810) and ONE central program for all of them (plc/gen_programs.py central_many(n):
     n receivers behind one shared Modbus client) on one MDP-810, in lockstep virtual time.
@@ -519,10 +525,6 @@ class Network:
         for i, w in enumerate(params.words()):
             plc[f"%MW{i}"] = w
 
-    @property
-    def now(self):
-        return self.lib.mipcosim_now(self.sim)
-
     def run_for(self, ns):
         if self.lib.mipcosim_run(self.sim, self.now + ns) != 0:
             raise CosimError(self.lib.mipcosim_errmsg(self.sim).decode())
@@ -571,16 +573,3 @@ class Network:
         """Radio counters summed over `stations` (default all), and the kernel's."""
         return radio_stats(self.lib, self.sim, stations or range(1, self.n + 1))
 
-    def close(self):
-        for plc in self.plcs.values():
-            plc.close()
-        self.plcs = {}
-        if self.sim:
-            self.lib.mipcosim_free(self.sim)
-            self.sim = None
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.close()
