@@ -76,8 +76,10 @@
 /* the sender's window (issue 15): 1 = stop and wait (P3..P8), 2 = pipelined (P27): the next
  * record is written as soon as the own modem confirmed the one in flight (read-status bit 4
  * clear after its write), before the acknowledgement came; never the last record (16#FFFF),
- * which waits for the acknowledgement of the one before it. Spontaneous drive, unidirectional
- * layout only (so far). */
+ * which waits for the acknowledgement of the one before it. Spontaneous drive, both layouts;
+ * bidirectional: an acknowledgement of the pipelined record counts (P9) only when the own
+ * modem confirmed that record's block and a new telegram came after its write, and the other
+ * stream's writes carry the newest record written. */
 #ifndef WIN
 #define WIN 1
 #endif
@@ -98,11 +100,16 @@
 /* PIPE_CLOSE: after a repeat went back, the window stays closed until this many records
  * were acknowledged (MIP_Sender: 8). The configurations check 1, the earliest reopening: a
  * sender that reopens later only leaves out pipelined writes this one may make */
+/* PIPE_P9 0 = bidirectional: the acknowledgement of the pipelined record counts by its number
+ * alone (without P9 for its block) */
+#ifndef PIPE_P9
+#define PIPE_P9 1
+#endif
 #ifndef PIPE_CLOSE
 #define PIPE_CLOSE 1
 #endif
-#if WIN == 2 && (BIDI || POLLED || WRST_S)
-#error WIN 2: spontaneous drive, unidirectional layout, no warm restarts of the sender
+#if WIN == 2 && (POLLED || WRST_S)
+#error WIN 2: spontaneous drive, no warm restarts of the sender
 #endif
 
 #define A_RESET  5   /* P12: acknowledgement 0 after a counted record */
@@ -161,6 +168,10 @@ proctype OurSender() {
     byte nopipe;             /* WIN 2: a repeat went back: stop and wait for this many more
                               * acknowledged records (the receiving PLC may read slower than
                               * records arrive) */
+#if BIDI
+    bool conf2, fresh2;      /* WIN 2, BIDI P9 for record cur + 1: the own modem confirmed its
+                              * block / a new telegram since its write */
+#endif
 #endif
 SND_IDLE:
     if
@@ -218,13 +229,24 @@ SND_WAIT_ACK:
             act = A_NONE;
 #if WIN == 2
             if :: !pend[S] -> sconf = 1 :: else -> skip fi;
+#if BIDI
+            if :: ahead && !pend[S] -> conf2 = 1 :: else -> skip fi;   /* the block is cur + 1's */
+            if :: sent2 && nw -> fresh2 = 1 :: else -> skip fi;
+#endif
 #endif
             if
 #if WIN == 2
+#if BIDI
+            :: sent2 && nc == CTR(cur + 1) && ((fresh2 && (conf2 || P9_MODE == 1)) || PIPE_P9 == 0) ->
+#else
             :: sent2 && nc == CTR(cur + 1) && (nx == 0 || nx == CHK(t, cur + 1) || P8_MODE == 1) ->
+#endif
                 /* P27: the pipelined record is acknowledged, and with it the one before (the
                  * receiver accepts only the next number) */
                 oos = 0; otmr[S] = 0; ahead = 0; sent2 = 0;
+#if BIDI
+                conf = 0; fresh = 0; conf2 = 0; fresh2 = 0;
+#endif
                 if :: nopipe > 1 -> nopipe = nopipe - 2 :: else -> nopipe = 0 fi;
                 if
                 :: cur + 1 == NREC -> act = A_DONE
@@ -243,7 +265,13 @@ SND_WAIT_ACK:
                 if
                 :: cur == NREC -> act = A_DONE
                 :: ahead -> cur++; ctr = CTR(cur); ahead = 0; sent2 = 0   /* P27: the next one is on its way already */
+#if BIDI
+                    ; conf = conf2; fresh = fresh2; conf2 = 0; fresh2 = 0   /* P9 now for that one */
+#endif
                 :: else -> act = A_NEXT; cur++; ctr = CTR(cur); conf = 0; fresh = 0; newrec = 1; sent2 = 0   /* P25 */
+#if BIDI
+                    ; conf2 = 0; fresh2 = 0
+#endif
                 fi
 #else
                 if
@@ -288,11 +316,21 @@ SND_WAIT_ACK:
          * session would pass for the pipelined record 2) */
         d_step { pc2 = CTR(cur + 1); pi2 = cur + 1 };
         mb_write(S, pc2, 0, t, pi2);
-        d_step { ahead = 1; sent2 = 1; sconf = 0; pc2 = 0; pi2 = 0 }
+        d_step { ahead = 1; sent2 = 1; sconf = 0; pc2 = 0; pi2 = 0
+#if BIDI
+            ; conf2 = 0; fresh2 = 0
+#endif
+        }
 #else
     :: !POLLED && !rnew[S] && tmr[S] >= TT && SCANREAD -> rd = 0; goto send   /* P3 spontaneous repeat */
 #endif
-#if BIDI
+#if BIDI && WIN == 2
+    :: nbw[S] > 0 && !ahead -> mb_write_other(S, ctr, t, cur)   /* the other stream's write re-sends the record */
+    :: nbw[S] > 0 && ahead ->                         /* P27: the newest record written */
+        d_step { pc2 = CTR(cur + 1); pi2 = cur + 1 };
+        mb_write_other(S, pc2, t, pi2);
+        d_step { pc2 = 0; pi2 = 0 }
+#elif BIDI
     :: nbw[S] > 0 -> mb_write_other(S, ctr, t, cur)   /* the other stream's write re-sends the record */
 #endif
     :: rst_s > 0 -> goto restart
