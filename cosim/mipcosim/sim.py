@@ -183,17 +183,34 @@ class _Kernel:
     """What Chain and Network share: the kernel (self.lib, self.sim) and their PLCs
     (self.plcs), virtual time, closing."""
 
+    _handle = None          # the C kernel; None before it exists and after close()
+    _end_ns = 0             # virtual time at close()
+
+    @property
+    def sim(self):
+        if self._handle is None:
+            raise CosimError("the co-simulation is closed")
+        return self._handle
+
+    @sim.setter
+    def sim(self, handle):
+        self._handle = handle
+
     @property
     def now(self):
-        return self.lib.mipcosim_now(self.sim)
+        """Virtual time in ns; after close() the time it was closed at."""
+        if self._handle is None:
+            return self._end_ns
+        return self.lib.mipcosim_now(self._handle)
 
     def close(self):
         for plc in self.plcs.values():
             plc.close()
         self.plcs = {}
-        if self.sim:
-            self.lib.mipcosim_free(self.sim)
-            self.sim = None
+        if self._handle:
+            self._end_ns = self.lib.mipcosim_now(self._handle)
+            self.lib.mipcosim_free(self._handle)
+            self._handle = None
 
     def __enter__(self):
         return self
@@ -220,7 +237,7 @@ class Chain(_Kernel):
             setup.stations, 1 if setup.static else 0, setup.static_registers, setup.loss,
             setup.loss, setup.burst, setup.seed, setup.radio.bitrate, setup.radio.slot_gap_ns,
             setup.radio.overhead_bytes, err, len(err))
-        if not self.sim:
+        if not self._handle:
             raise CosimError(err.value.decode())
         if trace:
             self._check(self.lib.mipcosim_trace_file(self.sim, str(trace).encode()))
@@ -481,7 +498,7 @@ class Network(_Kernel):
         self.sim = self.lib.mipcosim_new_args(stations, 0, 123, loss, loss, 0.0, seed,
                                               radio.bitrate, radio.slot_gap_ns,
                                               radio.overhead_bytes, err, len(err))
-        if not self.sim:
+        if not self._handle:
             raise CosimError(err.value.decode())
         self.plcs = {}
         try:

@@ -78,3 +78,16 @@ def test_chain_many_generator_refuses_a_bad_count():
                         "0", "-o", "/nonexistent"], capture_output=True, text=True)
     assert p.returncode == 2
     assert p.stderr.count("\n") == 1 and "--many-stations 0" in p.stderr
+
+
+def test_a_closed_kernel_says_so_instead_of_crashing(chain_workdir):
+    """After close() (the end of a `with` block) the time it ended at stays readable, and any
+    further use of the kernel is one clear error, not a use of freed memory (it segfaulted)."""
+    with Network(2, chain_workdir / "closed", records=2, per_transfer=2) as net:
+        net.run_for(2 * SEC)
+        end = net.now
+    assert net.now == end == 2 * SEC
+    with pytest.raises(CosimError, match="the co-simulation is closed"):
+        net.run_for(SEC)
+    with pytest.raises(CosimError, match="the co-simulation is closed"):
+        net.radio_stats()
