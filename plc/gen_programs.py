@@ -283,7 +283,8 @@ def outstation(bidi):
         code.append(
             "link(xEnable := xRun, xExecute := src.xExecute, xCentral := FALSE, xPolled := xPolled,\n"
             "     xStatic := xStatic, uChunkSize := uChunkSize, tTimeout := tTimeout,\n"
-            "     uMaxRetries := WORD_TO_UINT(pMaxRetries), tTransferTimeout := tTransferTimeout,\n"
+            "     uMaxRetries := WORD_TO_UINT(pMaxRetries), uWindow := uWindow,\n"
+            "     tTransferTimeout := tTransferTimeout,\n"
             "     xChunkValid := src.xChunkValid, aChunk := src.aChunk, uChunkLen := src.uChunkLen,\n"
             "     xChunkLast := src.xChunkLast, aRead := rd1, xReadValid := xRdValid1,\n"
             "     xWriteDone := xWrDone1, xWriteError := wrErr1);")
@@ -340,7 +341,8 @@ def central(bidi):
                 f"link{s}(xEnable := xRun, xExecute := src{s}.xExecute, xCentral := TRUE, "
                 f"xPolled := xPolled,\n     xStatic := xStatic, uChunkSize := uChunkSize, "
                 f"tTimeout := tTimeout,\n     uMaxRetries := WORD_TO_UINT(pMaxRetries), "
-                f"tTransferTimeout := tTransferTimeout,\n     xChunkValid := src{s}.xChunkValid, "
+                f"uWindow := uWindow,\n     tTransferTimeout := tTransferTimeout,\n"
+                f"     xChunkValid := src{s}.xChunkValid, "
                 f"aChunk := src{s}.aChunk, uChunkLen := src{s}.uChunkLen,\n"
                 f"     xChunkLast := src{s}.xChunkLast, aRead := rd{s}, xReadValid := xRdValid{s},\n"
                 f"     xWriteDone := xWrDone{s}, xWriteError := wrErr{s});")

@@ -60,9 +60,9 @@ def parse(argv):
     if a.warm and a.window == 2:
         p.error("--window 2 with --warm-restarts: MIP_Sender runs window 1 with xRetained "
                 "(st_lib/PROTOCOL.md P27)")
-    if a.window == 2 and (a.bidi or a.static or a.polled):
-        p.error("--window 2: the pipelined sender is for the unidirectional, dynamic, "
-                "spontaneous programs (st_lib/PROTOCOL.md P27)")
+    if a.window == 2 and (a.static or a.polled):
+        p.error("--window 2: the pipelined sender is for dynamic mode and spontaneous drive "
+                "(st_lib/PROTOCOL.md P27)")
     if a.warm and a.bidi:
         p.error("--warm-restarts: MIP_Link (the bidirectional programs) has no snapshot gate yet")
     if a.per_transfer == 0 and a.records > 65534:

@@ -15,9 +15,9 @@ if not (Path(__file__).resolve().parents[2] / "build" / "cosim" / "libmipcosim.s
 MATRIX = list(itertools.product(["dynamic", "static"], ["spontaneous", "polled"],
                                 ["uni", "bidi"], [0.0, 0.1, 0.3],
                                 ["none", "outstation", "central"]))
-# the pipelined sender (MIP_Sender.uWindow 2, st_lib/PROTOCOL.md P27): dynamic, spontaneous,
-# unidirectional only
-MATRIX += list(itertools.product(["pipelined"], ["spontaneous"], ["uni"], [0.0, 0.1, 0.3],
+# the pipelined sender (uWindow 2 of MIP_Sender and MIP_Link, st_lib/PROTOCOL.md P27):
+# dynamic, spontaneous, both layouts
+MATRIX += list(itertools.product(["pipelined"], ["spontaneous"], ["uni", "bidi"], [0.0, 0.1, 0.3],
                                  ["none", "outstation", "central"]))
 
 
