@@ -109,7 +109,8 @@ int mipemu_net_stats(const mipemu_net *net, int station, mipemu_stats *out);
  * for each telegram that carries a data block, when its fate is decided: the poll carrying the
  * MDP's block for the station (up = 0) and the answer carrying the station's block (up = 1); blk
  * is the block (len registers, valid during the call only). It is called from inside
- * mipemu_net_advance and must not call back into the network. Its verdict applies on top of the
+ * mipemu_net_advance: it may read the network (mipemu_net_stats, mipemu_net_peek) but must not
+ * change it (no mipemu_handle, inject or advance). Its verdict applies on top of the
  * random loss model (whose draws it does not change) and of lose_record: */
 enum mipemu_fate {
     MIPEMU_FATE_OK = 0,   /* as the loss model decides */
