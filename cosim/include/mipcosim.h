@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "mipemu.h"
+#include "mipemu.h"  /* the library exports the core's API too (tests/st_lib uses it directly) */
 
 #ifdef __cplusplus
 extern "C" {

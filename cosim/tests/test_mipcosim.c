@@ -377,6 +377,36 @@ static void test_same_seed_same_trace(void)
 
 /* ------------------------------------------------------------------ runner */
 
+/* The library exports the core's API (tests/st_lib drives the network with it): a fate hook
+ * that drops the station's block, injection and peeking, on the simulation's network. */
+static int drop_up(void *user, int station, int up, const uint16_t *blk, int len)
+{
+    (void)station; (void)blk; (void)len;
+    (*(int *)user)++;
+    return up ? MIPEMU_FATE_DROP : MIPEMU_FATE_OK;
+}
+
+static void test_core_api_exported(void)
+{
+    mipcosim *sim = new_sim(1, 0.0, 1);
+    CHECK(sim);
+    mipemu_net *net = mipcosim_net(sim);
+    int calls = 0;
+    mipemu_net_set_fate(net, drop_up, &calls);
+    uint16_t blk[2] = { 3, 4 }, r[4];
+    CHECK(mipemu_net_inject(net, 1, 0, blk, 2) == 0);      /* into the TRM's read area */
+    CHECK(mipemu_net_peek(net, 1, 0, 2198, 4, r) == 0);
+    CHECK(r[0] == 1 && r[1] == 2 && r[2] == 3 && r[3] == 4);
+    uint8_t req[] = {0, 1, 0, 0, 0, 11, 1, 16, 0x07, 0xD1, 0, 2, 4, 0, 9, 0, 9};  /* FC16 2001: 9, 9 */
+    uint8_t rsp[MIPEMU_RESPONSE_MAX];
+    CHECK(mipemu_handle(net, 1, req, sizeof req, rsp, sizeof rsp) == 12);
+    CHECK(mipemu_net_advance(net, 100000000ULL) == 0);
+    CHECK(calls >= 1);
+    CHECK(mipemu_net_peek(net, 1, 0, 2198, 1, r) == 0 && r[0] == 1);   /* confirmed, bit 0 kept */
+    CHECK(mipemu_net_peek(net, 0, 1, 2, 1, r) == 0 && r[0] == 0);       /* dropped: nothing at the MDP */
+    mipcosim_free(sim);
+}
+
 static void run(const char *name, void (*fn)(void))
 {
     g_test = name;
@@ -408,6 +438,7 @@ int main(int argc, char **argv)
     run("replace_switches_off_and_restarts", test_replace_switches_off_and_restarts);
     run("failed_scan_stops_the_run", test_failed_scan_stops_the_run);
     run("same_seed_same_trace", test_same_seed_same_trace);
+    run("core_api_exported", test_core_api_exported);
     printf("cosim-unit: %d passed, %d failed\n", g_pass, g_fail);
     if (junit) {
         g_junit = fopen(junit, "w");

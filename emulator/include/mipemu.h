@@ -105,6 +105,39 @@ int mipemu_net_stations(const mipemu_net *net);
 /* Returns 0, or -1 for an unknown station. */
 int mipemu_net_stats(const mipemu_net *net, int station, mipemu_stats *out);
 
+/* Scripted per-telegram faults, for tests (README.md, "Scripted faults"). The hook is called once
+ * for each telegram that carries a data block, when its fate is decided: the poll carrying the
+ * MDP's block for the station (up = 0) and the answer carrying the station's block (up = 1); blk
+ * is the block (len registers, valid during the call only). It is called from inside
+ * mipemu_net_advance: it may read the network (mipemu_net_stats, mipemu_net_peek) but must not
+ * change it (no mipemu_handle, inject or advance). Its verdict applies on top of the
+ * random loss model (whose draws it does not change) and of lose_record: */
+enum mipemu_fate {
+    MIPEMU_FATE_OK = 0,   /* as the loss model decides */
+    MIPEMU_FATE_LOST = 1, /* the telegram is lost, as by the loss model: not delivered, not
+                             confirmed, sent again at the next poll. A lost answer also loses the
+                             confirmation of the poll's block it carries; a lost poll gets no answer */
+    MIPEMU_FATE_DUP = 2,  /* delivered, but its confirmation is lost (uplink: the ack; downlink:
+                             only the confirmation part of the answer, whose block still arrives):
+                             the block stays pending, bit 4 set, and is delivered again at the next poll */
+    MIPEMU_FATE_DROP = 3  /* confirmed to the sender but never delivered: not physical (the device
+                             confirms only what the peer received), for tests of what depends on that */
+};
+typedef int (*mipemu_fate_fn)(void *user, int station, int up, const uint16_t *blk, int len);
+/* fn NULL: no hook (the default). Other return values than the four above count as OK. */
+void mipemu_net_set_fate(mipemu_net *net, mipemu_fate_fn fn, void *user);
+
+/* Scripted reception, for tests: the read area of endpoint ep (MIPEMU_EP_MDP with the station
+ * in unit, or a station 1..N) receives blk (1..148 registers) as if the radio had delivered it
+ * (the first len registers, the count, bit 0 set); no telegram, no counter. Traced as "inject".
+ * Returns 0, or -1 for a bad endpoint, unit or length. */
+int mipemu_net_inject(mipemu_net *net, int ep, int unit, const uint16_t *blk, int len);
+
+/* Reads n registers from addr of endpoint ep (unit as for mipemu_handle's MDP unit id) without
+ * side effects (a Modbus read of the read area would clear "new data"), for tests and tools.
+ * Returns 0, or -1 for a bad endpoint or unit, or a register outside the map. */
+int mipemu_net_peek(const mipemu_net *net, int ep, int unit, unsigned addr, unsigned n, uint16_t *out);
+
 /* Radio timing: air time of a telegram carrying nregs registers, in ns (see README.md). */
 uint64_t mipemu_telegram_ns(const mipemu_config *c, int nregs);
 

@@ -92,6 +92,7 @@ typedef struct slot {
     int up_len;              /* registers in the uplink block of this slot, -1 none */
     uint32_t up_gen;
     int down_ok, up_ok;
+    int down_fate, up_fate;  /* scripted fates (MIPEMU_FATE_*) of this slot's blocks that arrived */
     uint8_t fs_down;         /* what the station measured on this poll; reported in its answer */
     uint16_t blk[AREA];      /* the block in flight (copied when the telegram starts) */
 } slot_t;
@@ -106,6 +107,8 @@ struct mipemu_net {
     uint64_t seq;            /* trace line number */
     mipemu_trace_fn trace;
     void *trace_user;
+    mipemu_fate_fn fate;
+    void *fate_user;
 };
 
 /* ---- config ---- */
@@ -187,6 +190,12 @@ void mipemu_net_set_trace(mipemu_net *net, mipemu_trace_fn fn, void *user)
 {
     net->trace = fn;
     net->trace_user = user;
+}
+
+void mipemu_net_set_fate(mipemu_net *net, mipemu_fate_fn fn, void *user)
+{
+    net->fate = fn;
+    net->fate_user = user;
 }
 
 /* ---- network ---- */
@@ -273,6 +282,35 @@ static uint8_t measure(mipemu_net *net, int base)
     return (uint8_t)v;
 }
 
+/* The scripted fate of a telegram carrying a block: the hook's verdict (also into *verdict, for
+ * the trace), and lose_record (the first uplink block with register 0 = lose_record is lost, once
+ * per station, whatever the hook says). */
+static int scripted_fate(mipemu_net *net, station_t *s, int up, const uint16_t *blk, int len, int *verdict)
+{
+    int f = MIPEMU_FATE_OK;
+    if (net->fate) {
+        f = net->fate(net->fate_user, net->slot.station + 1, up, blk, len);
+        if (f < MIPEMU_FATE_OK || f > MIPEMU_FATE_DROP)
+            f = MIPEMU_FATE_OK;
+    }
+    *verdict = f;
+    if (up && net->cfg.lose_record && !s->record_lost && len > 0 && blk[0] == (uint16_t)net->cfg.lose_record) {
+        s->record_lost = 1; /* on top of (and without disturbing) the random losses */
+        f = MIPEMU_FATE_LOST;
+    }
+    return f;
+}
+
+static const char *fate_field(int f)
+{
+    switch (f) {
+    case MIPEMU_FATE_LOST: return ",\"fate\":\"lost\"";
+    case MIPEMU_FATE_DUP: return ",\"fate\":\"dup\"";
+    case MIPEMU_FATE_DROP: return ",\"fate\":\"drop\"";
+    default: return "";
+    }
+}
+
 /* The block a side would send now, or -1: dynamic = the last written block until confirmed,
  * static = the N mirrored registers while a change is unconfirmed. */
 static int pending_len(const mipemu_net *net, const side_t *sd)
@@ -316,6 +354,7 @@ static void slot_begin(mipemu_net *net, int station, uint64_t t)
     sl->down_gen = s->mdp.gen;
     sl->up_len = -1;
     sl->down_ok = sl->up_ok = 0;
+    sl->down_fate = sl->up_fate = MIPEMU_FATE_OK;
     if (sl->down_len >= 0)
         memcpy(sl->blk, s->mdp.wr, (size_t)sl->down_len * sizeof(uint16_t));
     if (sl->down_len >= 0 && s->mdp.rstat & MIPEMU_RS_WRITE_WAITING)
@@ -367,13 +406,18 @@ static void step(mipemu_net *net)
     switch (sl->phase) {
     case PH_DOWN: {
         int lost = lose(net, &s->ch_down, c->loss_down, net->g2b_down, net->b2g_down);
+        int verdict = MIPEMU_FATE_OK;
+        int fate = sl->down_len >= 0 ? scripted_fate(net, s, 0, sl->blk, sl->down_len, &verdict) : MIPEMU_FATE_OK;
+        if (fate == MIPEMU_FATE_LOST)
+            lost = 1;
+        sl->down_fate = lost ? MIPEMU_FATE_OK : fate;
         s->st.tel_down++;
         if (lost)
             s->st.lost_down++;
         /* the MDP has sent the block whether or not it arrives: bit 1 clears */
         if (sl->down_len >= 0 && s->mdp.gen == sl->down_gen)
             s->mdp.rstat &= (uint16_t)~MIPEMU_RS_WRITE_WAITING;
-        trace_telegram(net, "poll", "down", sl->down_len, lost, "");
+        trace_telegram(net, "poll", "down", sl->down_len, lost, fate_field(verdict));
         if (lost) {
             /* no answer: the MDP waits as long as an empty answer would take */
             sl->phase = PH_WAIT;
@@ -384,7 +428,7 @@ static void step(mipemu_net *net)
         }
         sl->down_ok = 1;
         sl->fs_down = measure(net, s->base_down_dbm);
-        if (sl->down_len >= 0)
+        if (sl->down_len >= 0 && fate != MIPEMU_FATE_DROP)
             deliver(&s->trm, sl->blk, sl->down_len, sl->down_gen, &s->st.blocks_down, &s->st.dup_down);
         /* the station answers with its pending block, if any */
         sl->up_len = pending_len(net, &s->trm);
@@ -398,16 +442,22 @@ static void step(mipemu_net *net)
     }
     case PH_UP: {
         int lost = lose(net, &s->ch_up, c->loss_up, net->g2b_up, net->b2g_up);
-        if (c->lose_record && !s->record_lost && sl->up_len > 0 && sl->blk[0] == (uint16_t)c->lose_record) {
-            s->record_lost = 1; /* scripted, on top of (and without disturbing) the random losses */
+        int verdict = MIPEMU_FATE_OK;
+        int fate = sl->up_len >= 0 ? scripted_fate(net, s, 1, sl->blk, sl->up_len, &verdict) : MIPEMU_FATE_OK;
+        if (fate == MIPEMU_FATE_LOST)
             lost = 1;
-        }
+        sl->up_fate = lost ? MIPEMU_FATE_OK : fate;
         s->st.tel_up++;
         if (lost)
             s->st.lost_up++;
         if (sl->up_len >= 0 && s->trm.gen == sl->up_gen)
             s->trm.rstat &= (uint16_t)~MIPEMU_RS_WRITE_WAITING;
-        trace_telegram(net, "answer", "up", sl->up_len, lost, sl->down_len >= 0 ? ",\"ack\":true" : "");
+        {
+            char extra[48];
+            snprintf(extra, sizeof extra, "%s%s", sl->down_len >= 0 ? ",\"ack\":true" : "",
+                     fate_field(verdict));
+            trace_telegram(net, "answer", "up", sl->up_len, lost, extra);
+        }
         if (lost) {
             poll_failed(net, s);
             sl->phase = PH_WAIT;
@@ -423,12 +473,13 @@ static void step(mipemu_net *net)
         s->status &= (uint16_t)~MIPEMU_ST_UNREACHABLE;
         s->fs_up = measure(net, s->base_up_dbm);
         s->fs_down = sl->fs_down;
-        if (sl->down_len >= 0) {
+        if (sl->down_len >= 0 && sl->down_fate != MIPEMU_FATE_DUP) {
             confirm(net, &s->mdp, sl->down_gen, &s->st.confirmed_down);
             s->status &= (uint16_t)~MIPEMU_ST_DOWN_RESEND;
         }
         if (sl->up_len >= 0) {
-            deliver(&s->mdp, sl->blk, sl->up_len, sl->up_gen, &s->st.blocks_up, &s->st.dup_up);
+            if (sl->up_fate != MIPEMU_FATE_DROP)
+                deliver(&s->mdp, sl->blk, sl->up_len, sl->up_gen, &s->st.blocks_up, &s->st.dup_up);
             sl->phase = PH_ACK;
             sl->t_start = sl->t_end + gap;
             sl->t_end = sl->t_start + mipemu_telegram_ns(c, -1);
@@ -441,10 +492,12 @@ static void step(mipemu_net *net)
     }
     case PH_ACK: {
         int lost = lose(net, &s->ch_down, c->loss_down, net->g2b_down, net->b2g_down);
+        if (sl->up_fate == MIPEMU_FATE_DUP)
+            lost = 1; /* the uplink block's confirmation is lost */
         s->st.tel_down++;
         if (lost)
             s->st.lost_down++;
-        trace_telegram(net, "ack", "down", -1, lost, "");
+        trace_telegram(net, "ack", "down", -1, lost, fate_field(sl->up_fate == MIPEMU_FATE_DUP ? MIPEMU_FATE_DUP : MIPEMU_FATE_OK));
         if (!lost)
             confirm(net, &s->trm, sl->up_gen, &s->st.confirmed_up);
         sl->phase = PH_WAIT;
@@ -725,4 +778,45 @@ done:
                  ep, unit, tid, fc, rd, extra, exc);
     }
     return olen;
+}
+
+/* ---- test access ---- */
+
+/* The buffers of endpoint ep as a Modbus client addresses them: NULL for a bad endpoint or unit. */
+static station_t *station_of(const mipemu_net *net, int ep, int unit)
+{
+    if (!net || ep < 0 || ep > net->cfg.stations)
+        return NULL;
+    int s = ep == MIPEMU_EP_MDP ? unit : ep;
+    if (s < 1 || s > net->cfg.stations)
+        return NULL;
+    return &net->st[s - 1];
+}
+
+int mipemu_net_inject(mipemu_net *net, int ep, int unit, const uint16_t *blk, int len)
+{
+    station_t *s = station_of(net, ep, unit);
+    if (!s || !blk || len < 1 || len > AREA)
+        return -1;
+    side_t *sd = ep == MIPEMU_EP_MDP ? &s->mdp : &s->trm;
+    memcpy(sd->rd, blk, (size_t)len * sizeof *blk);
+    sd->rd_count = (uint16_t)len;
+    sd->rstat |= MIPEMU_RS_NEW_DATA;
+    emit(net, net->now, "\"ev\":\"inject\",\"ep\":\"%s\",\"st\":%d,\"regs\":%d,\"r0\":%u",
+         ep == MIPEMU_EP_MDP ? "mdp" : "trm", (int)(s - net->st) + 1, len, (unsigned)blk[0]);
+    return 0;
+}
+
+int mipemu_net_peek(const mipemu_net *net, int ep, int unit, unsigned addr, unsigned n, uint16_t *out)
+{
+    const station_t *s = station_of(net, ep, unit);
+    if (!s || !out)
+        return -1;
+    const map_t *m = ep == MIPEMU_EP_MDP ? &MDP_MAP : &TRM_MAP;
+    const side_t *sd = ep == MIPEMU_EP_MDP ? &s->mdp : &s->trm;
+    if (n > 0xFFFF || !range_readable(m, addr, n))
+        return -1;
+    for (unsigned i = 0; i < n; i++)
+        out[i] = get_reg(m, s, sd, addr + i);
+    return 0;
 }

@@ -850,6 +850,317 @@ static void t_lose_record(void)
     CHECK(mipemu_net_new(&c, err, sizeof err) == NULL);
 }
 
+/* ---- scripted fates (mipemu_net_set_fate) ---- */
+
+/* The fates the hook returns, in call order per direction (then OK), and what it was given. */
+typedef struct {
+    int down[4], up[4];
+    int calls_down, calls_up;
+    int station;
+    uint16_t r0_down[8], r0_up[8];
+    int len_up;
+} script_t;
+
+static int script_fn(void *user, int station, int up, const uint16_t *blk, int len)
+{
+    script_t *sc = user;
+    sc->station = station;
+    int *k = up ? &sc->calls_up : &sc->calls_down;
+    uint16_t *r0 = up ? sc->r0_up : sc->r0_down;
+    if (*k < 8)
+        r0[*k] = len > 0 ? blk[0] : 0xFFFF;
+    if (up)
+        sc->len_up = len;
+    int f = *k < 4 ? (up ? sc->up[*k] : sc->down[*k]) : MIPEMU_FATE_OK;
+    (*k)++;
+    return f;
+}
+
+static mipemu_net *mk_scripted(script_t *sc, sink_t *tr)
+{
+    mipemu_net *n = mk(1, MIPEMU_DYNAMIC, 0, 0, 1);
+    mipemu_net_set_fate(n, script_fn, sc);
+    mipemu_net_set_trace(n, sink_fn, tr);
+    return n;
+}
+
+/* Runs until k more slots have started. A slot takes the MDP's block when it starts, the
+ * station's when its poll arrives: after slots() a block written at the MDP goes in the next
+ * slot, one written at the station in the slot that has just started. */
+static void slots(mipemu_net *n, int k)
+{
+    mipemu_stats st;
+    mipemu_net_stats(n, 1, &st);
+    uint64_t want = st.polls + (uint64_t)k;
+    while (st.polls < want) {
+        mipemu_net_advance(n, mipemu_net_next_event(n));
+        mipemu_net_stats(n, 1, &st);
+    }
+}
+
+/* an MDP block d and a station block u in the same slot (the second one); returns with that slot
+ * started */
+static void both_in_next_slot(mipemu_net *n, const uint16_t *d, unsigned dn, const uint16_t *u, unsigned un)
+{
+    if (dn)
+        CHECK_EQ(wr16(n, 0, 1, 10, dn, d), 0);
+    slots(n, 1);
+    if (un)
+        CHECK_EQ(wr16(n, 1, 1, 2001, un, u), 0);
+}
+
+static void t_fate_lost(void)
+{
+    /* a lost poll: not delivered, no answer in that slot (the station's block waits), sent again */
+    script_t sc = { .down = { MIPEMU_FATE_LOST } };
+    sink_t tr = { 0 };
+    mipemu_net *n = mk_scripted(&sc, &tr);
+    uint16_t d[2] = { 5, 55 }, u[2] = { 6, 66 };
+    both_in_next_slot(n, d, 2, u, 2);
+    mipemu_stats st0, st;
+    mipemu_net_stats(n, 1, &st0);
+    slots(n, 1);                            /* the slot whose poll (carrying 5) is lost */
+    mipemu_net_stats(n, 1, &st);
+    CHECK_EQ(st.lost_down, 1);
+    CHECK_EQ(st.tel_up, st0.tel_up);        /* the station stayed silent */
+    CHECK_EQ(reg1(n, 1, 1, 2198), 0x12);    /* its block not sent */
+    CHECK_EQ(reg1(n, 0, 1, 2), 0x10);       /* the MDP's block sent, unconfirmed */
+    CHECK_EQ(reg1(n, 1, 1, 2199), 0);
+    CHECK(strstr(tr.buf, "\"r0\":5,\"lost\":true,\"fate\":\"lost\"") != NULL);
+    slots(n, 1);
+    mipemu_net_stats(n, 1, &st);
+    CHECK_EQ(st.blocks_down, 1);
+    CHECK_EQ(st.dup_down, 0);
+    CHECK_EQ(st.confirmed_down, 1);
+    CHECK_EQ(st.blocks_up, 1);
+    CHECK_EQ(st.confirmed_up, 1);
+    CHECK_EQ(reg1(n, 1, 1, 2200), 5);
+    CHECK_EQ(reg1(n, 0, 1, 200), 6);
+    CHECK_EQ(sc.calls_down, 2);
+    CHECK_EQ(sc.r0_down[1], 5);
+    CHECK_EQ(sc.calls_up, 1);
+    CHECK_EQ(sc.station, 1);
+    mipemu_net_free(n);
+    free(tr.buf);
+
+    /* a lost answer: its block and the confirmation of the poll's block it carries are lost:
+     * both blocks are sent again, the station gets the MDP's block twice */
+    script_t sc2 = { .up = { MIPEMU_FATE_LOST } };
+    tr = (sink_t){ 0 };
+    n = mk_scripted(&sc2, &tr);
+    both_in_next_slot(n, d, 2, u, 2);
+    slots(n, 1);
+    CHECK_EQ(reg1(n, 1, 1, 2198) & 0x12, 0x10); /* sent, unconfirmed */
+    CHECK_EQ(reg1(n, 0, 1, 2), 0x10);           /* nothing received, own block unconfirmed */
+    slots(n, 1);
+    mipemu_net_stats(n, 1, &st);
+    CHECK_EQ(st.lost_up, 1);
+    CHECK_EQ(st.blocks_up, 1);
+    CHECK_EQ(st.dup_up, 0);
+    CHECK_EQ(st.blocks_down, 2);
+    CHECK_EQ(st.dup_down, 1);
+    CHECK_EQ(st.confirmed_down, 1);
+    CHECK_EQ(st.confirmed_up, 1);
+    CHECK_EQ(reg1(n, 0, 1, 2), 0x01);
+    CHECK_EQ(sc2.calls_up, 2);
+    CHECK_EQ(sc2.r0_up[0], 6);
+    CHECK_EQ(sc2.r0_up[1], 6);
+    CHECK_EQ(sc2.len_up, 2);
+    CHECK(strstr(tr.buf, "\"r0\":6,\"lost\":true,\"ack\":true,\"fate\":\"lost\"") != NULL);
+    mipemu_net_free(n);
+    free(tr.buf);
+}
+
+static void t_fate_dup(void)
+{
+    /* downlink: the block arrives, the answer (with the station's block) too, only the
+     * confirmation of the downlink block is lost: it is delivered again at the next poll */
+    script_t sc = { .down = { MIPEMU_FATE_DUP } };
+    sink_t tr = { 0 };
+    mipemu_net *n = mk_scripted(&sc, &tr);
+    uint16_t d[2] = { 8, 88 }, u[1] = { 9 };
+    both_in_next_slot(n, d, 2, u, 1);
+    slots(n, 1);
+    mipemu_stats st;
+    mipemu_net_stats(n, 1, &st);
+    CHECK_EQ(st.blocks_down, 1);
+    CHECK_EQ(st.confirmed_down, 0);
+    CHECK_EQ(st.blocks_up, 1);              /* the other direction is not lost */
+    CHECK_EQ(st.confirmed_up, 1);
+    CHECK_EQ(st.lost_up + st.lost_down, 0);
+    CHECK_EQ(reg1(n, 0, 1, 2), 0x11);       /* got 9; own block still unconfirmed */
+    CHECK_EQ(reg1(n, 0, 1, 1) & MIPEMU_ST_DOWN_RESEND, MIPEMU_ST_DOWN_RESEND);
+    CHECK_EQ(reg1(n, 1, 1, 2198), 0x01);    /* got 8; own block confirmed */
+    CHECK_EQ(reg1(n, 1, 1, 2200), 8);       /* (this read clears bit 0) */
+    CHECK(strstr(tr.buf, "\"r0\":8,\"lost\":false,\"fate\":\"dup\"") != NULL);
+    slots(n, 1);
+    mipemu_net_stats(n, 1, &st);
+    CHECK_EQ(st.blocks_down, 2);
+    CHECK_EQ(st.dup_down, 1);
+    CHECK_EQ(st.confirmed_down, 1);
+    CHECK_EQ(reg1(n, 1, 1, 2198), 0x01);    /* delivered again */
+    CHECK_EQ(reg1(n, 0, 1, 2) & 0x10, 0);
+    CHECK_EQ(sc.calls_down, 2);
+    mipemu_net_free(n);
+    free(tr.buf);
+
+    /* uplink: the MDP gets the block, the ack is lost: sent and delivered again */
+    script_t sc2 = { .up = { MIPEMU_FATE_DUP } };
+    tr = (sink_t){ 0 };
+    n = mk_scripted(&sc2, &tr);
+    uint16_t u2[3] = { 10, 1, 2 };
+    both_in_next_slot(n, NULL, 0, u2, 3);
+    slots(n, 1);
+    CHECK_EQ(reg1(n, 1, 1, 2198) & 0x12, 0x10);
+    CHECK_EQ(reg1(n, 0, 1, 2), 0x01);
+    CHECK(strstr(tr.buf, "\"kind\":\"ack\",\"dir\":\"down\",\"st\":1") != NULL);
+    CHECK(strstr(tr.buf, "\"regs\":0,\"lost\":true,\"fate\":\"dup\"") != NULL);
+    slots(n, 1);
+    mipemu_net_stats(n, 1, &st);
+    CHECK_EQ(st.blocks_up, 2);
+    CHECK_EQ(st.dup_up, 1);
+    CHECK_EQ(st.confirmed_up, 1);
+    CHECK_EQ(st.lost_down, 1);
+    CHECK_EQ(st.lost_up, 0);
+    CHECK_EQ(reg1(n, 1, 1, 2198) & 0x10, 0);
+    mipemu_net_free(n);
+    free(tr.buf);
+}
+
+static void t_fate_drop(void)
+{
+    /* confirmed to the sender, never delivered, in either direction */
+    script_t sc = { .down = { MIPEMU_FATE_DROP }, .up = { MIPEMU_FATE_DROP } };
+    sink_t tr = { 0 };
+    mipemu_net *n = mk_scripted(&sc, &tr);
+    uint16_t d[2] = { 11, 1 }, u[2] = { 12, 2 };
+    both_in_next_slot(n, d, 2, u, 2);
+    slots(n, 3);
+    mipemu_stats st;
+    mipemu_net_stats(n, 1, &st);
+    CHECK_EQ(st.blocks_down + st.blocks_up, 0);
+    CHECK_EQ(st.confirmed_down, 1);
+    CHECK_EQ(st.confirmed_up, 1);
+    CHECK_EQ(st.lost_down + st.lost_up, 0);
+    CHECK_EQ(reg1(n, 0, 1, 2), 0);          /* nothing received, own block confirmed */
+    CHECK_EQ(reg1(n, 0, 1, 9), 0);
+    CHECK_EQ(reg1(n, 1, 1, 2198), 0);
+    CHECK_EQ(reg1(n, 1, 1, 2199), 0);
+    CHECK_EQ(sc.calls_down, 1);
+    CHECK_EQ(sc.calls_up, 1);
+    CHECK(strstr(tr.buf, "\"r0\":11,\"lost\":false,\"fate\":\"drop\"") != NULL);
+    CHECK(strstr(tr.buf, "\"r0\":12,\"lost\":false,\"ack\":true,\"fate\":\"drop\"") != NULL);
+    mipemu_net_free(n);
+    free(tr.buf);
+}
+
+static int ok_fn(void *user, int station, int up, const uint16_t *blk, int len)
+{
+    (void)station; (void)up; (void)blk; (void)len;
+    (*(int *)user)++;
+    return 42;   /* not a fate: counts as OK */
+}
+
+static void t_fate_ok_changes_nothing(void)
+{
+    /* a hook that always says OK: the same trace bytes as without one (random losses, bursts,
+     * three stations), and lose_record still strikes */
+    for (int with_hook = 0; with_hook < 2; with_hook++) {
+        mipemu_config c;
+        mipemu_config_default(&c);
+        c.stations = 3;
+        c.loss_down = 0.2;
+        c.loss_up = 0.1;
+        c.burst = 3;
+        c.seed = 99;
+        c.lose_record = 3;
+        mipemu_net *n = mipemu_net_new(&c, NULL, 0);
+        static sink_t ref;
+        sink_t s = { 0 };
+        int calls = 0;
+        g_tid = 0;
+        mipemu_net_set_trace(n, sink_fn, &s);
+        if (with_hook)
+            mipemu_net_set_fate(n, ok_fn, &calls);
+        uint16_t v[20];
+        for (int i = 0; i < 300; i++) {
+            for (int k = 0; k < 20; k++) v[k] = (uint16_t)(i * k + 3 * (k == 0));
+            mipemu_net_advance(n, (uint64_t)i * 250000000ULL);
+            wr16(n, 1 + i % 3, 1, 2001, 1 + (unsigned)i % 20, v);
+            wr16(n, 0, 1 + (unsigned)(i + 1) % 3, 10, 1 + (unsigned)i % 7, v);
+        }
+        mipemu_stats st;
+        mipemu_net_stats(n, 1, &st);
+        if (!with_hook) {
+            ref = s;
+            CHECK(s.len > 10000);
+        } else {
+            CHECK(calls > 300);
+            CHECK_EQ(s.len, ref.len);
+            CHECK(s.len == ref.len && memcmp(s.buf, ref.buf, s.len) == 0);
+            free(s.buf);
+            free(ref.buf);
+        }
+        mipemu_net_free(n);
+    }
+    /* lose_record with a hook: struck once, whatever the hook says */
+    mipemu_config c;
+    mipemu_config_default(&c);
+    c.lose_record = 2;
+    mipemu_net *n = mipemu_net_new(&c, NULL, 0);
+    script_t sc = { 0 };
+    mipemu_net_set_fate(n, script_fn, &sc);
+    for (uint16_t rec = 1; rec <= 2; rec++) {
+        uint16_t v[1] = { rec };
+        CHECK_EQ(wr16(n, 1, 1, 2001, 1, v), 0);
+        CHECK(wait_reg(n, 1, 1, 2198, 0x10, 0, 5000000000ULL));
+    }
+    mipemu_stats st;
+    mipemu_net_stats(n, 1, &st);
+    CHECK_EQ(st.lost_up, 1);
+    CHECK_EQ(st.blocks_up, 2);
+    CHECK_EQ(sc.calls_up, 3);      /* 1, 2 (lost), 2 */
+    mipemu_net_free(n);
+}
+
+static void t_inject_and_peek(void)
+{
+    mipemu_net *n = mk(2, MIPEMU_DYNAMIC, 0, 0, 1);
+    sink_t tr = { 0 };
+    mipemu_net_set_trace(n, sink_fn, &tr);
+    uint16_t b[3] = { 7, 1, 2 }, r[5];
+    CHECK_EQ(mipemu_net_inject(n, 0, 2, b, 3), 0);
+    CHECK_EQ(mipemu_net_peek(n, 0, 2, 198, 5, r), 0);
+    CHECK_EQ(r[0], 1);
+    CHECK_EQ(r[1], 3);
+    CHECK_EQ(r[2], 7);
+    CHECK_EQ(r[4], 2);
+    CHECK_EQ(mipemu_net_peek(n, 0, 2, 198, 5, r), 0);
+    CHECK_EQ(r[0], 1);                 /* peeking clears nothing */
+    CHECK_EQ(reg1(n, 0, 1, 2), 0);     /* station 1 untouched */
+    CHECK_EQ(rd(n, 0, 2, 3, 198, 5, r), 0);   /* a Modbus read of it does clear */
+    CHECK_EQ(reg1(n, 0, 2, 2), 0);
+    uint16_t one[1] = { 9 };
+    CHECK_EQ(mipemu_net_inject(n, 2, 0, one, 1), 0);   /* the TRM of station 2 */
+    CHECK_EQ(mipemu_net_peek(n, 2, 0, 2198, 3, r), 0);
+    CHECK_EQ(r[0], 1);
+    CHECK_EQ(r[1], 1);
+    CHECK_EQ(r[2], 9);
+    CHECK_EQ(mipemu_net_peek(n, 0, 1, 1, 2, r), 0);    /* station status, read status */
+    CHECK_EQ(mipemu_net_peek(n, 0, 1, 3, 1, r), -1);   /* outside the map */
+    CHECK_EQ(mipemu_net_peek(n, 0, 3, 2, 1, r), -1);   /* no station 3 */
+    CHECK_EQ(mipemu_net_peek(n, 3, 0, 2198, 1, r), -1);
+    CHECK_EQ(mipemu_net_inject(n, 0, 0, one, 1), -1);
+    CHECK_EQ(mipemu_net_inject(n, 1, 0, one, 0), -1);
+    CHECK_EQ(mipemu_net_inject(n, 1, 0, one, 149), -1);
+    CHECK(strstr(tr.buf, "\"ev\":\"inject\",\"ep\":\"mdp\",\"st\":2,\"regs\":3,\"r0\":7") != NULL);
+    mipemu_stats st;
+    mipemu_net_stats(n, 2, &st);
+    CHECK_EQ(st.blocks_down + st.blocks_up, 0);
+    free(tr.buf);
+    mipemu_net_free(n);
+}
+
 int main(int argc, char **argv)
 {
     const char *junit = NULL;
@@ -875,6 +1186,11 @@ int main(int argc, char **argv)
     run("two_networks", t_two_networks);
     run("bad_config", t_bad_config);
     run("lose_record", t_lose_record);
+    run("fate_lost", t_fate_lost);
+    run("fate_dup", t_fate_dup);
+    run("fate_drop", t_fate_drop);
+    run("fate_ok_changes_nothing", t_fate_ok_changes_nothing);
+    run("inject_and_peek", t_inject_and_peek);
     printf("emulator unit: %d passed, %d failed\n", g_pass, g_fail);
     if (junit) {
         FILE *f = fopen(junit, "w");

@@ -1,6 +1,9 @@
-"""Test bench for st_lib: a generated test PROGRAM around the MIP blocks, and a scripted modem
-pair in Python that plays the runtime's trigger policy, two MIP modems and the radio between
-them (loss, duplicates, overwrite on command).
+"""Test bench for st_lib: a generated test PROGRAM around the MIP blocks, the runtime's side of
+each block in Python (the Modbus client with its trigger policy and scriptable write failures,
+the chunk source, the record sink), and the emulator core as the modems: the emulated network
+(emulator/src/mipemu.c, through build/cosim/libmipcosim.so) of the central's MDP-810 and the
+outstation's TRM-810, in virtual time, whose telegrams a test script may lose, duplicate or drop
+(the core's fate hook). There is no modem model here: the emulator core is the modem.
 
 The program is generated so that every register block also exists as plain WORD variables
 (`snd_w0..snd_w122` for the write block, `snd_r0..snd_r124` for the read block, ...): matiec's
@@ -8,9 +11,12 @@ VARIABLES.csv does not list arrays, so this keeps the tests runnable with either
 """
 from __future__ import annotations
 
+import ctypes
 import os
 import random
 import shutil
+import struct
+import weakref
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -25,6 +31,7 @@ HAS_WRITE = {"MIP_Sender", "MIP_Receiver", "MIP_Link", "MIP_BufferSender"}
 HAS_CHUNK = {"MIP_Sender", "MIP_Link"}
 HAS_RECORD = {"MIP_Receiver", "MIP_Link"}
 FFFF = 0xFFFF
+MS = 1_000_000
 
 
 def compiler() -> str:
@@ -117,103 +124,243 @@ class Fb:
         return [self.plc[f"MAIN.{self.n}_p{i}"] for i in range(length)]
 
 
-# ---------------------------------------------------------------- modem and radio
+# ---------------------------------------------------------------- the emulator core as the modems
 
-class Modem:
-    """A TRM-810 / MDP-810 station buffer pair as the note describes it (sections 1.1, 3)."""
+LIBMIPCOSIM = REPO / "build" / "cosim" / "libmipcosim.so"
+FATES = {"ok": 0, "lost": 1, "dup": 2, "drop": 3}       # MIPEMU_FATE_*
+_FATE_FN = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_int, ctypes.c_int,
+                            ctypes.POINTER(ctypes.c_uint16), ctypes.c_int)
+_LIB = None
 
-    def __init__(self, static_n=0):
-        self.static_n = static_n          # 0: dynamic mode
-        self.write_area = [0] * 148
-        self.write_len = 0
-        self.waiting = False              # bit 1
-        self.unconfirmed = False          # bit 4
-        self.read_area = [0] * 148
-        self.read_count = 0
-        self.new_data = False             # bit 0
-        self.writes = 0
+
+class _Stats(ctypes.Structure):       # mipemu_stats
+    _fields_ = [(n, ctypes.c_uint64) for n in (
+        "polls", "tel_down", "lost_down", "tel_up", "lost_up", "blocks_down", "blocks_up",
+        "dup_down", "dup_up", "confirmed_down", "confirmed_up")]
+
+
+def _lib():
+    """libmipcosim.so, which links the emulator core and exports its API (mipemu.h)."""
+    global _LIB
+    if _LIB is None:
+        if not LIBMIPCOSIM.is_file():
+            raise RuntimeError(f"{LIBMIPCOSIM} missing: run `make build/cosim/libmipcosim.so`")
+        lib = ctypes.CDLL(str(LIBMIPCOSIM))
+        c = ctypes
+        for name, res, args in [
+            ("mipcosim_new_args", c.c_void_p, [c.c_int, c.c_int, c.c_int, c.c_double, c.c_double,
+                                               c.c_double, c.c_uint64, c.c_uint32, c.c_uint64,
+                                               c.c_int, c.c_char_p, c.c_size_t]),
+            ("mipcosim_free", None, [c.c_void_p]),
+            ("mipcosim_net", c.c_void_p, [c.c_void_p]),
+            ("mipemu_net_advance", c.c_int, [c.c_void_p, c.c_uint64]),
+            ("mipemu_handle", c.c_long, [c.c_void_p, c.c_int, c.c_char_p, c.c_size_t,
+                                         c.c_char_p, c.c_size_t]),
+            ("mipemu_net_set_fate", None, [c.c_void_p, _FATE_FN, c.c_void_p]),
+            ("mipemu_net_inject", c.c_int, [c.c_void_p, c.c_int, c.c_int,
+                                            c.POINTER(c.c_uint16), c.c_int]),
+            ("mipemu_net_peek", c.c_int, [c.c_void_p, c.c_int, c.c_int, c.c_uint, c.c_uint,
+                                          c.POINTER(c.c_uint16)]),
+            ("mipemu_net_stats", c.c_int, [c.c_void_p, c.c_int, c.POINTER(_Stats)]),
+        ]:
+            f = getattr(lib, name)
+            f.restype, f.argtypes = res, args
+        _LIB = lib
+    return _LIB
+
+
+class ModbusException(AssertionError):
+    """The emulator answered a request with a Modbus exception (an integration error here)."""
+
+
+class Endpoint:
+    """One modem of the emulated network as its Modbus client sees it: the outstation's TRM-810
+    (endpoint = its station) or the central's MDP-810 (endpoint 0, unit id = the station). `write` and
+    `read125` are Modbus TCP frames through mipemu_handle, as the PLC's master sends them;
+    `receive`, `read_area`, `write_area` and the status bits are the tests' white-box access
+    (mipemu_net_inject / mipemu_net_peek, no side effects on "new data")."""
+
+    # write area, read status, read data: emulator/README.md, register maps
+    MDP, TRM = (10, 198, 200), (2001, 2198, 2200)
+
+    def __init__(self, radio: "Radio", ep: int, unit: int):
+        self.radio, self.ep, self.unit = radio, ep, unit
+        self.static_n = radio.static_n
+        self.wbase, self.rstat, self.rbase = self.MDP if ep == 0 else self.TRM
+        self.writes = 0                   # blocks written through write()
+        self._tid = 0
+        self._out = ctypes.create_string_buffer(300)     # MIPEMU_RESPONSE_MAX
+
+    def _request(self, pdu: bytes) -> bytes:
+        self._tid = (self._tid + 1) & 0xFFFF
+        req = struct.pack(">HHHB", self._tid, 0, len(pdu) + 1, self.unit) + pdu
+        n = _lib().mipemu_handle(self.radio.net, self.ep, req, len(req), self._out, len(self._out))
+        if n < 9:
+            raise ModbusException(f"endpoint {self.ep}: connection closed on {pdu[:1].hex()}")
+        resp = self._out.raw[:n]
+        assert struct.unpack(">H", resp[:2])[0] == self._tid
+        if resp[7] & 0x80:
+            raise ModbusException(f"endpoint {self.ep}: exception {resp[8]:02X} on FC{pdu[0]}")
+        return resp[7:]
 
     def write(self, block):
+        """One FC16 write of the block to the write area."""
+        n = len(block)
+        self._request(struct.pack(f">BHHB{n}H", 16, self.wbase, n, 2 * n, *block))
         self.writes += 1
-        if self.static_n:
-            old = self.write_area[:self.static_n]
-            for i, v in enumerate(block[:self.static_n]):
-                self.write_area[i] = v
-            if self.write_area[:self.static_n] != old:
-                self.waiting = self.unconfirmed = True
-        else:
-            assert 1 <= len(block) <= 123, f"dynamic write of {len(block)} registers"
-            self.write_area[:len(block)] = block
-            self.write_len = len(block)
-            self.waiting = self.unconfirmed = True
-
-    def pending_block(self):
-        if not self.unconfirmed:
-            return None
-        n = self.static_n or self.write_len
-        return list(self.write_area[:n])
-
-    def receive(self, block):
-        self.read_area[:len(block)] = block
-        self.read_count = len(block)
-        self.new_data = True
-
-    def status(self):
-        return (1 if self.new_data else 0) | (2 if self.waiting else 0) | (16 if self.unconfirmed else 0)
 
     def read125(self):
-        """One FC3 read of 125 registers at the read-status register; clears 'new data'."""
-        block = [self.status(), self.read_count] + self.read_area[:123]
-        self.new_data = False
-        return block
+        """One FC3 read of 125 registers at the read-status register: [status, count, data...];
+        clears 'new data' (after the answer was composed)."""
+        r = self._request(struct.pack(">BHH", 3, self.rstat, 125))
+        return list(struct.unpack(">125H", r[2:]))
+
+    def receive(self, block):
+        """A block arrives in the read area as if the radio had delivered it."""
+        arr = (ctypes.c_uint16 * len(block))(*block)
+        if _lib().mipemu_net_inject(self.radio.net, self.ep, self.unit, arr, len(block)) != 0:
+            raise ValueError(f"cannot inject a block of {len(block)} registers")
+
+    def peek(self, addr, n):
+        out = (ctypes.c_uint16 * n)()
+        if _lib().mipemu_net_peek(self.radio.net, self.ep, self.unit, addr, n, out) != 0:
+            raise IndexError(f"registers {addr}..{addr + n - 1} of endpoint {self.ep}")
+        return list(out)
+
+    def status(self):
+        return self.peek(self.rstat, 1)[0]
+
+    @property
+    def new_data(self):
+        return bool(self.status() & 1)
+
+    @property
+    def waiting(self):
+        return bool(self.status() & 2)
+
+    @property
+    def unconfirmed(self):
+        return bool(self.status() & 16)
+
+    @property
+    def read_area(self):
+        return _Area(self, self.rbase, writable=True)
+
+    @property
+    def write_area(self):
+        return _Area(self, self.wbase, writable=False)
+
+
+class _Area:
+    """The 148 registers of a read or write area, peeked. Setting a read-area register (white
+    box) changes that register only: the count stays, and so does bit 0 ('new data')."""
+
+    def __init__(self, ep: Endpoint, base, writable):
+        self.ep, self.base, self.writable = ep, base, writable
+
+    def __len__(self):
+        return 148
+
+    def __getitem__(self, i):
+        return self.ep.peek(self.base, 148)[i]
+
+    def __setitem__(self, i, value):
+        if not self.writable:
+            raise TypeError("the write area is written by Modbus (Endpoint.write)")
+        status, count = self.ep.peek(self.ep.rstat, 2)
+        area = self.ep.peek(self.base, 148)
+        area[i] = value
+        self.ep.receive(area[:max(count, i + 1)])
+        if not status & 1:
+            self.ep.read125()             # the bit was clear: a read clears it again
 
 
 @dataclass
 class Telegram:
-    src: str            # "O" outstation -> central, "C" central -> outstation
+    src: str            # "O" outstation -> central (the answer), "C" central -> outstation (the poll)
     block: list
-    fate: str           # "ok", "lost" (link repeats it), "dup" (confirmation lost), "drop" (gone)
+    fate: str           # "ok", "lost", "dup", "drop": what `fate` said (emulator/README.md)
+    poll: int = 0       # the radio poll (slot) it went in: a poll is the central's telegram,
+                        # then the outstation's
 
 
 class Radio:
-    """Time-slot polling: every `poll_scans` scans the central sends its pending block, then
-    the outstation answers with its pending block. `fate(src, block)` decides each telegram."""
+    """The emulated network (emulator/src/mipemu.c through libmipcosim.so): the outstation is
+    its last station, with the TRM-810 `outstation`; the central's MDP-810 is `central`. It
+    runs in virtual time (`advance`, one scan tick per bench step). Every telegram that carries
+    a block is logged, and `fate(src, block)` decides it: "ok", "lost" (the link repeats it; a
+    lost poll gets no answer, a lost answer loses the confirmation of the poll's block too),
+    "dup" (delivered, its confirmation lost), "drop" (confirmed, never delivered).
 
-    def __init__(self, outstation: Modem, central: Modem, fate=None):
-        self.o, self.c = outstation, central
+    Timing: the outstation is polled every `poll_scans` scans (1 ms more if it sent a block),
+    first at the end of the first cycle, and its poll, answer and ack follow each other within
+    about 3 ms. A fast radio (10 Mbit/s, 1 byte of overhead: air time under 0.2 ms) with slot
+    gaps of 1 ms, and idle stations 1.. before it, whose empty slots (2 ms each) fill the rest
+    of the polling cycle."""
+
+    BITRATE = 10_000_000
+    OVERHEAD = 1
+    GAP_NS = 1 * MS
+
+    def __init__(self, static_n=0, fate=None, poll_scans=5, tick_ms=10, seed=1):
+        lib = _lib()
+        self.static_n, self.poll_scans = static_n, poll_scans
+        self.stations = max(1, poll_scans * tick_ms * MS // (2 * self.GAP_NS))
+        err = ctypes.create_string_buffer(256)
+        self._sim = lib.mipcosim_new_args(self.stations, 1 if static_n else 0, static_n or 148,
+                                          0.0, 0.0, 0.0, seed, self.BITRATE, self.GAP_NS,
+                                          self.OVERHEAD, err, 256)
+        if not self._sim:
+            raise RuntimeError(f"emulator: {err.value.decode()}")
+        weakref.finalize(self, lib.mipcosim_free, self._sim)
+        self.net = lib.mipcosim_net(self._sim)
         self.fate = fate or (lambda src, block: "ok")
         self.log: list[Telegram] = []
+        self.now = 0
+        self._error = None
+        self._hook = _FATE_FN(self._on_telegram)   # referenced as long as the network lives
+        lib.mipemu_net_set_fate(self.net, self._hook, None)
+        self.station = self.stations
+        self.outstation = Endpoint(self, self.station, 1)
+        self.central = Endpoint(self, 0, self.station)
 
-    def _send(self, src, frm, to):
-        block = frm.pending_block()
-        if block is None:
-            return
-        fate = self.fate(src, block)
-        self.log.append(Telegram(src, block, fate))
-        frm.waiting = False
-        if fate in ("ok", "dup"):
-            to.receive(block)
-        if fate == "ok" or fate == "drop":
-            frm.unconfirmed = False
-            if not frm.static_n:
-                frm.write_len = 0
-        # "lost" and "dup": still unconfirmed, sent again at the next poll
+    def _on_telegram(self, _user, _station, up, blk, n):
+        try:
+            src, block = ("O" if up else "C"), blk[:n]
+            fate = self.fate(src, block)
+            st = _Stats()
+            _lib().mipemu_net_stats(self.net, self.station, ctypes.byref(st))
+            self.log.append(Telegram(src, block, fate, st.polls))
+            return FATES[fate]
+        except BaseException as e:        # raised again in advance()
+            self._error = self._error or e
+            return 0
 
-    def poll(self):
-        self._send("C", self.c, self.o)
-        self._send("O", self.o, self.c)
+    def advance(self, ns):
+        """Runs the radio `ns` further in virtual time."""
+        self.now += ns
+        _lib().mipemu_net_advance(self.net, self.now)
+        if self._error:
+            e, self._error = self._error, None
+            raise e
+
+    def stats(self):
+        st = _Stats()
+        _lib().mipemu_net_stats(self.net, self.station, ctypes.byref(st))
+        return {n: getattr(st, n) for n, _ in _Stats._fields_}
 
     def counters(self, idx=0):
         return [(t.src, t.block[idx] if len(t.block) > idx else None, t.fate) for t in self.log]
 
 
 class Port:
-    """The runtime's side of one FB: trigger-policy write into a modem, reads of its read area.
+    """The runtime's side of one FB: its Modbus client, trigger-policy FC16 writes of the block
+    into the modem's write area, FC3 reads of 125 registers at the read status (Endpoint).
 
     read_mode: "trigger" (valid for one scan per read, every read_every scans) or "cyclic"
     (OpenPLC: valid always, data refreshed every read_every scans)."""
 
-    def __init__(self, fb: Fb, modem: Modem, read_every=2, read_mode="trigger"):
+    def __init__(self, fb: Fb, modem: Endpoint, read_every=2, read_mode="trigger"):
         self.fb, self.modem = fb, modem
         self.read_every, self.read_mode = read_every, read_mode
         self.write_fail = 0               # fail the next n writes
@@ -312,13 +459,14 @@ class RecordSink:
 
 class Bench:
     """Steps one or more PLCs (an outstation PLC, a central PLC) in lockstep with their ports
-    and the radio. A radio poll runs every `poll_scans` scans."""
+    and the radio: after each scan the radio runs one scan tick further in virtual time
+    (`radio = None`: the radio stands still, the modems still answer their clients)."""
 
-    def __init__(self, plcs, parts, radio=None, poll_scans=5, check_plcopen=()):
+    def __init__(self, plcs, parts, radio=None, check_plcopen=(), tick_ms=10):
         self.plcs = list(plcs)
         self.parts = list(parts)
         self.radio = radio
-        self.poll_scans = poll_scans
+        self.tick_ns = tick_ms * MS
         self.scans = 0
         self.check_plcopen = list(check_plcopen)   # (fb, (done, busy, error) member names)
 
@@ -336,8 +484,8 @@ class Bench:
             for fb, names in self.check_plcopen:
                 flags = [fb[m] for m in names]
                 assert sum(flags) <= 1, f"{fb.n}: more than one of {names} TRUE: {flags}"
-            if self.radio and self.scans % self.poll_scans == 0:
-                self.radio.poll()
+            if self.radio:
+                self.radio.advance(self.tick_ns)
 
     def run_until(self, cond, limit):
         for _ in range(limit):
@@ -348,7 +496,7 @@ class Bench:
 
     def restart(self, old_plc, fbs, instances, workdir):
         """A PLC restart: a fresh instance of the same program (all state lost) replaces
-        old_plc; the modems keep their registers."""
+        old_plc; the modems (the emulated network) keep their registers."""
         new = build(instances, workdir)
         self.plcs[self.plcs.index(old_plc)] = new
         for fb in fbs:
@@ -365,7 +513,6 @@ def pattern(n, seed=0):
 
 ALL = [("snd", "MIP_Sender"), ("rcv", "MIP_Receiver"), ("lo", "MIP_Link"), ("lc", "MIP_Link"),
        ("bs", "MIP_BufferSender"), ("st", "MIP_Status")]
-MS = 1_000_000
 PLCOPEN_SND = ("xDone", "xBusy", "xError")
 PLCOPEN_LINK_S = ("xSendDone", "xSendBusy", "xSendError")
 PLCOPEN_LINK_R = ("xRecvDone", "xRecvBusy", "xRecvError")
@@ -373,7 +520,8 @@ PLCOPEN_LINK_R = ("xRecvDone", "xRecvBusy", "xRecvError")
 
 class Uni:
     """Unidirectional: an outstation PLC with MIP_Sender `snd` (or MIP_BufferSender `bs`), a
-    central PLC with MIP_Receiver `rcv`, two dynamic (or static) modems and the radio."""
+    central PLC with MIP_Receiver `rcv`, the emulated network in dynamic (or static) mode:
+    `mo` the outstation's TRM-810, `mc` the central's MDP-810."""
 
     def __init__(self, workdir, data=(), polled=False, static_n=0, timeout_ms=300,
                  read_every=2, read_mode="trigger", fate=None, chunk=123, buffer=False,
@@ -383,8 +531,8 @@ class Uni:
         self.plc_c = build(ALL, workdir)
         self.snd = Fb(self.plc_o, "bs" if buffer else "snd")
         self.rcv = Fb(self.plc_c, "rcv")
-        self.mo, self.mc = Modem(static_n), Modem(static_n)
-        self.radio = Radio(self.mo, self.mc, fate)
+        self.radio = Radio(static_n, fate, poll_scans)
+        self.mo, self.mc = self.radio.outstation, self.radio.central
         self.port_o = Port(self.snd, self.mo, read_every, read_mode)
         self.port_c = Port(self.rcv, self.mc, read_every, read_mode)
         self.sink = RecordSink(self.rcv)
@@ -393,7 +541,7 @@ class Uni:
         if not buffer:
             self.src = ChunkSource(self.snd, data)
             parts.insert(0, self.src)
-        self.bench = Bench([self.plc_o, self.plc_c], parts, self.radio, poll_scans,
+        self.bench = Bench([self.plc_o, self.plc_c], parts, self.radio,
                            [(self.snd, PLCOPEN_SND), (self.rcv, PLCOPEN_SND)])
         self.settings = dict(polled=polled, static=bool(static_n), timeout_ms=timeout_ms,
                              chunk=chunk, transfer_timeout_ms=transfer_timeout_ms,
@@ -446,15 +594,15 @@ class Bi:
         self.plc_o = build(ALL, workdir)
         self.plc_c = build(ALL, workdir)
         self.lo, self.lc = Fb(self.plc_o, "lo"), Fb(self.plc_c, "lc")
-        self.mo, self.mc = Modem(static_n), Modem(static_n)
-        self.radio = Radio(self.mo, self.mc, fate)
+        self.radio = Radio(static_n, fate, poll_scans)
+        self.mo, self.mc = self.radio.outstation, self.radio.central
         self.src_o, self.src_c = ChunkSource(self.lo, data_o), ChunkSource(self.lc, data_c)
         self.sink_o, self.sink_c = RecordSink(self.lo), RecordSink(self.lc)
         self.port_o = Port(self.lo, self.mo, read_every, read_mode)
         self.port_c = Port(self.lc, self.mc, read_every, read_mode)
         self.bench = Bench([self.plc_o, self.plc_c],
                            [self.src_o, self.src_c, self.port_o, self.port_c,
-                            self.sink_o, self.sink_c], self.radio, poll_scans,
+                            self.sink_o, self.sink_c], self.radio,
                            [(self.lo, PLCOPEN_LINK_S), (self.lo, PLCOPEN_LINK_R),
                             (self.lc, PLCOPEN_LINK_S), (self.lc, PLCOPEN_LINK_R)])
         for fb, central in ((self.lo, False), (self.lc, True)):

@@ -1,5 +1,5 @@
 """Our blocks against peers that follow only the Piciorgros note (st_lib/PROTOCOL.md): a note
-central / outstation played in Python on the scripted modems of stlib_sim.py, strict (only
+central / outstation played in Python on the emulated modems of stlib_sim.py, strict (only
 the next number counts) or lenient (record 1 always starts a new transfer). Also the echo
 check (P8), the bidirectional own-modem rule (P9), the out-of-step bounds (P11, P21) and the
 per-record reaction (P25). Virtual time: 10 ms scans, radio poll every 5 scans."""

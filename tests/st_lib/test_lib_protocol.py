@@ -1,5 +1,6 @@
-"""MIP_Sender / MIP_Receiver through the runtime harness, against a scripted modem pair and radio
-(tests/st_lib/stlib_sim.py). Virtual time: 10 ms scans, radio poll every 5 scans unless said."""
+"""MIP_Sender / MIP_Receiver through the runtime harness, over the emulator core with scripted
+telegram fates (tests/st_lib/stlib_sim.py). Virtual time: 10 ms scans, radio poll every 5 scans
+unless said."""
 from pathlib import Path
 
 import pytest

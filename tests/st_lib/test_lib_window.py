@@ -2,7 +2,6 @@
 against our receiver and a note central, with loss, a receiving PLC slower than the radio, and
 the modes where the window does not apply. The rules were checked in the model first
 (model/, configurations win2/...)."""
-import bisect
 import random
 from pathlib import Path
 
@@ -22,39 +21,25 @@ def records_up(radio):
     return [t.block[0] for t in radio.log if t.src == "O"]
 
 
-def track_polls(radio):
-    """Notes where each radio poll starts in radio.log (a poll: the central's telegram, then
-    the outstation's)."""
-    radio.marks = []
-    poll = radio.poll
-
-    def tracked():
-        radio.marks.append(len(radio.log))
-        poll()
-    radio.poll = tracked
-    return radio
-
-
 def pipelined(radio, start=0):
     """Records that went up no later than the poll that brought down the acknowledgement of
     the record before them: with stop and wait a record goes up at the earliest in the poll
-    after (the outstation reads the acknowledgement between polls)."""
-    poll_of = lambda i: bisect.bisect_right(radio.marks, i) - 1   # noqa: E731
+    after (the outstation reads the acknowledgement between polls). t.poll: the radio poll a
+    telegram went in (a poll: the central's telegram, then the outstation's)."""
     acked_in = {}
-    for i, t in enumerate(radio.log[start:], start):
+    for t in radio.log[start:]:
         if t.src == "C":
-            acked_in.setdefault(t.block[0], poll_of(i))
+            acked_in.setdefault(t.block[0], t.poll)
     out = []
-    for i, t in enumerate(radio.log[start:], start):
+    for t in radio.log[start:]:
         n = t.block[0]
         if t.src == "O" and n not in (1, FFFF):
-            if n - 1 not in acked_in or acked_in[n - 1] >= poll_of(i):
+            if n - 1 not in acked_in or acked_in[n - 1] >= t.poll:
                 out.append(n)
     return sorted(set(out))
 
 
 def run(u, window, limit=20000):
-    track_polls(u.radio)
     u.snd["uWindow"] = window
     u.bench.step(3)
     start = u.bench.scans
@@ -167,7 +152,6 @@ def test_window_is_latched_at_the_start(wd):
     chunks are asked for once each, in order, also ahead of time."""
     data = pattern(10 * 122, seed=940)
     u = Uni(wd, data)
-    track_polls(u.radio)
     u.snd["uWindow"] = 1
     u.snd["xExecute"] = False
     u.bench.step()
@@ -188,7 +172,6 @@ def test_window_is_latched_at_the_start(wd):
 def test_buffer_sender_passes_the_window_on(wd):
     """MIP_BufferSender.uWindow goes to its MIP_Sender: 12 records of its buffer pipelined."""
     u = Uni(wd, buffer=True, timeout_ms=300)
-    track_polls(u.radio)
     u.plc_o["MAIN.bs_seed"] = 5
     u.plc_o["MAIN.bs_fill"] = True
     u.bench.step(1)
