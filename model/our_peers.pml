@@ -77,9 +77,9 @@
  * record is written as soon as the own modem confirmed the one in flight (read-status bit 4
  * clear after its write), before the acknowledgement came; never the last record (16#FFFF),
  * which waits for the acknowledgement of the one before it. Spontaneous drive, both layouts;
- * bidirectional: an acknowledgement of the pipelined record counts (P9) only when the own
- * modem confirmed that record's block and a new telegram came after its write, and the other
- * stream's writes carry the newest record written. */
+ * bidirectional: the other stream's writes carry the newest record written, and the pipelined
+ * record, once the acknowledgement of the one before made it the record in flight, is counted
+ * with P9 like any other. */
 #ifndef WIN
 #define WIN 1
 #endif
@@ -100,10 +100,15 @@
 /* PIPE_CLOSE: after a repeat went back, the window stays closed until this many records
  * were acknowledged (MIP_Sender: 8). The configurations check 1, the earliest reopening: a
  * sender that reopens later only leaves out pipelined writes this one may make */
-/* PIPE_P9 0 = bidirectional: the acknowledgement of the pipelined record counts by its number
- * alone (without P9 for its block) */
+/* PIPE_P9 1 = variant: bidirectional, the acknowledgement of the pipelined record counts only
+ * with P9 for its own block (conf2, fresh2). Not the rule: after a repeat went back the block
+ * in the modem is the older record's, so that confirmation may never be seen; the sender then
+ * cannot count an acknowledgement its receiver keeps sending (the block: a silent hang; here
+ * the out-of-step error). The rule (0) counts it by its number: from record 3 on, after record
+ * 1 of this session was acknowledged, C3 makes every number the peer writes one of this
+ * session (as the echo does for the unidirectional layout) */
 #ifndef PIPE_P9
-#define PIPE_P9 1
+#define PIPE_P9 0
 #endif
 #ifndef PIPE_CLOSE
 #define PIPE_CLOSE 1
@@ -169,8 +174,9 @@ proctype OurSender() {
                               * acknowledged records (the receiving PLC may read slower than
                               * records arrive) */
 #if BIDI
-    bool conf2, fresh2;      /* WIN 2, BIDI P9 for record cur + 1: the own modem confirmed its
-                              * block / a new telegram since its write */
+    bool conf2, fresh2;      /* WIN 2, BIDI P9 for record cur + 1 once it is the record in
+                              * flight: the own modem confirmed its block / a new telegram
+                              * since its write */
 #endif
 #endif
 SND_IDLE:
@@ -237,7 +243,7 @@ SND_WAIT_ACK:
             if
 #if WIN == 2
 #if BIDI
-            :: sent2 && nc == CTR(cur + 1) && ((fresh2 && (conf2 || P9_MODE == 1)) || PIPE_P9 == 0) ->
+            :: sent2 && nc == CTR(cur + 1) && ((fresh2 && conf2) || PIPE_P9 == 0) ->
 #else
             :: sent2 && nc == CTR(cur + 1) && (nx == 0 || nx == CHK(t, cur + 1) || P8_MODE == 1) ->
 #endif
