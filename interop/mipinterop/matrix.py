@@ -55,9 +55,14 @@ READINGS = ("strict", "lenient")
 FAULTS = ("none", "loss30", "restart-ours", "restart-peer")
 LAYOUTS = ("uni", "bi")
 MODES = ("dynamic", "static", "pipelined")
-# "pipelined": dynamic mode with MIP_Sender's uWindow 2 (st_lib/PROTOCOL.md P27), which applies
-# to our sender in the unidirectional layout only
-PIPELINED = ("sender", "uni")
+# "pipelined": dynamic mode with uWindow 2 of MIP_Sender / MIP_Link (st_lib/PROTOCOL.md P27):
+# our sender's in the unidirectional layout, and both sides of ours in the bidirectional one
+# (our outstation's or our central's MIP_Link sends too)
+
+
+def pipelined_applies(ours, layout):
+    """Whether a "pipelined" cell exists: our program sends a stream of its own."""
+    return layout == "bi" or ours == "sender"
 FAULT_TEXT = {"none": "no fault", "loss30": "30 % loss", "restart-ours": "restart ours",
               "restart-peer": "restart peer"}
 
@@ -111,14 +116,15 @@ class Cell:
         for v, axis in zip(parts, (OURS, READINGS, FAULTS, LAYOUTS, MODES)):
             if v not in axis:
                 raise ValueError(f"cell {key!r}: {v!r} is not one of {', '.join(axis)}")
-        if c.mode == "pipelined" and (c.ours, c.layout) != PIPELINED:
-            raise ValueError(f"cell {key!r}: pipelined is our sender's window 2, unidirectional")
+        if c.mode == "pipelined" and not pipelined_applies(c.ours, c.layout):
+            raise ValueError(f"cell {key!r}: pipelined is window 2 of our sending side: our "
+                             f"sender, or either side in the bi layout")
         return c
 
 
 def all_cells():
     return [Cell(*v) for v in itertools.product(OURS, READINGS, FAULTS, LAYOUTS, MODES)
-            if v[4] != "pipelined" or (v[0], v[3]) == PIPELINED]
+            if v[4] != "pipelined" or pipelined_applies(v[0], v[3])]
 
 
 @dataclass

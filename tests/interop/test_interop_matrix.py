@@ -4,7 +4,7 @@ of the same kernel), in virtual time. Each cell must end "complete" (every recor
 order, register for register, and the sender saw its last record acknowledged) or with an error
 of our blocks within the bound; silent loss or duplication and hangs fail.
 
-The whole matrix (72 cells) takes a few seconds; the session writes its results to
+The whole matrix (88 cells) takes a few seconds; the session writes its results to
 build/interop/pytest-matrix.json (`python -m mipinterop --write-docs` makes the table of it).
 Also here: the same seed gives the same cell (result and emulator trace, byte for byte), each
 side of a restart goes on in virtual time while the other is down, and one cell of the
