@@ -23,12 +23,34 @@ class CosimError(RuntimeError):
     pass
 
 
-def _lib():
+# the emulator core's scripted-fault hook (mipemu.h: mipemu_fate_fn)
+FATE_FN = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_int, ctypes.c_int,
+                           ctypes.POINTER(ctypes.c_uint16), ctypes.c_int)
+
+
+class Stats(ctypes.Structure):
+    """mipemu_stats: one station's radio counters."""
+    _fields_ = [(n, ctypes.c_uint64) for n in (
+        "polls", "tel_down", "lost_down", "tel_up", "lost_up", "blocks_down", "blocks_up",
+        "dup_down", "dup_up", "confirmed_down", "confirmed_up")]
+
+
+_LIB = None
+
+
+def kernel_lib():
+    """libmipcosim.so with the argument types of the kernel's API (mipcosim.h) and of the
+    emulator core's that it exports (mipemu.h); loaded once. The one binding: the chains here,
+    the docs' tools, the bench and the st_lib test bench use it."""
+    global _LIB
+    if _LIB is not None:
+        return _LIB
     path = LIBDIR / "libmipcosim.so"
     if not path.is_file():
         raise CosimError(f"{path} missing: run `make {path.relative_to(REPO)}`")
     lib = ctypes.CDLL(str(path))
     c = ctypes
+    u16p = c.POINTER(c.c_uint16)
     for name, res, args in [
         ("mipcosim_new_args", c.c_void_p, [c.c_int, c.c_int, c.c_int, c.c_double, c.c_double,
                                            c.c_double, c.c_uint64, c.c_uint32, c.c_uint64,
@@ -50,17 +72,23 @@ def _lib():
         ("mipcosim_requests", c.c_uint64, [c.c_void_p]),
         ("mipcosim_scans", c.c_uint64, [c.c_void_p]),
         ("mipcosim_trace_file", c.c_int, [c.c_void_p, c.c_char_p]),
+        # the emulator core, for a caller that drives the network itself (tests/st_lib)
         ("mipemu_net_stats", c.c_int, [c.c_void_p, c.c_int, c.c_void_p]),
+        ("mipemu_net_advance", c.c_int, [c.c_void_p, c.c_uint64]),
+        ("mipemu_handle", c.c_long, [c.c_void_p, c.c_int, c.c_char_p, c.c_size_t,
+                                     c.c_char_p, c.c_size_t]),
+        ("mipemu_net_set_fate", None, [c.c_void_p, FATE_FN, c.c_void_p]),
+        ("mipemu_net_inject", c.c_int, [c.c_void_p, c.c_int, c.c_int, u16p, c.c_int]),
+        ("mipemu_net_peek", c.c_int, [c.c_void_p, c.c_int, c.c_int, c.c_uint, c.c_uint, u16p]),
     ]:
         f = getattr(lib, name)
         f.restype, f.argtypes = res, args
+    _LIB = lib
     return lib
 
 
-class _Stats(ctypes.Structure):
-    _fields_ = [(n, ctypes.c_uint64) for n in (
-        "polls", "tel_down", "lost_down", "tel_up", "lost_up", "blocks_down", "blocks_up",
-        "dup_down", "dup_up", "confirmed_down", "confirmed_up")]
+_lib = kernel_lib          # (the name the modules here and the docs' tools use)
+_Stats = Stats
 
 
 _BUILDS = {}

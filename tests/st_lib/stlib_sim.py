@@ -20,6 +20,7 @@ import weakref
 from dataclasses import dataclass
 from pathlib import Path
 
+from mipcosim.sim import FATE_FN as _FATE_FN, Stats as _Stats, kernel_lib
 from plcharness import Plc
 
 REPO = Path(__file__).resolve().parents[2]
@@ -126,47 +127,8 @@ class Fb:
 
 # ---------------------------------------------------------------- the emulator core as the modems
 
-LIBMIPCOSIM = REPO / "build" / "cosim" / "libmipcosim.so"
 FATES = {"ok": 0, "lost": 1, "dup": 2, "drop": 3}       # MIPEMU_FATE_*
-_FATE_FN = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_int, ctypes.c_int,
-                            ctypes.POINTER(ctypes.c_uint16), ctypes.c_int)
-_LIB = None
-
-
-class _Stats(ctypes.Structure):       # mipemu_stats
-    _fields_ = [(n, ctypes.c_uint64) for n in (
-        "polls", "tel_down", "lost_down", "tel_up", "lost_up", "blocks_down", "blocks_up",
-        "dup_down", "dup_up", "confirmed_down", "confirmed_up")]
-
-
-def _lib():
-    """libmipcosim.so, which links the emulator core and exports its API (mipemu.h)."""
-    global _LIB
-    if _LIB is None:
-        if not LIBMIPCOSIM.is_file():
-            raise RuntimeError(f"{LIBMIPCOSIM} missing: run `make build/cosim/libmipcosim.so`")
-        lib = ctypes.CDLL(str(LIBMIPCOSIM))
-        c = ctypes
-        for name, res, args in [
-            ("mipcosim_new_args", c.c_void_p, [c.c_int, c.c_int, c.c_int, c.c_double, c.c_double,
-                                               c.c_double, c.c_uint64, c.c_uint32, c.c_uint64,
-                                               c.c_int, c.c_char_p, c.c_size_t]),
-            ("mipcosim_free", None, [c.c_void_p]),
-            ("mipcosim_net", c.c_void_p, [c.c_void_p]),
-            ("mipemu_net_advance", c.c_int, [c.c_void_p, c.c_uint64]),
-            ("mipemu_handle", c.c_long, [c.c_void_p, c.c_int, c.c_char_p, c.c_size_t,
-                                         c.c_char_p, c.c_size_t]),
-            ("mipemu_net_set_fate", None, [c.c_void_p, _FATE_FN, c.c_void_p]),
-            ("mipemu_net_inject", c.c_int, [c.c_void_p, c.c_int, c.c_int,
-                                            c.POINTER(c.c_uint16), c.c_int]),
-            ("mipemu_net_peek", c.c_int, [c.c_void_p, c.c_int, c.c_int, c.c_uint, c.c_uint,
-                                          c.POINTER(c.c_uint16)]),
-            ("mipemu_net_stats", c.c_int, [c.c_void_p, c.c_int, c.POINTER(_Stats)]),
-        ]:
-            f = getattr(lib, name)
-            f.restype, f.argtypes = res, args
-        _LIB = lib
-    return _LIB
+_lib = kernel_lib          # libmipcosim.so: the emulator core's API, the one binding
 
 
 class ModbusException(AssertionError):
