@@ -33,7 +33,7 @@ def parse(argv):
     p.add_argument("--polled", action="store_true")
     p.add_argument("--realistic", action="store_true", help="9600 bit/s, 20 ms gaps")
     p.add_argument("--window", type=int, choices=[1, 2], default=1,
-                   help="MIP_Sender's uWindow: 2 pipelines the records (st_lib/PROTOCOL.md P27)")
+                   help="the senders' uWindow (MIP_Sender, MIP_Link): 2 pipelines the records (st_lib/PROTOCOL.md P27)")
     p.add_argument("--restart-every", type=float,
                    help="virtual seconds between PLC restarts, alternating outstation / central "
                         "(run: none, soak: 120)")
