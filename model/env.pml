@@ -244,8 +244,23 @@ active proctype Radio() {
 
 /* ---- the receiving application (ghost) ---- */
 
-/* Never set: each names the property in the text spin prints for a violated assertion. */
-bool GAP, MIX, DUP_ORDER, LOST, SILENT, DONE, WARMFAIL;
+/* Never set: each names the property in the text spin prints for a violated assertion.
+ * -DSEEK=K_<name> (model/run.py's search for one documented weakness) sets every other one,
+ * so that the search looks for a run that violates this property and no other stops it. */
+#define K_GAP 1
+#define K_MIX 2
+#define K_DUP_ORDER 3
+#define K_LOST 4
+#define K_SILENT 5
+#define K_DONE 6
+#define K_WARMFAIL 7
+#ifndef SEEK
+#define SEEK 0
+#endif
+bool GAP = (SEEK != 0 && SEEK != K_GAP), MIX = (SEEK != 0 && SEEK != K_MIX),
+     DUP_ORDER = (SEEK != 0 && SEEK != K_DUP_ORDER), LOST = (SEEK != 0 && SEEK != K_LOST),
+     SILENT = (SEEK != 0 && SEEK != K_SILENT), DONE = (SEEK != 0 && SEEK != K_DONE),
+     WARMFAIL = (SEEK != 0 && SEEK != K_WARMFAIL);
 
 /* a record handed to the application */
 inline app_record(gt, gi) {

@@ -7,10 +7,19 @@ peers that follow only the Piciorgros note ("known: KIND"): the run then must fi
 that kind of violation, so the model keeps showing why our extensions exist. Any other
 outcome ends the runner non-zero. A violation prints its counterexample as a short trace.
 
-usage: model/run.py [-k SUBSTRING] [--list] [--junit FILE] [--trace-dir DIR] [--work DIR]
+Each configuration is checked with the cheapest search that proves what it must show:
+a configuration that must hold, or must show a hang ("known: progress"), by pan's
+acceptance-cycle search under weak fairness (`pan -a -f`: the progress property, with every
+assertion checked on the way); one that must show a safety violation by a breadth-first
+safety search (`-DSAFETY -DBFS`), which stops at the shortest counterexample and gives its
+trace in the same run. A search that ends without covering the whole state space (memory,
+depth or time) proves nothing: its verdict is INCOMPLETE and fails the run.
+
+usage: model/run.py [-k SUBSTRING] [--quick] [--list] [--junit FILE] [--trace-dir DIR] [--work DIR]
 """
 import argparse
 import concurrent.futures
+import hashlib
 import os
 import re
 import shutil
@@ -210,26 +219,73 @@ def sh(cmd, cwd, timeout=900):
     return p.returncode, p.stdout
 
 
-def build(work, defs, extra_cc=()):
+# How pan is compiled for each kind of search. -DCOLLAPSE stores a state in about half the
+# memory at little cost in time, so the same MEMLIM covers twice the states; -O2 makes the
+# search itself about a fifth faster than -O1.
+CC_BASE = ["-O2", "-w", "-DCOLLAPSE"]
+SEARCHES = {
+    # progress (the ltl claim) under weak fairness, assertions checked on the way
+    "liveness": dict(cc=["-DNFAIR=3"], pan=["-a", "-f"]),
+    # assertions only, breadth-first: the first violation found is a shortest one
+    "safety": dict(cc=["-DBFS", "-DSAFETY", "-DNOCLAIM"], pan=[]),
+}
+
+
+def search_for(expect):
+    """The cheapest search that proves the expectation: a documented safety violation is
+    found by the safety search alone; "holds" includes progress, and so does a known hang."""
+    if expect.startswith("known:") and expect != "known:progress":
+        return "safety"
+    return "liveness"
+
+
+def build(work, defs, extra_cc=(), cache=None):
+    """spin -a and cc into work/pan; with cache, a pan built before from the same pan.c and
+    flags is reused (the C compile is most of a small configuration's time)."""
     rc, out = sh(["spin", "-a"] + spin_defs(defs) + [MODEL], work)
     if rc != 0 or not os.path.exists(os.path.join(work, "pan.c")):
         raise RuntimeError("spin -a failed:\n" + out)
-    rc, out = sh(["cc", "-O1", "-w", "-DMEMLIM=4096"] + list(extra_cc)
-                 + ["-o", "pan", "pan.c"], work)
+    flags = CC_BASE + list(extra_cc)
+    key = None
+    if cache:
+        h = hashlib.sha256(" ".join(flags).encode())
+        for f in sorted(os.listdir(work)):
+            if f.startswith("pan.") and f[4:] in ("b", "c", "h", "m", "p", "t"):
+                with open(os.path.join(work, f), "rb") as fh:
+                    h.update(f.encode() + b"\0" + fh.read())
+        key = os.path.join(cache, h.hexdigest()[:24])
+        if os.path.exists(key):
+            shutil.copy2(key, os.path.join(work, "pan"))
+            return
+    rc, out = sh(["cc"] + flags + ["-o", "pan", "pan.c"], work)
     if rc != 0:
         raise RuntimeError("cc pan.c failed:\n" + out)
+    if key:
+        os.makedirs(cache, exist_ok=True)
+        tmp = key + ".%d.tmp" % os.getpid()
+        shutil.copy2(os.path.join(work, "pan"), tmp)
+        os.replace(tmp, key)   # atomic: a parallel runner may write the same key
 
 
 def stats(out):
     def grab(rx, conv=int, default=None):
         m = re.search(rx, out)
         return conv(m.group(1)) if m else default
+    errors = grab(r"errors: (\d+)")
+    why = None
+    if "max search depth too small" in out:
+        why = "max search depth too small"
+    elif "reached -DMEMLIM bound" in out or "out of memory" in out:
+        why = "out of memory (MODEL_MEMLIM)"
+    elif errors == 0 and "Search not completed" in out:
+        why = "search not completed"
     return {
         "stored": grab(r"(\d+) states, stored"),
         "depth": grab(r"depth reached (\d+)"),
-        "errors": grab(r"errors: (\d+)"),
-        "complete": "Search not completed" not in out or "errors: 0" not in out,
-        "maxdepth_hit": "max search depth too small" in out,
+        "errors": errors,
+        # pan stops at the first error (then "not completed" is expected); without an error
+        # only a search that covered every state proves anything
+        "incomplete": why if (errors == 0 or errors is None) else None,
     }
 
 
@@ -265,42 +321,79 @@ def readable_trace(work, defs, limit=60):
     return text
 
 
-def run_one(name, defs, expect, work_root, maxdepth):
+def run_one(name, defs, expect, work_root, maxdepth, memlim=4096, timeout=900, cache=None):
     work = os.path.join(work_root, re.sub(r"[^A-Za-z0-9]+", "_", name))
     shutil.rmtree(work, ignore_errors=True)
     os.makedirs(work)
     t0 = time.time()
-    build(work, defs, ["-DNFAIR=3"])
-    rc, out = sh(["./pan", "-a", "-f", "-m%d" % maxdepth, "-w22"], work)
+    search = search_for(expect)
+    sp = SEARCHES[search]
+    if search == "safety":
+        # look for the documented kind alone (env.pml: SEEK), so that another violation
+        # found first cannot hide it
+        defs = dict(defs, SEEK="K_" + expect.split(":", 1)[1])
+    build(work, defs, sp["cc"] + ["-DMEMLIM=%d" % memlim], cache)
+    try:
+        rc, out = sh(["./pan"] + sp["pan"] + ["-m%d" % maxdepth, "-w24"], work, timeout=timeout)
+    except subprocess.TimeoutExpired:
+        out = "Search not completed\nerrors: 0\ntimed out"
     st = stats(out)
+    if "timed out" in out:
+        st["incomplete"] = "no result within %d s (--timeout)" % timeout
     kind = kind_of(out) if st["errors"] else None
-    trace = []
-    if kind and kind != "progress":
-        # the shortest counterexample of a safety violation: breadth-first, claim off
-        build(work, defs, ["-DBFS", "-DNOCLAIM", "-DSAFETY"])
-        rc2, out2 = sh(["./pan", "-m%d" % maxdepth, "-w22"], work)
-        if "assertion violated" in out2:
-            trace = readable_trace(work, defs)
-    elif kind == "progress":
-        trace = readable_trace(work, defs)
+    if kind and kind != "progress" and search == "liveness":
+        # a safety violation where everything must hold: the shortest counterexample reads best
+        build(work, defs, SEARCHES["safety"]["cc"] + ["-DMEMLIM=%d" % memlim], cache)
+        sh(["./pan", "-m%d" % maxdepth, "-w24"], work, timeout=timeout)
+    trace = readable_trace(work, defs) if kind else []
     secs = time.time() - t0
-    if st["maxdepth_hit"]:
-        verdict, ok = "INCOMPLETE (max search depth too small)", False
-    elif expect == "holds":
-        ok = st["errors"] == 0
-        verdict = "holds" if ok else "VIOLATED " + (kind or "?")
+    if expect == "holds":
+        ok = st["errors"] == 0 and not st["incomplete"]
+        verdict = ("INCOMPLETE (%s)" % st["incomplete"]) if (st["incomplete"] and not kind) else \
+            ("holds" if ok else "VIOLATED " + (kind or "?"))
     else:
         want = expect.split(":", 1)[1]
         ok = kind == want
-        verdict = ("known weakness reproduced: " + want) if ok else \
-            ("EXPECTED %s, got %s" % (want, kind or "no violation"))
+        if ok:
+            verdict = "known weakness reproduced: " + want
+        elif st["incomplete"] and not kind:
+            verdict = "INCOMPLETE (%s): EXPECTED %s" % (st["incomplete"], want)
+        else:
+            verdict = "EXPECTED %s, got %s" % (want, kind or "no violation")
     return dict(name=name, stored=st["stored"], depth=st["depth"], secs=secs, ok=ok,
-                verdict=verdict, kind=kind, trace=trace, raw=out)
+                verdict=verdict, kind=kind, trace=trace, raw=out, search=search)
+
+
+# make test's quick set: one configuration of each family, cheap ones, and must-fail ones of
+# both searches, so both kinds of search and both layouts run on every change (make check
+# runs them all)
+QUICK = [
+    "note-note-strict/spont/up",                  # two note peers
+    "note-note-strict/spont/up+rst-rcv",          # must fail: a silent hang (progress, N2)
+    "ours-ours/spont/up+rst-rcv",                 # our pair, receiver restart
+    "ours-noteR-strict/polled/down+rst-snd",      # must fail: MIX (F2), safety search
+    "noteS-lenient-ours/spont/up+rst-rcv",        # must fail: GAP (F4)
+    "bidi/note-note-strict/spont/up+rst-rcv",     # bidirectional layout, must fail: N2
+    "bidi-noC3/ours-ours/polled/up+rst-snd",      # our link, must fail: P9 residual without C3
+    "warm/ours-ours/polled/up+wrst-rcv",          # warm restart of our receiver
+    "warm/periodic/ours-ours/spont/up+wrst-rcv",  # must fail: W0 (DONE)
+    "win2/ours-ours/spont/up",                    # the pipelined sender
+    "win2-pipelast/ours-ours/spont/up",           # must fail: P27 (GAP)
+]
+
+
+def cost_rank(name):
+    """Longest first, so that two workers end together: the bidirectional pipelined
+    configurations take minutes, most others seconds."""
+    return (("win2" in name and "bidi" in name) * 4 + ("bidi" in name) * 2
+            + name.startswith("warm") + ("rst" in name))
 
 
 def main(argv):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("-k", default="", help="run only configurations whose name contains this")
+    ap.add_argument("-x", action="append", default=[], metavar="SUBSTRING",
+                    help="leave out configurations whose name contains this (repeatable)")
     ap.add_argument("--exact", action="store_true", help="-k names one configuration exactly")
     ap.add_argument("--list", action="store_true", help="list the configurations and exit")
     ap.add_argument("--junit", help="write a JUnit XML report here")
@@ -309,39 +402,56 @@ def main(argv):
     ap.add_argument("--max-depth", type=int, default=200000)
     ap.add_argument("-D", action="append", default=[], metavar="NAME=VALUE",
                     help="an extra model define for every configuration (exploring variants)")
-    ap.add_argument("-j", type=int, default=2, help="configurations checked in parallel (default 2)")
+    ap.add_argument("-j", type=int, default=os.cpu_count() or 2,
+                    help="configurations checked in parallel (default: one per core)")
+    ap.add_argument("--quick", action="store_true",
+                    help="only the quick set: one configuration of each family (make test)")
+    ap.add_argument("--timeout", type=int, default=1200,
+                    help="seconds one search may take before it counts as INCOMPLETE (default 1200)")
+    ap.add_argument("--memlim", type=int, default=int(os.environ.get("MODEL_MEMLIM", "4096")),
+                    help="MB one search may use before it counts as INCOMPLETE (default 4096, "
+                         "or MODEL_MEMLIM)")
+    ap.add_argument("--pan-cache", help="keep compiled pan binaries here and reuse them "
+                                        "(default: WORK/pan-cache when --work is given)")
     a = ap.parse_args(argv)
     if shutil.which("spin") is None:
         print("model/run.py: error: spin is not installed (Debian package 'spin')", file=sys.stderr)
         return 2
     extra = dict(d.split("=", 1) if "=" in d else (d, "1") for d in a.D)
     sel = [(n, dict(d, **extra), e, w) for n, d, e, w in CONFIGS
-           if (n == a.k if a.exact else a.k in n)]
+           if (n == a.k if a.exact else a.k in n) and (not a.quick or n in QUICK)
+           and not any(x in n for x in a.x)]
     if a.list:
         for name, defs, expect, what in sel:
-            print("%-36s %-24s %s" % (name, expect, what))
+            print("%-36s %-24s %-9s %s" % (name, expect, search_for(expect), what))
         return 0
     if not sel:
         print("model/run.py: error: no configuration matches -k %r" % a.k, file=sys.stderr)
         return 2
     work_root = a.work or tempfile.mkdtemp(prefix="mip-model-")
     os.makedirs(work_root, exist_ok=True)
-    results = []
-    print("%-36s %10s %7s %7s  %s" % ("configuration", "states", "depth", "secs", "verdict"))
+    cache = a.pan_cache or (os.path.join(work_root, "pan-cache") if a.work else None)
+    results = {}
+    t_start = time.time()
+    print("%-36s %10s %7s %7s  %-9s %s" % ("configuration", "states", "depth", "secs", "search",
+                                           "verdict"))
     def one(c):
         name, defs, expect, what = c
         try:
-            return run_one(name, defs, expect, work_root, a.max_depth)
+            return run_one(name, defs, expect, work_root, a.max_depth, a.memlim, a.timeout, cache)
         except (RuntimeError, subprocess.TimeoutExpired) as e:
-            return dict(name=name, stored=None, depth=None, secs=0.0, ok=False,
+            return dict(name=name, stored=None, depth=None, secs=0.0, ok=False, search="-",
                         verdict="ERROR " + " | ".join(str(e).splitlines()[:2]), kind=None, trace=[], raw=str(e))
 
+    order = sorted(sel, key=lambda c: -cost_rank(c[0]))   # longest first
     with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, a.j)) as pool:
-        for r in pool.map(one, sel):
+        futs = [pool.submit(one, c) for c in order]
+        for fut in concurrent.futures.as_completed(futs):
+            r = fut.result()
             name = r["name"]
-            results.append(r)
-            print("%-36s %10s %7s %7.1f  %s" % (name, r["stored"], r["depth"], r["secs"], r["verdict"]),
-                  flush=True)
+            results[name] = r
+            print("%-36s %10s %7s %7.1f  %-9s %s" % (name, r["stored"], r["depth"], r["secs"],
+                                                     r["search"], r["verdict"]), flush=True)
             if r["trace"] and (not r["ok"] or os.environ.get("MODEL_TRACES")):
                 for ln in r["trace"]:
                     print("      " + ln)
@@ -350,6 +460,7 @@ def main(argv):
                 with open(os.path.join(a.trace_dir, re.sub(r"[^A-Za-z0-9]+", "_", name) + ".txt"), "w") as f:
                     f.write("%s: %s\n" % (name, r["verdict"]))
                     f.write("\n".join(r["trace"]) + "\n")
+    results = [results[c[0]] for c in sel]   # the report in the matrix's order
     npass = sum(r["ok"] for r in results)
     nfail = len(results) - npass
     if a.junit:
@@ -366,6 +477,8 @@ def main(argv):
             f.write("</testsuite>\n")
     if not a.work:
         shutil.rmtree(work_root, ignore_errors=True)
+    print("model: %d configurations in %.0f s wall with %d jobs (%.0f s of searching)"
+          % (len(results), time.time() - t_start, a.j, sum(r["secs"] for r in results)))
     print("model: %d passed, %d failed" % (npass, nfail))
     return 0 if nfail == 0 else 1
 
