@@ -2,9 +2,14 @@
 # adds itself to the lists below, so parts can be built side by side without touching this file.
 #
 #   make            build everything (venv with the stc translator, C libraries and programs)
-#   make test       build, run every C and Python test suite, JUnit XML into build/test-results/
+#   make test       the quick tier: every suite, its slow variants left out (minutes)
+#   make check      the full tier: every test, the exhaustive model, full fuzz budgets (CI)
 #   make run        the demo: a logger read out over the emulated radio network
 #   make bench      benchmarks (BENCH_QUICK=1 for a short smoke run)
+#
+# Both tiers run their suites side by side (make -j, JOBS; pytest-xdist inside the pytest
+# suites), each suite's output into build/test-results/<suite>.log with its JUnit XML, and end
+# with one table: suite, tests, passed, failed, skipped, seconds (build/test-results/timing.txt).
 
 SHELL := /bin/bash
 .DEFAULT_GOAL := all
@@ -17,15 +22,26 @@ BUILD     := build
 RESULTS   := $(BUILD)/test-results
 CC        ?= cc
 
+JOBS      ?= $(shell nproc 2>/dev/null || echo 2)
+# pytest-xdist workers of each pytest suite, and what the suites leave out (make test sets it
+# to "not slow"; make check runs everything): tests/conftest.py says what is slow and why
+PYTEST_N    ?= auto
+PYTEST_MARK ?=
+PYTEST    := $(PY) -m pytest -q -p no:cacheprovider -n $(PYTEST_N) --dist loadgroup \
+             --durations=15 $(if $(strip $(PYTEST_MARK)),-m "$(PYTEST_MARK)")
+SUITE     := python3 .ci/suite.py
+
 # Filled in by the parts:
 PY_PACKAGES   :=   # directories with a pyproject.toml, installed editable into the venv
 BUILD_TARGETS :=   # files or phony targets `make all` builds
-C_TESTS       :=   # phony targets that run a C test suite and exit non-zero on failure
+C_TESTS       :=   # phony targets that run a test suite and exit non-zero on failure; each
+                   # writes its JUnit XML to $(RESULTS)/<target>.xml or <target>-*.xml
 PYTEST_DEPS   :=   # what must be built before pytest runs
+QUICK_VARS    :=   # what make test passes to the suites (smaller budgets: fuzz runs, model set)
 
 include $(sort $(wildcard */part.mk))
 
-.PHONY: all venv test c-tests py-tests run bench clean
+.PHONY: all venv test check suites c-tests py-tests run bench clean
 
 # everything pytest needs too (PYTEST_DEPS: e.g. the TC6 schema of the docs tests, the bench tools)
 all: venv $(BUILD_TARGETS) $(PYTEST_DEPS)
@@ -38,14 +54,28 @@ $(VENV_ABS)/.done: requirements.txt $(foreach p,$(PY_PACKAGES),$(p)/pyproject.to
 	@$(if $(strip $(PY_PACKAGES)),$(PY) -m pip install -q --disable-pip-version-check --no-deps --no-build-isolation $(foreach p,$(PY_PACKAGES),-e $(p)),true)
 	@touch $@
 
+# The suites, longest first (make starts them in this order): make -k runs every one even
+# when one fails; the summary then fails the run.
+LONG_SUITES := model-check semantics-iec-tests
+SUITES = py-tests $(filter $(LONG_SUITES),$(C_TESTS)) $(filter-out $(LONG_SUITES),$(C_TESTS))
+
 test: all
-	@mkdir -p $(RESULTS)
-	@fail=0; for t in $(C_TESTS); do $(MAKE) --no-print-directory $$t || fail=1; done; \
-	$(MAKE) --no-print-directory py-tests || fail=1; exit $$fail
+	@$(SUITE) start --results $(RESULTS)
+	@$(MAKE) --no-print-directory -k -j$(JOBS) suites PYTEST_MARK="not slow" $(QUICK_VARS); \
+	$(SUITE) summary --results $(RESULTS) --title "make test" $(SUITES)
+
+check: all
+	@$(SUITE) start --results $(RESULTS)
+	@$(MAKE) --no-print-directory -k -j$(JOBS) suites; \
+	$(SUITE) summary --results $(RESULTS) --title "make check" $(SUITES)
+
+suites: $(addprefix suite/,$(SUITES))
+suite/%:
+	+@$(SUITE) run --results $(RESULTS) $* -- $(MAKE) --no-print-directory $*
 
 py-tests: all $(PYTEST_DEPS)
 	@mkdir -p $(RESULTS)
-	$(PY) -m pytest -q -p no:cacheprovider --junitxml=$(RESULTS)/pytest.xml tests $(PYTEST_ARGS)
+	$(PYTEST) --junitxml=$(RESULTS)/py-tests.xml tests $(PYTEST_ARGS)
 
 clean:
 	rm -rf $(BUILD)

@@ -10,6 +10,7 @@ EMU_FUZZ_RUNS ?= 20000
 
 BUILD_TARGETS += $(EMU_BUILD)/mip-emulator $(EMU_BUILD)/mipemu-sim $(EMU_BUILD)/libmipemu.a
 C_TESTS       += emulator-unit emulator-fuzz
+QUICK_VARS    += EMU_FUZZ_RUNS=2000
 PYTEST_DEPS   += $(EMU_BUILD)/mip-emulator $(EMU_BUILD)/mipemu-sim
 
 # -fPIC: the co-simulation may link the core into a shared object
@@ -41,7 +42,8 @@ emulator-unit: $(EMU_BUILD)/test_mipemu
 	@mkdir -p $(RESULTS)
 	$(EMU_BUILD)/test_mipemu --junit $(RESULTS)/emulator-unit.xml
 
-# A short deterministic run (fixed seed and run count) over a fresh copy of the seed corpus.
+# A short deterministic run (fixed seed and run count: make check 20000, make test 2000) over a
+# fresh copy of the seed corpus.
 emulator-fuzz: $(EMU_BUILD)/fuzz_mipemu
 	@mkdir -p $(RESULTS)
 	@rm -rf $(EMU_BUILD)/fuzz-corpus && mkdir -p $(EMU_BUILD)/fuzz-corpus && cp $(EMU_DIR)/fuzz/corpus/* $(EMU_BUILD)/fuzz-corpus/

@@ -32,7 +32,7 @@ $(RT_BUILD)/test_plcrt: $(RT_TEST_DIR)/test_plcrt.c $(RT_TEST_DIR)/fakeprog/fake
 C_TESTS += runtime-c-tests
 runtime-c-tests: $(RT_BUILD)/test_plcrt
 	@mkdir -p $(RESULTS)
-	$(RT_BUILD)/test_plcrt --junit $(RESULTS)/runtime_shim.xml
+	$(RT_BUILD)/test_plcrt --junit $(RESULTS)/runtime-c-tests.xml
 
 PYTEST_DEPS += $(RT_BUILD)/libplcrt.a
 
@@ -50,7 +50,7 @@ runtime-bench: $(RT_BUILD)/bench_plcrt
 
 # libFuzzer targets (clang, ASan + UBSan): the slave's request path (a byte stream as one client
 # connection) and the config parser. `make test` runs each briefly with a fixed seed from the
-# seed corpora in runtime_shim/fuzz/ (RT_FUZZ_RUNS); run one longer by hand, e.g.
+# seed corpora in runtime_shim/fuzz/ (RT_FUZZ_RUNS: make check 20000, make test 2000); run one longer by hand, e.g.
 #   build/runtime_shim/fuzz_slave -max_total_time=600 build/runtime_shim/fuzz-slave
 FUZZ_CC      ?= clang
 RT_FUZZ_RUNS ?= 20000
@@ -63,6 +63,7 @@ $(RT_BUILD)/fuzz_%: runtime_shim/fuzz/fuzz_%.c $(RT_FUZZ_SRC) $(RT_HEADERS)
 
 .PHONY: runtime-fuzz
 C_TESTS += runtime-fuzz
+QUICK_VARS += RT_FUZZ_RUNS=2000
 runtime-fuzz: $(RT_BUILD)/fuzz_slave $(RT_BUILD)/fuzz_config
 	@mkdir -p $(RESULTS)
 	@fail=0; for t in slave config; do \

@@ -1,0 +1,86 @@
+"""The two test tiers (README.md, Makefile).
+
+`make test` runs the quick tier (`pytest -m "not slow"`), `make check` (CI) runs every test.
+A test belongs to the full tier only when it is marked `@pytest.mark.slow` in its file or is
+listed in FULL_TIER below, each with the reason; a parametrised test listed in SAMPLED keeps
+every n-th case in the quick tier (the same cases on every run: by position) and leaves the
+rest to the full tier. Nothing here skips a test: `make check` runs them all.
+
+Parallel runs (pytest-xdist, `--dist loadgroup`): a module whose module-scoped fixture is
+expensive (it runs once per worker that gets one of the module's tests) is kept on one worker
+by ONE_WORKER, and so is a module whose session fixture collects results into one file.
+"""
+import pytest
+
+# node id prefix -> why it waits for the full tier (the quick tier keeps its suite by other tests)
+FULL_TIER = {
+    "tests/bench/test_bench_quick.py":
+        "every benchmark figure in quick mode (minutes); test_bench_tools stays quick",
+    "tests/translator/test_stc_cli.py::test_whole_corpus_deterministic":
+        "translates the whole corpus twice; test_deterministic_output stays quick",
+    "tests/st_lib/test_lib_counting.py::test_sender_counts_to_65534_then_65535":
+        "65,534 records; the refusal of the 65,535th and the receiver's number space stay quick",
+    "tests/st_lib/test_lib_property.py::test_unidirectional_exactly_once":
+        "30 generated scenarios; the bidirectional property stays quick",
+    "tests/chain/test_chain_cosim.py::test_chain_scan_tick_is_a_parameter":
+        "a long run at several scan ticks",
+    "tests/chain/test_chain_cosim.py::test_chain_pipelined_soak_with_restarts":
+        "a soak",
+    "tests/chain/test_chain_warm_restart.py::test_warm_restart_rolls_back_to_the_last_snapshot":
+        "real-time processes killed and restarted; the cold case stays quick",
+    "tests/chain/test_chain_programs.py::test_chain_committed_configs_load[plc/central":
+        "the central configs run long; the outstation's stays quick",
+    "tests/chain/test_chain_many.py::test_chain_many_full_network_of_247_stations":
+        "247 stations; the four-station read-out stays quick",
+    "tests/chain/test_chain_many.py::test_chain_many_exact_under_loss":
+        "repeats the read-out under loss; test_chain_cosim's matrix has loss in the quick tier",
+    "tests/chain/test_chain_many.py::test_chain_many_a_check_that_would_see_loss":
+        "a second many-station run",
+    "tests/docs/test_docs_examples.py::test_glue_example_sends_its_data":
+        "runs the guide's glue example in real time; its translation stays quick",
+}
+
+# test function (node id without the parameters) -> n: every n-th case stays in the quick tier
+SAMPLED = {
+    "tests/translator/test_stc_corpus.py::test_accept": 4,
+    "tests/translator/test_stc_corpus.py::test_reject": 3,
+    "tests/interop/test_interop_matrix.py::test_interop_cell": 6,
+    "tests/chain/test_chain_cosim.py::test_chain_matrix_exact_delivery": 4,
+}
+
+# modules whose tests run on one worker
+ONE_WORKER = (
+    "tests/bench/test_bench_quick.py",     # runs `make bench` once for all its tests
+    "tests/interop/test_interop_matrix.py",  # writes one results file of every cell it ran
+    "tests/dist/test_dist.py",             # builds the release archive once
+    "tests/chain/test_chain_warm_restart.py",
+)
+
+
+@pytest.hookimpl(tryfirst=True)   # before -m / -k deselect: every collected test is seen
+def pytest_collection_modifyitems(config, items):
+    seen = {}
+    for item in items:
+        nodeid = item.nodeid
+        base = nodeid.split("[", 1)[0]
+        if any(nodeid.startswith(p) for p in FULL_TIER):
+            item.add_marker(pytest.mark.slow)
+        elif base in SAMPLED:
+            i = seen.get(base, 0)
+            seen[base] = i + 1
+            if i % SAMPLED[base]:
+                item.add_marker(pytest.mark.slow)
+        module = nodeid.split("::", 1)[0]
+        if module in ONE_WORKER:
+            item.add_marker(pytest.mark.xdist_group(module))
+    # an entry that names no test any more would silently put its tests back into the quick
+    # tier (or keep none of them there): checked for every module collected whole
+    if any("::" in str(a) for a in config.args):
+        return
+    ids = [i.nodeid for i in items]
+    modules = {n.split("::", 1)[0] for n in ids}
+    stale = [e for e in list(FULL_TIER) + list(SAMPLED)
+             if e.split("::", 1)[0] in modules and not any(n.startswith(e) for n in ids)]
+    if stale:
+        raise pytest.UsageError("tests/conftest.py: tier entries that name no test: "
+                                + ", ".join(sorted(stale)))
