@@ -6,7 +6,10 @@
 Every FUNCTION_BLOCK with a `(*@ block NAME ... *)` header gets a section: purpose, the
 interface table of the header, behaviour and example. Types come from the TYPE blocks and their
 comments. --check (also done on every run) compares each header's interface table with the
-VAR_INPUT / VAR_OUTPUT / VAR_IN_OUT declarations and exits 1 when they disagree.
+VAR_INPUT / VAR_OUTPUT / VAR_IN_OUT declarations and exits 1 when they disagree: a variable
+missing on either side, another direction, or a declaration whose trailing comment (what an IDE
+shows as its tooltip, and the PLCopen export as its documentation) is missing or says other
+than the table's meaning column.
 """
 from __future__ import annotations
 
@@ -121,22 +124,35 @@ def check(units):
             if d["name"] != p.name:
                 problems.append(f"{u.file}:{p.line}: header names {d['name']!r}, "
                                 f"the block is {p.name}")
-            documented = {}
+            documented, meaning = {}, {}
+            head = d["interface"][0] if d["interface"] else []
+            mcol = head.index("meaning") if "meaning" in head else None
             for row in d["interface"][1:]:
                 for n in row[0].split(","):
                     documented[n.strip().upper()] = row[1] if len(row) > 1 else ""
+                    if mcol is not None and mcol < len(row):
+                        meaning[n.strip().upper()] = row[mcol]
             declared = {}
             for s in p.sections:
                 if s.kind in DIR_OF:
                     for v in s.vars:
-                        declared[v.name.upper()] = (v.name, DIR_OF[s.kind])
-            for key, (name, direction) in declared.items():
+                        declared[v.name.upper()] = (v.name, DIR_OF[s.kind], v)
+            for key, (name, direction, v) in declared.items():
                 if key not in documented:
                     problems.append(f"{u.file}:{p.line}: {p.name}.{name} ({direction}) is not "
                                     f"in the header's interface table")
-                elif documented[key] and documented[key] != direction:
+                    continue
+                if documented[key] and documented[key] != direction:
                     problems.append(f"{u.file}:{p.line}: {p.name}.{name}: header says "
                                     f"{documented[key]}, declared {direction}")
+                # the declaration's trailing comment is what an IDE shows (tooltip, PLCopen
+                # documentation): it says the same as the header's meaning column
+                if not v.comment:
+                    problems.append(f"{u.file}:{v.line}: {p.name}.{name} has no trailing "
+                                    f"comment (the header's meaning: {meaning.get(key, '')!r})")
+                elif key in meaning and one_line(v.comment) != one_line(meaning[key]):
+                    problems.append(f"{u.file}:{v.line}: {p.name}.{name}: the trailing comment "
+                                    f"differs from the header's meaning column")
             for key in documented:
                 if key not in declared:
                     problems.append(f"{u.file}:{p.line}: {p.name}: the header documents "

@@ -50,3 +50,24 @@ def test_syntax_error_is_one_line_with_position(tmp_path):
     assert r.returncode == 1
     assert r.stderr.strip() == f"{st}:3:6: error: expected :, found 'BOOL'"
     assert "Traceback" not in r.stderr
+
+
+def test_check_wants_the_meaning_as_trailing_comment(tmp_path):
+    """The IDE shows a declaration's own comment: it must be there and say what the header's
+    meaning column says (whitespace aside)."""
+    st = tmp_path / "FB_Z.st"
+    st.write_text("(*@ block FB_Z\n@purpose\n  Test.\n@interface\n"
+                  "  | name | dir | type | default | meaning |\n"
+                  "  | xA   | in  | BOOL | FALSE   | starts it |\n"
+                  "  | xB   | in  | BOOL | FALSE   | stops it |\n"
+                  "  | xC   | out | BOOL |         | done |\n*)\n"
+                  "FUNCTION_BLOCK FB_Z\nVAR_INPUT\n  xA : BOOL; (* starts   it *)\n"
+                  "  xB : BOOL;\nEND_VAR\nVAR_OUTPUT\n  xC : BOOL; (* finished *)\nEND_VAR\n"
+                  "END_FUNCTION_BLOCK\n")
+    r = tool("blockref", "--check", st)
+    assert r.returncode == 1
+    lines = r.stderr.strip().splitlines()
+    assert lines == [f"{st}:13: FB_Z.xB has no trailing comment (the header's meaning: "
+                     f"'stops it')",
+                     f"{st}:16: FB_Z.xC: the trailing comment differs from the header's "
+                     f"meaning column"], r.stderr

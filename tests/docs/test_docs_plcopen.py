@@ -56,6 +56,26 @@ def test_every_block_type_and_variable_is_exported(xml):
             assert names == [v.name for s in p.sections for v in s.vars]
 
 
+def test_every_interface_variable_is_documented(xml):
+    """What an IDE shows when the integrator hovers over an input or output of a block (and
+    every type and enum value): nothing is left without its documentation."""
+    root = etree.parse(str(xml)).getroot()
+    bare, count = [], 0
+    for pou in root.iterfind(".//p:pou", NS):
+        for tag in ("inputVars", "outputVars", "inOutVars"):
+            for v in pou.iterfind(f"p:interface/p:{tag}/p:variable", NS):
+                count += 1
+                doc = v.find("p:documentation/x:p", NS)
+                if doc is None or not (doc.text or "").strip():
+                    bare.append(f"{pou.get('name')}.{v.get('name')}")
+    for dt in root.iterfind(".//p:dataType", NS):
+        doc = dt.find("p:documentation/x:p", NS)
+        if doc is None or not (doc.text or "").strip():
+            bare.append(dt.get("name"))
+    assert count > 150, "found too few interface variables: fix the test"
+    assert not bare, "no documentation: " + ", ".join(bare)
+
+
 def elementary_or_derived(t):
     child = t[0]
     tag = etree.QName(child).localname
