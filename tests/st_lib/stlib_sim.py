@@ -20,7 +20,7 @@ import weakref
 from dataclasses import dataclass
 from pathlib import Path
 
-from mipcosim.layout import enum_values
+from mipcosim.layout import enum_values  # noqa: F401 (the tests import it from here)
 from mipcosim.sim import FATE_FN as _FATE_FN, Stats as _Stats, kernel_lib
 from plcharness import Plc
 

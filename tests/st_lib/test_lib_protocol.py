@@ -281,6 +281,7 @@ def test_receiver_restart_mid_transfer(wd):
     u.restart_central()
     assert u.bench.run_until(lambda: u.snd["xError"], 2000)
     assert u.snd["eErrorId"] == E_PEER_RESET
+    assert not u.snd["xAborted"]       # a failure, not an abort
     u.snd["xExecute"] = False
     u.bench.step(2)
     u.sink.records.clear()
@@ -298,6 +299,7 @@ def test_abort_then_new_transfer(wd):
     u.snd["xAbort"] = True
     u.bench.step()
     assert u.snd["xError"] and u.snd["eErrorId"] == E_ABORTED
+    assert u.snd["xAborted"]           # beside xError (the CODESYS behaviour model's output)
     u.snd["xAbort"] = False
     u.snd["xExecute"] = False
     u.bench.step(3)
