@@ -12,7 +12,7 @@ ST_LIB = REPO / "st_lib"
 # st_lib in import order (docs/blocks.md derives the same order from the sources): the one list
 # the Python tools build from (tests, docs, benchmarks)
 LIB_FILES = ["MIP_Types.st", "MIP_Version.st", "MIP_StatusBit.st", "MIP_EchoMagic.st",
-             "MIP_Status.st", "MIP_WriteChannel.st",
+             "MIP_CheckStep.st", "MIP_Status.st", "MIP_WriteChannel.st",
              "MIP_Layout.st", "MIP_ReadDecoder.st", "MIP_Sender.st", "MIP_Receiver.st",
              "MIP_Link.st", "MIP_BufferSender.st"]
 MAX_STATIONS = 4

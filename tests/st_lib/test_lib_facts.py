@@ -1,6 +1,7 @@
-"""Each protocol fact of st_lib is written once (issue 29): the echo's magic word and the
-read-status bits are functions (MIP_EchoMagic.st, MIP_StatusBit.st), the buffer bound a VAR
-CONSTANT that matches MIP_T_Buffer. A second copy in another block would make the two drift apart in a later edit."""
+"""Each protocol fact of st_lib is written once (issue 29): the echo's magic word, the
+read-status bits and the check value's step are functions (MIP_EchoMagic.st, MIP_StatusBit.st,
+MIP_CheckStep.st), the buffer bound a VAR CONSTANT that matches MIP_T_Buffer. A second copy
+in another block would make the two drift apart in a later edit."""
 import re
 import sys
 from pathlib import Path
@@ -28,6 +29,14 @@ def test_read_status_bits_are_decoded_in_one_place():
     assert masks == [("MIP_StatusBit.st", "(wStatus AND wMask)")], masks
     # bit 4 (unconfirmed) is the one mask no other register of the library uses
     assert [f for f, _ in places(r"16#10\b")] == ["MIP_StatusBit.st"]
+
+
+def test_check_value_step_is_written_once():
+    # the step c := ROL(c XOR r, 5) of PROTOCOL.md's check value: only MIP_CheckStep rotates,
+    # and the sender and the receiver both fold it
+    assert places(r"\bRO[LR]\s*\(") == [("MIP_CheckStep.st", "ROL(")]
+    callers = sorted({f for f, _ in places(r"\bMIP_CheckStep\s*\(")} - {"MIP_CheckStep.st"})
+    assert callers == ["MIP_Receiver.st", "MIP_Sender.st"]
 
 
 def test_buffer_bound_matches_the_buffer_type():
