@@ -1,6 +1,7 @@
 """The enum numbers Python uses come from st_lib/MIP_Types.st through one reader
 (mipcosim.layout.st_enums): it agrees with the documentation's reader (docs/tools/stdecl.py,
 behind the 'as integer' column of docs/blocks.md) and refuses what it cannot number."""
+import re
 import sys
 from pathlib import Path
 
@@ -41,3 +42,13 @@ def test_explicit_numbers_and_unknown_types_are_refused(tmp_path):
         st_enums(st)
     with pytest.raises(EnumError, match="no enumerated type E_NOPE"):
         enum_values("E_NOPE")
+
+
+def test_every_enum_value_is_used():
+    # an unused value is dead and holds the numbers after it hostage (issue 29: MIP_SND_RESET);
+    # while the version is 0.x it goes, with a CHANGELOG entry
+    code = " ".join(re.sub(r"\(\*.*?\*\)", " ", p.read_text(), flags=re.S)
+                    for p in sorted((REPO / "st_lib").glob("*.st")) if p.name != "MIP_Types.st")
+    used = {w.upper() for w in re.findall(r"\bMIP_\w+", code, re.I)}   # ST is case-blind
+    unused = [v for vals in st_enums().values() for v in vals if v.upper() not in used]
+    assert unused == []
