@@ -31,6 +31,7 @@ docs: docs-blocks docs-traces docs-diagrams docs-plot docs-plcopen
 
 docs-blocks: | venv
 	$(PY) $(DOCS_TOOLS)/blockref.py -o docs/blocks.md $(DOCS_ST)
+	$(PY) $(DOCS_TOOLS)/blockref.py --write-sampled st_lib/README.md --write-sampled st_lib/PROTOCOL.md $(DOCS_ST)
 
 docs-traces: $(BUILD)/cosim/libmipcosim.so | venv
 	$(PY) $(DOCS_TOOLS)/gen_traces.py -o docs/traces

@@ -232,7 +232,7 @@ def source_out(s, src, retrans):
         f"mS{s}Done := UINT_TO_WORD({src}.uTransfersDone);",
         f"mS{s}Failed := UINT_TO_WORD({src}.uTransfersFailed);",
         f"mS{s}Retrans := UDINT_TO_WORD({retrans} MOD 65536);",
-        f"IF {src}.xAllReadOut THEN mS{s}All := 1; ELSE mS{s}All := 0; END_IF;",
+        f"IF {src}.xAllReadOut THEN mS{s}All := WORD#1; ELSE mS{s}All := WORD#0; END_IF;",
     ]
 
 
@@ -331,7 +331,7 @@ def central(bidi):
             code.append(
                 f"(* the central's own stream to station {s}: session pSession + 16#8000 *)\n"
                 f"src{s}(xRun := xRun, udiTotal := udiTotal, uPerTransfer := uPerTransfer, "
-                f"uPayload := uPayload,\n    wSession := pSession XOR 16#8000, wStation := {s}, "
+                f"uPayload := uPayload,\n    wSession := pSession XOR 16#8000, wStation := WORD#{s}, "
                 f"tLogPeriod := tLogPeriod,\n    udiStart := WORD_TO_UDINT(pDownStart{s}Lo) + "
                 f"WORD_TO_UDINT(pDownStart{s}Hi) * 65536,\n"
                 f"    xChunkRequest := link{s}.xChunkRequest, udiChunkIndex := link{s}.udiChunkIndex,"
@@ -497,7 +497,7 @@ END_IF;
                  f"         udiFailed := rcv{s}.udiFailedTransfers, eLastError := rcv{s}.eLastErrorId);",
                  f"  IF rcv{s}.xRecordValid THEN udiRecords := udiRecords + 1; END_IF;",
                  f"  IF rcv{s}.xRecordValid AND rcv{s}.xRecordLast THEN uTransfers := uTransfers + 1; END_IF;",
-                 f"  IF (store{s}.wFlags AND 2) <> 0 THEN uFailed := uFailed + 1; mErrStation := {s}; END_IF;",
+                 f"  IF (store{s}.wFlags AND 2) <> 0 THEN uFailed := uFailed + 1; mErrStation := WORD#{s}; END_IF;",
                  "END_IF;",
                  f"axWrReq[{s}] := rcv{s}.xWriteReq;"]
     code += [f"""\

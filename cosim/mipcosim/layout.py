@@ -1,7 +1,9 @@
 """The example programs' register layout (plc/README.md), the logger's data, runtime configs."""
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
@@ -9,7 +11,8 @@ PLC_DIR = REPO / "plc"
 ST_LIB = REPO / "st_lib"
 # st_lib in import order (docs/blocks.md derives the same order from the sources): the one list
 # the Python tools build from (tests, docs, benchmarks)
-LIB_FILES = ["MIP_Types.st", "MIP_Version.st", "MIP_Status.st", "MIP_WriteChannel.st",
+LIB_FILES = ["MIP_Types.st", "MIP_Version.st", "MIP_StatusBit.st", "MIP_EchoMagic.st",
+             "MIP_CheckStep.st", "MIP_Status.st", "MIP_WriteChannel.st",
              "MIP_Layout.st", "MIP_ReadDecoder.st", "MIP_Sender.st", "MIP_Receiver.st",
              "MIP_Link.st", "MIP_BufferSender.st"]
 MAX_STATIONS = 4
@@ -31,8 +34,45 @@ S_SEQ, S_FLAGS, S_ERROR, S_LOG_LO, S_LOG_HI, S_OUT_LO, S_OUT_HI, S_DONE, S_FAILE
     S_ALL = range(S_BASE, S_BASE + 11)
 W_BASE = 40
 
-ERRORS = ["NONE", "CHUNK_SIZE", "CHUNK_LEN", "NO_ACK", "PEER_RESET", "TOO_MANY_RECORDS",
-          "ABORTED", "SENDER_RESET", "TRANSFER_TIMEOUT", "BUFFER_LEN", "PEER_OUT_OF_STEP"]
+
+class EnumError(Exception):
+    pass
+
+
+_ENUM = re.compile(r"\b([A-Za-z_]\w*)\s*:\s*\(([^;]*?)\)\s*;", re.S)
+
+
+@lru_cache(maxsize=None)
+def st_enums(path: str | Path = ST_LIB / "MIP_Types.st") -> dict[str, list[str]]:
+    """The enumerated types of an ST file, {type name: [value names in order]}: a value's
+    number is its index (IEC 61131-3 leaves it to the implementation; matiec, stc and the PLCs
+    we target number from 0). The one reader of the numbers st_lib's E_MIP_* outputs carry
+    (cosim, docs/tools/chainsim.py, the tests); nothing in Python copies them by hand."""
+    text = Path(path).read_text(encoding="utf-8")
+    text = re.sub(r"\(\*.*?\*\)", " ", text, flags=re.S)
+    out = {}
+    for block in re.findall(r"\bTYPE\b(.*?)\bEND_TYPE\b", text, re.S):
+        for name, body in _ENUM.findall(block):
+            values = [v.strip() for v in body.split(",")]
+            if not all(re.fullmatch(r"[A-Za-z_]\w*", v) for v in values):
+                raise EnumError(f"{path}: enum {name}: values with explicit numbers or "
+                                f"not plain names are not supported")
+            out[name] = values
+    if not out:
+        raise EnumError(f"{path}: no enumerated type found")
+    return out
+
+
+def enum_values(type_name: str, path: str | Path = ST_LIB / "MIP_Types.st") -> dict[str, int]:
+    """{value name: number} of one enumerated type of st_lib (e.g. E_MIP_Error)."""
+    enums = st_enums(path)
+    if type_name not in enums:
+        raise EnumError(f"{path}: no enumerated type {type_name}")
+    return {v: i for i, v in enumerate(enums[type_name])}
+
+
+# E_MIP_Error's names without the MIP_ERR_ prefix, by number
+ERRORS = [v.removeprefix("MIP_ERR_") for v in st_enums()["E_MIP_Error"]]
 
 
 def error_name(code):

@@ -35,7 +35,7 @@ if str(REPO / "cosim") not in sys.path:
     sys.path.insert(0, str(REPO / "cosim"))       # this checkout's mipcosim
 
 from mipcosim import sim as _sim  # noqa: E402
-from mipcosim.layout import LIB_FILES  # noqa: E402   import order, the one list
+from mipcosim.layout import LIB_FILES, st_enums  # noqa: E402   import order, the one list
 
 PROGRAM = Path(__file__).with_name("chain_main.st")
 # MIP_STLIB_DIR: take the blocks from another directory (e.g. an export of the last commit while
@@ -289,10 +289,7 @@ class Side:
         return True
 
 
-ERRORS = ["MIP_ERR_NONE", "MIP_ERR_CHUNK_SIZE", "MIP_ERR_CHUNK_LEN", "MIP_ERR_NO_ACK",
-          "MIP_ERR_PEER_RESET", "MIP_ERR_TOO_MANY_RECORDS", "MIP_ERR_ABORTED",
-          "MIP_ERR_SENDER_RESET", "MIP_ERR_TRANSFER_TIMEOUT", "MIP_ERR_BUFFER_LEN",
-          "MIP_ERR_PEER_OUT_OF_STEP"]
+ERRORS = st_enums(LIB_DIR / "MIP_Types.st")["E_MIP_Error"]   # names by number, from the ST
 
 
 class Chain:

@@ -127,6 +127,7 @@ def export(units, name, date, order=None, version="1"):
          f'contentDescription="MIP logger transfer blocks, exported from ST sources by '
          f'docs/tools/plcopen_export.py"/>\n',
          f'  <contentHeader name="{esc(name)}">\n',
+         *file_comments(units, files),
          "    <coordinateInfo>\n",
          '      <fbd>\n        <scaling x="1" y="1"/>\n      </fbd>\n',
          '      <ld>\n        <scaling x="1" y="1"/>\n      </ld>\n',
@@ -169,10 +170,13 @@ def export(units, name, date, order=None, version="1"):
                 tag = SECTION_TAG[s.kind]
                 attrs = (' constant="true"' if s.constant else "") + (
                     ' retain="true"' if s.retain else "")
-                o.append(f"          <{tag}{attrs}>\n")
-                for v in s.vars:
-                    o.append(var_xml(v, 12))
-                o.append(f"          </{tag}>\n")
+                for vars_, doc in var_lists(s):
+                    o.append(f"          <{tag}{attrs}>\n")
+                    for v in vars_:
+                        o.append(var_xml(v, 12))
+                    if doc:
+                        o.append(doc_xml(doc, 12))
+                    o.append(f"          </{tag}>\n")
             o.append("        </interface>\n")
             o.append("        <body>\n          <ST>\n")
             o.append(f"            <xhtml:p><![CDATA[{cdata(p.body)}]]></xhtml:p>\n")
@@ -183,6 +187,40 @@ def export(units, name, date, order=None, version="1"):
     o.append("    </pous>\n  </types>\n  <instances>\n    <configurations/>\n  </instances>\n")
     o.append("</project>\n")
     return "".join(o)
+
+
+def var_lists(section):
+    """A VAR block as one or more variable lists [(vars, documentation)]. A stand-alone
+    comment inside the block (a group comment such as "parameters sampled at the rising edge
+    ...") heads the declarations below it up to the next blank line, group comment or END_VAR:
+    they become a list of their own whose documentation it is (TC6 gives a list one
+    documentation), so the comment stays with what it describes. A comment before END_VAR
+    documents the last list."""
+    cuts = {}
+    for idx, text in section.groups:
+        cuts.setdefault(idx, []).append(" ".join(text.split()))
+    ends = set(section.breaks)
+    lists, cur, doc = [], [], []
+    for i, v in enumerate(section.vars):
+        if i in cuts or (doc and i in ends):
+            if cur:
+                lists.append((cur, "\n".join(doc)))
+                cur, doc = [], []
+            doc += cuts.get(i, [])
+        cur.append(v)
+    doc += cuts.get(len(section.vars), [])
+    lists.append((cur, "\n".join(doc)))
+    return lists
+
+
+def file_comments(units, files):
+    """The files' `(*@ file ... *)` headers as the content header's Comment (TC6 has no
+    element per source file): one paragraph per file, in import order."""
+    by_file = {u.file: u for u in units}
+    texts = [dedent_doc(by_file[f].file_doc).strip() for f in files if by_file[f].file_doc]
+    if not texts:
+        return []
+    return [f"    <Comment>{esc(chr(10).join(texts))}</Comment>\n"]
 
 
 def dedent_doc(doc):

@@ -79,6 +79,11 @@ class VarSection:
     constant: bool = False
     retain: bool = False
     vars: list = field(default_factory=list)
+    # stand-alone comments inside the block (not a declaration's trailing comment):
+    # [(index of the variable they stand before (len(vars): before END_VAR), text)]
+    groups: list = field(default_factory=list)
+    # indexes of the variables a blank line stands before (where a group ends)
+    breaks: list = field(default_factory=list)
 
 
 @dataclass
@@ -191,13 +196,24 @@ class Parser:
 
     def trailing_comment(self, tok):
         """A comment starting on the same line right after tok (the ';' of a declaration)."""
+        t = self.trailing_token(tok)
+        return comment_text(t) if t is not None else None
+
+    def trailing_token(self, tok):
         for t in self.all:
             if t.kind == "comment" and t.pos > tok.pos:
                 between = self.text[tok.pos + len(tok.text):t.pos]
                 if "\n" not in between and not between.strip():
-                    return comment_text(t)
+                    return t
                 return None
         return None
+
+    def group_comments(self, after, before):
+        """Stand-alone comments between the token `after` (VAR keyword, qualifier or the ';' of
+        a declaration) and the position `before`, without after's trailing comment."""
+        trail = self.trailing_token(after) if after.text == ";" else None
+        return [comment_text(t) for t in self.all
+                if t.kind == "comment" and after.pos < t.pos < before and t is not trail]
 
     def doc_before(self, tok, since):
         """The last (*@ ... *) comment between `since` and tok."""
@@ -365,9 +381,16 @@ class Parser:
                 q = self.next().up
                 sec.constant |= q == "CONSTANT"
                 sec.retain |= q == "RETAIN"
-            while not self.accept("END_VAR"):
-                if self.peek() is None:
+            while True:
+                prev, nxt = self.toks[self.i - 1], self.peek()
+                if nxt is None:
                     raise self.err(kw, f"{k} without END_VAR")
+                for c in self.group_comments(prev, nxt.pos):
+                    sec.groups.append((len(sec.vars), c))
+                if sec.vars and re.search(r"\n[ \t]*\n", self.text[prev.pos:nxt.pos]):
+                    sec.breaks.append(len(sec.vars))
+                if self.accept("END_VAR"):
+                    break
                 sec.vars += self.var_decl()
             sections.append(sec)
         end_kw = POU_KINDS[kw.up]

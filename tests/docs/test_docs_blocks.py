@@ -50,3 +50,67 @@ def test_syntax_error_is_one_line_with_position(tmp_path):
     assert r.returncode == 1
     assert r.stderr.strip() == f"{st}:3:6: error: expected :, found 'BOOL'"
     assert "Traceback" not in r.stderr
+
+
+def test_check_wants_the_meaning_as_trailing_comment(tmp_path):
+    """The IDE shows a declaration's own comment: it must be there and say what the header's
+    meaning column says (whitespace aside)."""
+    st = tmp_path / "FB_Z.st"
+    st.write_text("(*@ block FB_Z\n@purpose\n  Test.\n@interface\n"
+                  "  | name | dir | type | default | meaning |\n"
+                  "  | xA   | in  | BOOL | FALSE   | starts it |\n"
+                  "  | xB   | in  | BOOL | FALSE   | stops it |\n"
+                  "  | xC   | out | BOOL |         | done |\n*)\n"
+                  "FUNCTION_BLOCK FB_Z\nVAR_INPUT\n  xA : BOOL; (* starts   it *)\n"
+                  "  xB : BOOL;\nEND_VAR\nVAR_OUTPUT\n  xC : BOOL; (* finished *)\nEND_VAR\n"
+                  "END_FUNCTION_BLOCK\n")
+    r = tool("blockref", "--check", st)
+    assert r.returncode == 1
+    lines = r.stderr.strip().splitlines()
+    assert lines == [f"{st}:13: FB_Z.xB has no trailing comment (the header's meaning: "
+                     f"'stops it')",
+                     f"{st}:16: FB_Z.xC: the trailing comment differs from the header's "
+                     f"meaning column"], r.stderr
+
+
+def test_sampled_lists_are_generated_from_the_headers():
+    """st_lib/README.md and PROTOCOL.md (P26) list which inputs are sampled at which edge: the
+    text between the markers is what the headers' 'sampled' column gives."""
+    import blockref
+    r = tool("blockref", "--sampled", *rel(ST_LIB))
+    assert r.returncode == 0, r.stderr
+    assert "`MIP_Sender`: at the rising edge of `xExecute`: `uChunkSize`" in r.stdout
+    for doc in ("README.md", "PROTOCOL.md"):
+        text = (REPO / "st_lib" / doc).read_text()
+        a = text.index(blockref.SAMPLED_BEGIN) + len(blockref.SAMPLED_BEGIN)
+        b = text.index(blockref.SAMPLED_END)
+        assert text[a:b] == "\n" + r.stdout, f"st_lib/{doc} is stale: run `make docs-blocks`"
+
+
+def test_check_compares_the_sampled_column_with_the_latch(tmp_path):
+    """A header that calls a latched input live, or a live input latched, is reported: here
+    MIP_Sender's uWindow (copied in the latch) and xAbort (used in the logic)."""
+    for f in ST_LIB:
+        (tmp_path / Path(f).name).write_text(Path(f).read_text())
+    snd = tmp_path / "MIP_Sender.st"
+    text = snd.read_text()
+    rows = [line for line in text.splitlines() if line.startswith(("  | uWindow ", "  | xAbort "))]
+    assert len(rows) == 2
+    for row in rows:
+        swapped = (row.replace("| rise of xExecute |", "| live             |") if "rise of" in row
+                   else row.replace("| live             |", "| rise of xExecute |"))
+        assert swapped != row
+        text = text.replace(row, swapped)
+    snd.write_text(text)
+    r = tool("blockref", "--check", *sorted(tmp_path.glob("*.st")))
+    assert r.returncode == 1
+    line = next(i for i, x in enumerate(text.splitlines(), 1) if x.startswith("FUNCTION_BLOCK"))
+    got = r.stderr.strip().splitlines()
+    assert f"{snd}:{line}: MIP_Sender.XABORT: the header says sampled 'rise of xExecute', the " \
+           f"code: 'live'" in got, r.stderr
+    assert f"{snd}:{line}: MIP_Sender.UWINDOW: the header says sampled 'live', the code: " \
+           f"'rise of xExecute'" in got, r.stderr
+    # the blocks that pass the input on to MIP_Sender inherit its column: reported too
+    assert {x.split(": ")[1].split(".")[0] for x in got} == {"MIP_Sender", "MIP_BufferSender",
+                                                             "MIP_Link"}
+    assert len(got) == 6

@@ -56,6 +56,94 @@ def test_every_block_type_and_variable_is_exported(xml):
             assert names == [v.name for s in p.sections for v in s.vars]
 
 
+def test_every_interface_variable_is_documented(xml):
+    """What an IDE shows when the integrator hovers over an input or output of a block (and
+    every type and enum value): nothing is left without its documentation."""
+    root = etree.parse(str(xml)).getroot()
+    bare, count = [], 0
+    for pou in root.iterfind(".//p:pou", NS):
+        for tag in ("inputVars", "outputVars", "inOutVars"):
+            for v in pou.iterfind(f"p:interface/p:{tag}/p:variable", NS):
+                count += 1
+                doc = v.find("p:documentation/x:p", NS)
+                if doc is None or not (doc.text or "").strip():
+                    bare.append(f"{pou.get('name')}.{v.get('name')}")
+    for dt in root.iterfind(".//p:dataType", NS):
+        doc = dt.find("p:documentation/x:p", NS)
+        if doc is None or not (doc.text or "").strip():
+            bare.append(dt.get("name"))
+    assert count > 150, "found too few interface variables: fix the test"
+    assert not bare, "no documentation: " + ", ".join(bare)
+
+
+def xml_text(path):
+    """Every text of the document (attributes' values aside), whitespace collapsed."""
+    root = etree.parse(str(path)).getroot()
+    return " ".join(" ".join(root.itertext()).split())
+
+
+def test_every_comment_is_kept(xml):
+    """No comment of the sources is lost on the way to an IDE: declarations' comments as the
+    variables' documentation, group comments inside VAR blocks as their list's, doc headers as
+    the POU's, file headers in the content header's Comment, enum values' in their type's,
+    body comments in the body text."""
+    import stdecl
+    text = xml_text(xml)
+    lost, count = [], 0
+    for f in ST_LIB:
+        for tok in stdecl.tokenize(Path(f).read_text(), f):
+            if tok.kind != "comment":
+                continue
+            count += 1
+            body = " ".join(tok.text[2:-2].split()).lstrip("@").strip()
+            if body not in text:
+                lost.append(f"{Path(f).name}:{tok.line}: {body[:60]}")
+    assert count > 200, "found too few comments: fix the test"
+    assert not lost, "comments missing from the XML:\n" + "\n".join(lost)
+
+
+def test_group_comment_documents_its_group(xml):
+    """MIP_Sender's "parameters sampled at the rising edge of xExecute" heads the uCfg...
+    variables up to the blank line: exactly those form the list it documents."""
+    root = etree.parse(str(xml)).getroot()
+    pou = next(p for p in root.iterfind(".//p:pou", NS) if p.get("name") == "MIP_Sender")
+    for vl in pou.iterfind("p:interface/p:localVars", NS):
+        doc = vl.find("p:documentation/x:p", NS)
+        if doc is not None and doc.text.startswith("parameters sampled"):
+            names = [v.get("name") for v in vl.iterfind("p:variable", NS)]
+            break
+    else:
+        raise AssertionError("no variable list carries the group comment")
+    assert names == ["uCfgChunk", "xCfgBidi", "xCfgCentral", "xCfgPolled", "xCfgStatic",
+                     "tCfgTimeout", "uCfgRetries", "xCfgRetained", "uCfgWindow"]
+
+
+def test_file_header_is_the_content_comment(xml):
+    root = etree.parse(str(xml)).getroot()
+    c = root.find("p:contentHeader/p:Comment", NS)
+    assert c is not None and c.text.startswith("file MIP_Types.st\nTypes shared by the MIP blocks")
+
+
+def test_no_body_comment_names_another_pou():
+    """Beremiz puts a POU before every other POU whose body text names it, comments included:
+    a body comment naming another block reorders the library it regenerates from the XML, and
+    plain iec2c then rejects it (issue 26). Bodies name other POUs only in code."""
+    import re
+
+    import stdecl
+    units = [stdecl.parse_file(f) for f in ST_LIB]
+    names = {p.name.upper() for u in units for p in u.pous}
+    assert len(names) >= 10
+    found = []
+    for u in units:
+        for p in u.pous:
+            for m in re.finditer(r"\(\*.*?\*\)", p.body, re.S):
+                for w in re.findall(r"[A-Za-z_]\w*", m.group()):
+                    if w.upper() in names and w.upper() != p.name.upper():
+                        found.append(f"{Path(u.file).name}: {p.name}'s body comment names {w}")
+    assert not found, "\n".join(found)
+
+
 def elementary_or_derived(t):
     child = t[0]
     tag = etree.QName(child).localname

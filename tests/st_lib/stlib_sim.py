@@ -20,8 +20,15 @@ import weakref
 from dataclasses import dataclass
 from pathlib import Path
 
+from mipcosim.layout import enum_values  # noqa: F401 (the tests import it from here)
 from mipcosim.sim import FATE_FN as _FATE_FN, Stats as _Stats, kernel_lib
 from plcharness import Plc
+
+# the numbers of st_lib's enumerations, read from st_lib/MIP_Types.st (never copied by hand)
+ERR = enum_values("E_MIP_Error")
+SND = enum_values("E_MIP_SenderState")
+WAIT = enum_values("E_MIP_WaitReason")
+RCV = enum_values("E_MIP_ReceiverState")
 
 REPO = Path(__file__).resolve().parents[2]
 LIB = REPO / "st_lib"

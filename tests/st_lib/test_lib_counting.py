@@ -4,9 +4,9 @@ from pathlib import Path
 
 import pytest
 
-from stlib_sim import ALL, FFFF, Fb, build
+from stlib_sim import ALL, ERR, FFFF, Fb, build
 
-E_TOO_MANY = 5
+E_TOO_MANY = ERR["MIP_ERR_TOO_MANY_RECORDS"]
 
 
 @pytest.fixture(scope="module")

@@ -7,11 +7,13 @@ from pathlib import Path
 
 import pytest
 
-from stlib_sim import FFFF, MS, Bi, Uni, pattern
+from stlib_sim import ERR, FFFF, MS, SND, WAIT, Bi, Uni, pattern
 
-E_NONE, E_PEER_RESET, E_SENDER_RESET, E_OUT_OF_STEP = 0, 4, 7, 10
-S_WAIT_ACK, S_ERROR = 4, 6
-W_ACK, W_CONFIRM, W_OUT_OF_STEP, W_RECORD = 4, 5, 6, 7
+E_NONE, E_PEER_RESET, E_SENDER_RESET, E_OUT_OF_STEP = (
+    ERR["MIP_ERR_" + n] for n in ("NONE", "PEER_RESET", "SENDER_RESET", "PEER_OUT_OF_STEP"))
+S_WAIT_ACK, S_ERROR = SND["MIP_SND_WAIT_ACK"], SND["MIP_SND_ERROR"]
+W_ACK, W_CONFIRM, W_OUT_OF_STEP, W_RECORD = (
+    WAIT["MIP_WAIT_" + n] for n in ("ACK", "CONFIRM", "OUT_OF_STEP", "RECORD"))
 MAGIC = 0x4D50
 
 

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from stlib_sim import FFFF, MS, Bi, Uni, pattern
+from stlib_sim import FFFF, MS, WAIT, Bi, Uni, pattern
 
 
 @pytest.fixture(scope="module")
@@ -127,7 +127,7 @@ def test_receiver_parameters_latched(wd):
     r["xEnable"] = True
     u.bench.step(10)
     n = len(u.port_c.writes)
-    assert r["eWaitReason"] == 9 and r["xSnapshotReq"]     # xRetained: acknowledgement 0 waits ...
+    assert r["eWaitReason"] == WAIT["MIP_WAIT_SNAPSHOT"] and r["xSnapshotReq"]     # xRetained: acknowledgement 0 waits ...
     r["wSnapshots"] = 1                                    # ... for a snapshot
     u.bench.step(10)
     assert len(u.port_c.writes) == n + 1

@@ -5,10 +5,13 @@ from pathlib import Path
 
 import pytest
 
-from stlib_sim import FFFF, Bi, Uni, pattern
+from stlib_sim import ERR, FFFF, Bi, Uni, pattern
 
 E_NONE, E_CHUNK_SIZE, E_CHUNK_LEN, E_NO_ACK, E_PEER_RESET, E_TOO_MANY, E_ABORTED, \
-    E_SENDER_RESET, E_TRANSFER_TIMEOUT, E_BUFFER_LEN = range(10)
+    E_SENDER_RESET, E_TRANSFER_TIMEOUT, E_BUFFER_LEN = (
+        ERR["MIP_ERR_" + n] for n in ("NONE", "CHUNK_SIZE", "CHUNK_LEN", "NO_ACK", "PEER_RESET",
+                                      "TOO_MANY_RECORDS", "ABORTED", "SENDER_RESET",
+                                      "TRANSFER_TIMEOUT", "BUFFER_LEN"))
 
 
 @pytest.fixture(scope="module")

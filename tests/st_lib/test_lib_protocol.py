@@ -5,11 +5,15 @@ from pathlib import Path
 
 import pytest
 
-from stlib_sim import FFFF, MS, Uni, pattern
+from stlib_sim import ERR, FFFF, MS, SND, Uni, pattern
 
 E_NONE, E_CHUNK_SIZE, E_CHUNK_LEN, E_NO_ACK, E_PEER_RESET, E_TOO_MANY, E_ABORTED, \
-    E_SENDER_RESET, E_TRANSFER_TIMEOUT, E_BUFFER_LEN = range(10)
-S_IDLE, S_RESET, S_GET_CHUNK, S_WAIT_REQUEST, S_WAIT_ACK, S_DONE, S_ERROR = range(7)
+    E_SENDER_RESET, E_TRANSFER_TIMEOUT, E_BUFFER_LEN = (
+        ERR["MIP_ERR_" + n] for n in ("NONE", "CHUNK_SIZE", "CHUNK_LEN", "NO_ACK", "PEER_RESET",
+                                      "TOO_MANY_RECORDS", "ABORTED", "SENDER_RESET",
+                                      "TRANSFER_TIMEOUT", "BUFFER_LEN"))
+S_IDLE, S_GET_CHUNK, S_WAIT_REQUEST, S_WAIT_ACK, S_DONE, S_ERROR = (
+    SND["MIP_SND_" + n] for n in ("IDLE", "GET_CHUNK", "WAIT_REQUEST", "WAIT_ACK", "DONE", "ERROR"))
 
 
 @pytest.fixture(scope="module")
@@ -277,6 +281,7 @@ def test_receiver_restart_mid_transfer(wd):
     u.restart_central()
     assert u.bench.run_until(lambda: u.snd["xError"], 2000)
     assert u.snd["eErrorId"] == E_PEER_RESET
+    assert not u.snd["xAborted"]       # a failure, not an abort
     u.snd["xExecute"] = False
     u.bench.step(2)
     u.sink.records.clear()
@@ -294,6 +299,7 @@ def test_abort_then_new_transfer(wd):
     u.snd["xAbort"] = True
     u.bench.step()
     assert u.snd["xError"] and u.snd["eErrorId"] == E_ABORTED
+    assert u.snd["xAborted"]           # beside xError (the CODESYS behaviour model's output)
     u.snd["xAbort"] = False
     u.snd["xExecute"] = False
     u.bench.step(3)

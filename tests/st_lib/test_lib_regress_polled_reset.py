@@ -4,9 +4,10 @@ With the polled drive, every acknowledgement 0 the receiver wrote for a reset ma
 sender as a new request telegram while the own modem was still repeating that reset on the
 radio (read-status bit 4 set). The sender answered it with a new marker, which replaced the
 unconfirmed block, was answered again, and so on: the own modem never reported the reset
-confirmed and MIP_Sender stayed in MIP_SND_RESET for good (thousands of retransmissions,
-nothing reported). Co-simulated with the example programs and the emulator core, realistic
-radio timing, the cases that stalled before the fix; every record is checked exactly once.
+confirmed and MIP_Sender stayed in MIP_SND_RESET (a state removed since) for good (thousands
+of retransmissions, nothing reported). Co-simulated with the example programs and the
+emulator core, realistic radio timing, the cases that stalled before the fix; every record is
+checked exactly once.
 
 Since sessions open with record 1 (st_lib/PROTOCOL.md P6) there is no reset phase any more; the
 schedules stay as polled, lossy liveness cases of the whole chain."""

@@ -8,9 +8,9 @@ from pathlib import Path
 
 import pytest
 
-from stlib_sim import FFFF, Uni, pattern
+from stlib_sim import FFFF, WAIT, Uni, pattern
 
-MIP_WAIT_SNAPSHOT = 9      # E_MIP_WaitReason
+MIP_WAIT_SNAPSHOT = WAIT["MIP_WAIT_SNAPSHOT"]
 
 
 @pytest.fixture(scope="module")

@@ -7,7 +7,9 @@ from pathlib import Path
 
 import pytest
 
-from stlib_sim import FFFF, Uni, pattern
+from stlib_sim import FFFF, Uni, enum_values, pattern
+
+WIN = enum_values("E_MIP_WindowState")
 from test_lib_interop import NoteCentral, uni_vs_note_central
 
 
@@ -39,6 +41,19 @@ def pipelined(radio, start=0):
     return sorted(set(out))
 
 
+class WindowStates:
+    """A bench part: MIP_Sender's eWindow after every scan, and the changes between scans."""
+
+    def __init__(self, u):
+        self.snd, self.states, self.steps = u.snd, [], set()
+
+    def after_scan(self):
+        w = self.snd["eWindow"]
+        if self.states and self.states[-1] != w:
+            self.steps.add((self.states[-1], w))
+        self.states.append(w)
+
+
 def run(u, window, limit=20000):
     u.snd["uWindow"] = window
     u.bench.step(3)
@@ -56,6 +71,8 @@ def test_window_2_pipelines_and_delivers_exactly(wd):
     assert r1 == r2 == "done"
     assert u1.sink.transfers == [data] and u2.sink.transfers == [data]
     assert pipelined(u1.radio) == []
+    assert u1.snd["eWindow"] == u2.snd["eWindow"] == WIN["MIP_WIN_SINGLE"]
+    assert u1.snd["udiLoopOverruns"] == u2.snd["udiLoopOverruns"] == 0
     # from record 2 on every record but the last goes up before the acknowledgement of the
     # one before it (record 2 waits for ack 1: P27, a stale ack 2 could pass for it)
     assert pipelined(u2.radio) == list(range(3, 30))
@@ -72,8 +89,18 @@ def test_window_2_goes_back_when_the_receiver_reads_too_slowly(wd):
     data = pattern(30 * 122, seed=901)
     u = Uni(wd, data, timeout_ms=300)
     u.port_c.read_every = 12
+    seen = WindowStates(u)
+    u.bench.parts.append(seen)
     result, _ = run(u, 2, limit=40000)
     assert result == "done" and u.sink.transfers == [data]
+    # eWindow showed each state, and only the steps P27 allows: single -> ahead (pipelined),
+    # ahead -> single (acknowledged), ahead -> back (retransmission), back -> single
+    assert set(seen.states) == set(WIN.values())
+    assert seen.steps <= {(WIN["MIP_WIN_SINGLE"], WIN["MIP_WIN_AHEAD"]),
+                          (WIN["MIP_WIN_AHEAD"], WIN["MIP_WIN_SINGLE"]),
+                          (WIN["MIP_WIN_AHEAD"], WIN["MIP_WIN_BACK"]),
+                          (WIN["MIP_WIN_BACK"], WIN["MIP_WIN_SINGLE"])}, seen.steps
+    assert u.snd["udiLoopOverruns"] == 0
     assert [n for n, _ in u.sink.records] == list(range(1, 30)) + [FFFF]
     assert u.rcv["udiUnexpected"] >= 1          # a pipelined record arrived before its turn
     assert 1 <= u.snd["udiRetransmissions"] <= 30 // 8 + 2

@@ -93,10 +93,11 @@ def _lit_fits(value, ty):
 
 
 class Checker:
-    def __init__(self, diags, semantics="matiec"):
+    def __init__(self, diags, semantics="matiec", strict_iec=False):
         self.d = diags
         self.p = Project()
         self.p.semantics = semantics
+        self.strict_iec = strict_iec   # --strict-iec: warn where an edition-2 checker is stricter
         self.file = None
 
     def warn(self, pos, msg):
@@ -1264,6 +1265,8 @@ class Checker:
 
     def coerce(self, e, from_t, to_t, what, soft=False):
         """Check that a value of from_t can be stored in to_t; settle literals."""
+        if self.strict_iec and not soft:
+            self._strict_bit_literal(e, to_t, what)
         if from_t.is_lit:
             if to_t.is_lit:
                 return
@@ -1294,6 +1297,16 @@ class Checker:
                       "declare a TYPE and use it on both sides")
         self.fail(e.pos, f"{what}: type {from_t} cannot be assigned to {to_t} without explicit "
                   f"conversion (IEC strict typing): use {_conv_hint(from_t, to_t)}")
+
+    def _strict_bit_literal(self, e, to_t, what):
+        """--strict-iec: an untyped decimal integer literal stored in an ANY_BIT variable (BYTE,
+        WORD, DWORD, LWORD). matiec, CODESYS and TwinCAT accept it; a strict IEC 61131-3
+        edition-2 checker does not (a decimal literal is ANY_INT there). Typed (WORD#0) and
+        based (16#0) literals are bit strings."""
+        if (isinstance(e, S.IntLit) and not e.based and to_t.is_elem and to_t.kind == "bit"):
+            self.warn(e.pos, f"strict IEC: {what}: untyped integer literal {e.text} stored in "
+                             f"{to_t} (a strict edition-2 checker rejects it): write "
+                             f"{to_t}#{e.text} or a based literal like 16#{e.value:X}")
 
     def need_settled(self, e, t):
         if e.ty is None or e.ty.is_lit:

@@ -19,6 +19,8 @@ LOCATED_VARIABLES.h, SYMBOLS.tsv and SOURCES.txt (the .c files to compile).
 OpenPLC and Beremiz run) where they differ from IEC 61131-3; --semantics=iec gives the IEC
 values. Constructs whose value differs between the two get a portability warning
 (FILE:LINE:COL: warning: MESSAGE) in both modes; --werror-portability makes them errors.
+--strict-iec adds warnings where a strict IEC 61131-3 edition-2 checker rejects what matiec
+accepts (an untyped integer literal stored in an ANY_BIT variable: write WORD#0 or 16#0).
 Errors are printed as FILE:LINE:COL: error: MESSAGE. Exit status: 0 success, 1 errors in
 the input, 2 bad usage."""
 
@@ -46,6 +48,9 @@ def main(argv=None):
                     help="run-time values to reproduce: matiec's (default) or IEC 61131-3's")
     ap.add_argument("--werror-portability", action="store_true",
                     help="treat portability warnings (matiec and IEC values differ) as errors")
+    ap.add_argument("--strict-iec", action="store_true",
+                    help="also warn where a strict IEC 61131-3 edition-2 checker rejects what "
+                         "matiec accepts (an untyped integer literal stored in BYTE/WORD/...)")
     ap.add_argument("--version", action="version", version=f"stc {__version__}")
     ap.add_argument("files", nargs="*", metavar="FILE.st")
     args = ap.parse_args(argv)
@@ -58,7 +63,7 @@ def main(argv=None):
     def work():
         try:
             result.append(run(args.files, args.libdirs, args.outdir, args.semantics,
-                              args.werror_portability))
+                              args.werror_portability, args.strict_iec))
         except Exception as e:  # last resort: never show a traceback to the user
             if os.environ.get("STC_DEBUG"):
                 raise
@@ -90,7 +95,7 @@ def run_deep(fn):
             sys.setrecursionlimit(old)
 
 
-def run(files, libdirs, outdir, semantics="matiec", werror_portability=False):
+def run(files, libdirs, outdir, semantics="matiec", werror_portability=False, strict_iec=False):
     from .compiler import compile_files
     sources = []
     seen = set()
@@ -119,7 +124,7 @@ def run(files, libdirs, outdir, semantics="matiec", werror_portability=False):
             print(f"stc: error: {f}: {e.strerror}", file=sys.stderr)
             return 1
     diags = Diagnostics()
-    project = compile_files(texts, diags, semantics)
+    project = compile_files(texts, diags, semantics, strict_iec)
     for line in diags.format(warnings=True):
         if werror_portability:   # the warnings are what fails the build: say so
             line = line.replace(": warning: ", ": error: ", 1) + " [--werror-portability]"

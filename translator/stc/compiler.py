@@ -7,7 +7,7 @@ from .check import Checker
 SEMANTICS = ("matiec", "iec")
 
 
-def compile_files(texts, diags, semantics="matiec"):
+def compile_files(texts, diags, semantics="matiec", strict_iec=False):
     """texts: [(filename, text, is_library)]. Returns a Project (valid only without errors).
     semantics: "matiec" (reproduce matiec's run-time values, the default) or "iec"
     (IEC 61131-3 values); portability warnings go to diags.warnings in both modes."""
@@ -23,4 +23,4 @@ def compile_files(texts, diags, semantics="matiec"):
         parsed.append((fname, nodes))
     if diags:
         return None
-    return Checker(diags, semantics).run(parsed)
+    return Checker(diags, semantics, strict_iec).run(parsed)

@@ -530,7 +530,13 @@ def _build_into(sources, out: Path, compiler: str, cflags, semantics=None):
     core_inc = f"-I{RUNTIME_DIR / 'include'}"
     src = RUNTIME_DIR / "src"
     objs = []
-    base = ["-O2", "-fPIC", "-g"] + cflags
+    # -fno-semantic-interposition: libplc.so is linked -Bsymbolic, so a call between the
+    # program's own functions never goes to another library anyway; the flag tells gcc so at
+    # compile time, and it may then inline a small FUNCTION (st_lib's MIP_CheckStep,
+    # MIP_StatusBit) into the block that calls it. Without it -fPIC makes every such call a
+    # real one (bench_pair.st: 7165 instead of 5247 instructions per scan). gcc >= 5 and
+    # clang accept it; it changes nothing in what iec2c or stc generate.
+    base = ["-O2", "-fPIC", "-fno-semantic-interposition", "-g"] + cflags
     # program: generated code, warnings are the translator's business
     for c in prog_c:
         o = out / (c.stem + ".o")
