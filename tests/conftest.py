@@ -10,6 +10,8 @@ Parallel runs (pytest-xdist, `--dist loadgroup`): a module whose module-scoped f
 expensive (it runs once per worker that gets one of the module's tests) is kept on one worker
 by ONE_WORKER, and so is a module whose session fixture collects results into one file.
 """
+import os
+
 import pytest
 
 # node id prefix -> why it waits for the full tier (the quick tier keeps its suite by other tests)
@@ -40,6 +42,16 @@ FULL_TIER = {
         "runs the guide's glue example in real time; its translation stays quick",
 }
 
+# the second pass under IEC semantics (PLCRT_SEMANTICS=iec, make's semantics-iec-tests): these
+# run many times longer there than under matiec's values, so its quick tier leaves them out
+FULL_TIER_IEC = {
+    "tests/st_lib/test_lib_regress_polled_reset.py": "lossy polled transfers, minutes under IEC",
+    "tests/st_lib/test_lib_regress_static_cyclic.py": "late write-done regressions",
+    "tests/st_lib/test_lib_counting.py": "the counter's whole number space",
+    "tests/st_lib/test_lib_interop.py::test_sender_against_note_central_session_opens_with_record_1":
+        "a long session against the note central",
+}
+
 # test function (node id without the parameters) -> n: every n-th case stays in the quick tier
 SAMPLED = {
     "tests/translator/test_stc_corpus.py::test_accept": 4,
@@ -60,10 +72,12 @@ ONE_WORKER = (
 @pytest.hookimpl(tryfirst=True)   # before -m / -k deselect: every collected test is seen
 def pytest_collection_modifyitems(config, items):
     seen = {}
+    iec = os.environ.get("PLCRT_SEMANTICS") == "iec"
     for item in items:
         nodeid = item.nodeid
         base = nodeid.split("[", 1)[0]
-        if any(nodeid.startswith(p) for p in FULL_TIER):
+        if any(nodeid.startswith(p) for p in FULL_TIER) or \
+                (iec and any(nodeid.startswith(p) for p in FULL_TIER_IEC)):
             item.add_marker(pytest.mark.slow)
         elif base in SAMPLED:
             i = seen.get(base, 0)
@@ -79,7 +93,7 @@ def pytest_collection_modifyitems(config, items):
         return
     ids = [i.nodeid for i in items]
     modules = {n.split("::", 1)[0] for n in ids}
-    stale = [e for e in list(FULL_TIER) + list(SAMPLED)
+    stale = [e for e in list(FULL_TIER) + list(SAMPLED) + list(FULL_TIER_IEC)
              if e.split("::", 1)[0] in modules and not any(n.startswith(e) for n in ids)]
     if stale:
         raise pytest.UsageError("tests/conftest.py: tier entries that name no test: "
