@@ -416,19 +416,40 @@ class Net:
             self.lib.mipcosim_trace_file(self._handle, None)
 
     def trace_tail(self, lines=40):
+        """The last `lines` trace lines that say something: telegrams that carry a block or
+        were lost, Modbus writes and rejected requests, station events (empty polls and
+        answers and plain reads are left out, as in the diagram)."""
         if self.trace_path is None or not self.trace_path.is_file():
             return []
+        keep = collections.deque(maxlen=lines)
         with open(self.trace_path, encoding="utf-8") as f:
-            return [l.rstrip("\n") for l in collections.deque(f, lines)]
+            for line in f:
+                if ('"regs":0,' in line and '"lost":false' in line) or \
+                        ('"fc":3,' in line and '"exc":0' in line):
+                    continue
+                keep.append(line.rstrip("\n"))
+        return list(keep)
+
+    def _last_block_t(self):
+        """Virtual time of the last telegram that carried a block (or the end)."""
+        last = None
+        with open(self.trace_path, encoding="utf-8") as f:
+            for line in f:
+                if '"ev":"radio"' in line and '"regs":0,' not in line:
+                    m = re.match(r'\{"t":(\d+)', line)
+                    if m:
+                        last = int(m.group(1))
+        return last
 
     def diagram(self, out: Path, station=1, last_s=6.0, title=None):
-        """The sequence diagram (docs' seqdiag) of the last `last_s` virtual seconds of the
-        trace, as SVG into out; returns out, or None without a trace."""
+        """The sequence diagram (docs' seqdiag) of the `last_s` virtual seconds up to the last
+        record on the radio (1 s after its telegram), as SVG into out; None without a trace."""
         from . import _seqdiag_mod
         sd = _seqdiag_mod()
         if self.trace_path is None or not self.trace_path.is_file():
             return None
-        t_end = self.now
+        last = self._last_block_t()
+        t_end = min(self.now, last + SEC) if last is not None else self.now
         t_from = max(0, t_end - int(last_s * SEC))
         events = []
         with open(self.trace_path, encoding="utf-8") as f:

@@ -89,5 +89,6 @@ def pytest_runtest_makereport(item, call):
         if svg is not None:
             report.sections.append((f"mip-kit network {k}: sequence diagram",
                                     f"{svg}\n(full trace: {net.trace_path})"))
-            report.user_properties.append(("mip_diagram", str(svg)))
-            report.user_properties.append(("mip_trace", str(net.trace_path)))
+            for prop in (("mip_diagram", str(svg)), ("mip_trace", str(net.trace_path))):
+                report.user_properties.append(prop)
+                item.user_properties.append(prop)     # JUnit XML takes them from the teardown
