@@ -1,0 +1,173 @@
+"""The test kit from kit/ (not installed): the scenario command, the pytest plugin, one-line
+errors, the CI templates. Small counts on the fast radio; the example's own 10,000-record
+scenario runs in test_kit_install.py (slow) and in the bench (kit_scenario)."""
+import re
+import sys
+import xml.etree.ElementTree as ET
+
+from conftest import EXAMPLE, break_logger, ci_commands, kit_env, mipkit_cli, run
+
+SMALL = """
+name = "small"
+[network]
+radio = "fast"
+loss_down = 0.1
+loss_up = 0.1
+seed = 4
+[[plc]]
+name = "outstation"
+sources = ["@st_lib", "../st/FieldLogger.st", "../st/Outstation.st"]
+config = "../plcrt/outstation.conf"
+station = 1
+set = { "%MW1" = 120, "%MW0" = 1 }
+[[peer]]
+name = "central"
+[[fault]]
+at_s = 2
+restart = "outstation"
+mode = "kill9"
+[[fault]]
+lose = { station = 1, direction = "up", record = 3, times = 2 }
+[judge]
+logged = "outstation:%MW10,%MW11"
+delivered = "central"
+records = 120
+[expect]
+complete_within_s = 300
+no_xerror = ["outstation:%MW14"]
+numbered_records = "central"
+values = [{ at = "outstation:%MW12,%MW13", equals = 120 }, { at = "outstation:%MW16", equals = 0 }]
+"""
+
+
+def scenario(project, text=SMALL, name="small.toml"):
+    (project / "scenarios" / name).write_text(text)
+    return project / "scenarios" / name
+
+
+def junit(path):
+    root = ET.parse(path).getroot()
+    root = root if root.tag == "testsuite" else root.find("testsuite")   # pytest: <testsuites>
+    props = {p.get("name"): p.get("value") for p in root.iter("property")}
+    fails = [f.get("message") for f in root.iter("failure")]
+    return int(root.get("tests")), fails, props
+
+
+def test_scenario_green_and_junit(example, tmp_path):
+    r = mipkit_cli([scenario(example), "--junit", tmp_path / "j.xml"], example)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "passed (5/5 expectations" in r.stdout
+    tests, fails, _ = junit(tmp_path / "j.xml")
+    assert (tests, fails) == (5, [])
+
+
+def test_scenario_broken_variant_names_the_record_and_attaches_the_diagram(example, tmp_path):
+    break_logger(example)
+    r = mipkit_cli([scenario(example), "--junit", tmp_path / "j.xml"], example)
+    assert r.returncode == 1, r.stdout + r.stderr
+    tests, fails, props = junit(tmp_path / "j.xml")
+    assert fails == ["record 7: its registers say record 17 (first words [17, 0, 21, 28])"], fails
+    svg = props.get("mip_diagram")
+    assert svg and svg.endswith(".svg")
+    text = open(svg).read()
+    assert text.startswith("<svg") and "FC16 write" in text
+
+
+def test_scenario_judge_catches_a_lost_record(example, tmp_path):
+    """records delivered = records logged is really compared: a judge that counts one more
+    than was logged (the high word taken as the low one) is red."""
+    text = SMALL.replace('logged = "outstation:%MW10,%MW11"', 'logged = "outstation:%MW10,%MW10"')
+    r = mipkit_cli([scenario(example, text), "--junit", tmp_path / "j.xml"], example)
+    assert r.returncode == 1
+    assert "not complete within 300 s: judge logged" in r.stdout
+
+
+def one_line_failure(r):
+    lines = [l for l in (r.stdout + r.stderr).splitlines() if l.startswith("FAIL")]
+    assert r.returncode == 1, r.stdout + r.stderr
+    assert "Traceback" not in r.stdout + r.stderr
+    assert len(lines) == 1, r.stdout + r.stderr
+    return lines[0]
+
+
+def test_unknown_scenario_key_is_one_line(example):
+    line = one_line_failure(mipkit_cli([scenario(example, SMALL.replace("seed = 4", "sead = 4"))],
+                                       example))
+    assert "unknown key 'network.sead'" in line
+
+
+def test_unknown_station_is_one_line(example):
+    line = one_line_failure(mipkit_cli([scenario(example, SMALL.replace("station = 1\nset", "station = 3\nset"))],
+                                       example))
+    assert "station 3: the network has stations 1..1 and the mdp" in line
+
+
+def test_program_that_does_not_compile_names_file_line_col(example):
+    f = example / "st" / "FieldLogger.st"
+    f.write_text(f.read_text().replace("  uChunkLen := 8;", "  uChunkLen := 8 +;"))
+    line = one_line_failure(mipkit_cli([scenario(example)], example))
+    assert re.search(r"FieldLogger\.st:\d+:\d+: error", line), line
+
+
+def test_config_mapping_an_undeclared_address_is_one_line(example):
+    conf = example / "plcrt" / "outstation.conf"
+    conf.write_text(conf.read_text().replace("done = %IX1.0", "done = %IX5.0"))
+    line = one_line_failure(mipkit_cli([scenario(example)], example))
+    assert re.search(r"outstation\.conf:\d+: error: done = %IX5\.0: the program does not declare %IX5\.0", line), line
+
+
+PLUGIN_TEST = '''
+from pathlib import Path
+from mipkit import assert_records
+HERE = Path(__file__).resolve().parent.parent
+
+def expected(n):
+    return [n % 65536, n // 65536] + [(n * k) % 65536 for k in range(3, 9)]
+
+def test_readout(mip_network, mip_st_lib):
+    net = mip_network(radio="fast", loss_up=0.1, seed=2)
+    out = net.plc("outstation", mip_st_lib + [HERE / "st/FieldLogger.st", HERE / "st/Outstation.st"],
+                  HERE / "plcrt/outstation.conf", at=1)
+    central = net.peer("central")
+    out["%MW1"], out["%MW0"] = 40, 1
+    net.run_for(1)
+    out.restart("warm")
+    assert net.run_until(lambda: len(central.records) == out["%MW10"] == 40, within_s=120)
+    assert_records(central.records, expected)
+
+def test_unknown_station(mip_network, mip_st_lib):
+    net = mip_network()
+    net.peer("central", at=2)
+'''
+
+
+def test_plugin_green_red_and_one_line_errors(example, tmp_path):
+    (example / "tests" / "test_plugin_user.py").write_text(PLUGIN_TEST)
+    args = [sys.executable, "-m", "pytest", "-p", "mipkit.plugin", "-p", "no:cacheprovider",
+            "-q", "tests/test_plugin_user.py", f"--junitxml={tmp_path / 'p.xml'}",
+            f"--basetemp={tmp_path / 'bt'}"]
+    r = run(args, example, kit_env())
+    out = r.stdout + r.stderr
+    assert r.returncode == 1, out            # test_unknown_station fails on purpose
+    assert "1 passed" in out and "1 failed" in out, out
+    # a KitError fails the test with its one line, no traceback
+    m = re.search(r"_+ test_unknown_station _+\n(.*?)\n(?:-|=)", out, re.S)
+    assert m and m.group(1).strip() == "station 2: the network has stations 1..1 and the mdp", out
+    # the broken variant: the failure names record 7 and the report carries the diagram
+    break_logger(example)
+    r = run(args[:-2] + ["-k", "readout", f"--junitxml={tmp_path / 'b.xml'}",
+                         f"--basetemp={tmp_path / 'bt2'}"], example, kit_env())
+    out = r.stdout + r.stderr
+    assert r.returncode == 1, out
+    assert "AssertionError: record 7: got [17, 0, 21, 28, 35, 42, 49, 56], want [7, 0, 21, 28, 35, 42, 49, 56]" in out
+    assert "mip-kit network 1: sequence diagram" in out and "emulator trace" in out
+    _, fails, props = junit(tmp_path / "b.xml")
+    assert props["mip_diagram"].endswith("sequence-diagram.svg")
+    assert open(props["mip_diagram"]).read().startswith("<svg")
+
+
+def test_ci_templates_run_the_same_commands():
+    gitlab, github = ci_commands(EXAMPLE)
+    assert gitlab and gitlab == github
+    assert gitlab[1] == '.venv/bin/pip install "$MIP_KIT"'
+    assert any(c.startswith(".venv/bin/mip-kit scenarios/readout.toml") for c in gitlab)
