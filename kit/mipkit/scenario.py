@@ -239,6 +239,7 @@ def main(argv=None):
     name = path.stem
     work = Path(a.workdir) if a.workdir else (Path(a.junit).parent / f"mip-kit-{name}" if a.junit
                                                else Path("mip-kit-work"))
+    work = work.resolve()
     t0 = time.perf_counter()
     results, props, run = [], [], None
     try:
