@@ -68,13 +68,22 @@ def _declared(build) -> set:
     return out
 
 
+# diagnostics the runtime writes for whoever wants them (a device's error counter and online
+# bit, a range's status word): a program may leave them undeclared
+OPTIONAL_OUTPUTS = {"errors", "online", "status"}
+
+
 def check_config(build, config: Path):
     """One line (KitError) for the first address the config maps that the program does not
-    declare: a handshake bit or word must be declared; of a range's image at least one address."""
+    declare: handshake bits and words (trigger, done, error, length, the [retain] request and
+    saved) must be declared, of a range's image at least one address; the diagnostics of
+    OPTIONAL_OUTPUTS may stay undeclared."""
     declared = _declared(build)
     if not declared and config.suffix == ".cfg":
         return
     for line, key, addr, count in _config_addresses(config):
+        if key in OPTIONAL_OUTPUTS:
+            continue
         m = _LOCATED.fullmatch(addr)
         area, size, a, b = m.group(1), m.group(2), int(m.group(3)), m.group(4)
         if count > 1 and size != "X":

@@ -171,3 +171,31 @@ def test_ci_templates_run_the_same_commands():
     assert gitlab and gitlab == github
     assert gitlab[1] == '.venv/bin/pip install "$MIP_KIT"'
     assert any(c.startswith(".venv/bin/mip-kit scenarios/readout.toml") for c in gitlab)
+
+
+def test_plc_at_the_mdp_with_a_peer_outstation(tmp_path):
+    """A soft-PLC attached to the MDP-810 (this repository's central program and config, as a
+    user's would be) reads out a note-following peer at station 2 of a two-station network."""
+    from mipcosim import layout as L
+    from mipkit import Net
+    conf = tmp_path / "central.conf"
+    conf.write_text(L.central_config(502, 2))
+    records = [[n, 100 + n, 200 + n] for n in range(1, 8)]
+    with Net(tmp_path / "net", 2, radio="fast", loss_down=0.2, seed=9) as net:
+        cen = net.plc("central", L.program_sources("central", False), conf, at="mdp")
+        peer = net.peer("outstation", at=2, records=records)
+        for i, w in enumerate(L.Params(records=7, payload=3, station=0).words()):
+            cen[f"%MW{i}"] = w
+        assert net.run_until(lambda: peer.done, within_s=120)
+        assert net.stats(2)["lost_down"] > 0 and net.stats(1)["blocks_up"] == 0
+        assert cen["CENTRAL.RCV2.UDIRECORDS"] == 7
+
+
+def test_matiec_builds_the_example_when_iec2c_is_on_path(example, tmp_path):
+    """The same scenario with the reference compiler (iec2c on PATH); stc is the default."""
+    from plcharness.build import matiec_available
+    if not matiec_available():
+        import pytest
+        pytest.skip("matiec (iec2c) is not on PATH; it is in no package registry")
+    r = mipkit_cli([scenario(example), "--compiler", "matiec", "--junit", tmp_path / "j.xml"], example)
+    assert r.returncode == 0, r.stdout + r.stderr
