@@ -199,3 +199,41 @@ def test_matiec_builds_the_example_when_iec2c_is_on_path(example, tmp_path):
         pytest.skip("matiec (iec2c) is not on PATH; it is in no package registry")
     r = mipkit_cli([scenario(example), "--compiler", "matiec", "--junit", tmp_path / "j.xml"], example)
     assert r.returncode == 0, r.stdout + r.stderr
+
+
+def _cold_restart_run(tmp_path, lenient):
+    from mipkit import Net
+    src = [EXAMPLE / "st" / "FieldLogger.st", EXAMPLE / "st" / "Outstation.st"]
+    from mipcosim import layout as L
+    lib = [str(L.ST_LIB / f) for f in L.LIB_FILES]
+    net = Net(tmp_path / ("lenient" if lenient else "strict"), radio="fast", seed=1)
+    out = net.plc("outstation", lib + src, EXAMPLE / "plcrt" / "outstation.conf", at=1)
+    central = net.peer("central", lenient=lenient)
+    out["%MW1"], out["%MW0"] = 250, 1
+    net.run_for(2)                          # in the middle of the first transfer of 100
+    mid = len(central.records)
+    assert 0 < mid < 100
+    out.restart("cold")                     # all state lost: the log starts again at record 1
+    out["%MW1"], out["%MW0"] = 250, 1
+    errors = []
+    done = net.run_until(lambda: errors.append(out["%MW14"]) or out["%MW12"] == 250, within_s=60)
+    return net, central, mid, done, errors
+
+
+def test_cold_restart_lenient_peer_takes_the_new_transfer(tmp_path):
+    net, central, mid, done, errors = _cold_restart_run(tmp_path, lenient=True)
+    with net:
+        assert done and not any(errors)
+        # the open transfer (what arrived before the restart, and a record still on its way
+        # in the modem) is abandoned; the new log arrives whole
+        abandoned = central.peer.receiver.abandoned
+        assert len(abandoned) == 1 and mid <= len(abandoned[0]) <= mid + 1
+        assert [r[0] for r in central.records] == list(range(1, 251))
+
+
+def test_cold_restart_strict_peer_refuses_it(tmp_path):
+    net, central, mid, done, errors = _cold_restart_run(tmp_path, lenient=False)
+    with net:
+        # the strict peer answers record 1 with its old acknowledgement: nothing more arrives
+        assert not done and mid <= len(central.records) <= mid + 1
+        assert central.peer.receiver.unexpected > 0
