@@ -9,6 +9,7 @@ the docs' sequence-diagram generator (mipkit/_seqdiag.py).
 """
 import atexit
 import os
+import re
 import shlex
 import shutil
 import subprocess
@@ -17,9 +18,17 @@ from pathlib import Path
 
 from setuptools import Distribution, setup
 from setuptools.command.build_py import build_py
+from setuptools.command.sdist import sdist
 
 HERE = Path(__file__).resolve().parent
-REPO = HERE.parent
+# a checkout (kit/ inside it), or the kit's source archive (`make kit-dist`: the same files
+# under _src/)
+REPO = HERE.parent if (HERE.parent / "translator" / "stc").is_dir() else HERE / "_src"
+# what the wheel is made of, relative to REPO (the source archive carries exactly these)
+NEEDED = ["translator/stc", "runtime_shim/harness/plcharness", "runtime_shim/src",
+          "runtime_shim/include", "cosim/mipcosim", "cosim/src/mipcosim.c", "cosim/include",
+          "emulator/src/mipemu.c", "emulator/include", "peers/mippeer", "st_lib",
+          "docs/tools/seqdiag.py", "LICENSE"]
 PACKAGES = {"stc": "translator/stc", "plcharness": "runtime_shim/harness/plcharness",
             "mipcosim": "cosim/mipcosim", "mippeer": "peers/mippeer"}
 
@@ -41,13 +50,11 @@ def _cc(args):
 
 class BuildKit(build_py):
     def run(self):
-        missing = [p for p in list(PACKAGES.values()) + ["st_lib", "emulator/src/mipemu.c",
-                                                          "cosim/src/mipcosim.c",
-                                                          "runtime_shim/src"]
-                   if not (REPO / p).exists()]
+        missing = [p for p in NEEDED if not (REPO / p).exists()]
         if missing:
             raise SystemExit(f"mip-logger-kit: build it from a checkout of mip-logger "
-                             f"(pip install CHECKOUT/kit): {REPO / missing[0]} missing")
+                             f"(pip install CHECKOUT/kit) or from the kit's source archive: "
+                             f"{REPO / missing[0]} missing")
         super().run()
         out = Path(self.build_lib)
         for name, src in PACKAGES.items():
@@ -69,6 +76,27 @@ class BuildKit(build_py):
              "-o", str(lib / "libmipcosim.so"), str(REPO / "cosim/src/mipcosim.c"), str(emu), "-lm"])
 
 
+class SdistKit(sdist):
+    """The kit's source archive: kit/ plus the repository's files it is built from (_src/)."""
+
+    def make_release_tree(self, base_dir, files):
+        super().make_release_tree(base_dir, files)
+        for rel in NEEDED:
+            src, dst = REPO / rel, Path(base_dir) / "_src" / rel
+            if src.is_dir():
+                _tree(src, dst, ("*.py", "*.lark", "*.h", "*.c", "*.st", "*.md"))
+            else:
+                dst.parent.mkdir(parents=True, exist_ok=True)
+                shutil.copyfile(src, dst)
+
+
+def version():
+    """st_lib's version (MIP_Version.st), the one version of a release."""
+    text = (REPO / "st_lib" / "MIP_Version.st").read_text(encoding="utf-8")
+    parts = dict(re.findall(r"\bu(Major|Minor|Patch)\s*:\s*UINT\s*:=\s*(\d+)", text))
+    return f"{parts['Major']}.{parts['Minor']}.{parts['Patch']}"
+
+
 class BinaryDistribution(Distribution):
     """The wheel carries a shared library: tag it for this platform."""
 
@@ -80,5 +108,6 @@ class BinaryDistribution(Distribution):
 # or shared by parallel installs)
 _TMP = tempfile.mkdtemp(prefix="mip-logger-kit-build-")
 atexit.register(shutil.rmtree, _TMP, True)
-setup(cmdclass={"build_py": BuildKit}, distclass=BinaryDistribution,
+setup(version=version(), cmdclass={"build_py": BuildKit, "sdist": SdistKit},
+      distclass=BinaryDistribution,
       options={"build": {"build_base": _TMP}, "egg_info": {"egg_base": _TMP}})

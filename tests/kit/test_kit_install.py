@@ -65,3 +65,29 @@ def test_example_project_installs_and_runs_outside_the_checkout(tmp_path_factory
     props = {p.get("name"): p.get("value")
              for p in ET.parse(project / "results" / "broken-scenario.xml").getroot().iter("property")}
     assert open(props["mip_diagram"]).read().startswith("<svg")
+
+
+def test_kit_installs_from_its_source_archive(tmp_path_factory):
+    """The other documented way: the kit's source archive (`make kit-dist`), installed with one
+    pip command into a fresh venv outside the checkout, runs the example's tests."""
+    import sys
+    base = tmp_path_factory.mktemp("archive")
+    r = subprocess.run([sys.executable, "-c", "import sys; from setuptools import build_meta as b;"
+                        "print(b.build_sdist(sys.argv[1]))", str(base)], cwd=KIT,
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    archive = base / r.stdout.strip().splitlines()[-1]
+    assert archive.name.startswith("mip_logger_kit-") and archive.suffixes[-2:] == [".tar", ".gz"]
+    project = copy_example(base / "project")
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("PYTHONPATH", "VIRTUAL_ENV", "PYTEST_ADDOPTS", "PYTEST_XDIST_WORKER",
+                        "PLCRT_CACHE", "PLCRT_COMPILER", "PLCRT_SEMANTICS")}
+    env["PATH"] = os.pathsep.join(p for p in env.get("PATH", "").split(os.pathsep)
+                                  if not p.startswith(str(REPO)))
+    env["MIP_KIT"] = str(archive)
+    env["XDG_CACHE_HOME"] = str(base / "cache")
+    gitlab, _ = ci_commands(project)
+    for cmd in gitlab[:3]:                    # venv, install, the project's tests
+        r = sh(cmd, project, env)
+        assert r.returncode == 0, f"{cmd}:\n{r.stdout[-3000:]}\n{r.stderr[-3000:]}"
+    assert "2 passed" in r.stdout
