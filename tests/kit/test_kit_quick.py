@@ -5,7 +5,9 @@ import re
 import sys
 import xml.etree.ElementTree as ET
 
-from conftest import EXAMPLE, break_logger, ci_commands, kit_env, mipkit_cli, run
+from conftest import EXAMPLE, REPO, break_logger, ci_commands, kit_env, mipkit_cli, run
+
+REPO_PLC = REPO / "plc"
 
 SMALL = """
 name = "small"
@@ -237,3 +239,21 @@ def test_cold_restart_strict_peer_refuses_it(tmp_path):
         # the strict peer answers record 1 with its old acknowledgement: nothing more arrives
         assert not done and mid <= len(central.records) <= mid + 1
         assert central.peer.receiver.unexpected > 0
+
+
+def test_openplc_mbconfig_and_static_mode(tmp_path):
+    """An OpenPLC mbconfig.cfg (cyclic polling, static MIP mode: this repository's OpenPLC
+    outstation, as a user's would be) on a static network, the peer writing static blocks."""
+    from mipcosim import layout as L
+    from mipkit import Net, assert_records
+    with Net(tmp_path / "net", 1, radio="fast", static=True, static_registers=123, seed=2) as net:
+        out = net.plc("outstation", L.program_sources("outstation", False),
+                      REPO_PLC / "openplc" / "outstation-mbconfig.cfg", at=1)
+        central = net.peer("central", static_registers=123)
+        for i, w in enumerate(L.Params(records=20, payload=16, station=1, static=True,
+                                       cyclic=True, chunk=123).words()):
+            out[f"%MW{i}"] = w
+        assert net.run_until(lambda: central.transfers == 1, within_s=200)
+        assert assert_records(central.records, lambda n: [L.log_value(n, j, 1, 1)
+                                                          for j in range(16)]) == 20
+        assert all(len(r) == 122 for r in central.records)     # static blocks, padded
