@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import collections
 import ctypes
+import hashlib
 import json
 import re
 from pathlib import Path
@@ -103,7 +104,10 @@ def build(sources, workdir: Path, compiler="auto", tick_ms=None):
     for s in srcs:
         if not s.is_file():
             raise KitError(f"{s}: error: no such ST source")
-    key = "-".join(p.stem for p in srcs)[:60]
+    # the output directory is named by the sources' paths: another program (or the same names
+    # elsewhere) gets its own, so a PLC restarted later reloads its own program
+    digest = hashlib.sha1("\n".join(str(p.resolve()) for p in srcs).encode()).hexdigest()[:10]
+    key = "-".join(p.stem for p in srcs[-2:])[:40] + "-" + digest
     try:
         return build_program(srcs, Path(workdir) / f"build-{key}-{compiler}", compiler=compiler)
     except BuildError as e:
@@ -181,13 +185,13 @@ class KitPeer:
     """mippeer's note-following Peer on a modem of the network (stands in for the other side)."""
 
     def __init__(self, net, name, at, role, records, lenient, layout, drive, period_ms,
-                 retransmit_s, request_s, static_registers):
+                 retransmit_s, request_s, static_registers, unit=1):
         from mippeer.cli import Loop
         from mippeer.modem import Modem
         from mippeer.peer import Peer
         self.net, self.name, self.at = net, name, at
         ep = 0 if at == "mdp" else int(at)
-        unit = net.peer_unit if at == "mdp" else 1
+        unit = unit if at == "mdp" else 1
         lib, sim = net.lib, net.sim
         rsp = ctypes.create_string_buffer(RESPONSE_MAX)
 
@@ -281,7 +285,6 @@ class Net:
         self._losses = []           # [station, up, record or None, times left]
         self._lost = []             # (virtual ns, station, "up"/"down", record)
         self._fate = None
-        self.peer_unit = 1
         self._end = 0
 
     # ------------------------------------------------------------------ set-up
@@ -337,9 +340,10 @@ class Net:
         MDP (unit = the station it talks to), outstation at a station."""
         name, at = self._name(name), self._where(at)
         role = role or ("central" if at == "mdp" else "outstation")
-        self.peer_unit = unit
+        if at == "mdp":
+            self._where(unit)      # the MDP's unit id is the station it talks to
         p = KitPeer(self, name, at, role, records, lenient, layout, drive, period_ms,
-                    retransmit_s, request_s, static_registers)
+                    retransmit_s, request_s, static_registers, unit)
         self.peers[name] = p
         return p
 
