@@ -257,3 +257,17 @@ def test_openplc_mbconfig_and_static_mode(tmp_path):
         assert assert_records(central.records, lambda n: [L.log_value(n, j, 1, 1)
                                                           for j in range(16)]) == 20
         assert all(len(r) == 122 for r in central.records)     # static blocks, padded
+
+
+def test_kit_pins_agree_with_requirements():
+    """The kit's build backend and runtime dependencies are the versions requirements.txt pins."""
+    import tomllib
+    pins = dict(l.split("==") for l in (REPO / "requirements.txt").read_text().splitlines()
+                if "==" in l and not l.startswith("#"))
+    meta = tomllib.loads((REPO / "kit" / "pyproject.toml").read_text())
+    for req in meta["build-system"]["requires"] + meta["project"]["dependencies"]:
+        if "==" in req:
+            name, ver = req.split("==")
+            assert pins.get(name) == ver, f"kit/pyproject.toml {req}, requirements.txt {pins.get(name)}"
+    named = {r.split("==")[0].split(">=")[0] for r in meta["build-system"]["requires"] + meta["project"]["dependencies"]}
+    assert {"setuptools", "wheel", "lark", "pymodbus"} <= named
