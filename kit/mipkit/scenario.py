@@ -8,6 +8,7 @@ The file format is in docs/test-kit.md; paths in it are relative to the file.
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 import time
 import tomllib
@@ -91,8 +92,9 @@ class Run:
         self.results = []
 
     def _ref(self, ref):
-        """'name:ADDR' or 'name:LO,HI' (two words: LO + 65536 HI) of a PLC, or 'name' of a
-        peer (records it accepted); returns a function giving the value now."""
+        """'name:ADDR', 'name:LO,HI' (two words: LO + 65536 HI) or 'name:%QW100..%QW103' (a
+        located range, a list) of a PLC, or 'name' of a peer (records it accepted); returns a
+        function giving the value now."""
         if not isinstance(ref, str) or not ref:
             raise ScenarioError(f"{ref!r}: a reference is 'plc:%MW10', 'plc:%MW10,%MW11', "
                                 "'plc:PROG.var' or a peer's name")
@@ -103,6 +105,15 @@ class Run:
             return lambda: len(peer.records)
         name, addr = ref.split(":", 1)
         plc = self.net[name]
+        m = re.fullmatch(r"\s*%([IQM])([BWDL])(\d+)\s*\.\.\s*%\1\2(\d+)\s*", addr, re.I)
+        if m:                          # a located range: its values as a list
+            area, size, lo, hi = m.group(1).upper(), m.group(2).upper(), int(m.group(3)), int(m.group(4))
+            if hi < lo or hi - lo > 1024:
+                raise ScenarioError(f"{ref}: a range from low to high, at most 1025 addresses")
+            names = [f"%{area}{size}{i}" for i in range(lo, hi + 1)]
+            for n in names:
+                plc[n]
+            return lambda: [plc[n] for n in names]
         if "," in addr:
             lo, hi = (a.strip() for a in addr.split(",", 1))
             plc[lo], plc[hi]          # unknown addresses fail now, one line

@@ -38,7 +38,8 @@ records = 120
 complete_within_s = 300
 no_xerror = ["outstation:%MW14"]
 numbered_records = "central"
-values = [{ at = "outstation:%MW12,%MW13", equals = 120 }, { at = "outstation:%MW16", equals = 0 }]
+values = [{ at = "outstation:%MW12,%MW13", equals = 120 }, { at = "outstation:%MW16", equals = 0 },
+          { at = "outstation:%MW10..%MW14", equals = [120, 0, 120, 0, 0] }]
 """
 
 
@@ -58,9 +59,9 @@ def junit(path):
 def test_scenario_green_and_junit(example, tmp_path):
     r = mipkit_cli([scenario(example), "--junit", tmp_path / "j.xml"], example)
     assert r.returncode == 0, r.stdout + r.stderr
-    assert "passed (5/5 expectations" in r.stdout
+    assert "passed (6/6 expectations" in r.stdout
     tests, fails, _ = junit(tmp_path / "j.xml")
-    assert (tests, fails) == (5, [])
+    assert (tests, fails) == (6, [])
 
 
 def test_scenario_broken_variant_names_the_record_and_attaches_the_diagram(example, tmp_path):
@@ -79,9 +80,12 @@ def test_scenario_judge_catches_a_lost_record(example, tmp_path):
     """records delivered = records logged is really compared: a judge that counts one more
     than was logged (the high word taken as the low one) is red."""
     text = SMALL.replace('logged = "outstation:%MW10,%MW11"', 'logged = "outstation:%MW10,%MW10"')
+    text = text.replace("equals = [120, 0, 120, 0, 0]", "equals = [120, 0, 119, 0, 0]")
     r = mipkit_cli([scenario(example, text), "--junit", tmp_path / "j.xml"], example)
     assert r.returncode == 1
     assert "not complete within 300 s: judge logged" in r.stdout
+    assert "FAIL value outstation:%MW10..%MW14: outstation:%MW10..%MW14 = [120, 0, 120, 0, 0], " \
+           "want [120, 0, 119, 0, 0]" in r.stdout
 
 
 def one_line_failure(r):
