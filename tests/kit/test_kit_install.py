@@ -14,7 +14,7 @@ import xml.etree.ElementTree as ET
 
 import pytest
 
-from conftest import KIT, REPO, break_logger, ci_commands, copy_example
+from kit_helpers import KIT, REPO, break_logger, ci_commands, copy_example
 
 pytestmark = pytest.mark.slow
 

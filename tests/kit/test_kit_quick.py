@@ -5,7 +5,7 @@ import re
 import sys
 import xml.etree.ElementTree as ET
 
-from conftest import EXAMPLE, REPO, break_logger, ci_commands, kit_env, mipkit_cli, run
+from kit_helpers import EXAMPLE, REPO, break_logger, ci_commands, kit_env, mipkit_cli, run
 
 REPO_PLC = REPO / "plc"
 
