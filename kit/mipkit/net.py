@@ -127,7 +127,7 @@ class KitPlc:
         self.retain_period_ns = retain_period_ms * MS
         self.plc = None
         self.pid = None
-        self.restarts = []      # (virtual ns, mode)
+        self.restarts = []      # (virtual ns, mode, RETAIN restored)
 
     def _start(self, snapshot=None):
         net = self.net
@@ -176,7 +176,9 @@ class KitPlc:
             snap = self.plc.retain_last()
         net = self.net
         net._check(net.lib.mipcosim_plc_replace(net.sim, self.pid, None, None, 0))
-        self.restarts.append((net.now, mode))
+        # (when, mode, whether RETAIN was restored: not without RETAIN variables, which matiec
+        # builds do not have for the runtime, nor before the first snapshot; then it is cold)
+        self.restarts.append((net.now, mode, snap is not None))
         net.run_for(down_s)
         self._start(snap)
 

@@ -275,3 +275,25 @@ def test_kit_pins_agree_with_requirements():
             assert pins.get(name) == ver, f"kit/pyproject.toml {req}, requirements.txt {pins.get(name)}"
     named = {r.split("==")[0].split(">=")[0] for r in meta["build-system"]["requires"] + meta["project"]["dependencies"]}
     assert {"setuptools", "wheel", "lark", "pymodbus"} <= named
+
+
+def test_restarts_say_whether_retain_was_restored(tmp_path):
+    from mipcosim import layout as L
+    from mipkit import Net
+    lib = [str(L.ST_LIB / f) for f in L.LIB_FILES]
+    with Net(tmp_path / "net", radio="fast") as net:
+        out = net.plc("outstation", lib + [EXAMPLE / "st" / "FieldLogger.st", EXAMPLE / "st" / "Outstation.st"],
+                      EXAMPLE / "plcrt" / "outstation.conf", at=1, retain_period_ms=200)
+        net.peer("central")
+        out["%MW1"], out["%MW0"] = 30, 1
+        out.restart("kill9", down_s=0.1)   # before the first periodic snapshot: cold
+        net.run_for(1)
+        out.restart("kill9", down_s=0.1)
+        out.restart("warm", down_s=0.1)
+        net.run_for(0.5)
+        assert out["%MW10"] == 30           # warm: the logger (RETAIN) still has its records
+        out.restart("cold", down_s=0.1)
+        net.run_for(0.5)
+        assert out["%MW10"] == 0            # cold: log and parameters are gone
+        assert [(m, r) for _, m, r in out.restarts] == [("kill9", False), ("kill9", True),
+                                                         ("warm", True), ("cold", False)]
