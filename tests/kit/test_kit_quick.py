@@ -287,6 +287,7 @@ def test_restarts_say_whether_retain_was_restored(tmp_path):
         net.peer("central")
         out["%MW1"], out["%MW0"] = 30, 1
         out.restart("kill9", down_s=0.1)   # before the first periodic snapshot: cold
+        out["%MW1"], out["%MW0"] = 30, 1     # so the operator starts it again
         net.run_for(1)
         out.restart("kill9", down_s=0.1)
         out.restart("warm", down_s=0.1)
