@@ -252,12 +252,13 @@ def main(argv=None):
                                                else Path("mip-kit-work"))
     work = work.resolve()
     t0 = time.perf_counter()
-    results, props, run = [], [], None
+    results, props, run, ran = [], [], None, False
     try:
         doc = load(path)
         name = doc.get("name", name)
         run = Run(doc, path.resolve().parent, work, a.compiler)
         run.setup()
+        ran = True
         results = run.run()
     except (ScenarioError, KitError) as e:
         results.append(("scenario runs", str(e)))
@@ -265,7 +266,7 @@ def main(argv=None):
         print("mip-kit: interrupted", file=sys.stderr)
         return 1
     failed = [(c, m) for c, m in results if m]
-    if failed and run is not None and run.net.trace_path is not None:
+    if failed and ran and run.net.trace_path is not None:
         try:
             run.net.flush_trace()
             svg = run.net.diagram(work / "sequence-diagram.svg", title=f"{name}: the last records")
