@@ -33,9 +33,12 @@ PACKAGES = {"stc": "translator/stc", "plcharness": "runtime_shim/harness/plcharn
             "mipcosim": "cosim/mipcosim", "mippeer": "peers/mippeer"}
 
 
-def _tree(src: Path, dst: Path, patterns=("*.py", "*.lark", "*.h", "*.c", "*.st")):
+def _tree(src: Path, dst: Path, patterns=None):
+    """Every file of src (patterns None: all but compiled Python) into dst."""
     for f in sorted(src.rglob("*")):
-        if f.is_file() and "__pycache__" not in f.parts and any(f.match(p) for p in patterns):
+        if not f.is_file() or "__pycache__" in f.parts or f.suffix in (".pyc", ".o", ".so"):
+            continue
+        if patterns is None or any(f.match(p) for p in patterns):
             out = dst / f.relative_to(src)
             out.parent.mkdir(parents=True, exist_ok=True)
             shutil.copyfile(f, out)
@@ -84,7 +87,7 @@ class SdistKit(sdist):
         for rel in NEEDED:
             src, dst = REPO / rel, Path(base_dir) / "_src" / rel
             if src.is_dir():
-                _tree(src, dst, ("*.py", "*.lark", "*.h", "*.c", "*.st", "*.md"))
+                _tree(src, dst)
             else:
                 dst.parent.mkdir(parents=True, exist_ok=True)
                 shutil.copyfile(src, dst)
