@@ -69,8 +69,7 @@ class BuildKit(build_py):
         shutil.copyfile(REPO / "docs" / "tools" / "seqdiag.py", out / "mipkit" / "_seqdiag.py")
         lib = out / "mipcosim" / "_lib"
         lib.mkdir(parents=True, exist_ok=True)
-        tmp = Path(self.build_temp if hasattr(self, "build_temp") else out) / "kit-obj"
-        tmp.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix="obj-", dir=_TMP))    # not in the wheel
         emu = tmp / "mipemu.o"
         _cc(["-std=c11", "-D_POSIX_C_SOURCE=200809L", "-O2", "-fPIC", f"-I{REPO / 'emulator/include'}",
              "-c", str(REPO / "emulator/src/mipemu.c"), "-o", str(emu)])
