@@ -298,3 +298,27 @@ def test_restarts_say_whether_retain_was_restored(tmp_path):
         assert out["%MW10"] == 0            # cold: log and parameters are gone
         assert [(m, r) for _, m, r in out.restarts] == [("kill9", False), ("kill9", True),
                                                          ("warm", True), ("cold", False)]
+
+
+def test_wheel_carries_what_the_kit_needs_and_the_checkout_stays_clean(tmp_path):
+    """pip's build of kit/ (offline: --no-build-isolation with this venv's setuptools): the
+    repository's packages, the runtime's C sources, libmipcosim.so, st_lib, the diagram
+    generator, the entry points; no object files; nothing written into kit/."""
+    import zipfile
+    before = sorted(p.relative_to(REPO) for p in (REPO / "kit").rglob("*") if "__pycache__" not in p.parts)
+    r = run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "--no-build-isolation",
+             "--no-index", "-w", tmp_path, REPO / "kit"], tmp_path)
+    assert r.returncode == 0, r.stderr
+    after = sorted(p.relative_to(REPO) for p in (REPO / "kit").rglob("*") if "__pycache__" not in p.parts)
+    assert after == before
+    (whl,) = tmp_path.glob("mip_logger_kit-*.whl")
+    names = zipfile.ZipFile(whl).namelist()
+    for want in ["stc/cli.py", "stc/st.lark", "plcharness/build.py",
+                 "plcharness/_runtime/src/plcrt_main.c", "plcharness/_runtime/include/plcrt.h",
+                 "mipcosim/_lib/libmipcosim.so", "mipcosim/_st_lib/MIP_Sender.st",
+                 "mippeer/peer.py", "mipkit/plugin.py", "mipkit/_seqdiag.py"]:
+        assert want in names, want
+    assert not [n for n in names if n.endswith((".o", ".pyc"))]
+    ep = next(n for n in names if n.endswith("entry_points.txt"))
+    text = zipfile.ZipFile(whl).read(ep).decode()
+    assert "[pytest11]\nmipkit = mipkit.plugin" in text and "mip-kit = mipkit.scenario:main" in text
