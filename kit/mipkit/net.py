@@ -95,8 +95,9 @@ def check_config(build, config: Path):
             raise KitError(f"{config}:{line}: error: {key} = {addr}: the program does not declare {addr}")
 
 
-def build(sources, workdir: Path, compiler="auto", tick_ms=None):
-    """The user's ST sources built into a soft-PLC (one line per error: file:line:col)."""
+def build(sources, workdir: Path, compiler="stc", tick_ms=None):
+    """The user's ST sources built into a soft-PLC (one line per error: file:line:col).
+    compiler: "stc" (the default), "matiec" or "auto" (matiec when iec2c is on PATH)."""
     from plcharness.build import matiec_available
     if compiler == "auto":
         compiler = "matiec" if matiec_available() else "stc"
@@ -251,7 +252,7 @@ class Net:
 
     def __init__(self, workdir, stations=1, *, radio="fast", bitrate=None, slot_gap_ms=None,
                  overhead_bytes=None, loss_down=0.0, loss_up=0.0, burst=0.0, seed=1,
-                 static=False, static_registers=123, compiler="auto", trace=True):
+                 static=False, static_registers=123, compiler="stc", trace=True):
         self.workdir = Path(workdir)
         self.workdir.mkdir(parents=True, exist_ok=True)
         base = {"fast": FAST, "realistic": REALISTIC}.get(radio)

@@ -4,7 +4,7 @@ Fixtures:
   mip_network   a factory: mip_network(stations=1, radio="realistic", loss_down=0.1, seed=3, ...)
                 returns a mipkit.Net in the test's tmp_path (closed after the test)
   mip_st_lib    the ST files of the MIP library, in the order to pass them before your own
-  mip_compiler  "stc" or "matiec": --mip-compiler, else matiec when iec2c is on PATH, else stc
+  mip_compiler  "stc" or "matiec": --mip-compiler (stc; auto: matiec when iec2c is on PATH)
 
 On a failing test the report gets, per network the test made, the last lines of the emulator
 trace and the sequence diagram (SVG, the docs' generator) of the last virtual seconds; the
@@ -23,8 +23,9 @@ _KEY = "_mipkit_nets"
 
 def pytest_addoption(parser):
     g = parser.getgroup("mipkit", "MIP logger test kit")
-    g.addoption("--mip-compiler", default="auto", choices=["auto", "stc", "matiec"],
-                help="ST compiler for mip_network PLCs (auto: matiec when iec2c is on PATH)")
+    g.addoption("--mip-compiler", default="stc", choices=["stc", "matiec", "auto"],
+                help="ST compiler for mip_network PLCs: stc (default), matiec, or auto "
+                     "(matiec when iec2c is on PATH): the same tests with the reference compiler")
     g.addoption("--mip-diagram-seconds", type=float, default=6.0,
                 help="virtual seconds before the end that a failure's sequence diagram shows")
     g.addoption("--mip-trace-lines", type=int, default=30,

@@ -1,7 +1,7 @@
 """mip-kit: run one scenario file (TOML) of the test kit; exit 0 when every expectation holds,
 1 otherwise (a scenario that cannot run counts as failed, with one line saying why).
 
-    mip-kit SCENARIO.toml [--junit OUT.xml] [--workdir DIR] [--compiler auto|stc|matiec]
+    mip-kit SCENARIO.toml [--junit OUT.xml] [--workdir DIR] [--compiler stc|matiec|auto]
 
 The file format is in docs/test-kit.md; paths in it are relative to the file.
 """
@@ -85,7 +85,7 @@ class Run:
         mode = n.pop("mode", "dynamic")
         if mode not in ("dynamic", "static"):
             raise ScenarioError(f"network.mode {mode!r}: dynamic or static")
-        if compiler and compiler != "auto":
+        if compiler:
             n["compiler"] = compiler
         stations = n.pop("stations", 1)
         self.net = Net(workdir, stations, static=mode == "static", **n)
@@ -244,7 +244,9 @@ def main(argv=None):
     ap.add_argument("--junit", help="write JUnit XML here")
     ap.add_argument("--workdir", help="builds, trace and diagram (default: next to --junit, "
                     "else ./mip-kit-work)")
-    ap.add_argument("--compiler", default="auto", choices=["auto", "stc", "matiec"])
+    ap.add_argument("--compiler", default=None, choices=["stc", "matiec", "auto"],
+                    help="instead of the scenario's network.compiler (default stc); auto: "
+                         "matiec when iec2c is on PATH")
     a = ap.parse_args(argv)
     path = Path(a.scenario)
     name = path.stem
