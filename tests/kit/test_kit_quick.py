@@ -226,6 +226,10 @@ def _cold_restart_run(tmp_path, lenient):
     return net, central, mid, done, errors
 
 
+def out_failed(net):
+    return net["outstation"]["%MW16"]
+
+
 def test_cold_restart_lenient_peer_takes_the_new_transfer(tmp_path):
     net, central, mid, done, errors = _cold_restart_run(tmp_path, lenient=True)
     with net:
@@ -240,9 +244,11 @@ def test_cold_restart_lenient_peer_takes_the_new_transfer(tmp_path):
 def test_cold_restart_strict_peer_refuses_it(tmp_path):
     net, central, mid, done, errors = _cold_restart_run(tmp_path, lenient=False)
     with net:
-        # the strict peer answers record 1 with its old acknowledgement: nothing more arrives
+        # the strict peer answers record 1 with its old acknowledgement: nothing more arrives,
+        # and MIP_Sender ends each try in MIP_ERR_PEER_OUT_OF_STEP after 3 x tTimeout (P11)
         assert not done and mid <= len(central.records) <= mid + 1
         assert central.peer.receiver.unexpected > 0
+        assert any(errors) and out_failed(net) >= 2
 
 
 def test_openplc_mbconfig_and_static_mode(tmp_path):
