@@ -9,6 +9,8 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[2]
 PLC_DIR = REPO / "plc"
 ST_LIB = REPO / "st_lib"
+if (Path(__file__).resolve().parent / "_st_lib").is_dir():
+    ST_LIB = Path(__file__).resolve().parent / "_st_lib"     # installed by the test kit (kit/)
 # st_lib in import order (docs/blocks.md derives the same order from the sources): the one list
 # the Python tools build from (tests, docs, benchmarks)
 LIB_FILES = ["MIP_Types.st", "MIP_Version.st", "MIP_StatusBit.st", "MIP_EchoMagic.st",

@@ -15,6 +15,8 @@ from . import layout as L
 
 REPO = L.REPO
 LIBDIR = REPO / "build" / "cosim"
+if (Path(__file__).resolve().parent / "_lib" / "libmipcosim.so").is_file():
+    LIBDIR = Path(__file__).resolve().parent / "_lib"     # installed by the test kit (kit/)
 MS = 1_000_000
 SEC = 1_000_000_000
 
@@ -47,7 +49,7 @@ def kernel_lib():
         return _LIB
     path = LIBDIR / "libmipcosim.so"
     if not path.is_file():
-        raise CosimError(f"{path} missing: run `make {path.relative_to(REPO)}`")
+        raise CosimError(f"{path} missing: run `make build/cosim/libmipcosim.so`")
     lib = ctypes.CDLL(str(path))
     c = ctypes
     u16p = c.POINTER(c.c_uint16)

@@ -22,6 +22,12 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 RUNTIME_DIR = HERE.parent.parent  # runtime_shim/
 REPO_ROOT = RUNTIME_DIR.parent
+# Installed by the test kit (kit/, docs/test-kit.md): the runtime's C sources and headers ship
+# inside the package, and there is no checkout around it.
+INSTALLED = (HERE / "_runtime" / "src").is_dir()
+if INSTALLED:
+    RUNTIME_DIR = HERE / "_runtime"
+    REPO_ROOT = None
 CORE_SOURCES = ["plcrt_core.c", "plcrt_image.c", "plcrt_config.c", "plcrt_master.c", "plcrt_slave.c",
                 "plcrt_retain.c"]
 BUILD_FORMAT = "3"  # bump when the generated files change, to invalidate the cache
@@ -378,7 +384,12 @@ def _compiler_fingerprint(compiler):
                 f":{_compiler_fingerprint('stc')}")
     # stc: its own sources decide what it produces
     h = hashlib.sha256()
-    stc_dir = REPO_ROOT / "translator" / "stc"
+    if REPO_ROOT is not None:
+        stc_dir = REPO_ROOT / "translator" / "stc"
+    else:
+        import importlib.util
+        spec = importlib.util.find_spec("stc")
+        stc_dir = Path(spec.origin).parent if spec and spec.origin else Path("/nonexistent")
     for f in sorted(stc_dir.rglob("*")) if stc_dir.is_dir() else []:
         if f.is_file() and "__pycache__" not in f.parts:
             h.update(str(f.relative_to(stc_dir)).encode())
@@ -390,7 +401,12 @@ def _cache_root():
     env = os.environ.get("PLCRT_CACHE")
     if env == "off":
         return None
-    root = Path(env) if env else REPO_ROOT / "build" / "runtime_shim" / "cache"
+    if env:
+        root = Path(env)
+    elif REPO_ROOT is not None:
+        root = REPO_ROOT / "build" / "runtime_shim" / "cache"
+    else:   # installed: the user's cache directory
+        root = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "plcrt"
     try:
         root.mkdir(parents=True, exist_ok=True)
         return root

@@ -1,0 +1,515 @@
+"""A radio network in virtual time with the user's soft-PLCs and note-following peers on it.
+
+One model of each thing: the kernel is mipcosim's (libmipcosim.so: the emulator core and the
+lockstep loop), the PLCs are plcharness's, the peer is mippeer's; this module only wires the
+user's programs and configs to stations, and adds faults and the failure report.
+"""
+from __future__ import annotations
+
+import collections
+import ctypes
+import hashlib
+import json
+import re
+from pathlib import Path
+
+from mipcosim import sim as S
+from plcharness import Plc
+from plcharness.build import BuildError, build_program
+
+MS = 1_000_000
+SEC = 1_000_000_000
+RESPONSE_MAX = 300
+_SCAN = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_uint64)
+REALISTIC = {"bitrate": 9600, "slot_gap_ms": 20, "overhead_bytes": 12}
+FAST = {"bitrate": 1_000_000, "slot_gap_ms": 1, "overhead_bytes": 12}
+
+
+class KitError(Exception):
+    """A mistake in what the test or scenario asks for; str() is one line."""
+
+
+_LOCATED = re.compile(r"%([IQM])([XBWDL])(\d+)(?:\.(\d+))?", re.I)
+_RANGE_KEYS = {"image"}
+_SIZE_KEY = "size"
+
+
+def _config_addresses(path: Path):
+    """(line number, key, address, count) of every located address a plcrt config maps:
+    count > 1 for a range's image (its size), 1 for handshake bits and words."""
+    out = []
+    section, size, pending = None, 1, []
+    for n, raw in enumerate(path.read_text().splitlines(), 1):
+        line = raw.split("#", 1)[0].strip()
+        if not line:
+            continue
+        if line.startswith("["):
+            out += [(ln, k, a, size if k in _RANGE_KEYS else 1) for ln, k, a in pending]
+            section, size, pending = line, 1, []
+            continue
+        if "=" not in line:
+            continue
+        key, val = (p.strip() for p in line.split("=", 1))
+        if key == _SIZE_KEY and val.isdigit():
+            size = int(val)
+        elif _LOCATED.fullmatch(val):
+            pending.append((n, key, val.upper()))
+    out += [(ln, k, a, size if k in _RANGE_KEYS else 1) for ln, k, a in pending]
+    return out
+
+
+def _declared(build) -> set:
+    """The located addresses the program declares (LOCATED_VARIABLES.h of the build)."""
+    f = Path(build.outdir) / "gen" / "LOCATED_VARIABLES.h"
+    out = set()
+    if f.is_file():
+        for m in re.finditer(r"__LOCATED_VAR\(\s*\w+\s*,\s*\w+\s*,\s*(\w)\s*,\s*(\w)\s*,\s*(\d+)"
+                             r"(?:\s*,\s*(\d+))?", f.read_text()):
+            out.add(f"%{m.group(1)}{m.group(2)}{m.group(3)}" + (f".{m.group(4)}" if m.group(4) else ""))
+    return out
+
+
+# diagnostics the runtime writes for whoever wants them (a device's error counter and online
+# bit, a range's status word): a program may leave them undeclared
+OPTIONAL_OUTPUTS = {"errors", "online", "status"}
+
+
+def check_config(build, config: Path):
+    """One line (KitError) for the first address the config maps that the program does not
+    declare: handshake bits and words (trigger, done, error, length, the [retain] request and
+    saved) must be declared, of a range's image at least one address; the diagnostics of
+    OPTIONAL_OUTPUTS may stay undeclared."""
+    declared = _declared(build)
+    if not declared and config.suffix == ".cfg":
+        return
+    for line, key, addr, count in _config_addresses(config):
+        if key in OPTIONAL_OUTPUTS:
+            continue
+        m = _LOCATED.fullmatch(addr)
+        area, size, a, b = m.group(1), m.group(2), int(m.group(3)), m.group(4)
+        if count > 1 and size != "X":
+            if not any(f"%{area}{size}{a + i}" in declared for i in range(count)):
+                raise KitError(f"{config}:{line}: error: {key} = {addr} (size {count}): the program "
+                               f"declares none of %{area}{size}{a}..%{area}{size}{a + count - 1}")
+        elif addr not in declared:
+            raise KitError(f"{config}:{line}: error: {key} = {addr}: the program does not declare {addr}")
+
+
+def build(sources, workdir: Path, compiler="stc", tick_ms=None):
+    """The user's ST sources built into a soft-PLC (one line per error: file:line:col).
+    compiler: "stc" (the default), "matiec" or "auto" (matiec when iec2c is on PATH)."""
+    from plcharness.build import matiec_available
+    if compiler == "auto":
+        compiler = "matiec" if matiec_available() else "stc"
+    srcs = [Path(s) for s in sources]
+    for s in srcs:
+        if not s.is_file():
+            raise KitError(f"{s}: error: no such ST source")
+    # the output directory is named by the sources' paths: another program (or the same names
+    # elsewhere) gets its own, so a PLC restarted later reloads its own program
+    digest = hashlib.sha1("\n".join(str(p.resolve()) for p in srcs).encode()).hexdigest()[:10]
+    key = "-".join(p.stem for p in srcs[-2:])[:40] + "-" + digest
+    try:
+        return build_program(srcs, Path(workdir) / f"build-{key}-{compiler}", compiler=compiler)
+    except BuildError as e:
+        lines = [l for l in str(e).splitlines() if l.strip()]
+        located = [l for l in lines if re.match(r".+:\d+:\d+: ", l)]
+        first = next((l for l in located if ": error" in l), located[0] if located else
+                     (lines[0] if lines else ""))
+        raise KitError(first or f"{srcs[-1]}: error: the program does not build") from None
+
+
+class KitPlc:
+    """A user's program on the network: read and write variables and located addresses by
+    name (plcharness's names: "MAIN.x", "%QW100"); survives restarts (always the live instance)."""
+
+    def __init__(self, net, name, result, config, at, retain_period_ms):
+        self.net, self.name, self.result, self.config, self.at = net, name, result, config, at
+        self.retain_period_ns = retain_period_ms * MS
+        self.plc = None
+        self.pid = None
+        self.restarts = []      # (virtual ns, mode, RETAIN restored)
+
+    def _start(self, snapshot=None):
+        net = self.net
+        plc = Plc(self.result, net.workdir, config=self.config)
+        plc.retain_in_memory(self.retain_period_ns)
+        if snapshot is not None:
+            plc.retain_load(snapshot)
+        lib, sim = net.lib, net.sim
+        scan = ctypes.cast(plc.library.plcrt_scan, ctypes.c_void_p)
+        if self.pid is None:
+            self.pid = lib.mipcosim_plc_add(sim, scan, plc.handle, plc.tick_ns)
+            net._check(0 if self.pid >= 0 else -1)
+        else:
+            net._check(lib.mipcosim_plc_replace(sim, self.pid, scan, plc.handle, plc.tick_ns))
+        old, self.plc = self.plc, plc
+        if old is not None:
+            old.close()
+        setter = ctypes.cast(plc.library.plcrt_device_set_transport, ctypes.c_void_p)
+        ep = 0 if self.at == "mdp" else int(self.at)
+        for i in range(plc.library.plcrt_device_count(plc.handle)):
+            dev = plc.library.plcrt_device_name(plc.handle, i)
+            net._check(lib.mipcosim_connect_inproc(sim, self.pid, setter, dev, ep))
+
+    def __getitem__(self, name):
+        try:
+            return self.plc[name]
+        except Exception as e:  # noqa: BLE001 - the harness's own one-line message
+            raise KitError(f"{self.name}: {name}: {e}") from None
+
+    def __setitem__(self, name, value):
+        try:
+            self.plc[name] = value
+        except Exception as e:  # noqa: BLE001
+            raise KitError(f"{self.name}: {name}: {e}") from None
+
+    def restart(self, mode="cold", down_s=0.5):
+        """cold: a fresh instance (all state lost, RETAIN too); warm: the RETAIN variables of a
+        snapshot taken at the stop (plcrt's SIGTERM); kill9: those of the last periodic
+        snapshot (plcrt's kill -9: whatever changed since then is lost)."""
+        if mode not in ("cold", "warm", "kill9"):
+            raise KitError(f"{self.name}: restart mode {mode!r}: use cold, warm or kill9")
+        snap = None
+        if mode == "warm" and self.plc.retain_count():
+            snap = self.plc.retain_save()
+        elif mode == "kill9":
+            snap = self.plc.retain_last()
+        net = self.net
+        net._check(net.lib.mipcosim_plc_replace(net.sim, self.pid, None, None, 0))
+        # (when, mode, whether RETAIN was restored: not without RETAIN variables, which matiec
+        # builds do not have for the runtime, nor before the first snapshot; then it is cold)
+        self.restarts.append((net.now, mode, snap is not None))
+        net.run_for(down_s)
+        self._start(snap)
+
+
+class KitPeer:
+    """mippeer's note-following Peer on a modem of the network (stands in for the other side)."""
+
+    def __init__(self, net, name, at, role, records, lenient, layout, drive, period_ms,
+                 retransmit_s, request_s, static_registers, unit=1):
+        from mippeer.cli import Loop
+        from mippeer.modem import Modem
+        from mippeer.peer import Peer
+        self.net, self.name, self.at = net, name, at
+        ep = 0 if at == "mdp" else int(at)
+        unit = unit if at == "mdp" else 1
+        lib, sim = net.lib, net.sim
+        rsp = ctypes.create_string_buffer(RESPONSE_MAX)
+
+        def transact(adu):
+            n = lib.mipcosim_request(sim, ep, adu, len(adu), rsp, len(rsp))
+            if n < 0:
+                raise S.CosimError(lib.mipcosim_errmsg(sim).decode())
+            return rsp.raw[:n]
+
+        try:
+            peer = Peer(role, records, layout=layout, drive=drive, lenient=lenient,
+                        retransmit_s=retransmit_s, request_s=request_s,
+                        static_registers=static_registers)
+        except ValueError as e:
+            raise KitError(f"peer {name}: {e}") from None
+        modem = Modem.in_process(transact, "mdp" if at == "mdp" else "trm", unit=unit)
+        modem.connect()
+        self.peer = peer
+        self.loop = Loop(peer, modem)
+        self.error = None
+        self._t0 = net.now
+        self._scan = _SCAN(self._round)
+        self.pid = lib.mipcosim_plc_add(sim, ctypes.cast(self._scan, ctypes.c_void_p), 1,
+                                        int(period_ms * MS))
+        net._check(0 if self.pid >= 0 else -1)
+
+    def _round(self, _rt, _n):
+        try:
+            self.loop.round((self.net.now - self._t0) / SEC)
+            return 0
+        except BaseException as e:  # noqa: BLE001 - handed back through the C loop
+            self.error = e
+            return -1
+
+    @property
+    def records(self):
+        """Payloads of every record the peer accepted, in order (all transfers)."""
+        r = self.peer.receiver
+        if r is None:
+            return []
+        return [p for t in r.transfers for p in t] + list(r.current)
+
+    @property
+    def transfers(self):
+        r = self.peer.receiver
+        return len(r.transfers) if r else 0
+
+    @property
+    def done(self):
+        return self.peer.done
+
+
+class Net:
+    """An MDP-810 and `stations` TRM-810s in virtual time; add PLCs and peers, run, read."""
+
+    def __init__(self, workdir, stations=1, *, radio="fast", bitrate=None, slot_gap_ms=None,
+                 overhead_bytes=None, loss_down=0.0, loss_up=0.0, burst=0.0, seed=1,
+                 static=False, static_registers=123, compiler="stc", trace=True):
+        self.workdir = Path(workdir)
+        self.workdir.mkdir(parents=True, exist_ok=True)
+        base = {"fast": FAST, "realistic": REALISTIC}.get(radio)
+        if base is None:
+            raise KitError(f"radio {radio!r}: use fast or realistic (or give bitrate, slot_gap_ms)")
+        self.radio = {"bitrate": bitrate or base["bitrate"],
+                      "slot_gap_ms": base["slot_gap_ms"] if slot_gap_ms is None else slot_gap_ms,
+                      "overhead_bytes": overhead_bytes or base["overhead_bytes"]}
+        if not 1 <= stations <= 247:
+            raise KitError(f"stations {stations}: one MDP-810 serves 1..247")
+        for n, v in (("loss_down", loss_down), ("loss_up", loss_up)):
+            if not 0.0 <= v < 1.0:
+                raise KitError(f"{n} {v}: a probability in 0..1 (1 excluded)")
+        self.stations, self.compiler, self.seed = stations, compiler, seed
+        self.lib = S.kernel_lib()
+        lib = self.lib
+        lib.mipcosim_request.restype = ctypes.c_long
+        lib.mipcosim_request.argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.c_char_p,
+                                         ctypes.c_size_t, ctypes.c_void_p, ctypes.c_size_t]
+        err = ctypes.create_string_buffer(256)
+        self._handle = lib.mipcosim_new_args(stations, 1 if static else 0, static_registers,
+                                             loss_down, loss_up, burst, seed,
+                                             self.radio["bitrate"],
+                                             int(self.radio["slot_gap_ms"] * MS),
+                                             self.radio["overhead_bytes"], err, len(err))
+        if not self._handle:
+            raise KitError(err.value.decode())
+        self.trace_path = self.workdir / "emulator-trace.jsonl" if trace else None
+        if trace:
+            self._check(lib.mipcosim_trace_file(self._handle, str(self.trace_path).encode()))
+        self.plcs: dict[str, KitPlc] = {}
+        self.peers: dict[str, KitPeer] = {}
+        self._losses = []           # [station, up, record or None, times left]
+        self._lost = []             # (virtual ns, station, "up"/"down", record)
+        self._fate = None
+        self._end = 0
+
+    # ------------------------------------------------------------------ set-up
+
+    @property
+    def sim(self):
+        if self._handle is None:
+            raise KitError("the network is closed")
+        return self._handle
+
+    @property
+    def now(self):
+        return self._end if self._handle is None else self.lib.mipcosim_now(self._handle)
+
+    def _check(self, rc):
+        if rc != 0:
+            raise KitError(self.lib.mipcosim_errmsg(self.sim).decode())
+
+    def _where(self, at):
+        if at == "mdp" or at == "MDP":
+            return "mdp"
+        if isinstance(at, int) and not isinstance(at, bool) and 1 <= at <= self.stations:
+            return at
+        raise KitError(f"station {at!r}: the network has stations 1..{self.stations} and the mdp")
+
+    def _name(self, name):
+        if name in self.plcs or name in self.peers:
+            raise KitError(f"{name}: already on the network")
+        return name
+
+    def plc(self, name, sources, config, at, retain_period_ms=1000, compiler=None):
+        """The user's program (ST sources, the CONFIGURATION last) with its plcrt config,
+        attached to station `at` (1..N: that station's TRM-810) or "mdp" (the MDP-810): every
+        device of the config talks to that modem."""
+        name, at = self._name(name), self._where(at)
+        config = Path(config)
+        if not config.is_file():
+            raise KitError(f"{config}: error: no such config")
+        result = build(sources, self.workdir, compiler or self.compiler)
+        check_config(result, config)
+        p = KitPlc(self, name, result, config, at, retain_period_ms)
+        try:
+            p._start()
+        except Exception as e:  # noqa: BLE001 - plcharness / plcrt: one line
+            raise KitError(f"{name}: {e}") from None
+        self.plcs[name] = p
+        return p
+
+    def peer(self, name="peer", at="mdp", role=None, records=None, lenient=False, layout="uni",
+             drive="spontaneous", period_ms=50, retransmit_s=2.0, request_s=1.0,
+             static_registers=0, unit=1):
+        """A peer written from the note (strict, or lenient) on modem `at`: role central at the
+        MDP (unit = the station it talks to), outstation at a station."""
+        name, at = self._name(name), self._where(at)
+        role = role or ("central" if at == "mdp" else "outstation")
+        if at == "mdp":
+            self._where(unit)      # the MDP's unit id is the station it talks to
+        p = KitPeer(self, name, at, role, records, lenient, layout, drive, period_ms,
+                    retransmit_s, request_s, static_registers, unit)
+        self.peers[name] = p
+        return p
+
+    def __getitem__(self, name):
+        if name in self.plcs:
+            return self.plcs[name]
+        if name in self.peers:
+            return self.peers[name]
+        raise KitError(f"{name}: no PLC or peer of that name (have: "
+                       f"{', '.join(list(self.plcs) + list(self.peers)) or 'none'})")
+
+    # ------------------------------------------------------------------ faults
+
+    def lose(self, station, direction, record=None, times=1):
+        """Lose the next `times` radio telegrams of `station` that carry a block (direction
+        "up": station -> MDP, "down": MDP -> station) whose first register is `record`
+        (None: any block)."""
+        self._where(station)
+        if direction not in ("up", "down"):
+            raise KitError(f"direction {direction!r}: up or down")
+        self._losses.append([station, direction == "up", record, times])
+        if self._fate is None:
+            self._fate = S.FATE_FN(self._decide)
+            self.lib.mipemu_net_set_fate(self.lib.mipcosim_net(self.sim), self._fate, None)
+
+    def _decide(self, _user, station, up, blk, n):
+        for rule in self._losses:
+            st, rup, rec, left = rule
+            if left > 0 and st == station and bool(up) == rup and (rec is None or (n > 0 and blk[0] == rec)):
+                rule[3] -= 1
+                self._lost.append((self.now, station, "up" if up else "down",
+                                   blk[0] if n > 0 else None))
+                return 1
+        return 0
+
+    @property
+    def lost(self):
+        return list(self._lost)
+
+    def restart(self, name, mode="cold", down_s=0.5):
+        p = self[name]
+        if not isinstance(p, KitPlc):
+            raise KitError(f"{name}: only a PLC restarts")
+        p.restart(mode, down_s)
+
+    # ------------------------------------------------------------------ running
+
+    def run_for(self, seconds):
+        self.run_until_time(self.now + int(seconds * SEC))
+
+    def run_until_time(self, t_ns):
+        if self.lib.mipcosim_run(self.sim, t_ns) != 0:
+            msg = self.lib.mipcosim_errmsg(self.sim).decode()
+            for p in self.peers.values():
+                if p.error is not None:
+                    e, p.error = p.error, None
+                    raise KitError(f"peer {p.name} failed: {type(e).__name__}: {e}") from None
+            failed = self.lib.mipcosim_failed_plc(self.sim)
+            for p in self.plcs.values():
+                if p.pid == failed:
+                    why = p.plc.library.plcrt_errmsg(p.plc.handle) or b""
+                    msg += f": {p.name}: {why.decode()}"
+            raise KitError(msg)
+
+    def run_until(self, condition, within_s, step_s=0.5):
+        """Run until condition() is true (checked every step_s of virtual time) or within_s
+        have passed; returns whether it became true."""
+        end = self.now + int(within_s * SEC)
+        while self.now < end:
+            self.run_until_time(min(end, self.now + int(step_s * SEC)))
+            if condition():
+                return True
+        return False
+
+    def stats(self, station=1):
+        return S.radio_stats(self.lib, self.sim, [station])
+
+    # ------------------------------------------------------------------ the report
+
+    def flush_trace(self):
+        """Close the trace file (it is complete on disk afterwards; tracing stops)."""
+        if self._handle is not None and self.trace_path is not None:
+            self.lib.mipcosim_trace_file(self._handle, None)
+
+    def trace_tail(self, lines=40):
+        """The last `lines` trace lines that say something: telegrams that carry a block or
+        were lost, Modbus writes and rejected requests, station events (empty polls and
+        answers and plain reads are left out, as in the diagram)."""
+        if self.trace_path is None or not self.trace_path.is_file():
+            return []
+        keep = collections.deque(maxlen=lines)
+        with open(self.trace_path, encoding="utf-8") as f:
+            for line in f:
+                if ('"regs":0,' in line and '"lost":false' in line) or \
+                        ('"fc":3,' in line and '"exc":0' in line):
+                    continue
+                keep.append(line.rstrip("\n"))
+        return list(keep)
+
+    def _last_block_t(self):
+        """Virtual time of the last telegram that carried a block (or the end)."""
+        last = None
+        with open(self.trace_path, encoding="utf-8") as f:
+            for line in f:
+                if '"ev":"radio"' in line and '"regs":0,' not in line:
+                    m = re.match(r'\{"t":(\d+)', line)
+                    if m:
+                        last = int(m.group(1))
+        return last
+
+    def diagram(self, out: Path, station=1, last_s=6.0, title=None):
+        """The sequence diagram (docs' seqdiag) of the `last_s` virtual seconds up to the last
+        record on the radio (1 s after its telegram), as SVG into out; None without a trace."""
+        from . import _seqdiag_mod
+        sd = _seqdiag_mod()
+        if self.trace_path is None or not self.trace_path.is_file():
+            return None
+        last = self._last_block_t()
+        t_end = min(self.now, last + SEC) if last is not None else self.now
+        t_from = max(0, t_end - int(last_s * SEC))
+        events = []
+        with open(self.trace_path, encoding="utf-8") as f:
+            for n, line in enumerate(f, 1):
+                # cheap prefilter: only lines of the window are parsed
+                m = re.match(r'\{"t":(\d+)', line)
+                if m and int(m.group(1)) < t_from:
+                    continue
+                try:
+                    d = json.loads(line)
+                except json.JSONDecodeError:
+                    continue
+                if isinstance(d, dict) and isinstance(d.get("t"), int) and "ev" in d:
+                    d["_line"] = n
+                    events.append(d)
+        rows = sd.rows_from(events, station, t_from, t_end)
+        svg = sd.render(rows, title or f"station {station}, last {last_s:g} s",
+                        f"From {self.trace_path.name}, {t_from / SEC:.3f} s .. {t_end / SEC:.3f} s "
+                        "of virtual time; empty polls/answers omitted.")
+        out = Path(out)
+        out.write_text(svg, encoding="utf-8")
+        return out
+
+    def close(self):
+        for p in self.plcs.values():
+            if p.plc is not None:
+                p.plc.close()
+        if self._handle is not None:
+            self._end = self.lib.mipcosim_now(self._handle)
+            self.lib.mipcosim_free(self._handle)
+            self._handle = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def assert_records(records, expected, what="record"):
+    """records (payload lists, in order) against expected(n) for n = 1..: an AssertionError
+    naming the first record that differs, or the count."""
+    for i, got in enumerate(records, 1):
+        want = list(expected(i))
+        if list(got[:len(want)]) != want:
+            raise AssertionError(f"{what} {i}: got {list(got[:len(want)])}, want {want}")
+    return len(records)
