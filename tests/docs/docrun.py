@@ -45,7 +45,7 @@ LANGS = ("sh", "console", "python")
 # (pattern, replacement) on both sides of a comparison: what varies from run to run
 NORMALISE = [
     (re.compile(r"127\.0\.0\.1:\d+"), "127.0.0.1:PORT"),
-    (re.compile(r"\b(trm|mdp|port)=\d+"), r"\1=PORT"),
+    (re.compile(r"\b(trm|mdp|port)=\d+(?![.\d])"), r"\1=PORT"),
     (re.compile(r"\b(t|seconds)=\d+(\.\d+)?s?"), r"\1=TIME"),
     (re.compile(r"\b\d+(\.\d+)? ?(s|ms)\b"), "TIME"),
     (re.compile(r"\b\d+(\.\d+)? wall s\b"), "TIME wall s"),
@@ -86,19 +86,24 @@ def normalise(text: str) -> str:
                      for line in text.strip("\n").split("\n"))
 
 
-def expected_regex(expected: str) -> re.Pattern:
-    parts = []
-    for line in normalise(expected).split("\n"):
-        if line.strip() == "...":
-            parts.append(r"(?:[^\n]*\n)*?")
-            continue
-        pieces = [re.escape(p) for p in line.split("...")]
-        parts.append(r"[^\n]*?".join(pieces) + r"[ \t]*\n")
-    return re.compile("".join(parts) + r"\Z")
+def line_pattern(line: str) -> re.Pattern:
+    return re.compile(".*?".join(re.escape(p) for p in line.split("...")))
 
 
 def matches(expected: str, actual: str) -> bool:
-    return bool(expected_regex(expected).match(normalise(actual) + "\n"))
+    """Line by line; a line `...` matches any number of lines, `...` in a line any text."""
+    exp = normalise(expected).split("\n")
+    act = normalise(actual).split("\n")
+    pats = [None if e.strip() == "..." else line_pattern(e) for e in exp]
+    reach = {0}                          # positions in act reachable after k expected lines
+    for pat in pats:
+        if pat is None:
+            reach = set(range(min(reach), len(act) + 1)) if reach else set()
+        else:
+            reach = {j + 1 for j in reach if j < len(act) and pat.fullmatch(act[j])}
+        if not reach:
+            return False
+    return len(act) in reach
 
 
 class Sandbox:
