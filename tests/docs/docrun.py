@@ -118,7 +118,7 @@ class Sandbox:
             "set -e",
             "ip link set lo up",
             f"mount -t overlay overlay -o lowerdir={repo},upperdir={self.tmp / 'upper'},"
-            f"workdir={self.tmp / 'work'} {repo}",
+            f"workdir={self.tmp / 'work'},userxattr {repo}",
             f"mount --bind {self.tmp / 'tmp'} /tmp",
             f"cd {repo}",
             "set +e",

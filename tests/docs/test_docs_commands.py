@@ -30,7 +30,6 @@ SLOW = {
     "plc/README.md": "`make run` three times, one of them on a 9600 bit/s radio",
     "docs/exercises.md": "some dozens of co-simulated transfers, the emulator in real time",
     "docs/wiring-plcrt.md": "builds a soft-PLC and runs a transfer in real time",
-    "docs/wiring.md": "the emulator and the radio in real time",
     "docs/commissioning.md": "the emulator and soft-PLCs in real time, each mis-setting",
     "docs/wiring-openplc.md": "a soft-PLC with the OpenPLC config against the emulator",
     "docs/releases.md": "`make dist`",

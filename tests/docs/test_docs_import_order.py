@@ -55,3 +55,4 @@ def test_pages_name_st_lib_files_in_import_order(page, order):
                 f"{rel(page)}: names st_lib files in another order than the import order "
                 f"({', '.join(seen)}); the order is `dist/mkdist.py --import-order`: "
                 f"{', '.join(f.split('/')[-1] for f in order)}\n--- in\n{chunk[:800]}")
+
