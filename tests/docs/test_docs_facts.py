@@ -19,3 +19,49 @@ def test_troubleshooting_explains_every_wait_reason():
     page = (REPO / "docs" / "troubleshooting.md").read_text()
     rows = set(re.findall(r"^\| `(MIP_WAIT_\w+)` \|", page, re.M))
     assert set(values) - rows == set(), f"docs/troubleshooting.md: no row for {set(values) - rows}"
+
+
+def _pages():
+    from test_docs_commands import PAGES
+    return PAGES
+
+
+def test_inline_make_commands_name_real_targets():
+    """Every `make ...` a page names in running text is a target the Makefile has (make -n:
+    nothing runs). The command blocks themselves run in test_docs_commands.py."""
+    import subprocess
+    found = {}
+    for page in _pages():
+        for m in re.finditer(r"`make ([^`]+)`", page.read_text()):
+            cmd = re.split(r"\s(?:&&|\|\|?|;|>>?|<)\s", m.group(1) + " ")[0]
+            words = [w for w in cmd.split() if "=" not in w and not w.startswith("-")]
+            for target in words:
+                found.setdefault(target, f"{page.relative_to(REPO)}")
+    assert {"run", "test", "dist", "docs"} <= set(found)
+    bad = []
+    for target, where in sorted(found.items()):
+        p = subprocess.run(["make", "-n", "-s", "--no-print-directory", target], cwd=REPO,
+                           capture_output=True, text=True, timeout=60)
+        if p.returncode != 0:
+            bad.append(f"{where}: `make {target}`: {p.stderr.strip().splitlines()[-1:]}")
+    assert not bad, "\n".join(bad)
+
+
+def test_command_help_names_no_issue_numbers():
+    """User-facing text names no issue numbers: the --help of every command the pages use."""
+    import subprocess
+    import sys
+    venv = REPO / ".venv" / "bin"
+    commands = [[str(REPO / "build" / "emulator" / "mip-emulator"), "--help"],
+                [str(venv / "mip-cosim"), "--help"], [str(venv / "mip-peer"), "--help"],
+                [str(venv / "stc"), "--help"], [str(venv / "plcrt-build"), "--help"]]
+    commands += [[sys.executable, str(REPO / f), "--help"]
+                 for f in ("plc/demo.py", "plc/gen_programs.py", "plc/openplc_limits.py",
+                           "dist/mkdist.py", "docs/tools/mipsim.py", "docs/tools/seqdiag.py")]
+    bad = []
+    for cmd in commands:
+        p = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=60)
+        text = p.stdout + p.stderr
+        assert "usage" in text.lower(), f"{cmd}: no usage text:\n{text[-500:]}"
+        bad += [f"{' '.join(cmd[-2:])}: {m}" for m in re.findall(r"[^\n]*\bissues? #?\d+[^\n]*", text, re.I)]
+    assert not bad, "\n".join(bad)
