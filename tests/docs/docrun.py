@@ -17,8 +17,9 @@ page) is not run; the reason must say why it cannot run here (a vendor IDE, a re
 
 The shell of a page runs in a sandbox that looks like the checkout to the commands, so they
 run exactly as written: `unshare` gives it its own user, mount, network and PID namespaces;
-the checkout is mounted at its own path as an overlay whose writes go to the test's tmp_path
-(nothing in the source tree or the shared build/ changes), /tmp is a private directory, the
+the checkout is mounted at its own path as an overlay whose writes go to a tmpfs of the
+sandbox (nothing in the source tree or the shared build/ changes), /tmp is a private directory
+(the test's tmp_path), the
 network is a private loopback (the emulator's default ports 15020.. are free, whatever else
 runs on the machine), and every process the page started dies with the sandbox.
 """
@@ -111,14 +112,19 @@ class Sandbox:
 
     def __init__(self, tmp: Path, repo: Path = REPO):
         self.tmp = Path(tmp)
-        for d in ("upper", "work", "tmp"):
+        for d in ("overlay", "tmp"):
             (self.tmp / d).mkdir(parents=True, exist_ok=True)
         self.mark = "__DOCRUN_" + secrets.token_hex(8)
+        ovl = self.tmp / "overlay"           # a tmpfs: an overlay's upper layer needs a local fs
+        loopback_up = ("import fcntl, socket, struct; fcntl.ioctl(socket.socket(), 0x8914, "
+                       "struct.pack('16sH22x', b'lo', 0x1 | 0x8 | 0x40))")   # SIOCSIFFLAGS
         setup = "; ".join([
             "set -e",
-            "ip link set lo up",
-            f"mount -t overlay overlay -o lowerdir={repo},upperdir={self.tmp / 'upper'},"
-            f"workdir={self.tmp / 'work'},userxattr {repo}",
+            f"{shlex.quote(sys.executable)} -c {shlex.quote(loopback_up)}",
+            f"mount -t tmpfs docs-sandbox {ovl}",
+            f"mkdir {ovl}/upper {ovl}/work",
+            f"mount -t overlay overlay -o lowerdir={repo},upperdir={ovl}/upper,"
+            f"workdir={ovl}/work,userxattr {repo}",
             f"mount --bind {self.tmp / 'tmp'} /tmp",
             f"cd {repo}",
             "set +e",
@@ -133,9 +139,15 @@ class Sandbox:
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, cwd="/",
             env=env)
         self.buf = b""
-        out, status = self.run("true", timeout=30)
+        try:
+            out, status = self.run("true", timeout=30)
+        except DocCommandError as e:
+            raise DocCommandError(
+                "the docs' sandbox did not start: it needs unprivileged user namespaces "
+                "(unshare -rmnp) and overlay mounts in them (Linux >= 5.11); "
+                f"{str(e).strip().splitlines()[-1]}") from None
         if status != 0:
-            raise DocCommandError(f"sandbox did not start: {out}")
+            raise DocCommandError(f"the docs' sandbox did not start: {out}")
 
     def run(self, command: str, timeout: float = COMMAND_TIMEOUT):
         """(output, exit status) of one command line in the page's shell."""

@@ -8,6 +8,9 @@ time, training runs) are in the slow tier; the rule checks below are quick.
 from __future__ import annotations
 
 import re
+import secrets
+import subprocess
+from pathlib import Path
 
 import pytest
 
@@ -104,19 +107,22 @@ def test_the_sandbox_keeps_the_checkout_and_tmp_clean(tmp_path):
     """Writes of a page land in its sandbox, not in the source tree or the real /tmp; the
     emulator's default port is free in it, and its processes end with it."""
     marker = f"docs-sandbox-{tmp_path.name}"
+    naptime = f"{9000000 + secrets.randbelow(999999)}"      # a sleeper only this test starts
     page = tmp_path / "page.md"
     page.write_text("```sh\n"
                     f"touch {marker} build/{marker} /tmp/{marker}\n"
+                    f"test -e {marker} && test -e build/{marker} && test -e /tmp/{marker}\n"
                     "build/emulator/mip-emulator --stations 1 > /tmp/emu.log 2>&1 &\n"
+                    f"sleep {naptime} &\n"
                     "sleep 0.3\n"
                     "mbpoll -m tcp -p 15021 -a 1 -r 2199 -c 2 -1 127.0.0.1\n"
                     "```\n")
     assert run_page(page, tmp_path / "s") == 1
-    for p in (REPO / marker, REPO / "build" / marker):
-        assert not p.exists()
-    from pathlib import Path
-    assert not Path(f"/tmp/{marker}").exists()
-    assert (tmp_path / "s" / "sandbox" / "upper" / marker).exists()
+    for p in (REPO / marker, REPO / "build" / marker, Path("/tmp") / marker):
+        assert not p.exists(), p
+    assert (tmp_path / "s" / "sandbox" / "tmp" / marker).exists()     # the page's /tmp
+    left = subprocess.run(["pgrep", "-f", f"^sleep {naptime}$"], capture_output=True, text=True)
+    assert left.returncode == 1 and not left.stdout.strip(), "a process outlived its page"
 
 
 def _page_param(p):
