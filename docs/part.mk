@@ -28,7 +28,7 @@ $(DOCS_BUILD)/st_lib.xml: $(DOCS_ST) $(DOCS_TOOLS)/plcopen_export.py $(DOCS_TOOL
 	$(PY) $(DOCS_TOOLS)/plcopen_export.py -o $@ $(DOCS_ST)
 
 .PHONY: docs docs-blocks docs-traces docs-diagrams docs-lossdata docs-plot docs-plcopen
-# Everything generated under docs/ (the throughput data take a minute: docs-lossdata).
+# Everything generated under docs/ but the throughput data (docs-lossdata: a few seconds).
 docs: docs-blocks docs-traces docs-diagrams docs-plot docs-plcopen
 
 docs-blocks: | venv
