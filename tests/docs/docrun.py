@@ -10,10 +10,18 @@ namespace per page; this module only says how a block of each language is run:
   anything (a line of only `...`: any number of lines); ports after `127.0.0.1:` and times
   (`1.5s`, `t=0.9s`, `seconds=1.5`, `0.36 wall s`) are normalised on both sides, and so are runs of blanks (mbpoll prints tabs). The command
   may exit non-zero only where the expected text shows it (`echo "exit status $?"`).
-- ```` ```python ````: executed; `test_*` functions it defines are called (with `tmp_path`).
+- ```` ```python ````: executed in the test's process (one namespace per page); `test_*`
+  functions it defines are called (with a `tmp_path` of their own); the runtime harness's build
+  cache is off meanwhile (it lives in the shared build/).
 
 A block whose first line is `# not run by the tests: REASON` (the same words, visible on the
 page) is not run; the reason must say why it cannot run here (a vendor IDE, a real modem, ...).
+
+Why Sybil: the pages are Markdown with shell sessions and Python in one document, whose blocks
+build on each other. pytest-markdown-docs runs Python blocks only; prysk (cram) runs shell
+sessions, but from its own `.t` files with indented `  $ ` lines, not from the fenced blocks of
+the pages. Sybil parses the Markdown (its fenced-block lexer), keeps a namespace per document and
+lets a parser name its evaluator, so only the evaluators below are ours.
 
 The shell of a page runs in a sandbox that looks like the checkout to the commands, so they
 run exactly as written: `unshare` gives it its own user, mount, network and PID namespaces;
@@ -264,13 +272,21 @@ def eval_python(example):
     ns = example.namespace
     before = set(ns)
     code = compile(source, f"{where(example)}", "exec")
-    exec(code, ns)
-    for name in [n for n in ns if n not in before and n.startswith("test_")]:
-        fn = ns[name]
-        if callable(fn):
-            tmp = ns["_tmp_path"] / f"py-{example.line}-{name}"
-            tmp.mkdir(parents=True, exist_ok=True)
-            fn(tmp) if fn.__code__.co_argcount else fn()
+    saved = os.environ.get("PLCRT_CACHE")
+    os.environ["PLCRT_CACHE"] = "off"      # the harness's build cache is shared build output
+    try:
+        exec(code, ns)
+        for name in [n for n in ns if n not in before and n.startswith("test_")]:
+            fn = ns[name]
+            if callable(fn):
+                tmp = ns["_tmp_path"] / f"py-{example.line}-{name}"
+                tmp.mkdir(parents=True, exist_ok=True)
+                fn(tmp) if fn.__code__.co_argcount else fn()
+    finally:
+        if saved is None:
+            os.environ.pop("PLCRT_CACHE", None)
+        else:
+            os.environ["PLCRT_CACHE"] = saved
     return None
 
 
