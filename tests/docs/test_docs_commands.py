@@ -34,8 +34,6 @@ SLOW = {
     "docs/exercises.md": "some dozens of co-simulated transfers, the emulator in real time",
     "docs/wiring-plcrt.md": "builds a soft-PLC and runs a transfer in real time",
     "docs/commissioning.md": "the emulator and soft-PLCs in real time, each mis-setting",
-    "docs/wiring-openplc.md": "a soft-PLC with the OpenPLC config against the emulator",
-    "docs/releases.md": "`make dist`",
     "docs/runtime-harness.md": "builds a program with the runtime harness",
 }
 COMMANDISH = re.compile(r"^ {4}(\$ |make\b|\.venv/|\.ci/|build/|mbpoll\b|python3?\b|git\b|"
@@ -123,6 +121,10 @@ def test_the_sandbox_keeps_the_checkout_and_tmp_clean(tmp_path):
     assert (tmp_path / "s" / "sandbox" / "tmp" / marker).exists()     # the page's /tmp
     left = subprocess.run(["pgrep", "-f", f"^sleep {naptime}$"], capture_output=True, text=True)
     assert left.returncode == 1 and not left.stdout.strip(), "a process outlived its page"
+
+
+def test_slow_pages_exist():
+    assert set(SLOW) <= {rel(p) for p in PAGES}, set(SLOW) - {rel(p) for p in PAGES}
 
 
 def _page_param(p):
