@@ -8,8 +8,10 @@ namespace per page; this module only says how a block of each language is run:
 - ```` ```console ````: `$ ` lines are commands (continued by `\\`), the lines after one are
   its expected output (stdout and stderr, in one stream). `...` in the expected text stands for
   anything (a line of only `...`: any number of lines); ports after `127.0.0.1:` and times
-  (`1.5s`, `t=0.9s`, `seconds=1.5`, `0.36 wall s`) are normalised on both sides, and so are runs of blanks (mbpoll prints tabs). The command
-  may exit non-zero only where the expected text shows it (`echo "exit status $?"`).
+  (`1.5s`, `t=0.9s`, `seconds=1.5`, `0.36 wall s`) are normalised on both sides, and so are
+  runs of blanks (mbpoll prints tabs). A command exits 0; a page that shows a failure shows
+  its status (`cmd; echo "exit status $?"`). Programs that write errors to stderr unbuffered
+  (mbpoll) may print them before their stdout: put `...` on both sides of such a line.
 - ```` ```python ````: executed in the test's process (one namespace per page); `test_*`
   functions it defines are called (with a `tmp_path` of their own); the runtime harness's build
   cache is off meanwhile (it lives in the shared build/).
@@ -27,9 +29,9 @@ The shell of a page runs in a sandbox that looks like the checkout to the comman
 run exactly as written: `unshare` gives it its own user, mount, network and PID namespaces;
 the checkout is mounted at its own path as an overlay whose writes go to a tmpfs of the
 sandbox (nothing in the source tree or the shared build/ changes), /tmp is a private directory
-(the test's tmp_path), the
-network is a private loopback (the emulator's default ports 15020.. are free, whatever else
-runs on the machine), and every process the page started dies with the sandbox.
+(the test's tmp_path), the network is a private loopback (the emulator's default ports
+15020.. are free, whatever else runs on the machine), and every process the page started dies
+with the sandbox. It needs unprivileged user namespaces (Linux >= 5.11 for the overlay).
 """
 from __future__ import annotations
 
@@ -72,7 +74,7 @@ def not_run_reason(source: str):
 
 
 def logical_lines(text: str):
-    """Joins backslash continuations; yields (command, following lines list index)."""
+    """The commands of a block: lines, a trailing backslash joining the next one."""
     out, cur = [], ""
     for line in text.split("\n"):
         if cur:
@@ -312,15 +314,16 @@ SYBIL = Sybil(parsers=[BlockParser("sh", eval_sh), BlockParser("console", eval_c
                        BlockParser("python", eval_python)])
 
 
-def run_page(path: Path, tmp_path: Path, stop_after_line: int | None = None):
-    """Runs every sh / console / python block of one page in order, in one sandbox."""
+def run_page(path: Path, tmp_path: Path):
+    """Runs every sh / console / python block of one page in order, in one sandbox; returns
+    how many ran (the marked ones do not)."""
     doc = SYBIL.parse(Path(path))
     doc.namespace["_tmp_path"] = Path(tmp_path)
     ran = 0
     try:
         for example in doc.examples():
             example.evaluate()
-            ran += 1
+            ran += not_run_reason(example.parsed) is None
     finally:
         sb = doc.namespace.get("_sandbox")
         if sb is not None:
