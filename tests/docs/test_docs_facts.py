@@ -65,3 +65,19 @@ def test_command_help_names_no_issue_numbers():
         assert "usage" in text.lower(), f"{cmd}: no usage text:\n{text[-500:]}"
         bad += [f"{' '.join(cmd[-2:])}: {m}" for m in re.findall(r"[^\n]*\bissues? #?\d+[^\n]*", text, re.I)]
     assert not bad, "\n".join(bad)
+
+
+def test_interop_section_does_not_change_with_the_wall_time():
+    """`make interop-matrix` regenerates docs/protocol.md's section 6: only what a rerun
+    reproduces goes in, so the tree stays clean after a run with the same results."""
+    import copy
+    import json
+    from mipinterop.docs import table
+    doc = json.loads((REPO / "interop" / "results.json").read_text())
+    other = copy.deepcopy(doc)
+    other["seconds"] = doc.get("seconds", 0) * 3 + 17
+    for r in other["results"]:
+        r["seconds"] = r.get("seconds", 0) * 3 + 1
+    assert table(doc) == table(other)
+    assert table(doc) in (REPO / "docs" / "protocol.md").read_text(), \
+        "docs/protocol.md: section 6 is not the table of interop/results.json"
