@@ -50,7 +50,7 @@ from sybil.parsers.markdown.lexers import FencedCodeBlockLexer
 
 REPO = Path(__file__).resolve().parents[2]
 NOT_RUN = re.compile(r"^#\s*not run by the tests:\s*(\S.*)$")
-COMMAND_TIMEOUT = 600          # s: one command (make run builds first)
+COMMAND_TIMEOUT = 300          # s: one command (make run may build first)
 LANGS = ("sh", "console", "python")
 
 # (pattern, replacement) on both sides of a comparison: what varies from run to run
