@@ -1,4 +1,5 @@
 """Facts the pages state about the code, checked against the code."""
+import os
 import re
 
 from docs_helpers import REPO
@@ -60,7 +61,8 @@ def test_command_help_names_no_issue_numbers():
                            "dist/mkdist.py", "docs/tools/mipsim.py", "docs/tools/seqdiag.py")]
     bad = []
     for cmd in commands:
-        p = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=60)
+        p = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=60,
+                           env=dict(os.environ, PYTHONDONTWRITEBYTECODE="1"))
         text = p.stdout + p.stderr
         assert "usage" in text.lower(), f"{cmd}: no usage text:\n{text[-500:]}"
         bad += [f"{' '.join(cmd[-2:])}: {m}" for m in re.findall(r"[^\n]*\bissues? #?\d+[^\n]*", text, re.I)]

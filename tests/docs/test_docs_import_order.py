@@ -3,6 +3,7 @@ the files in it); every page that names several st_lib files names them in that 
 lists of it (blocks.md, the archive's README.txt, st_lib/README.md) are exactly it."""
 from __future__ import annotations
 
+import os
 import re
 import subprocess
 import sys
@@ -22,7 +23,8 @@ LISTED = re.compile(r"^\s*\d+\.\s+`(st_lib/MIP_\w+\.st)`", re.M)
 @pytest.fixture(scope="module")
 def order():
     out = subprocess.run([PY, str(REPO / "dist" / "mkdist.py"), "--import-order"], cwd=REPO,
-                         capture_output=True, text=True, timeout=120)
+                         capture_output=True, text=True, timeout=120,
+                         env=dict(os.environ, PYTHONDONTWRITEBYTECODE="1"))
     assert out.returncode == 0, out.stderr
     files = out.stdout.split()
     assert sorted(files) == sorted(str(p.relative_to(REPO)) for p in (REPO / "st_lib").glob("*.st"))
