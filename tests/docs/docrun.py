@@ -143,6 +143,7 @@ class Sandbox:
         env = dict(os.environ, LC_ALL="C.UTF-8", TERM="dumb", PYTHONDONTWRITEBYTECODE="1",
                    PYTHONUNBUFFERED="1")
         env.pop("MAKEFLAGS", None)
+        env.pop("MIP_DOCS_WORKDIR", None)   # tests/docs/conftest.py's: the pages run as users do
         env.pop("MFLAGS", None)
         self.proc = subprocess.Popen(
             ["unshare", "-rmnp", "--fork", "--mount-proc", "--kill-child", "bash", "-c", setup],
