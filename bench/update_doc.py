@@ -24,7 +24,7 @@ def main(argv):
         sys.exit(f"update_doc.py: error: {DOC} lacks the {BEGIN} / {END} markers")
     head, rest = doc.split(BEGIN, 1)
     _, tail = rest.split(END, 1)
-    DOC.write_text(f"{head}{BEGIN}\n```\n{out}\n```\n{END}{tail}")
+    DOC.write_text(f"{head}{BEGIN}\n```text\n{out}\n```\n{END}{tail}")
 
 
 if __name__ == "__main__":

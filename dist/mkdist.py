@@ -3,6 +3,7 @@
 
     .venv/bin/python dist/mkdist.py --xsd build/docs/tc6_xml_v201.xsd -o build/dist
     .venv/bin/python dist/mkdist.py --version        # print the version and exit
+    .venv/bin/python dist/mkdist.py --import-order   # print st_lib/*.st in import order
 
 The version has one source: the constants uMajor / uMinor / uPatch of st_lib/MIP_Version.st.
 Before anything is written the script checks that CHANGELOG.md has an entry
@@ -15,7 +16,9 @@ mip-logger-<version>/:
     blocks.md                       the block reference (docs/blocks.md, regenerated here)
     LICENSE, CHANGELOG.md, README.txt
 
-The import order is the one of docs/blocks.md (every type and block before its first use).
+The import order is the one of docs/blocks.md (every type and block before its first use); it is
+the only import order the project states: `--import-order` prints it for build commands, and the
+pages that list it are checked against it (tests/docs/test_docs_import_order.py).
 The archives are reproducible: fixed member order and time stamps (SOURCE_DATE_EPOCH, or
 2026-01-01). Every error is one line and a non-zero exit.
 """
@@ -185,10 +188,15 @@ def main(argv=None) -> int:
     ap.add_argument("-o", "--outdir", default=str(REPO / "build" / "dist"))
     ap.add_argument("--xsd", help="validate the PLCopen XML against this TC6 v2.01 schema")
     ap.add_argument("--version", action="store_true", help="print the version and exit")
+    ap.add_argument("--import-order", action="store_true",
+                    help="print the st_lib files in import order, one a line, and exit")
     a = ap.parse_args(argv)
     try:
         if a.version:
             print(read_version())
+            return 0
+        if a.import_order:
+            print("\n".join(import_order()[0]))
             return 0
         for p in build(Path(a.outdir), Path(a.xsd) if a.xsd else None):
             print(f"dist: wrote {os.path.relpath(p)}")

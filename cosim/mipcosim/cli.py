@@ -38,7 +38,7 @@ def parse(argv):
                    help="virtual seconds between PLC restarts, alternating outstation / central "
                         "(run: none, soak: 120)")
     p.add_argument("--warm-restarts", "--warm", dest="warm", action="store_true",
-                   help="warm restarts (issue 16): the blocks wait for a snapshot before each new "
+                   help="warm restarts: the blocks wait for a snapshot before each new "
                         "record and acknowledgement (flag bit 3); a restarted PLC comes back with "
                         "its last snapshot (kill -9), every third one after a snapshot at the "
                         "stop (graceful); demands: lost 0, duplicated 0, no failure; default cold "

@@ -11,12 +11,13 @@ PLC_DIR = REPO / "plc"
 ST_LIB = REPO / "st_lib"
 if (Path(__file__).resolve().parent / "_st_lib").is_dir():
     ST_LIB = Path(__file__).resolve().parent / "_st_lib"     # installed by the test kit (kit/)
-# st_lib in import order (docs/blocks.md derives the same order from the sources): the one list
-# the Python tools build from (tests, docs, benchmarks)
-LIB_FILES = ["MIP_Types.st", "MIP_Version.st", "MIP_StatusBit.st", "MIP_EchoMagic.st",
-             "MIP_CheckStep.st", "MIP_Status.st", "MIP_WriteChannel.st",
-             "MIP_Layout.st", "MIP_ReadDecoder.st", "MIP_Sender.st", "MIP_Receiver.st",
-             "MIP_Link.st", "MIP_BufferSender.st"]
+# st_lib in the import order of `dist/mkdist.py --import-order` (the release archive's and
+# docs/blocks.md's): the list the Python tools build from (tests, docs, benchmarks); a copy,
+# checked against that order by tests/docs/test_docs_import_order.py
+LIB_FILES = ["MIP_CheckStep.st", "MIP_EchoMagic.st", "MIP_Layout.st", "MIP_Types.st",
+             "MIP_Version.st", "MIP_WriteChannel.st", "MIP_StatusBit.st", "MIP_ReadDecoder.st",
+             "MIP_Receiver.st", "MIP_Sender.st", "MIP_Status.st", "MIP_BufferSender.st",
+             "MIP_Link.st"]
 MAX_STATIONS = 4
 WINDOW = 160
 FFFF = 0xFFFF

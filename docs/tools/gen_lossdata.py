@@ -107,7 +107,8 @@ SOURCES = {
 def run(p, drive, seed, records, source="cosim"):
     """Payload registers per second, or None when the transfer did not finish in LIMIT_S."""
     fn = SOURCES[source][0]
-    return fn(p, drive, seed, records, REPO / "build" / "docs" / "cosim")
+    work = os.environ.get("MIP_DOCS_WORKDIR")       # as gen_traces.WORK
+    return fn(p, drive, seed, records, Path(work) / "cosim" if work else REPO / "build" / "docs" / "cosim")
 
 
 def main(argv=None):

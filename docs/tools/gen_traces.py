@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -18,7 +19,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from chainsim import FFFF, Chain, ChainError, Side  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
-WORK = REPO / "build" / "docs" / "plc"
+# where the PLCs are built; MIP_DOCS_WORKDIR elsewhere (the tests: one per test process)
+WORK = Path(os.environ.get("MIP_DOCS_WORKDIR") or REPO / "build" / "docs" / "plc")
 
 
 def logger_data(n, seed=1):
