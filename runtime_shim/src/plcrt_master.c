@@ -29,6 +29,7 @@ void plcrt_master_free(struct plcrt_master *m)
     plcrt_master_stop_thread(m);
     for (int i = 0; i < m->n_devices; i++) {
         plcrt_device_t *d = &m->devices[i];
+        if (d->ctx && d->rtu && d->bus != i) continue; /* the line's owner frees the context */
         if (d->ctx) {
             if (d->ext_fd >= 0) modbus_set_socket(d->ctx, -1); /* the fd is the caller's */
             else modbus_close(d->ctx);
@@ -189,7 +190,10 @@ static void device_close(plcrt_device_t *d)
 static int device_ensure_ctx(plcrt_t *rt, plcrt_device_t *d)
 {
     if (d->ctx) return 0;
-    d->ctx = modbus_new_tcp(d->host[0] ? d->host : "127.0.0.1", d->port);
+    if (d->rtu)
+        d->ctx = modbus_new_rtu(d->host, d->baud, d->parity, d->data_bits, d->stop_bits);
+    else
+        d->ctx = modbus_new_tcp(d->host[0] ? d->host : "127.0.0.1", d->port);
     if (!d->ctx) {
         plcrt_log(rt, "device %s: cannot create a Modbus context: %s", d->name, modbus_strerror(errno));
         return -1;
@@ -213,6 +217,14 @@ static int device_connect(plcrt_t *rt, struct plcrt_master *m, plcrt_device_t *d
                           int *err)
 {
     if (d->transact) return 0; /* in process: always there */
+    if (d->rtu && d->bus != (int)(d - m->devices)) {
+        /* a further device on a serial line: the line is the first device's */
+        plcrt_device_t *o = &m->devices[d->bus];
+        if (device_connect(rt, m, o, now, err) != 0) return -1;
+        d->ctx = o->ctx;
+        d->connected = 1;
+        return 0;
+    }
     if (device_ensure_ctx(rt, d) != 0) { *err = ENOMEM; return -1; }
     if (d->connected) return 0;
     if (now < d->next_connect_ns) { *err = ENOTCONN; return -1; }
@@ -222,8 +234,12 @@ static int device_connect(plcrt_t *rt, struct plcrt_master *m, plcrt_device_t *d
         d->n_connects++;
         munlock(m);
         d->backoff_ns = 0;
-        if (d->n_connects > 1 || d->failing)
-            log_limited(rt, d, LOG_CONNECTED, now, "device %s: connected to %s:%d", d->name, d->host, d->port);
+        if (d->n_connects > 1 || d->failing) {
+            if (d->rtu)
+                log_limited(rt, d, LOG_CONNECTED, now, "device %s: opened %s", d->name, d->host);
+            else
+                log_limited(rt, d, LOG_CONNECTED, now, "device %s: connected to %s:%d", d->name, d->host, d->port);
+        }
         return 0;
     }
     *err = errno;
@@ -340,6 +356,42 @@ static int do_request(struct plcrt_master *m, plcrt_device_t *d, request_t *q, i
         if (len < h + 1 || len > MODBUS_TCP_MAX_ADU_LENGTH || get16(rsp) != d->tid || get16(rsp + 2) != 0 ||
             get16(rsp + 4) != len - 6)
             goto bad;
+    } else if (d->rtu) {
+        /* Modbus RTU: unit id + PDU + CRC on the line (libmodbus frames it); the line is shared
+         * by the devices on it, one exchange at a time (this thread does them in turn) */
+        plcrt_device_t *o = &m->devices[d->bus];
+        if (o->pause_ns || d->pause_ns) {
+            uint64_t pause = d->pause_ns > o->pause_ns ? d->pause_ns : o->pause_ns;
+            uint64_t t = plcrt_monotonic_ns();
+            if (o->bus_free_ns && t < o->bus_free_ns + pause) {
+                uint64_t w = o->bus_free_ns + pause - t;
+                struct timespec ts = {(time_t)(w / 1000000000ull), (long)(w % 1000000000ull)};
+                nanosleep(&ts, NULL);
+            }
+        }
+        modbus_flush(d->ctx); /* what a late answer to an earlier request left on the line */
+        modbus_set_slave(d->ctx, q->unit);
+        modbus_set_response_timeout(d->ctx, (uint32_t)(d->timeout_ns / 1000000000ull),
+                                    (uint32_t)((d->timeout_ns % 1000000000ull) / 1000));
+        if (modbus_send_raw_request(d->ctx, req, n) < 0) {
+            o->bus_free_ns = plcrt_monotonic_ns();
+            *transport = 1;
+            return STATUS_TRANSPORT(errno);
+        }
+        if (d->after_send) d->after_send(d->after_send_user);
+        if (q->unit == 0) {
+            /* broadcast: every slave takes it, none answers */
+            o->bus_free_ns = plcrt_monotonic_ns();
+            return 0;
+        }
+        len = modbus_receive_confirmation(d->ctx, rsp);
+        o->bus_free_ns = plcrt_monotonic_ns();
+        if (len < 0) {
+            *transport = 1;
+            /* libmodbus's own codes (bad CRC, ...) are no errno: report them as a bad reply */
+            return STATUS_TRANSPORT(errno >= MODBUS_ENOBASE ? EPROTO : errno);
+        }
+        h = 1;
     } else {
         uint16_t tid = 0;
         if (send_adu(d, req, n, &tid) < 0) {
@@ -423,6 +475,8 @@ static int range_request(plcrt_t *rt, struct plcrt_master *m, plcrt_range_t *r, 
     d->failing = 1;
     if (d->transact) {
         /* in process nothing can be left in a stream */
+    } else if (d->rtu) {
+        /* a serial line stays open: the next request flushes what is left on it */
     } else if (transport && d->connected && d->ext_fd < 0) {
         /* the TCP stream may hold a late answer: start over on a new connection */
         mlock(m);

@@ -74,8 +74,16 @@ typedef struct plcrt_device {
     uint64_t log_last_ns[5], log_suppressed[5];
     unsigned char log_seen[5];
     char name[PLCRT_NAME_MAX];
-    char host[256];
+    char host[256];   /* TCP: host; RTU: the serial line's path */
     char last_error[160];
+    /* Modbus RTU (serial = PATH instead of host): libmodbus's RTU backend; devices on the same
+     * line share the first one's context (bus) and take the line in turn */
+    int rtu;
+    int baud, data_bits, stop_bits;
+    char parity;           /* 'N', 'E', 'O' */
+    uint64_t pause_ns;     /* silence before each request on the line (OpenPLC's RTU_TX_Pause) */
+    int bus;               /* index of the device that owns the line's context (itself or an earlier one) */
+    uint64_t bus_free_ns;  /* owner: monotonic time the line's last exchange ended */
 } plcrt_device_t;
 
 /* One request being built and done (step() in plcrt_master.c) */
