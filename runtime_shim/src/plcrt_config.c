@@ -177,6 +177,7 @@ static void assign_bus(struct plcrt_master *m, plcrt_device_t *d)
 {
     int self = (int)(d - m->devices);
     d->bus = self;
+    d->line_range = -1;
     if (!d->rtu) return;
     for (int i = 0; i < self; i++)
         if (m->devices[i].rtu && !strcmp(m->devices[i].host, d->host)) {

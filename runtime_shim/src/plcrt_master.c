@@ -36,6 +36,7 @@ void plcrt_master_free(struct plcrt_master *m)
             modbus_free(d->ctx);
         }
     }
+    for (int i = 0; i < m->n_devices; i++) free(m->devices[i].line_req);
     pthread_mutex_destroy(&m->lock);
     pthread_cond_destroy(&m->wake);
     free(m->devices);
@@ -501,13 +502,128 @@ static int function_code(const plcrt_range_t *r)
     }
 }
 
+/* the result of range r's request q: into the range, for the next exchange */
+static void publish(struct plcrt_master *m, plcrt_range_t *r, const request_t *q, int status)
+{
+    mlock(m);
+    if (r->policy == POLICY_TRIGGER) {
+        r->pending = 0;
+        r->status_value = status;
+        r->result = status == 0 ? RESULT_OK : RESULT_ERROR;
+        if (status == 0 && !r->is_write) memcpy(r->in, q->data, sizeof q->data[0] * (size_t)r->size);
+    } else if (status == 0) {
+        if (r->is_write) {
+            memcpy(r->last, q->data, sizeof q->data[0] * (size_t)r->size);
+            r->have_last = 1;
+        } else {
+            memcpy(r->in, q->data, sizeof q->data[0] * (size_t)r->size);
+            r->fresh = 1;
+        }
+    }
+    munlock(m);
+}
+
+/* ---- serial line in virtual time
+ * In virtual mode an RTU device's exchange takes the time it takes on the wire: the request is
+ * taken at t, reaches the slave (the transport, the emulator core) when its last character has
+ * crossed the line, t + (request characters) x (character time); the answer follows one
+ * 3.5-character gap later and is shown when its last character has arrived; the next request on
+ * the line waits one more gap (and the device's pause). The devices on one line take it in turn.
+ * A character is 1 start + data + parity + stop bits; the gap is 1.75 ms above 19200 baud. In
+ * real time the line itself takes that time. */
+
+static uint64_t char_ns(const plcrt_device_t *o)
+{
+    int bits = 1 + o->data_bits + (o->parity != 'N') + o->stop_bits;
+    return (uint64_t)bits * 1000000000ull / (uint64_t)(o->baud > 0 ? o->baud : 19200);
+}
+
+static uint64_t gap_ns(const plcrt_device_t *o)
+{
+    return o->baud > 19200 ? 1750000ull : char_ns(o) * 7 / 2;
+}
+
+/* RTU frame lengths (unit id + PDU + CRC) of a request and of its answer */
+static int rtu_req_chars(const request_t *q)
+{
+    if (q->fc == 16) return 9 + 2 * q->count;
+    if (q->fc == 15) return 9 + (q->count + 7) / 8;
+    return 8;
+}
+
+static int rtu_rsp_chars(const request_t *q, int status)
+{
+    if (status > 0 && status < 1000) return 5; /* exception */
+    if (q->fc == 3 || q->fc == 4) return 5 + 2 * q->count;
+    if (q->fc == 1 || q->fc == 2) return 5 + (q->count + 7) / 8;
+    return 8;
+}
+
+static int line_modelled(plcrt_t *rt, const plcrt_device_t *d) { return d->rtu && !plcrt_threaded(rt); }
+
+/* moves the exchange on the line of owner o on to now; returns 1 while the line is busy */
+static int line_advance(plcrt_t *rt, struct plcrt_master *m, plcrt_device_t *o, uint64_t now)
+{
+    if (o->line_range < 0) return now < o->line_free_ns;
+    plcrt_range_t *r = &m->ranges[o->line_range];
+    plcrt_device_t *d = &m->devices[r->dev];
+    request_t *q = o->line_req;
+    if (o->line_phase == 1) {
+        if (now < o->line_send_ns) return 1;
+        /* the request is complete at the slave: the transport answers now */
+        request_t *w = &m->q;
+        memcpy(w, q, sizeof *w);
+        int status = range_request(rt, m, r, w, o->line_send_ns);
+        if (status < 0) status = STATUS_TRANSPORT(ENOTCONN);
+        memcpy(q, w, sizeof *q);
+        o->line_status = status;
+        o->line_phase = 2;
+        if (q->unit == 0)
+            o->line_done_ns = o->line_send_ns; /* broadcast: no answer */
+        else if (status >= 1000)
+            o->line_done_ns = o->line_send_ns + d->timeout_ns; /* silence: the master waits its timeout */
+        else
+            o->line_done_ns = o->line_send_ns + gap_ns(o) + (uint64_t)rtu_rsp_chars(q, status) * char_ns(o);
+    }
+    if (now < o->line_done_ns) return 1;
+    publish(m, r, q, o->line_status);
+    o->line_busy_ns += o->line_done_ns - (o->line_send_ns - (uint64_t)rtu_req_chars(q) * char_ns(o));
+    o->line_free_ns = o->line_done_ns + gap_ns(o) + (d->pause_ns > o->pause_ns ? d->pause_ns : o->pause_ns);
+    o->line_range = -1;
+    return now < o->line_free_ns;
+}
+
+/* puts request q of range r on the idle line of owner o at now */
+static int line_start(struct plcrt_master *m, plcrt_device_t *o, plcrt_range_t *r, const request_t *q,
+                      uint64_t now)
+{
+    if (!o->line_req && !(o->line_req = malloc(sizeof *o->line_req))) return -1;
+    memcpy(o->line_req, q, sizeof *q);
+    o->line_range = (int)(r - m->ranges);
+    o->line_phase = 1;
+    o->line_send_ns = now + (uint64_t)rtu_req_chars(q) * char_ns(o);
+    return 0;
+}
+
 static void step(plcrt_t *rt, struct plcrt_master *m, uint64_t now, int writes_only)
 {
     request_t *q = &m->q; /* large: not on the stack */
-    for (int i = 0; i < m->n_ranges; i++) {
+    /* virtual time: exchanges on serial lines move on first (they may finish now) */
+    for (int i = 0; i < m->n_devices; i++) {
+        plcrt_device_t *o = &m->devices[i];
+        if (line_modelled(rt, o) && o->bus == i) line_advance(rt, m, o, now);
+    }
+    /* config order; with serial lines in virtual time the round starts after the range that
+     * last took a line, so that the ranges on a line take it in turn (in real time each pass
+     * does every due range, one after the other) */
+    int first = m->line_rr < m->n_ranges ? m->line_rr : 0;
+    for (int k = 0; k < m->n_ranges; k++) {
+        int i = (first + k) % m->n_ranges;
         plcrt_range_t *r = &m->ranges[i];
         if (writes_only && (!r->is_write || r->policy == POLICY_TRIGGER)) continue;
         plcrt_device_t *d = &m->devices[r->dev];
+        plcrt_device_t *line = line_modelled(rt, d) ? &m->devices[d->bus] : NULL;
+        if (line && (line->line_range >= 0 || now < line->line_free_ns)) continue; /* the line is taken */
         mlock(m);
         int go = 0;
         if (r->policy == POLICY_TRIGGER) {
@@ -554,26 +670,19 @@ static void step(plcrt_t *rt, struct plcrt_master *m, uint64_t now, int writes_o
             log_limited(rt, d, LOG_LENGTH, now, "range %s: length word %%QW%d = %d is outside 1..%d",
                         r->name, r->length, q->count, r->size);
             status = STATUS_TRANSPORT(EINVAL);
+        } else if (line) {
+            /* on the wire from now on; the answer comes in a later step */
+            if (line_start(m, line, r, q, now) == 0) {
+                m->line_rr = i + 1;
+                line_advance(rt, m, line, now);
+                continue;
+            }
+            status = STATUS_TRANSPORT(ENOMEM);
         } else {
             status = range_request(rt, m, r, q, now);
             if (status < 0) continue; /* skipped: device in reconnect backoff */
         }
-        mlock(m);
-        if (r->policy == POLICY_TRIGGER) {
-            r->pending = 0;
-            r->status_value = status;
-            r->result = status == 0 ? RESULT_OK : RESULT_ERROR;
-            if (status == 0 && !r->is_write) memcpy(r->in, q->data, sizeof q->data[0] * (size_t)r->size);
-        } else if (status == 0) {
-            if (r->is_write) {
-                memcpy(r->last, q->data, sizeof q->data[0] * (size_t)r->size);
-                r->have_last = 1;
-            } else {
-                memcpy(r->in, q->data, sizeof q->data[0] * (size_t)r->size);
-                r->fresh = 1;
-            }
-        }
-        munlock(m);
+        publish(m, r, q, status);
     }
 }
 

@@ -84,6 +84,17 @@ typedef struct plcrt_device {
     uint64_t pause_ns;     /* silence before each request on the line (OpenPLC's RTU_TX_Pause) */
     int bus;               /* index of the device that owns the line's context (itself or an earlier one) */
     uint64_t bus_free_ns;  /* owner: monotonic time the line's last exchange ended */
+    /* virtual time (owner of the line): the exchange on the wire, modelled from the character
+     * time, so a co-simulation pays the line's time (plcrt_master.c, "serial line in virtual
+     * time"); line_range < 0 = the line is idle */
+    struct request *line_req; /* the request on the line (allocated at the first use) */
+    int line_range;        /* its range */
+    int line_phase;        /* 1: the request is on the wire, 2: the answer is */
+    int line_status;       /* phase 2: the result */
+    uint64_t line_send_ns; /* phase 1: its last character reaches the slave */
+    uint64_t line_done_ns; /* phase 2: the answer's last character reaches the master */
+    uint64_t line_free_ns; /* the next request may start (a 3.5-character gap after the answer) */
+    uint64_t line_busy_ns; /* total virtual time the line carried exchanges (statistics) */
 } plcrt_device_t;
 
 /* One request being built and done (step() in plcrt_master.c) */
@@ -115,6 +126,7 @@ struct plcrt_master {
      * else the scanning thread), and a plain member, unlike a thread-local one, costs no
      * __tls_get_addr in a dlopen'ed libplc.so */
     request_t q;
+    int line_rr; /* virtual time, serial lines: the range after the one that last took a line */
 
     pthread_mutex_t lock;
     pthread_cond_t wake;

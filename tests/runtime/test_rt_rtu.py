@@ -107,7 +107,7 @@ def test_openplc_mbconfig_with_rtu_devices_sharing_a_line(compiler, emu_rtu, tmp
     src.write_text(WRITER)
     plc = Plc.build([src], workdir=tmp_path, compiler=compiler, config=cfg)
     try:
-        plc.scan(40)   # 0.4 s virtual: polls every 50 ms, each request on the pty for real
+        plc.scan(100)  # 1 s virtual: polls every 50 ms; the line takes each exchange in turn
         # OpenPLC's mapping: device0 writes %QW100..102 and reads into %IW100..101, device1
         # writes %QW103 and reads into %IW102
         assert tcp_read(emu.trm_port(1), 2001, 2) == [0x1234, 0x5678]
