@@ -255,9 +255,12 @@ def run(a):
                           polled=a.polled, log_period_ms=a.log_period_ms, timeout_ms=timeout_ms)
         # central first, so the outstations find it listening
         cen_conf = rundir / "central.conf"
+        # on a serial line the reads take the status word alone until it shows new data
+        # (status_first: measured best, docs/serial.md)
         cen_conf.write_text(L.central_config(
             mdp_port, a.stations,
-            serial=L.serial_keys(serial["mdp"], a.baud) if a.baud else None))
+            serial=L.serial_keys(serial["mdp"], a.baud) if a.baud else None,
+            status_first=bool(a.baud)))
         cen_port = free_port()
         procs.start("central soft-PLC", [str(progs["central"].executable), "-c", str(cen_conf),
                                          "-s", f"127.0.0.1:{cen_port}"], rundir / "central.log")
@@ -265,7 +268,8 @@ def run(a):
         for s in range(1, a.stations + 1):
             conf = rundir / f"outstation{s}.conf"
             conf.write_text(L.outstation_config(
-                trm_ports[s - 1], serial=L.serial_keys(serial[s], a.baud) if a.baud else None))
+                trm_ports[s - 1], serial=L.serial_keys(serial[s], a.baud) if a.baud else None,
+                status_first=bool(a.baud)))
             port = free_port()
             out_ports.append(port)
             procs.start(f"outstation {s} soft-PLC", [str(progs["outstation"].executable), "-c",

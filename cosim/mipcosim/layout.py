@@ -166,13 +166,13 @@ class Params:
         return max(1, min(self.payload, room))
 
 
-def _read_write_ranges(dev, s, read_start, write_start):
+def _read_write_ranges(dev, s, read_start, write_start, status_first=False):
     return f"""
 [read {dev}_read]
 device = {dev}
 start = {read_start}
 size = 125
-image = %IW{read_image(s)}
+{"status_first = yes" + chr(10) if status_first else ""}image = %IW{read_image(s)}
 policy = trigger
 trigger = %QX{s}.0
 done = %IX{s}.0
@@ -220,7 +220,8 @@ def serial_keys(path, baud=19200, parity="even", data_bits=8, stop_bits=1):
             f"stop_bits = {stop_bits}\n")
 
 
-def outstation_config(trm_port, host="127.0.0.1", comment="", retain="", serial=None, unit=1):
+def outstation_config(trm_port, host="127.0.0.1", comment="", retain="", serial=None, unit=1,
+                      status_first=False):
     """retain: a retain_section(...) or "". serial: serial_keys(...) for an RTU link (then
     trm_port and host are not used), unit: the TRM's unit id."""
     link = serial if serial else f"host = {host}\nport = {trm_port}\n"
@@ -230,11 +231,14 @@ def outstation_config(trm_port, host="127.0.0.1", comment="", retain="", serial=
 {link}unit_id = {unit}
 errors = %IW30
 online = %IX9.0
-""" + _read_write_ranges("trm", 1, 2198, 2001) + retain)
+""" + _read_write_ranges("trm", 1, 2198, 2001, status_first) + retain)
 
 
-def central_config(mdp_port, stations, host="127.0.0.1", comment="", retain="", serial=None):
-    """serial: serial_keys(...) for an RTU link to the MDP-810 (the devices share the line)."""
+def central_config(mdp_port, stations, host="127.0.0.1", comment="", retain="", serial=None,
+                   status_first=False):
+    """serial: serial_keys(...) for an RTU link to the MDP-810 (the devices share the line);
+    status_first: the read ranges read the status word alone until it shows new data
+    (runtime_shim README, docs/serial.md)."""
     text = (f"# plcrt config of the central (plc/central*.st): the MDP-810, one device per\n"
             f"# outstation (unit id = station address).\n{comment}" + MASTER + retain)
     link = serial if serial else f"host = {host}\nport = {mdp_port}\n"
@@ -244,7 +248,7 @@ def central_config(mdp_port, stations, host="127.0.0.1", comment="", retain="", 
 {link}unit_id = {s}
 errors = %IW{30 + s}
 online = %IX9.{s}
-""" + _read_write_ranges(f"mdp{s}", s, 198, 10)
+""" + _read_write_ranges(f"mdp{s}", s, 198, 10, status_first)
     return text
 
 

@@ -176,6 +176,8 @@ class Setup:
     # runtime's devices are serial, and in virtual time each exchange takes its time on the line
     # (runtime_shim: "serial line in virtual time"; docs/serial.md); with transport "inproc"
     link_baud: int = 0
+    # the read ranges read the MIP status word alone until it shows new data (status_first)
+    status_first: bool = False
     # "inproc": the runtime hands each request ADU to the emulator core (the kernel);
     # "socketpair" / "tcp": the same ADUs through libmodbus over a socketpair / a TCP
     # connection on 127.0.0.1
@@ -289,10 +291,12 @@ class Chain(_Kernel):
             else (lambda name: None)
         self.out_conf = self.workdir / "outstation.conf"
         self.out_conf.write_text(L.outstation_config(15021, retain=L.retain_section(
-            self.workdir / "outstation.retain", setup.retain_period_ms), serial=ser("trm")))
+            self.workdir / "outstation.retain", setup.retain_period_ms), serial=ser("trm"),
+            status_first=setup.status_first))
         self.cen_conf = self.workdir / "central.conf"
         self.cen_conf.write_text(L.central_config(15020, setup.stations, retain=L.retain_section(
-            self.workdir / "central.retain", setup.retain_period_ms), serial=ser("mdp")))
+            self.workdir / "central.retain", setup.retain_period_ms), serial=ser("mdp"),
+            status_first=setup.status_first))
         self.events: list[Event] = []
         self.boots = {("out", s): 0 for s in range(1, setup.stations + 1)}
         self.boots[("cen", 0)] = 0

@@ -142,10 +142,11 @@ typedef struct range_keys {
     int line;
     char name[PLCRT_NAME_MAX];
     int is_write;
-    int device, table, start, size, image, policy, trigger, done, error, status, length;
+    int device, table, start, size, image, policy, trigger, done, error, status, length, status_first;
     char v_device[PLCRT_NAME_MAX], v_table[32], v_image[32], v_policy[32], v_trigger[32],
         v_done[32], v_error[32], v_status[32], v_length[32];
     long start_v, size_v;
+    int status_first_v;
 } range_keys_t;
 
 typedef struct device_keys {
@@ -303,6 +304,11 @@ static int finish_range(parser_t *p, range_keys_t *k, uint64_t default_poll)
         if (parse_location(p, k->length, "length", k->v_length, 'Q', 'W', &r->length) ||
             claim(p, k->length, 'Q', 'W', r->length, 1, "length"))
             return -1;
+    }
+    if (k->status_first && k->status_first_v) {
+        if (bits || r->size < 3)
+            return perr(p, k->status_first, "status_first: for register reads of 3 or more (status, count, data)");
+        r->status_first = 1;
     }
     if (claim(p, k->image, area, bits ? 'X' : 'W', r->image, r->size, "image")) return -1;
     /* two ranges of one device on the same registers are a mistake */
@@ -608,6 +614,13 @@ static int parse_plcrt(parser_t *p, char *text)
                 RKEY(error, v_error)
                 RKEY(status, v_status)
                 if (sec == SEC_WRITE) { RKEY(length, v_length) }
+                if (sec == SEC_READ && !strcmp(key, "status_first")) {
+                    slot = &rk.status_first;
+                    if (!strcmp(val, "yes") || !strcmp(val, "true")) rk.status_first_v = 1;
+                    else if (!strcmp(val, "no") || !strcmp(val, "false")) rk.status_first_v = 0;
+                    else return perr(p, lineno, "status_first: '%s' is not yes or no", val);
+                    break;
+                }
                 if (!strcmp(key, "start")) {
                     slot = &rk.start;
                     if (parse_int(p, lineno, key, val, 0, 65535, &rk.start_v)) return -1;
@@ -619,7 +632,7 @@ static int parse_plcrt(parser_t *p, char *text)
                     break;
                 }
                 return perr(p, lineno, "unknown key '%s' in [%s] (device, table, start, size, image, policy, trigger, done, error, status%s)",
-                            key, sec == SEC_WRITE ? "write" : "read", sec == SEC_WRITE ? ", length" : "");
+                            key, sec == SEC_WRITE ? "write" : "read", sec == SEC_WRITE ? ", length" : ", status_first");
             } while (0);
 #undef RKEY
             break;

@@ -427,6 +427,39 @@ bad:
     return STATUS_TRANSPORT(EPROTO);
 }
 
+/* A read of a MIP read area (status word, count word, data) with status_first: the status and
+ * count alone; only when bit 0 (new read data) is set, a second read from the status word on,
+ * of the count's registers (2 + count, at most the range), which clears the bit; when that
+ * read's count is larger than the first one's (a newer, longer block arrived between them), a
+ * third read of the whole range. Registers not read keep what the last read brought (the
+ * program looks at the data only with bit 0 or a new count). The characters of the further
+ * exchanges are kept for the line's time in virtual time. */
+static int status_first_request(struct plcrt_master *m, plcrt_device_t *d, const plcrt_range_t *r,
+                                request_t *q, int *transport)
+{
+    int size = q->count;
+    q->extra_req = q->extra_rsp = 0;
+    memcpy(q->data, r->in, sizeof q->data[0] * (size_t)size); /* what is not read stays */
+    q->count = 2;
+    int status = do_request(m, d, q, transport);
+    if (status != 0 || !(q->data[0] & 1)) {
+        q->count = size;
+        return status;
+    }
+    for (int pass = 0; pass < 2; pass++) {
+        int want = pass ? size : 2 + q->data[1];
+        if (want > size) want = size;
+        int had = want;
+        q->count = want;
+        q->extra_req += 8;
+        q->extra_rsp += 5 + 2 * want;
+        status = do_request(m, d, q, transport);
+        if (status != 0 || had == size || 2 + q->data[1] <= had) break;
+    }
+    q->count = size;
+    return status;
+}
+
 static const char *status_text(int status, char *buf, size_t n)
 {
     if (status >= 1000) snprintf(buf, n, "%s", modbus_strerror(status - 1000));
@@ -445,6 +478,8 @@ static int range_request(plcrt_t *rt, struct plcrt_master *m, plcrt_range_t *r, 
             return -1; /* waiting for the reconnect backoff: no request, no error */
         status = STATUS_TRANSPORT(err);
         transport = 1;
+    } else if (q->status_first) {
+        status = status_first_request(m, d, r, q, &transport);
     } else {
         status = do_request(m, d, q, &transport);
     }
@@ -554,6 +589,7 @@ static int rtu_req_chars(const request_t *q)
 static int rtu_rsp_chars(const request_t *q, int status)
 {
     if (status > 0 && status < 1000) return 5; /* exception */
+    if (q->status_first) return 5 + 2 * 2; /* the first exchange: status and count */
     if (q->fc == 3 || q->fc == 4) return 5 + 2 * q->count;
     if (q->fc == 1 || q->fc == 2) return 5 + (q->count + 7) / 8;
     return 8;
@@ -584,6 +620,9 @@ static int line_advance(plcrt_t *rt, struct plcrt_master *m, plcrt_device_t *o, 
             o->line_done_ns = o->line_send_ns + d->timeout_ns; /* silence: the master waits its timeout */
         else
             o->line_done_ns = o->line_send_ns + gap_ns(o) + (uint64_t)rtu_rsp_chars(q, status) * char_ns(o);
+        if (q->extra_req) /* status_first's further exchanges, one after the other */
+            o->line_done_ns += (uint64_t)(q->extra_req + q->extra_rsp) * char_ns(o) +
+                               (uint64_t)(q->extra_req / 8) * 2 * gap_ns(o);
     }
     if (now < o->line_done_ns) return 1;
     publish(m, r, q, o->line_status);
@@ -653,6 +692,8 @@ static void step(plcrt_t *rt, struct plcrt_master *m, uint64_t now, int writes_o
         if (!go) continue;
         q->fc = function_code(r);
         q->addr = r->start;
+        q->status_first = r->status_first;
+        q->extra_req = q->extra_rsp = 0;
         int status;
         if (q->unit < 0 || q->unit > 255) {
             /* unit_id = %QWn held a value that is no unit id: the request is not sent */

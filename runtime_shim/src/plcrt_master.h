@@ -25,6 +25,7 @@ typedef struct plcrt_range {
     int image;       /* first word index (%IW/%QW), or flat bit index a*8+b (%IX/%QX) */
     int trigger, done, error; /* flat bit indexes, -1 = none */
     int status, length;       /* word indexes, -1 = none */
+    int status_first;         /* reads: the MIP read area's status word first (plcrt_master.c) */
     int dev;
     int line;
 
@@ -100,6 +101,8 @@ typedef struct plcrt_device {
 /* One request being built and done (step() in plcrt_master.c) */
 typedef struct request {
     int fc, addr, count;
+    int status_first;  /* read the status and count words alone first (range option) */
+    int extra_req, extra_rsp; /* characters of the follow-up exchanges status_first made */
     int unit; /* unit id of this request (0..255 by the time it is sent) */
     uint16_t data[PLCRT_MAX_BITS]; /* write data in, read data out */
 } request_t;

@@ -423,6 +423,12 @@ TEST(config_errors_name_file_and_line)
                         "bad.cfg:4: error: device: no [device nowhere]");
     expect_config_error(DEV "host = 127.0.0.2\n", "bad.cfg:3: error: key 'host' given twice (first on line 2)");
     expect_config_error("[device d]\nport = 5020\n", "bad.cfg:1: error: [device d]: missing key 'host'");
+    expect_config_error(DEV "[read r]\ndevice = d\nstart = 0\nsize = 10\nimage = %IW100\nstatus_first = maybe\n",
+                        "bad.cfg:8: error: status_first: 'maybe' is not yes or no");
+    expect_config_error(DEV "[read r]\ndevice = d\nstart = 0\nsize = 2\nimage = %IW100\nstatus_first = yes\n",
+                        "bad.cfg:8: error: status_first: for register reads of 3 or more");
+    expect_config_error(DEV "[write w]\ndevice = d\nstart = 0\nsize = 3\nimage = %QW100\nstatus_first = yes\n",
+                        "bad.cfg:8: error: unknown key 'status_first' in [write]");
     expect_config_error("[device d]\nserial = /dev/ttyS0\nhost = 127.0.0.1\n",
                         "bad.cfg:2: error: [device d]: host and serial");
     expect_config_error(DEV "baud = 9600\n", "bad.cfg:3: error: baud, parity, data_bits, stop_bits and pause are keys of serial");

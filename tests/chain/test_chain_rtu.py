@@ -120,3 +120,23 @@ def test_mip_cosim_cli_link_rtu(capsys):
     assert rc == 0, out
     assert "PLCs on Modbus RTU at 19200 baud" in out
     assert out.strip().splitlines()[-1].startswith("result: ok records=3 lost=0 duplicated=0")
+
+
+@pytest.mark.parametrize("baud,bidi,loss", [(19200, False, 0.1), (19200, True, 0.2), (0, False, 0.3)])
+def test_chain_cosim_status_first_exact_delivery(tmp_path, baud, bidi, loss):
+    """The read strategy status_first (the status word alone until it shows new data, then the
+    status, count and the count's registers): exact delivery under loss, uni- and bidirectional,
+    on RTU and on TCP; most reads are the two-register status reads."""
+    trace = tmp_path / "trace.jsonl"
+    st = rtu_setup(baud, loss=loss, seed=4, records=10, per_transfer=4, bidi=bidi, status_first=True)
+    with Chain(st, tmp_path, trace=trace) as ch:
+        assert ch.run_to_end(900 * SEC)
+        reps = cosim_check(ch)
+        tot = summary(reps)
+    assert [p for r in reps for p in r.problems] == []
+    assert tot["lost"] == 0
+    reads = [e for e in map(json.loads, trace.read_text().splitlines())
+             if e["ev"] == "modbus" and e["fc"] == 3]
+    status_only = sum(1 for e in reads if e["rq"] == 2)
+    assert status_only > len(reads) / 2, (status_only, len(reads))
+    assert all(e["rq"] == 2 or e["ra"] in (198, 2198) for e in reads)
