@@ -269,3 +269,85 @@ def test_plc_executable_runs_an_openplc_mbconfig_with_rtu_in_real_time(emu_rtu, 
     assert p.returncode == 0, p.stderr
     assert tcp_read(emu.trm_port(1), 2001, 2) == [0x1234, 0x5678]
     assert tcp_read(emu.trm_port(2), 2001, 1) == [0xBEEF]
+
+
+class LossyLine:
+    """A relay between the emulator's pty and a pty of its own that the PLC opens: every
+    `every`-th byte in each direction is dropped (a deterministic serial fault)."""
+
+    def __init__(self, far_path, every):
+        import threading
+        import tty
+        self.far = os.open(str(far_path), os.O_RDWR | os.O_NOCTTY)
+        tty.setraw(self.far)
+        self.master, slave = os.openpty()
+        tty.setraw(slave)
+        self.path = os.ttyname(slave)
+        self.slave = slave            # kept open: the pair stays up while the PLC reopens it
+        self.every = every
+        self.n = [0, 0]
+        self.dropped = 0
+        self.stop = False
+        self.t = threading.Thread(target=self._run, daemon=True)
+        self.t.start()
+
+    def _pass(self, src, dst, k):
+        data = os.read(src, 4096)
+        out = bytearray()
+        for b in data:
+            self.n[k] += 1
+            if self.n[k] % self.every == 0:
+                self.dropped += 1
+                continue
+            out.append(b)
+        if out:
+            os.write(dst, bytes(out))
+
+    def _run(self):
+        import select
+        while not self.stop:
+            r, _, _ = select.select([self.far, self.master], [], [], 0.05)
+            if self.master in r:
+                self._pass(self.master, self.far, 0)
+            if self.far in r:
+                self._pass(self.far, self.master, 1)
+
+    def close(self):
+        self.stop = True
+        self.t.join(timeout=5)
+        for fd in (self.far, self.master, self.slave):
+            os.close(fd)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("compiler", [compiler_param("stc")])
+def test_rtu_bytes_lost_give_named_errors_never_wrong_data(compiler, emu_rtu, tmp_path):
+    """Every 37th byte on the line lost (both ways): requests fail with a timeout (1110) or a
+    bad answer (1071); every read that succeeds holds the value of the last write that
+    succeeded."""
+    emu, link = emu_rtu
+    line = LossyLine(link, 37)
+    plc = build(tmp_path, line.path, 5, compiler)
+    try:
+        ok_reads = errors = 0
+        possible = {0}     # what the modem may hold: the last confirmed write, and the failed
+        for i in range(1, 41):   # ones after it (a write whose answer was lost did arrive)
+            plc.force("%QW41", 5000 + i)
+            if handshake(plc, "%QX1.1", "%IX1.2", "%IX1.3") == (True, False):
+                possible = {5000 + i}
+            else:
+                assert plc["%IW21"] in (1110, 1071), plc["%IW21"]
+                possible.add(5000 + i)
+                errors += 1
+            if handshake(plc, "%QX1.0", "%IX1.0", "%IX1.1") == (True, False):
+                ok_reads += 1
+                assert plc["%IW100"] in possible, (plc["%IW100"], possible, i)
+                possible = {plc["%IW100"]}
+            else:
+                assert plc["%IW11"] in (1110, 1071), plc["%IW11"]
+                errors += 1
+        assert line.dropped > 10
+        assert ok_reads > 5 and errors > 0, (ok_reads, errors)
+    finally:
+        plc.close()
+        line.close()
