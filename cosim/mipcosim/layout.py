@@ -221,10 +221,12 @@ def serial_keys(path, baud=19200, parity="even", data_bits=8, stop_bits=1):
 
 
 def outstation_config(trm_port, host="127.0.0.1", comment="", retain="", serial=None, unit=1,
-                      status_first=False):
+                      status_first=False, fc23=False):
     """retain: a retain_section(...) or "". serial: serial_keys(...) for an RTU link (then
     trm_port and host are not used), unit: the TRM's unit id."""
     link = serial if serial else f"host = {host}\nport = {trm_port}\n"
+    if fc23:
+        link += "fc23 = yes\n"
     return (f"# plcrt config of the outstation (plc/outstation*.st): the TRM-810 of its station.\n"
             f"{comment}" + MASTER + f"""
 [device trm]
@@ -235,13 +237,15 @@ online = %IX9.0
 
 
 def central_config(mdp_port, stations, host="127.0.0.1", comment="", retain="", serial=None,
-                   status_first=False):
+                   status_first=False, fc23=False):
     """serial: serial_keys(...) for an RTU link to the MDP-810 (the devices share the line);
     status_first: the read ranges read the status word alone until it shows new data
     (runtime_shim README, docs/serial.md)."""
     text = (f"# plcrt config of the central (plc/central*.st): the MDP-810, one device per\n"
             f"# outstation (unit id = station address).\n{comment}" + MASTER + retain)
     link = serial if serial else f"host = {host}\nport = {mdp_port}\n"
+    if fc23:
+        link += "fc23 = yes\n"
     for s in range(1, stations + 1):
         text += f"""
 [device mdp{s}]

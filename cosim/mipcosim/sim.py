@@ -178,6 +178,8 @@ class Setup:
     link_baud: int = 0
     # the read ranges read the MIP status word alone until it shows new data (status_first)
     status_first: bool = False
+    # a read and a write of a device pending together go as one FC23 (device option fc23)
+    fc23: bool = False
     # "inproc": the runtime hands each request ADU to the emulator core (the kernel);
     # "socketpair" / "tcp": the same ADUs through libmodbus over a socketpair / a TCP
     # connection on 127.0.0.1
@@ -292,11 +294,11 @@ class Chain(_Kernel):
         self.out_conf = self.workdir / "outstation.conf"
         self.out_conf.write_text(L.outstation_config(15021, retain=L.retain_section(
             self.workdir / "outstation.retain", setup.retain_period_ms), serial=ser("trm"),
-            status_first=setup.status_first))
+            status_first=setup.status_first, fc23=setup.fc23))
         self.cen_conf = self.workdir / "central.conf"
         self.cen_conf.write_text(L.central_config(15020, setup.stations, retain=L.retain_section(
             self.workdir / "central.retain", setup.retain_period_ms), serial=ser("mdp"),
-            status_first=setup.status_first))
+            status_first=setup.status_first, fc23=setup.fc23))
         self.events: list[Event] = []
         self.boots = {("out", s): 0 for s in range(1, setup.stations + 1)}
         self.boots[("cen", 0)] = 0

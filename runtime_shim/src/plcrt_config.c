@@ -152,7 +152,7 @@ typedef struct range_keys {
 typedef struct device_keys {
     int line;
     int host, port, unit_id, timeout, polling_period, errors, online;
-    int serial, baud, parity, data_bits, stop_bits, pause;
+    int serial, baud, parity, data_bits, stop_bits, pause, fc23;
 } device_keys_t;
 
 /* "none"/"even"/"odd" (also N/E/O and OpenPLC's None/Even/Odd) -> 'N'/'E'/'O', 0 = not one */
@@ -178,7 +178,7 @@ static void assign_bus(struct plcrt_master *m, plcrt_device_t *d)
 {
     int self = (int)(d - m->devices);
     d->bus = self;
-    d->line_range = -1;
+    d->line_range = d->line_range2 = -1;
     if (!d->rtu) return;
     for (int i = 0; i < self; i++)
         if (m->devices[i].rtu && !strcmp(m->devices[i].host, d->host)) {
@@ -557,6 +557,11 @@ static int parse_plcrt(parser_t *p, char *text)
                 slot = &dk.stop_bits;
                 if (parse_int(p, lineno, key, val, 1, 2, &x)) return -1;
                 dev->stop_bits = (int)x;
+            } else if (!strcmp(key, "fc23")) {
+                slot = &dk.fc23;
+                if (!strcmp(val, "yes") || !strcmp(val, "true")) dev->fc23 = 1;
+                else if (!strcmp(val, "no") || !strcmp(val, "false")) dev->fc23 = 0;
+                else return perr(p, lineno, "fc23: '%s' is not yes or no", val);
             } else if (!strcmp(key, "pause")) {
                 slot = &dk.pause;
                 if (parse_duration(p, lineno, key, val, &dev->pause_ns)) return -1;
@@ -594,7 +599,7 @@ static int parse_plcrt(parser_t *p, char *text)
                     claim(p, lineno, 'I', 'X', dev->online_bit, 1, key))
                     return -1;
             } else
-                return perr(p, lineno, "unknown key '%s' in [device] (host, port, serial, baud, parity, data_bits, stop_bits, pause, unit_id, timeout, polling_period, errors, online)", key);
+                return perr(p, lineno, "unknown key '%s' in [device] (host, port, serial, baud, parity, data_bits, stop_bits, pause, fc23, unit_id, timeout, polling_period, errors, online)", key);
             break;
         case SEC_READ:
         case SEC_WRITE:

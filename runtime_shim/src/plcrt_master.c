@@ -333,6 +333,12 @@ static int do_request(struct plcrt_master *m, plcrt_device_t *d, request_t *q, i
     if (q->fc == 16) {
         req[n++] = (uint8_t)(q->count * 2);
         for (int i = 0; i < q->count; i++) { put16(req + n, q->data[i]); n += 2; }
+    } else if (q->fc == 23) {
+        /* read address and quantity above, then the write part (written first by the slave) */
+        put16(req + n, q->waddr); n += 2;
+        put16(req + n, q->wcount); n += 2;
+        req[n++] = (uint8_t)(q->wcount * 2);
+        for (int i = 0; i < q->wcount; i++) { put16(req + n, q->wdata[i]); n += 2; }
     } else if (q->fc == 15) {
         int bytes = (q->count + 7) / 8;
         req[n++] = (uint8_t)bytes;
@@ -410,7 +416,7 @@ static int do_request(struct plcrt_master *m, plcrt_device_t *d, request_t *q, i
     if (len < h + 2 || rsp[h - 1] != (uint8_t)q->unit) goto bad;
     if (rsp[h] == (uint8_t)(q->fc | 0x80)) return rsp[h + 1] ? rsp[h + 1] : EPROTO + 1000;
     if (rsp[h] != q->fc) goto bad;
-    if (q->fc == 3 || q->fc == 4) {
+    if (q->fc == 3 || q->fc == 4 || q->fc == 23) {
         if (rsp[h + 1] != q->count * 2 || len < h + 2 + q->count * 2) goto bad;
         for (int i = 0; i < q->count; i++) q->data[i] = (uint16_t)get16(rsp + h + 2 + 2 * i);
     } else if (q->fc == 1 || q->fc == 2) {
@@ -451,6 +457,7 @@ static int status_first_request(struct plcrt_master *m, plcrt_device_t *d, const
         if (want > size) want = size;
         int had = want;
         q->count = want;
+        q->fc = 3; /* after an FC23 the write is done: plain reads */
         q->extra_req += 8;
         q->extra_rsp += 5 + 2 * want;
         status = do_request(m, d, q, transport);
@@ -583,6 +590,7 @@ static int rtu_req_chars(const request_t *q)
 {
     if (q->fc == 16) return 9 + 2 * q->count;
     if (q->fc == 15) return 9 + (q->count + 7) / 8;
+    if (q->fc == 23) return 13 + 2 * q->wcount;
     return 8;
 }
 
@@ -590,7 +598,7 @@ static int rtu_rsp_chars(const request_t *q, int status)
 {
     if (status > 0 && status < 1000) return 5; /* exception */
     if (q->status_first) return 5 + 2 * 2; /* the first exchange: status and count */
-    if (q->fc == 3 || q->fc == 4) return 5 + 2 * q->count;
+    if (q->fc == 3 || q->fc == 4 || q->fc == 23) return 5 + 2 * q->count;
     if (q->fc == 1 || q->fc == 2) return 5 + (q->count + 7) / 8;
     return 8;
 }
@@ -626,6 +634,8 @@ static int line_advance(plcrt_t *rt, struct plcrt_master *m, plcrt_device_t *o, 
     }
     if (now < o->line_done_ns) return 1;
     publish(m, r, q, o->line_status);
+    if (o->line_range2 >= 0) publish(m, &m->ranges[o->line_range2], q, o->line_status);
+    o->line_range2 = -1;
     o->line_busy_ns += o->line_done_ns - (o->line_send_ns - (uint64_t)rtu_req_chars(q) * char_ns(o));
     o->line_free_ns = o->line_done_ns + gap_ns(o) + (d->pause_ns > o->pause_ns ? d->pause_ns : o->pause_ns);
     o->line_range = -1;
@@ -634,8 +644,9 @@ static int line_advance(plcrt_t *rt, struct plcrt_master *m, plcrt_device_t *o, 
 
 /* puts request q of range r on the idle line of owner o at now */
 static int line_start(struct plcrt_master *m, plcrt_device_t *o, plcrt_range_t *r, const request_t *q,
-                      uint64_t now)
+                      uint64_t now, int pair)
 {
+    o->line_range2 = pair;
     if (!o->line_req && !(o->line_req = malloc(sizeof *o->line_req))) return -1;
     memcpy(o->line_req, q, sizeof *q);
     o->line_range = (int)(r - m->ranges);
@@ -688,9 +699,40 @@ static void step(plcrt_t *rt, struct plcrt_master *m, uint64_t now, int writes_o
                     go = 0;
             }
         }
+        if (go && d->fc23 && r->policy == POLICY_TRIGGER && r->is_write && r->table == 'h' &&
+            r->req_len <= 121) {
+            /* fc23: a write waits for the pending read of its device it goes with (in this pass) */
+            int waits = 0;
+            for (int j = 0; j < m->n_ranges && !waits; j++) {
+                plcrt_range_t *o = &m->ranges[j];
+                waits = o->dev == r->dev && !o->is_write && o->table == 'h' &&
+                        o->policy == POLICY_TRIGGER && o->pending && o->req_unit == r->req_unit &&
+                        (!line || line->line_range != j);
+            }
+            if (waits && k + 1 < m->n_ranges) {
+                munlock(m);
+                continue;
+            }
+        }
+        /* fc23: a pending trigger read goes with a pending trigger write of the device as one
+         * request (the write first, as the standard has it); writes over 121 registers go alone */
+        int pair = -1;
+        if (go && d->fc23 && r->policy == POLICY_TRIGGER && !r->is_write && r->table == 'h')
+            for (int j = 0; j < m->n_ranges; j++) {
+                plcrt_range_t *w = &m->ranges[j];
+                if (w->dev == r->dev && w->is_write && w->table == 'h' && w->policy == POLICY_TRIGGER &&
+                    w->pending && w->req_unit == r->req_unit && w->req_len >= 1 && w->req_len <= 121 &&
+                    w->req_len <= w->size) {
+                    pair = j;
+                    q->waddr = w->start;
+                    q->wcount = w->req_len;
+                    memcpy(q->wdata, w->req, sizeof q->wdata[0] * (size_t)w->req_len);
+                    break;
+                }
+            }
         munlock(m);
         if (!go) continue;
-        q->fc = function_code(r);
+        q->fc = pair >= 0 ? 23 : function_code(r);
         q->addr = r->start;
         q->status_first = r->status_first;
         q->extra_req = q->extra_rsp = 0;
@@ -713,7 +755,7 @@ static void step(plcrt_t *rt, struct plcrt_master *m, uint64_t now, int writes_o
             status = STATUS_TRANSPORT(EINVAL);
         } else if (line) {
             /* on the wire from now on; the answer comes in a later step */
-            if (line_start(m, line, r, q, now) == 0) {
+            if (line_start(m, line, r, q, now, pair) == 0) {
                 m->line_rr = i + 1;
                 line_advance(rt, m, line, now);
                 continue;
@@ -724,6 +766,7 @@ static void step(plcrt_t *rt, struct plcrt_master *m, uint64_t now, int writes_o
             if (status < 0) continue; /* skipped: device in reconnect backoff */
         }
         publish(m, r, q, status);
+        if (pair >= 0) publish(m, &m->ranges[pair], q, status);
     }
 }
 

@@ -80,6 +80,7 @@ typedef struct plcrt_device {
     /* Modbus RTU (serial = PATH instead of host): libmodbus's RTU backend; devices on the same
      * line share the first one's context (bus) and take the line in turn */
     int rtu;
+    int fc23;              /* a pending trigger read and write of this device go as one FC23 */
     int baud, data_bits, stop_bits;
     char parity;           /* 'N', 'E', 'O' */
     uint64_t pause_ns;     /* silence before each request on the line (OpenPLC's RTU_TX_Pause) */
@@ -90,6 +91,7 @@ typedef struct plcrt_device {
      * time"); line_range < 0 = the line is idle */
     struct request *line_req; /* the request on the line (allocated at the first use) */
     int line_range;        /* its range */
+    int line_range2;       /* FC23: the write range that goes with it, -1 = none */
     int line_phase;        /* 1: the request is on the wire, 2: the answer is */
     int line_status;       /* phase 2: the result */
     uint64_t line_send_ns; /* phase 1: its last character reaches the slave */
@@ -103,6 +105,8 @@ typedef struct request {
     int fc, addr, count;
     int status_first;  /* read the status and count words alone first (range option) */
     int extra_req, extra_rsp; /* characters of the follow-up exchanges status_first made */
+    int waddr, wcount;        /* FC23: the write part (fc 23; addr/count are the read part) */
+    uint16_t wdata[128];
     int unit; /* unit id of this request (0..255 by the time it is sent) */
     uint16_t data[PLCRT_MAX_BITS]; /* write data in, read data out */
 } request_t;

@@ -429,6 +429,7 @@ TEST(config_errors_name_file_and_line)
                         "bad.cfg:8: error: status_first: for register reads of 3 or more");
     expect_config_error(DEV "[write w]\ndevice = d\nstart = 0\nsize = 3\nimage = %QW100\nstatus_first = yes\n",
                         "bad.cfg:8: error: unknown key 'status_first' in [write]");
+    expect_config_error(DEV "fc23 = sometimes\n", "bad.cfg:3: error: fc23: 'sometimes' is not yes or no");
     expect_config_error("[device d]\nserial = /dev/ttyS0\nhost = 127.0.0.1\n",
                         "bad.cfg:2: error: [device d]: host and serial");
     expect_config_error(DEV "baud = 9600\n", "bad.cfg:3: error: baud, parity, data_bits, stop_bits and pause are keys of serial");

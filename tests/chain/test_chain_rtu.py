@@ -140,3 +140,23 @@ def test_chain_cosim_status_first_exact_delivery(tmp_path, baud, bidi, loss):
     status_only = sum(1 for e in reads if e["rq"] == 2)
     assert status_only > len(reads) / 2, (status_only, len(reads))
     assert all(e["rq"] == 2 or e["ra"] in (198, 2198) for e in reads)
+
+
+@pytest.mark.parametrize("status_first", [False, True])
+def test_chain_cosim_fc23_exact_delivery(tmp_path, status_first):
+    """Device option fc23: a read and a write of a device pending in the same I/O phase go as
+    one FC23 (write first). Records of 121 registers (FC23 writes at most 121): exact delivery
+    under loss, and the trace has FC23 requests, each writing at the first write register."""
+    trace = tmp_path / "trace.jsonl"
+    st = rtu_setup(19200, loss=0.1, seed=6, records=10, per_transfer=4, payload=120, fc23=True,
+                   status_first=status_first)
+    with Chain(st, tmp_path, trace=trace) as ch:
+        assert ch.run_to_end(900 * SEC)
+        reps = cosim_check(ch)
+        tot = summary(reps)
+    assert [p for r in reps for p in r.problems] == []
+    assert tot["lost"] == 0 and tot["records"] == 10
+    fc23 = [e for e in map(json.loads, trace.read_text().splitlines())
+            if e["ev"] == "modbus" and e["fc"] == 23]
+    assert len(fc23) >= 5
+    assert all(e["exc"] == 0 and e["wa"] in (10, 2001) and e["ra"] in (198, 2198) for e in fc23)
