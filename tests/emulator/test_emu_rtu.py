@@ -184,3 +184,34 @@ def test_rtu_bad_specs_are_one_line(spec, msg):
 def test_rtu_crc_matches_the_modbus_reference():
     # the example of the Modbus serial line guide: 02 07 -> CRC 0x1241, sent 41 12
     assert crc16(bytes([0x02, 0x07])) == 0x1241
+
+
+def test_rtu_and_tcp_requests_give_the_same_trace_lines(tmp_path):
+    """The same requests over TCP (transaction id 0) and over RTU reach the same core: their
+    modbus trace lines are equal but for the time and the line number."""
+    reqs = [(1, fc16(2001, [11, 12, 13])), (1, fc3(2198, 5)), (1, bytes([0x2B, 0x0E, 0x01, 0x00])),
+            (1, fc3(100, 1)), (1, fc3(2198, 126)), (1, fc16(2001, list(range(123))))]
+    runs = []
+    for kind in ("tcp", "rtu"):
+        d = tmp_path / kind
+        d.mkdir()
+        link = d / "tty"
+        emu = Emulator(*FAST, "--rtu", f"pty:{link}=trm1@1", trace=d / "trace.jsonl")
+        try:
+            if kind == "tcp":
+                s = connect(emu.trm_port(1))
+                for unit, pdu in reqs:
+                    s.sendall(struct.pack(">HHHB", 0, 0, len(pdu) + 1, unit) + pdu)
+                    assert s.recv(1024)
+                s.close()
+            else:
+                line = RtuLine(str(link))
+                for unit, pdu in reqs:
+                    check_frame(line.transact(unit, pdu)[0])
+                line.close()
+        finally:
+            assert emu.stop() == 0
+        runs.append([{k: v for k, v in e.items() if k not in ("t", "seq")}
+                     for e in emu.trace() if e["ev"] == "modbus"])
+    assert len(runs[0]) == len(reqs)
+    assert runs[0] == runs[1]
