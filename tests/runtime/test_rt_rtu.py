@@ -351,3 +351,15 @@ def test_rtu_bytes_lost_give_named_errors_never_wrong_data(compiler, emu_rtu, tm
     finally:
         plc.close()
         line.close()
+
+
+@pytest.mark.parametrize("compiler", [compiler_param("stc")])
+def test_rtu_missing_serial_line_is_a_named_error(compiler, tmp_path):
+    """No such tty: the request fails with 1000 + ENOENT (1002), counted, the scan goes on."""
+    plc = build(tmp_path, tmp_path / "no-such-tty", 1, compiler)
+    try:
+        assert handshake(plc, "%QX1.0", "%IX1.0", "%IX1.1") == (False, True)
+        assert plc["%IW11"] == 1002
+        assert plc["%IW30"] == 1
+    finally:
+        plc.close()
