@@ -55,54 +55,40 @@ int rtu_parse(rtu_bus *b, const char *spec, int stations, char *err, size_t errn
     if (!eq) return fail(err, errn, "--rtu '%s': expected PORT[:BAUD[:FRAME]]=DEVICES, e.g. pty:19200:8E1=trm1@1%s", spec, "");
     *eq = 0;
     char *devs = eq + 1;
-    /* PORT: "pty", "pty:LINK", or a path; then optional :BAUD and :FRAME (from the right) */
-    char *fields[4];
-    int nf = 0;
-    char *port = s;
-    if (!strncmp(s, "pty", 3) && (s[3] == 0 || s[3] == ':')) {
+    /* PORT[:BAUD[:FRAME]], taken apart from the right, so that a path may hold ':' */
+    const char *frame = NULL, *baud = NULL;
+    char *c = strrchr(s, ':');
+    if (c && strlen(c + 1) == 3 && c[1] >= '0' && c[1] <= '9' && !(c[2] >= '0' && c[2] <= '9')) {
+        frame = c + 1; /* looks like a frame (8E1): checked below */
+        *c = 0;
+        c = strrchr(s, ':');
+    }
+    if (c && c[1] && strspn(c + 1, "0123456789") == strlen(c + 1)) {
+        baud = c + 1;
+        *c = 0;
+    }
+    if (!strcmp(s, "pty")) {
         b->is_pty = 1;
-        char *rest = s[3] ? s + 4 : s + 3;
-        /* pty:LINK:BAUD:FRAME, pty:BAUD:FRAME, pty:LINK, pty */
-        char *tok = rest;
-        while (tok && *tok && nf < 4) {
-            char *c = strchr(tok, ':');
-            if (c) *c = 0;
-            fields[nf++] = tok;
-            tok = c ? c + 1 : NULL;
-        }
-        int i = 0;
-        if (nf > 0 && (fields[0][0] < '0' || fields[0][0] > '9')) {
-            snprintf(b->link, sizeof b->link, "%s", fields[0]);
-            i = 1;
-        }
-        memmove(fields, fields + i, sizeof fields[0] * (size_t)(nf - i));
-        nf -= i;
+    } else if (!strncmp(s, "pty:", 4)) {
+        b->is_pty = 1;
+        if (!s[4]) return fail(err, errn, "--rtu '%s': pty: with an empty link%s", spec, "");
+        if (strlen(s + 4) >= sizeof b->link) return fail(err, errn, "--rtu '%s': link path too long%s", spec, "");
+        snprintf(b->link, sizeof b->link, "%s", s + 4);
     } else {
-        char *c = strchr(port, ':');
-        if (c) {
-            *c = 0;
-            char *tok = c + 1;
-            while (tok && *tok && nf < 4) {
-                char *c2 = strchr(tok, ':');
-                if (c2) *c2 = 0;
-                fields[nf++] = tok;
-                tok = c2 ? c2 + 1 : NULL;
-            }
-        }
-        if (!*port) return fail(err, errn, "--rtu '%s': no port%s", spec, "");
-        snprintf(b->path, sizeof b->path, "%s", port);
+        if (!*s) return fail(err, errn, "--rtu '%s': no port%s", spec, "");
+        if (strlen(s) >= sizeof b->path) return fail(err, errn, "--rtu '%s': path too long%s", spec, "");
+        snprintf(b->path, sizeof b->path, "%s", s);
     }
-    if (nf > 2) return fail(err, errn, "--rtu '%s': too many ':' fields%s", spec, "");
-    if (nf >= 1) {
+    if (baud) {
         char *end;
-        long baud = strtol(fields[0], &end, 10);
-        if (*end || baud < 300 || baud > 4000000)
-            return fail(err, errn, "--rtu '%s': baud rate '%s' outside 300..4000000", spec, fields[0]);
-        b->baud = baud;
+        long v = strtol(baud, &end, 10);
+        if (*end || v < 300 || v > 4000000)
+            return fail(err, errn, "--rtu '%s': baud rate '%s' outside 300..4000000", spec, baud);
+        b->baud = v;
     }
-    if (nf == 2) {
-        const char *f = fields[1];
-        if (strlen(f) != 3 || (f[0] != '7' && f[0] != '8') || !strchr("NEO", f[1]) || (f[2] != '1' && f[2] != '2'))
+    if (frame) {
+        const char *f = frame;
+        if ((f[0] != '7' && f[0] != '8') || !strchr("NEO", f[1]) || (f[2] != '1' && f[2] != '2'))
             return fail(err, errn, "--rtu '%s': frame '%s' is not like 8N1, 8E1, 8O1, 8N2", spec, f);
         b->data_bits = f[0] - '0';
         b->parity = f[1];

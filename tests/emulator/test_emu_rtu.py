@@ -150,8 +150,9 @@ def test_rtu_mdp_unit_ids_are_the_stations(tmp_path):
 
 
 def test_rtu_only_without_tcp(tmp_path):
-    link = tmp_path / "tty"
-    p = subprocess.Popen([str(BINARY), "--no-tcp", "--rtu", f"pty:{link}=trm1@1"],
+    link = tmp_path / "a:b" / "tty"      # a ':' in the path is no field separator
+    link.parent.mkdir()
+    p = subprocess.Popen([str(BINARY), "--no-tcp", "--rtu", f"pty:{link}:9600:8N1=trm1@1"],
                          stdout=subprocess.PIPE, text=True)
     try:
         line = p.stdout.readline()
