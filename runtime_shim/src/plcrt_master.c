@@ -642,16 +642,25 @@ static int line_advance(plcrt_t *rt, struct plcrt_master *m, plcrt_device_t *o, 
     return now < o->line_free_ns;
 }
 
-/* puts request q of range r on the idle line of owner o at now */
-static int line_start(struct plcrt_master *m, plcrt_device_t *o, plcrt_range_t *r, const request_t *q,
-                      uint64_t now, int pair)
+/* puts request q of range r on the idle line of owner o. A trigger request starts where the
+ * real-time master would start it: when the scan that raised the trigger ended (one tick before
+ * this I/O phase; scans take no virtual time), or when the line became free after that; a
+ * poll of a cycle / change range starts now. An exchange shorter than the rest of the tick then
+ * shows in this scan, as over TCP, and as in real time when it fits into the idle time. */
+static int line_start(plcrt_t *rt, struct plcrt_master *m, plcrt_device_t *o, plcrt_range_t *r,
+                      const request_t *q, uint64_t now, int pair)
 {
+    uint64_t start = now;
+    if (r->policy == POLICY_TRIGGER) {
+        start = now >= rt->tick_ns ? now - rt->tick_ns : 0;
+        if (start < o->line_free_ns) start = o->line_free_ns;
+    }
     o->line_range2 = pair;
     if (!o->line_req && !(o->line_req = malloc(sizeof *o->line_req))) return -1;
     memcpy(o->line_req, q, sizeof *q);
     o->line_range = (int)(r - m->ranges);
     o->line_phase = 1;
-    o->line_send_ns = now + (uint64_t)rtu_req_chars(q) * char_ns(o);
+    o->line_send_ns = start + (uint64_t)rtu_req_chars(q) * char_ns(o);
     return 0;
 }
 
@@ -755,7 +764,7 @@ static void step(plcrt_t *rt, struct plcrt_master *m, uint64_t now, int writes_o
             status = STATUS_TRANSPORT(EINVAL);
         } else if (line) {
             /* on the wire from now on; the answer comes in a later step */
-            if (line_start(m, line, r, q, now, pair) == 0) {
+            if (line_start(rt, m, line, r, q, now, pair) == 0) {
                 m->line_rr = i + 1;
                 line_advance(rt, m, line, now);
                 continue;
