@@ -23,8 +23,8 @@ $(EMU_BUILD)/libmipemu.a: $(EMU_BUILD)/mipemu.o
 
 EMU_CLI := $(EMU_DIR)/src/cli_config.c $(EMU_DIR)/src/cli_config.h
 
-$(EMU_BUILD)/mip-emulator: $(EMU_DIR)/src/server.c $(EMU_CLI) $(EMU_BUILD)/libmipemu.a $(EMU_HDR)
-	$(CC) $(EMU_CFLAGS) -o $@ $< $(EMU_DIR)/src/cli_config.c $(EMU_BUILD)/libmipemu.a
+$(EMU_BUILD)/mip-emulator: $(EMU_DIR)/src/server.c $(EMU_DIR)/src/rtu.c $(EMU_DIR)/src/rtu.h $(EMU_CLI) $(EMU_BUILD)/libmipemu.a $(EMU_HDR)
+	$(CC) $(EMU_CFLAGS) -o $@ $< $(EMU_DIR)/src/rtu.c $(EMU_DIR)/src/cli_config.c $(EMU_BUILD)/libmipemu.a
 
 $(EMU_BUILD)/mipemu-sim: $(EMU_DIR)/src/sim.c $(EMU_CLI) $(EMU_BUILD)/libmipemu.a $(EMU_HDR)
 	$(CC) $(EMU_CFLAGS) -o $@ $< $(EMU_DIR)/src/cli_config.c $(EMU_BUILD)/libmipemu.a

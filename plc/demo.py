@@ -49,6 +49,9 @@ def parse_args(argv):
     p.add_argument("--realistic", action="store_true",
                    help="realistic radio timing (9600 bit/s, 20 ms gaps) instead of fast")
     p.add_argument("--polled", action="store_true", help="polled drive instead of spontaneous")
+    p.add_argument("--link", default="tcp",
+                   help="PLC-to-modem link: tcp (default) or rtu:BAUD (Modbus RTU 8E1 on a pty "
+                        "per modem, e.g. rtu:19200; docs/serial.md)")
     p.add_argument("--timeout", type=float, default=0,
                    help="give up after this many seconds (default: from the radio timing)")
     p.add_argument("--rundir", default=str(REPO / "build" / "plc" / "run"),
@@ -68,7 +71,17 @@ def parse_args(argv):
         p.error("--per-transfer must be 0..65534")
     if a.per_transfer == 0 and a.records > 65534:
         p.error("more than 65534 records: give --per-transfer")
+    a.baud = 0
+    if a.link != "tcp":
+        kind, _, baud = a.link.partition(":")
+        if kind != "rtu" or not baud.isdigit() or int(baud) not in RTU_BAUDS:
+            p.error(f"--link must be tcp or rtu:BAUD with BAUD one of "
+                    f"{', '.join(map(str, RTU_BAUDS))}, got {a.link!r}")
+        a.baud = int(baud)
     return a
+
+
+RTU_BAUDS = (1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200)
 
 
 def free_port():
@@ -206,6 +219,15 @@ def run(a):
         raise DemoError(f"{emu} missing: run make")
     radio = (["--bitrate", "9600", "--slot-gap-ms", "20"] if a.realistic
              else ["--bitrate", "1000000", "--slot-gap-ms", "1"])
+    # --link rtu:BAUD: every PLC reaches its modem over Modbus RTU on a pty the emulator makes
+    # (the central the MDP-810, unit id = station; each outstation its TRM-810, unit id 1)
+    rtu_args, serial = [], {}
+    if a.baud:
+        serial["mdp"] = rundir / "tty-mdp"
+        rtu_args += ["--rtu", f"pty:{serial['mdp']}:{a.baud}:8E1=mdp"]
+        for s in range(1, a.stations + 1):
+            serial[s] = rundir / f"tty-trm{s}"
+            rtu_args += ["--rtu", f"pty:{serial[s]}:{a.baud}:8E1=trm{s}@1"]
     procs = Procs()
     slaves = []
     try:
@@ -215,7 +237,7 @@ def run(a):
                          "--stations", str(a.stations), "--loss-up", str(a.loss),
                          "--loss-down", str(a.loss), "--seed", str(a.seed), "--trace", str(trace),
                          "--lose-record", str(a.lose_record)]
-                        + radio, rundir / "emulator.log", stdout=subprocess.PIPE, text=True)
+                        + radio + rtu_args, rundir / "emulator.log", stdout=subprocess.PIPE, text=True)
         line = p.stdout.readline().strip()
         if not line.startswith("mip-emulator: listening"):
             procs.check_alive()
@@ -225,18 +247,29 @@ def run(a):
         trm_ports = [int(x) for x in fields["trm"].split(",")]
         print(f"demo: {line}", flush=True)
         timeout_ms = 3000 if a.realistic else 300
+        if a.baud:
+            # on a serial line every Modbus exchange takes time: a 125-register read is
+            # about 270 characters of 11 bits; the blocks' timeout covers eight of them
+            timeout_ms += int(8 * 270 * 11 / a.baud * 1000)
         params = L.Params(records=a.records, per_transfer=a.per_transfer, payload=a.payload,
                           polled=a.polled, log_period_ms=a.log_period_ms, timeout_ms=timeout_ms)
         # central first, so the outstations find it listening
         cen_conf = rundir / "central.conf"
-        cen_conf.write_text(L.central_config(mdp_port, a.stations))
+        # on a serial line the reads take the status word alone until it shows new data
+        # (status_first: measured best, docs/serial.md)
+        cen_conf.write_text(L.central_config(
+            mdp_port, a.stations,
+            serial=L.serial_keys(serial["mdp"], a.baud) if a.baud else None,
+            status_first=bool(a.baud)))
         cen_port = free_port()
         procs.start("central soft-PLC", [str(progs["central"].executable), "-c", str(cen_conf),
                                          "-s", f"127.0.0.1:{cen_port}"], rundir / "central.log")
         out_ports = []
         for s in range(1, a.stations + 1):
             conf = rundir / f"outstation{s}.conf"
-            conf.write_text(L.outstation_config(trm_ports[s - 1]))
+            conf.write_text(L.outstation_config(
+                trm_ports[s - 1], serial=L.serial_keys(serial[s], a.baud) if a.baud else None,
+                status_first=bool(a.baud)))
             port = free_port()
             out_ports.append(port)
             procs.start(f"outstation {s} soft-PLC", [str(progs["outstation"].executable), "-c",
@@ -259,6 +292,7 @@ def run(a):
         print(f"demo: {a.stations} outstation(s) logging {a.records} records of {a.payload} "
               f"registers, read out over a {'realistic' if a.realistic else 'fast'} radio "
               f"with {a.loss:.0%} loss (seed {a.seed})"
+              + (f", PLCs on Modbus RTU at {a.baud} baud" if a.baud else "")
               + (f", record {a.lose_record} lost once on its way up" if a.lose_record else ""),
               flush=True)
         total = a.records * a.stations

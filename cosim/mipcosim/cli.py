@@ -49,6 +49,9 @@ def parse(argv):
                    help="PLC <-> emulator: the kernel's in-process transport (default) or "
                         "libmodbus over socketpairs or TCP on 127.0.0.1")
     p.add_argument("--tick-ms", type=int, default=10, help="scan tick (the programs' task interval)")
+    p.add_argument("--link", default="tcp",
+                   help="PLC-to-modem link: tcp (default) or rtu:BAUD, Modbus RTU 8E1 whose "
+                        "character time counts in virtual time (docs/serial.md)")
     p.add_argument("--workdir", help="build and scratch directory (default: a temp dir)")
     a = p.parse_args(argv)
     soak = a.what == "soak"
@@ -73,7 +76,25 @@ def parse(argv):
         p.error("--tick-ms must be in 1..1000")
     if not 0 <= a.loss < 1:
         p.error("--loss must be in 0..1 (exclusive)")
+    a.baud = 0
+    if a.link != "tcp":
+        kind, _, baud = a.link.partition(":")
+        if kind != "rtu" or not baud.isdigit() or int(baud) not in RTU_BAUDS:
+            p.error(f"--link must be tcp or rtu:BAUD with BAUD one of "
+                    f"{', '.join(map(str, RTU_BAUDS))}, got {a.link!r}")
+        if a.transport != "inproc":
+            p.error("--link rtu:BAUD needs --transport inproc")
+        a.baud = int(baud)
     return a
+
+
+RTU_BAUDS = (1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200)
+
+
+def link_timeout_ms(baud):
+    """What a serial link adds to the blocks' timeout: eight 125-register exchanges (about 270
+    characters of 11 bits each); 0 for TCP. The demo (plc/demo.py) adds the same."""
+    return int(8 * 270 * 11 / baud * 1000) if baud else 0
 
 
 def main(argv=None):
@@ -81,8 +102,9 @@ def main(argv=None):
     st = Setup(stations=a.stations, static=a.static, polled=a.polled, bidi=a.bidi, loss=a.loss,
                seed=a.seed, records=a.records, per_transfer=a.per_transfer, payload=a.payload,
                radio=Radio.realistic() if a.realistic else Radio(),
-               timeout_ms=3000 if a.realistic else 300, transport=a.transport, tick_ms=a.tick_ms,
-               retain=a.warm, window=a.window)
+               timeout_ms=(3000 if a.realistic else 300) + link_timeout_ms(a.baud),
+               transport=a.transport, tick_ms=a.tick_ms, retain=a.warm, window=a.window,
+               link_baud=a.baud, status_first=bool(a.baud))
     workdir = Path(a.workdir or tempfile.mkdtemp(prefix="mipcosim-"))
     limit = a.limit or (60 + a.records * a.stations * (8 if a.realistic else 0.5)
                         / (1 - a.loss) ** 2)
@@ -94,7 +116,8 @@ def main(argv=None):
             print(f"mip-cosim: {a.what}: {a.stations} station(s), {a.records} records each, "
                   f"loss {a.loss:.0%}, seed {a.seed}, {'bidirectional' if a.bidi else 'uni'}, "
                   f"{'static' if a.static else 'dynamic'}, {'polled' if a.polled else 'spontaneous'}"
-                  f"{', window 2' if a.window == 2 else ''}{restarts}",
+                  f"{', window 2' if a.window == 2 else ''}{restarts}"
+                  f"{f', PLCs on Modbus RTU at {a.baud} baud' if a.baud else ''}",
                   flush=True)
             next_restart = a.restart_every * SEC if a.restart_every else None
             k = 0

@@ -169,13 +169,13 @@ class Params:
         return max(1, min(self.payload, room))
 
 
-def _read_write_ranges(dev, s, read_start, write_start):
+def _read_write_ranges(dev, s, read_start, write_start, status_first=False):
     return f"""
 [read {dev}_read]
 device = {dev}
 start = {read_start}
 size = 125
-image = %IW{read_image(s)}
+{"status_first = yes" + chr(10) if status_first else ""}image = %IW{read_image(s)}
 policy = trigger
 trigger = %QX{s}.0
 done = %IX{s}.0
@@ -216,31 +216,46 @@ def retain_section(file, period_ms=1000):
             f"request = {RETAIN_REQUEST}\nsaved = {RETAIN_SAVED}\n")
 
 
-def outstation_config(trm_port, host="127.0.0.1", comment="", retain=""):
-    """retain: a retain_section(...) or ""."""
+def serial_keys(path, baud=19200, parity="even", data_bits=8, stop_bits=1):
+    """The [device] lines of a Modbus RTU link (instead of host / port): pass as `serial=` to
+    outstation_config / central_config (issue 27, docs/serial.md)."""
+    return (f"serial = {path}\nbaud = {baud}\nparity = {parity}\ndata_bits = {data_bits}\n"
+            f"stop_bits = {stop_bits}\n")
+
+
+def outstation_config(trm_port, host="127.0.0.1", comment="", retain="", serial=None, unit=1,
+                      status_first=False, fc23=False):
+    """retain: a retain_section(...) or "". serial: serial_keys(...) for an RTU link (then
+    trm_port and host are not used), unit: the TRM's unit id."""
+    link = serial if serial else f"host = {host}\nport = {trm_port}\n"
+    if fc23:
+        link += "fc23 = yes\n"
     return (f"# plcrt config of the outstation (plc/outstation*.st): the TRM-810 of its station.\n"
             f"{comment}" + MASTER + f"""
 [device trm]
-host = {host}
-port = {trm_port}
-unit_id = 1
+{link}unit_id = {unit}
 errors = %IW30
 online = %IX9.0
-""" + _read_write_ranges("trm", 1, 2198, 2001) + retain)
+""" + _read_write_ranges("trm", 1, 2198, 2001, status_first) + retain)
 
 
-def central_config(mdp_port, stations, host="127.0.0.1", comment="", retain=""):
+def central_config(mdp_port, stations, host="127.0.0.1", comment="", retain="", serial=None,
+                   status_first=False, fc23=False):
+    """serial: serial_keys(...) for an RTU link to the MDP-810 (the devices share the line);
+    status_first: the read ranges read the status word alone until it shows new data
+    (runtime_shim README, docs/serial.md)."""
     text = (f"# plcrt config of the central (plc/central*.st): the MDP-810, one device per\n"
             f"# outstation (unit id = station address).\n{comment}" + MASTER + retain)
+    link = serial if serial else f"host = {host}\nport = {mdp_port}\n"
+    if fc23:
+        link += "fc23 = yes\n"
     for s in range(1, stations + 1):
         text += f"""
 [device mdp{s}]
-host = {host}
-port = {mdp_port}
-unit_id = {s}
+{link}unit_id = {s}
 errors = %IW{30 + s}
 online = %IX9.{s}
-""" + _read_write_ranges(f"mdp{s}", s, 198, 10)
+""" + _read_write_ranges(f"mdp{s}", s, 198, 10, status_first)
     return text
 
 

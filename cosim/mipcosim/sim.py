@@ -174,6 +174,14 @@ class Setup:
     transfer_timeout_s: int = 0
     radio: Radio = field(default_factory=Radio)
     compiler: str = "stc"
+    # the PLC-to-modem link: 0 = Modbus TCP (free), else Modbus RTU at this baud rate (8E1): the
+    # runtime's devices are serial, and in virtual time each exchange takes its time on the line
+    # (runtime_shim: "serial line in virtual time"; docs/serial.md); with transport "inproc"
+    link_baud: int = 0
+    # the read ranges read the MIP status word alone until it shows new data (status_first)
+    status_first: bool = False
+    # a read and a write of a device pending together go as one FC23 (device option fc23)
+    fc23: bool = False
     # "inproc": the runtime hands each request ADU to the emulator core (the kernel);
     # "socketpair" / "tcp": the same ADUs through libmodbus over a socketpair / a TCP
     # connection on 127.0.0.1
@@ -278,12 +286,21 @@ class Chain(_Kernel):
                                setup.sources.get("central"))
         # the [retain] sections give the period and the handshake addresses; their files are
         # never written: the kernel keeps each PLC's snapshots in memory
+        if setup.link_baud and setup.transport != "inproc":
+            raise CosimError(f"link rtu:{setup.link_baud} needs the inproc transport "
+                             f"(the emulator's socket fronts of the kernel speak TCP framing)")
+        # an RTU link: the serial line is never opened (the transport is in process); its
+        # settings give the time each exchange takes on it
+        ser = (lambda name: L.serial_keys(f"cosim-{name}", setup.link_baud)) if setup.link_baud \
+            else (lambda name: None)
         self.out_conf = self.workdir / "outstation.conf"
         self.out_conf.write_text(L.outstation_config(15021, retain=L.retain_section(
-            self.workdir / "outstation.retain", setup.retain_period_ms)))
+            self.workdir / "outstation.retain", setup.retain_period_ms), serial=ser("trm"),
+            status_first=setup.status_first, fc23=setup.fc23))
         self.cen_conf = self.workdir / "central.conf"
         self.cen_conf.write_text(L.central_config(15020, setup.stations, retain=L.retain_section(
-            self.workdir / "central.retain", setup.retain_period_ms)))
+            self.workdir / "central.retain", setup.retain_period_ms), serial=ser("mdp"),
+            status_first=setup.status_first, fc23=setup.fc23))
         self.events: list[Event] = []
         self.boots = {("out", s): 0 for s in range(1, setup.stations + 1)}
         self.boots[("cen", 0)] = 0

@@ -4,6 +4,7 @@
 #define _GNU_SOURCE
 #include "cli_config.h"
 #include "mipemu.h"
+#include "rtu.h"
 
 #include <arpa/inet.h>
 #include <errno.h>
@@ -53,11 +54,19 @@ static const char USAGE[] =
     "                         (default: the Modbus limits 125 read / 123 FC16 / 121 FC23 write)\n"
     "  --lose-record N        lose the first uplink block whose register 0 is N, once per\n"
     "                         station (the note's example: --lose-record 2); default off\n"
+    "  --rtu PORT[:BAUD[:FRAME]]=DEVICES\n"
+    "                         also serve endpoints as Modbus RTU slaves on a serial line: PORT is\n"
+    "                         'pty' (a new pty), 'pty:LINK' (and a symlink LINK to it) or a tty;\n"
+    "                         BAUD default 19200, FRAME default 8N1 (8E1, 8O1, 8N2, 7E1, ...);\n"
+    "                         DEVICES: 'mdp' (unit id = station) and/or 'trmS@UNIT' (the TRM-810\n"
+    "                         of station S at unit id UNIT), comma-separated; may be repeated\n"
+    "  --no-tcp               serve no TCP ports (RTU only)\n"
     "  --trace FILE           write the JSON-lines trace to FILE ('-' = stdout)\n"
     "  --help                 this text\n"
     "\n"
     "When all ports are bound it prints one line:\n"
-    "  mip-emulator: listening mdp=HOST:PORT trm=PORT1,PORT2,...\n"
+    "  mip-emulator: listening mdp=HOST:PORT trm=PORT1,PORT2,... [rtu=TTY1,TTY2,...]\n"
+    "(with --no-tcp: mdp=none trm=none). Serial lines: docs/serial.md.\n"
     "Register maps, status bits, radio timing and trace format: emulator/README.md.\n";
 
 __attribute__((noreturn)) static void die_sys(const char *what)
@@ -68,7 +77,15 @@ __attribute__((noreturn)) static void die_sys(const char *what)
 
 /* ---- connections ---- */
 
-enum { T_LISTEN, T_CONN };
+enum { T_LISTEN, T_CONN, T_RTU };
+
+#define MAX_BUSES 8
+typedef struct bus_slot {
+    int type; /* T_RTU: shares the first member with conn_t for the epoll tag */
+    rtu_bus bus;
+} bus_slot_t;
+static bus_slot_t g_buses[MAX_BUSES];
+static int g_nbus;
 
 typedef struct conn {
     int type;
@@ -103,6 +120,17 @@ static uint64_t mono_ns(void)
 }
 
 static void advance_now(void) { mipemu_net_advance(g_net, mono_ns() - g_t0); }
+
+/* a frame from a serial line: the core answers it as it answers TCP (same trace) */
+static long rtu_handle(void *user, int ep, uint64_t at_ns, const uint8_t *req, size_t len,
+                       uint8_t *resp, size_t cap)
+{
+    (void)user;
+    (void)at_ns; /* the core already stands at the clock's now, a gap after the frame ended */
+    if (cap < MIPEMU_RESPONSE_MAX)
+        return -1;
+    return mipemu_handle(g_net, ep, req, len, resp, cap);
+}
 
 static void trace_to_file(void *user, const char *line, size_t len)
 {
@@ -343,13 +371,17 @@ int main(int argc, char **argv)
     int mdp_port = 15020, trm_base = 15021;
 
     /* own options, then the network options of cli_config.c (long index >= N_OWN) */
-    enum { O_HOST = 256, O_MDP, O_TRM, O_TRACE, O_HELP, O_NET };
+    enum { O_HOST = 256, O_MDP, O_TRM, O_TRACE, O_HELP, O_RTU, O_NOTCP, O_NET };
+    const char *rtu_specs[MAX_BUSES];
+    int n_rtu = 0, no_tcp = 0;
     static const struct option own[] = {
         { "host", required_argument, 0, O_HOST },
         { "mdp-port", required_argument, 0, O_MDP },
         { "trm-base-port", required_argument, 0, O_TRM },
         { "trace", required_argument, 0, O_TRACE },
         { "help", no_argument, 0, O_HELP },
+        { "rtu", required_argument, 0, O_RTU },
+        { "no-tcp", no_argument, 0, O_NOTCP },
     };
     enum { N_OWN = sizeof own / sizeof own[0] };
     struct option opts[N_OWN + 32];
@@ -370,6 +402,12 @@ int main(int argc, char **argv)
         case O_TRACE: trace_path = optarg; break;
         case O_HELP: fputs(USAGE, stdout); return 0;
         case O_NET: cli_net_option_apply(&cfg, idx - N_OWN, optarg); break;
+        case O_RTU:
+            if (n_rtu == MAX_BUSES)
+                cli_usage_error("more than %d --rtu lines", MAX_BUSES);
+            rtu_specs[n_rtu++] = optarg;
+            break;
+        case O_NOTCP: no_tcp = 1; break;
         case ':': cli_usage_error("option %s needs a value", argv[optind - 1]);
         default:
             cli_usage_error("unknown option '%s'", argv[optind - 1]);
@@ -384,6 +422,17 @@ int main(int argc, char **argv)
     g_net = mipemu_net_new(&cfg, err, sizeof err);
     if (!g_net)
         cli_usage_error("%s", err);
+
+    if (no_tcp && n_rtu == 0)
+        cli_usage_error("--no-tcp needs at least one --rtu line");
+    for (int i = 0; i < n_rtu; i++) {
+        if (rtu_parse(&g_buses[i].bus, rtu_specs[i], cfg.stations, err, sizeof err) < 0)
+            cli_usage_error("%s", err);
+        g_buses[i].type = T_RTU;
+        for (int j = 0; j < i; j++)
+            if (g_buses[j].bus.link[0] && !strcmp(g_buses[j].bus.link, g_buses[i].bus.link))
+                cli_usage_error("--rtu '%s': the link %s is already used", rtu_specs[i], g_buses[i].bus.link);
+    }
 
     if (trace_path) {
         g_trace = strcmp(trace_path, "-") ? fopen(trace_path, "w") : stdout;
@@ -410,7 +459,7 @@ int main(int argc, char **argv)
     g_epfd = epoll_create1(EPOLL_CLOEXEC);
     if (g_epfd < 0)
         die_sys("epoll_create1");
-    int nlisten = cfg.stations + 1;
+    int nlisten = no_tcp ? 0 : cfg.stations + 1;
     conn_t *listeners = calloc((size_t)nlisten, sizeof *listeners);
     int *ports = calloc((size_t)nlisten, sizeof *ports);
     if (!listeners || !ports)
@@ -424,9 +473,27 @@ int main(int argc, char **argv)
         if (epoll_ctl(g_epfd, EPOLL_CTL_ADD, listeners[i].fd, &e) < 0)
             die_sys("epoll_ctl");
     }
-    printf(PROG ": listening mdp=%s:%d trm=", host, ports[0]);
-    for (int i = 1; i < nlisten; i++)
-        printf("%s%d", i > 1 ? "," : "", ports[i]);
+    for (int i = 0; i < n_rtu; i++) {
+        if (rtu_open(&g_buses[i].bus, err, sizeof err) < 0) {
+            fprintf(stderr, PROG ": error: %s\n", err);
+            for (int j = 0; j < i; j++)
+                rtu_close(&g_buses[j].bus);
+            return 1;
+        }
+        struct epoll_event e = { .events = EPOLLIN, .data.ptr = &g_buses[i] };
+        if (epoll_ctl(g_epfd, EPOLL_CTL_ADD, g_buses[i].bus.fd, &e) < 0)
+            die_sys("epoll_ctl");
+        g_nbus++;
+    }
+    if (no_tcp) {
+        printf(PROG ": listening mdp=none trm=none");
+    } else {
+        printf(PROG ": listening mdp=%s:%d trm=", host, ports[0]);
+        for (int i = 1; i < nlisten; i++)
+            printf("%s%d", i > 1 ? "," : "", ports[i]);
+    }
+    for (int i = 0; i < n_rtu; i++)
+        printf("%s%s", i ? "," : " rtu=", g_buses[i].bus.path);
     printf("\n");
     fflush(stdout);
 
@@ -435,6 +502,11 @@ int main(int argc, char **argv)
     while (!g_stop) {
         uint64_t now = mono_ns() - g_t0;
         uint64_t next = mipemu_net_next_event(g_net);
+        for (int i = 0; i < g_nbus; i++) {
+            uint64_t d = rtu_next_deadline(&g_buses[i].bus);
+            if (d != UINT64_MAX && d - g_t0 < next)
+                next = d - g_t0;
+        }
         int timeout = 0;
         if (next > now) {
             uint64_t ms = (next - now + 999999) / 1000000;
@@ -449,6 +521,10 @@ int main(int argc, char **argv)
         advance_now();
         for (int i = 0; i < n; i++) {
             conn_t *c = evs[i].data.ptr;
+            if (c->type == T_RTU) {
+                rtu_on_readable(&((bus_slot_t *)evs[i].data.ptr)->bus, mono_ns());
+                continue;
+            }
             if (c->type == T_LISTEN) {
                 on_accept(c);
                 continue;
@@ -464,9 +540,18 @@ int main(int argc, char **argv)
             if (evs[i].events & EPOLLIN)
                 on_readable(c);
         }
+        for (int i = 0; i < g_nbus; i++) {
+            uint64_t t = mono_ns();
+            if (rtu_next_deadline(&g_buses[i].bus) <= t) {
+                advance_now();
+                rtu_on_time(&g_buses[i].bus, t, rtu_handle, NULL);
+            }
+        }
         if (g_trace)
             fflush(g_trace);
     }
+    for (int i = 0; i < g_nbus; i++)
+        rtu_close(&g_buses[i].bus);
     while (g_conns)
         conn_close(g_conns);
     for (int i = 0; i < nlisten; i++)

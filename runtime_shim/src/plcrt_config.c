@@ -8,6 +8,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 
 #define MAX_DEVICES 64
 #define MAX_RANGES 256
@@ -141,16 +142,62 @@ typedef struct range_keys {
     int line;
     char name[PLCRT_NAME_MAX];
     int is_write;
-    int device, table, start, size, image, policy, trigger, done, error, status, length;
+    int device, table, start, size, image, policy, trigger, done, error, status, length, status_first;
     char v_device[PLCRT_NAME_MAX], v_table[32], v_image[32], v_policy[32], v_trigger[32],
         v_done[32], v_error[32], v_status[32], v_length[32];
     long start_v, size_v;
+    int status_first_v;
 } range_keys_t;
 
 typedef struct device_keys {
     int line;
     int host, port, unit_id, timeout, polling_period, errors, online;
+    int serial, baud, parity, data_bits, stop_bits, pause, fc23;
 } device_keys_t;
+
+/* "none"/"even"/"odd" (also N/E/O and OpenPLC's None/Even/Odd) -> 'N'/'E'/'O', 0 = not one */
+static char parity_of(const char *v)
+{
+    if (!strcasecmp(v, "none") || !strcasecmp(v, "n")) return 'N';
+    if (!strcasecmp(v, "even") || !strcasecmp(v, "e")) return 'E';
+    if (!strcasecmp(v, "odd") || !strcasecmp(v, "o")) return 'O';
+    return 0;
+}
+
+static int valid_baud(long b)
+{
+    static const long ok[] = {300, 600, 1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200,
+                              230400, 460800, 921600};
+    for (size_t i = 0; i < sizeof ok / sizeof ok[0]; i++)
+        if (ok[i] == b) return 1;
+    return 0;
+}
+
+/* RTU devices on the same line share the first one's context */
+static void assign_bus(struct plcrt_master *m, plcrt_device_t *d)
+{
+    int self = (int)(d - m->devices);
+    d->bus = self;
+    d->line_range = d->line_range2 = -1;
+    if (!d->rtu) return;
+    for (int i = 0; i < self; i++)
+        if (m->devices[i].rtu && !strcmp(m->devices[i].host, d->host)) {
+            d->bus = i;
+            return;
+        }
+}
+
+/* devices sharing a line must agree on its settings */
+static int check_bus(parser_t *p, plcrt_device_t *d)
+{
+    plcrt_device_t *o = &p->m->devices[d->bus];
+    if (o == d) return 0;
+    if (o->baud != d->baud || o->parity != d->parity || o->data_bits != d->data_bits ||
+        o->stop_bits != d->stop_bits)
+        return perr(p, d->line, "device %s: %s is also used by device %s (line %d) with other line settings",
+                    d->name, d->host, o->name, o->line);
+    return 0;
+}
 
 static int find_device(struct plcrt_master *m, const char *name)
 {
@@ -258,6 +305,11 @@ static int finish_range(parser_t *p, range_keys_t *k, uint64_t default_poll)
             claim(p, k->length, 'Q', 'W', r->length, 1, "length"))
             return -1;
     }
+    if (k->status_first && k->status_first_v) {
+        if (bits || r->size < 3)
+            return perr(p, k->status_first, "status_first: for register reads of 3 or more (status, count, data)");
+        r->status_first = 1;
+    }
     if (claim(p, k->image, area, bits ? 'X' : 'W', r->image, r->size, "image")) return -1;
     /* two ranges of one device on the same registers are a mistake */
     for (int i = 0; i < m->n_ranges; i++) {
@@ -285,6 +337,26 @@ static int valid_name(const char *s)
     for (; *s; s++)
         if (!isalnum((unsigned char)*s) && *s != '_' && *s != '-' && *s != '.') return 0;
     return 1;
+}
+
+/* a device section is complete: a TCP host or a serial line, and keys that fit it */
+static int finish_device(parser_t *p, plcrt_device_t *dev, const device_keys_t *dk)
+{
+    if (dk->host && dk->serial)
+        return perr(p, dk->serial, "[device %s]: host and serial: a device is either Modbus TCP or RTU", dev->name);
+    if (!dk->host && !dk->serial)
+        return perr(p, dk->line, "[device %s]: missing key 'host' (Modbus TCP) or 'serial' (Modbus RTU)", dev->name);
+    if (dk->host) {
+        int bad = dk->baud ? dk->baud : dk->parity ? dk->parity : dk->data_bits ? dk->data_bits
+                : dk->stop_bits ? dk->stop_bits : dk->pause;
+        if (bad) return perr(p, bad, "baud, parity, data_bits, stop_bits and pause are keys of serial (RTU) devices");
+    } else if (dk->port) {
+        return perr(p, dk->port, "port is a key of TCP devices (this one has serial)");
+    }
+    if (dev->rtu && dev->unit_word < 0 && dev->unit_id > 247)
+        return perr(p, dk->unit_id, "unit_id: %d is not a Modbus RTU address (0..247)", dev->unit_id);
+    assign_bus(p->m, dev);
+    return check_bus(p, dev);
 }
 
 static int parse_plcrt(parser_t *p, char *text)
@@ -350,7 +422,7 @@ static int parse_plcrt(parser_t *p, char *text)
                     return perr(p, lineno, "[%s NAME]: name missing or not made of letters, digits, _ - .", kind);
                 if (strlen(name) >= PLCRT_NAME_MAX) return perr(p, lineno, "name too long");
                 if (kind[0] == 'd') {
-                    if (dev && !dk.host) return perr(p, dk.line, "[device %s]: missing key 'host'", dev->name);
+                    if (dev && finish_device(p, dev, &dk)) return -1;
                     if (find_device(m, name) >= 0) return perr(p, lineno, "device '%s' defined twice", name);
                     if (m->n_devices == MAX_DEVICES) return perr(p, lineno, "more than %d devices", MAX_DEVICES);
                     dev = &m->devices[m->n_devices++];
@@ -365,6 +437,10 @@ static int parse_plcrt(parser_t *p, char *text)
                     dev->errors_word = -1;
                     dev->online_bit = -1;
                     dev->ext_fd = -1;
+                    dev->baud = 19200;
+                    dev->data_bits = 8;
+                    dev->stop_bits = 1;
+                    dev->parity = 'N';
                     memset(&dk, 0, sizeof dk);
                     dk.line = lineno;
                     sec = SEC_DEVICE;
@@ -461,6 +537,34 @@ static int parse_plcrt(parser_t *p, char *text)
             if (!strcmp(key, "host")) {
                 slot = &dk.host;
                 if (set_str(p, lineno, key, dev->host, sizeof dev->host, val)) return -1;
+            } else if (!strcmp(key, "serial")) {
+                slot = &dk.serial;
+                if (set_str(p, lineno, key, dev->host, sizeof dev->host, val)) return -1;
+                dev->rtu = 1;
+            } else if (!strcmp(key, "baud")) {
+                slot = &dk.baud;
+                if (parse_int(p, lineno, key, val, 1, 4000000, &x)) return -1;
+                if (!valid_baud(x)) return perr(p, lineno, "baud: %ld is not a standard rate (300 .. 921600)", x);
+                dev->baud = (int)x;
+            } else if (!strcmp(key, "parity")) {
+                slot = &dk.parity;
+                if (!(dev->parity = parity_of(val))) return perr(p, lineno, "parity: '%s' is not none, even or odd", val);
+            } else if (!strcmp(key, "data_bits")) {
+                slot = &dk.data_bits;
+                if (parse_int(p, lineno, key, val, 7, 8, &x)) return -1;
+                dev->data_bits = (int)x;
+            } else if (!strcmp(key, "stop_bits")) {
+                slot = &dk.stop_bits;
+                if (parse_int(p, lineno, key, val, 1, 2, &x)) return -1;
+                dev->stop_bits = (int)x;
+            } else if (!strcmp(key, "fc23")) {
+                slot = &dk.fc23;
+                if (!strcmp(val, "yes") || !strcmp(val, "true")) dev->fc23 = 1;
+                else if (!strcmp(val, "no") || !strcmp(val, "false")) dev->fc23 = 0;
+                else return perr(p, lineno, "fc23: '%s' is not yes or no", val);
+            } else if (!strcmp(key, "pause")) {
+                slot = &dk.pause;
+                if (parse_duration(p, lineno, key, val, &dev->pause_ns)) return -1;
             } else if (!strcmp(key, "port")) {
                 slot = &dk.port;
                 if (parse_int(p, lineno, key, val, 1, 65535, &x)) return -1;
@@ -495,7 +599,7 @@ static int parse_plcrt(parser_t *p, char *text)
                     claim(p, lineno, 'I', 'X', dev->online_bit, 1, key))
                     return -1;
             } else
-                return perr(p, lineno, "unknown key '%s' in [device] (host, port, unit_id, timeout, polling_period, errors, online)", key);
+                return perr(p, lineno, "unknown key '%s' in [device] (host, port, serial, baud, parity, data_bits, stop_bits, pause, fc23, unit_id, timeout, polling_period, errors, online)", key);
             break;
         case SEC_READ:
         case SEC_WRITE:
@@ -515,6 +619,13 @@ static int parse_plcrt(parser_t *p, char *text)
                 RKEY(error, v_error)
                 RKEY(status, v_status)
                 if (sec == SEC_WRITE) { RKEY(length, v_length) }
+                if (sec == SEC_READ && !strcmp(key, "status_first")) {
+                    slot = &rk.status_first;
+                    if (!strcmp(val, "yes") || !strcmp(val, "true")) rk.status_first_v = 1;
+                    else if (!strcmp(val, "no") || !strcmp(val, "false")) rk.status_first_v = 0;
+                    else return perr(p, lineno, "status_first: '%s' is not yes or no", val);
+                    break;
+                }
                 if (!strcmp(key, "start")) {
                     slot = &rk.start;
                     if (parse_int(p, lineno, key, val, 0, 65535, &rk.start_v)) return -1;
@@ -526,7 +637,7 @@ static int parse_plcrt(parser_t *p, char *text)
                     break;
                 }
                 return perr(p, lineno, "unknown key '%s' in [%s] (device, table, start, size, image, policy, trigger, done, error, status%s)",
-                            key, sec == SEC_WRITE ? "write" : "read", sec == SEC_WRITE ? ", length" : "");
+                            key, sec == SEC_WRITE ? "write" : "read", sec == SEC_WRITE ? ", length" : ", status_first");
             } while (0);
 #undef RKEY
             break;
@@ -537,8 +648,7 @@ static int parse_plcrt(parser_t *p, char *text)
         }
     }
     if (in_range && finish_range(p, &rk, default_poll)) return -1;
-    if (dev && !dk.host) return perr(p, dk.line, "[device %s]: missing key 'host'", dev->name);
-    if (dev && !dk.host) return -1;
+    if (dev && finish_device(p, dev, &dk)) return -1;
     if (retain_seen && !retain_keys[0])
         return perr(p, retain_seen, "[retain]: missing key 'file'%s",
                     retain_keys[2] || retain_keys[3]
@@ -556,6 +666,8 @@ typedef struct mb_dev {
     char protocol[16];
     char address[256];
     long slave_id, port;
+    char rtu_val[5][32]; /* RTU_Baud_Rate, _Parity, _Data_Bits, _Stop_Bits, _TX_Pause as given */
+    int rtu_line[5];
     long start[5], size[5]; /* DI, coils, IR, HR read, HR write */
     int has[5 * 2 + 5];     /* lines of the keys given */
 } mb_dev_t;
@@ -639,7 +751,12 @@ static int parse_mbconfig(parser_t *p, char *text)
             } else if (!strncmp(k, "RTU_", 4) && (!strcmp(k + 4, "Baud_Rate") || !strcmp(k + 4, "Parity") ||
                                                   !strcmp(k + 4, "Data_Bits") || !strcmp(k + 4, "Stop_Bits") ||
                                                   !strcmp(k + 4, "TX_Pause"))) {
-                /* serial settings: only meaningful for RTU, which is refused below */
+                /* serial settings: checked at the end, for RTU devices only (OpenPLC writes
+                 * "None" into them for TCP devices) */
+                int f = !strcmp(k + 4, "Baud_Rate") ? 0 : !strcmp(k + 4, "Parity") ? 1
+                      : !strcmp(k + 4, "Data_Bits") ? 2 : !strcmp(k + 4, "Stop_Bits") ? 3 : 4;
+                if (set_str(p, lineno, key, d->rtu_val[f], sizeof d->rtu_val[f], val)) return -1;
+                d->rtu_line[f] = lineno;
             } else {
                 int found = 0;
                 for (int b = 0; b < 5 && !found; b++) {
@@ -667,8 +784,9 @@ static int parse_mbconfig(parser_t *p, char *text)
         if (!d->seen) return perr(p, num_line, "Num_Devices = %ld but device%d is not configured", num_devices, i);
         if (!d->name[0]) snprintf(d->name, sizeof d->name, "device%d", i);
         if (find_device(m, d->name) >= 0) snprintf(d->name, sizeof d->name, "device%d", i);
-        if (strcmp(d->protocol, "TCP") && strcmp(d->protocol, "ESP32") && strcmp(d->protocol, "ESP8266"))
-            return perr(p, d->line, "device%d: protocol '%s' is not supported (Modbus TCP only)", i,
+        int rtu = !strcmp(d->protocol, "RTU");
+        if (!rtu && strcmp(d->protocol, "TCP") && strcmp(d->protocol, "ESP32") && strcmp(d->protocol, "ESP8266"))
+            return perr(p, d->line, "device%d: protocol '%s' is not supported (TCP, RTU, ESP32, ESP8266)", i,
                         d->protocol[0] ? d->protocol : "(missing)");
         if (!d->address[0]) return perr(p, d->line, "device%d.address missing", i);
         plcrt_device_t *dev = &m->devices[m->n_devices++];
@@ -681,6 +799,37 @@ static int parse_mbconfig(parser_t *p, char *text)
         dev->timeout_ns = timeout_ns;
         dev->poll_ns = poll_ns;
         dev->errors_word = dev->online_bit = dev->ext_fd = dev->unit_word = -1;
+        dev->rtu = rtu;
+        dev->baud = 115200; /* OpenPLC's default rate */
+        dev->parity = 'N';
+        dev->data_bits = 8;
+        dev->stop_bits = 1;
+        if (rtu) {
+            static const char *const rk[5] = {"RTU_Baud_Rate", "RTU_Parity", "RTU_Data_Bits", "RTU_Stop_Bits", "RTU_TX_Pause"};
+            char key[64];
+            long x;
+            for (int f = 0; f < 5; f++) {
+                if (!d->rtu_line[f]) continue;
+                snprintf(key, sizeof key, "device%d.%s", i, rk[f]);
+                const char *v = d->rtu_val[f];
+                int ln = d->rtu_line[f];
+                if (f == 1) {
+                    if (!(dev->parity = parity_of(v))) return perr(p, ln, "%s: '%s' is not None, Even or Odd", key, v);
+                    continue;
+                }
+                static const long lo[5] = {1, 0, 7, 1, 0}, hi[5] = {4000000, 0, 8, 2, 3600000};
+                if (parse_int(p, ln, key, v, lo[f], hi[f], &x)) return -1;
+                if (f == 0 && !valid_baud(x)) return perr(p, ln, "%s: %ld is not a standard rate (300 .. 921600)", key, x);
+                if (f == 0) dev->baud = (int)x;
+                else if (f == 2) dev->data_bits = (int)x;
+                else if (f == 3) dev->stop_bits = (int)x;
+                else dev->pause_ns = (uint64_t)x * 1000000ull;
+            }
+        }
+        if (rtu && dev->unit_id > 247)
+            return perr(p, d->line, "device%d.slave_id: %d is not a Modbus RTU address (0..247)", i, dev->unit_id);
+        assign_bus(m, dev);
+        if (check_bus(p, dev)) return -1;
         /* OpenPLC's order per device: DI, coils, IR, HR read, HR write */
         static const char tables[5] = {'d', 'c', 'i', 'h', 'h'};
         static const int writes[5] = {0, 1, 0, 0, 1};

@@ -29,12 +29,14 @@ void plcrt_master_free(struct plcrt_master *m)
     plcrt_master_stop_thread(m);
     for (int i = 0; i < m->n_devices; i++) {
         plcrt_device_t *d = &m->devices[i];
+        if (d->ctx && d->rtu && d->bus != i) continue; /* the line's owner frees the context */
         if (d->ctx) {
             if (d->ext_fd >= 0) modbus_set_socket(d->ctx, -1); /* the fd is the caller's */
             else modbus_close(d->ctx);
             modbus_free(d->ctx);
         }
     }
+    for (int i = 0; i < m->n_devices; i++) free(m->devices[i].line_req);
     pthread_mutex_destroy(&m->lock);
     pthread_cond_destroy(&m->wake);
     free(m->devices);
@@ -189,7 +191,10 @@ static void device_close(plcrt_device_t *d)
 static int device_ensure_ctx(plcrt_t *rt, plcrt_device_t *d)
 {
     if (d->ctx) return 0;
-    d->ctx = modbus_new_tcp(d->host[0] ? d->host : "127.0.0.1", d->port);
+    if (d->rtu)
+        d->ctx = modbus_new_rtu(d->host, d->baud, d->parity, d->data_bits, d->stop_bits);
+    else
+        d->ctx = modbus_new_tcp(d->host[0] ? d->host : "127.0.0.1", d->port);
     if (!d->ctx) {
         plcrt_log(rt, "device %s: cannot create a Modbus context: %s", d->name, modbus_strerror(errno));
         return -1;
@@ -213,6 +218,14 @@ static int device_connect(plcrt_t *rt, struct plcrt_master *m, plcrt_device_t *d
                           int *err)
 {
     if (d->transact) return 0; /* in process: always there */
+    if (d->rtu && d->bus != (int)(d - m->devices)) {
+        /* a further device on a serial line: the line is the first device's */
+        plcrt_device_t *o = &m->devices[d->bus];
+        if (device_connect(rt, m, o, now, err) != 0) return -1;
+        d->ctx = o->ctx;
+        d->connected = 1;
+        return 0;
+    }
     if (device_ensure_ctx(rt, d) != 0) { *err = ENOMEM; return -1; }
     if (d->connected) return 0;
     if (now < d->next_connect_ns) { *err = ENOTCONN; return -1; }
@@ -222,8 +235,12 @@ static int device_connect(plcrt_t *rt, struct plcrt_master *m, plcrt_device_t *d
         d->n_connects++;
         munlock(m);
         d->backoff_ns = 0;
-        if (d->n_connects > 1 || d->failing)
-            log_limited(rt, d, LOG_CONNECTED, now, "device %s: connected to %s:%d", d->name, d->host, d->port);
+        if (d->n_connects > 1 || d->failing) {
+            if (d->rtu)
+                log_limited(rt, d, LOG_CONNECTED, now, "device %s: opened %s", d->name, d->host);
+            else
+                log_limited(rt, d, LOG_CONNECTED, now, "device %s: connected to %s:%d", d->name, d->host, d->port);
+        }
         return 0;
     }
     *err = errno;
@@ -316,6 +333,12 @@ static int do_request(struct plcrt_master *m, plcrt_device_t *d, request_t *q, i
     if (q->fc == 16) {
         req[n++] = (uint8_t)(q->count * 2);
         for (int i = 0; i < q->count; i++) { put16(req + n, q->data[i]); n += 2; }
+    } else if (q->fc == 23) {
+        /* read address and quantity above, then the write part (written first by the slave) */
+        put16(req + n, q->waddr); n += 2;
+        put16(req + n, q->wcount); n += 2;
+        req[n++] = (uint8_t)(q->wcount * 2);
+        for (int i = 0; i < q->wcount; i++) { put16(req + n, q->wdata[i]); n += 2; }
     } else if (q->fc == 15) {
         int bytes = (q->count + 7) / 8;
         req[n++] = (uint8_t)bytes;
@@ -340,6 +363,42 @@ static int do_request(struct plcrt_master *m, plcrt_device_t *d, request_t *q, i
         if (len < h + 1 || len > MODBUS_TCP_MAX_ADU_LENGTH || get16(rsp) != d->tid || get16(rsp + 2) != 0 ||
             get16(rsp + 4) != len - 6)
             goto bad;
+    } else if (d->rtu) {
+        /* Modbus RTU: unit id + PDU + CRC on the line (libmodbus frames it); the line is shared
+         * by the devices on it, one exchange at a time (this thread does them in turn) */
+        plcrt_device_t *o = &m->devices[d->bus];
+        if (o->pause_ns || d->pause_ns) {
+            uint64_t pause = d->pause_ns > o->pause_ns ? d->pause_ns : o->pause_ns;
+            uint64_t t = plcrt_monotonic_ns();
+            if (o->bus_free_ns && t < o->bus_free_ns + pause) {
+                uint64_t w = o->bus_free_ns + pause - t;
+                struct timespec ts = {(time_t)(w / 1000000000ull), (long)(w % 1000000000ull)};
+                nanosleep(&ts, NULL);
+            }
+        }
+        modbus_flush(d->ctx); /* what a late answer to an earlier request left on the line */
+        modbus_set_slave(d->ctx, q->unit);
+        modbus_set_response_timeout(d->ctx, (uint32_t)(d->timeout_ns / 1000000000ull),
+                                    (uint32_t)((d->timeout_ns % 1000000000ull) / 1000));
+        if (modbus_send_raw_request(d->ctx, req, n) < 0) {
+            o->bus_free_ns = plcrt_monotonic_ns();
+            *transport = 1;
+            return STATUS_TRANSPORT(errno);
+        }
+        if (d->after_send) d->after_send(d->after_send_user);
+        if (q->unit == 0) {
+            /* broadcast: every slave takes it, none answers */
+            o->bus_free_ns = plcrt_monotonic_ns();
+            return 0;
+        }
+        len = modbus_receive_confirmation(d->ctx, rsp);
+        o->bus_free_ns = plcrt_monotonic_ns();
+        if (len < 0) {
+            *transport = 1;
+            /* libmodbus's own codes (bad CRC, ...) are no errno: report them as a bad reply */
+            return STATUS_TRANSPORT(errno >= MODBUS_ENOBASE ? EPROTO : errno);
+        }
+        h = 1;
     } else {
         uint16_t tid = 0;
         if (send_adu(d, req, n, &tid) < 0) {
@@ -357,7 +416,7 @@ static int do_request(struct plcrt_master *m, plcrt_device_t *d, request_t *q, i
     if (len < h + 2 || rsp[h - 1] != (uint8_t)q->unit) goto bad;
     if (rsp[h] == (uint8_t)(q->fc | 0x80)) return rsp[h + 1] ? rsp[h + 1] : EPROTO + 1000;
     if (rsp[h] != q->fc) goto bad;
-    if (q->fc == 3 || q->fc == 4) {
+    if (q->fc == 3 || q->fc == 4 || q->fc == 23) {
         if (rsp[h + 1] != q->count * 2 || len < h + 2 + q->count * 2) goto bad;
         for (int i = 0; i < q->count; i++) q->data[i] = (uint16_t)get16(rsp + h + 2 + 2 * i);
     } else if (q->fc == 1 || q->fc == 2) {
@@ -372,6 +431,40 @@ bad:
     /* a reply that does not fit the request: treat the stream as out of step */
     *transport = 1;
     return STATUS_TRANSPORT(EPROTO);
+}
+
+/* A read of a MIP read area (status word, count word, data) with status_first: the status and
+ * count alone; only when bit 0 (new read data) is set, a second read from the status word on,
+ * of the count's registers (2 + count, at most the range), which clears the bit; when that
+ * read's count is larger than the first one's (a newer, longer block arrived between them), a
+ * third read of the whole range. Registers not read keep what the last read brought (the
+ * program looks at the data only with bit 0 or a new count). The characters of the further
+ * exchanges are kept for the line's time in virtual time. */
+static int status_first_request(struct plcrt_master *m, plcrt_device_t *d, const plcrt_range_t *r,
+                                request_t *q, int *transport)
+{
+    int size = q->count;
+    q->extra_req = q->extra_rsp = 0;
+    memcpy(q->data, r->in, sizeof q->data[0] * (size_t)size); /* what is not read stays */
+    q->count = 2;
+    int status = do_request(m, d, q, transport);
+    if (status != 0 || !(q->data[0] & 1)) {
+        q->count = size;
+        return status;
+    }
+    for (int pass = 0; pass < 2; pass++) {
+        int want = pass ? size : 2 + q->data[1];
+        if (want > size) want = size;
+        int had = want;
+        q->count = want;
+        q->fc = 3; /* after an FC23 the write is done: plain reads */
+        q->extra_req += 8;
+        q->extra_rsp += 5 + 2 * want;
+        status = do_request(m, d, q, transport);
+        if (status != 0 || had == size || 2 + q->data[1] <= had) break;
+    }
+    q->count = size;
+    return status;
 }
 
 static const char *status_text(int status, char *buf, size_t n)
@@ -392,6 +485,8 @@ static int range_request(plcrt_t *rt, struct plcrt_master *m, plcrt_range_t *r, 
             return -1; /* waiting for the reconnect backoff: no request, no error */
         status = STATUS_TRANSPORT(err);
         transport = 1;
+    } else if (q->status_first) {
+        status = status_first_request(m, d, r, q, &transport);
     } else {
         status = do_request(m, d, q, &transport);
     }
@@ -423,6 +518,8 @@ static int range_request(plcrt_t *rt, struct plcrt_master *m, plcrt_range_t *r, 
     d->failing = 1;
     if (d->transact) {
         /* in process nothing can be left in a stream */
+    } else if (d->rtu) {
+        /* a serial line stays open: the next request flushes what is left on it */
     } else if (transport && d->connected && d->ext_fd < 0) {
         /* the TCP stream may hold a late answer: start over on a new connection */
         mlock(m);
@@ -447,13 +544,145 @@ static int function_code(const plcrt_range_t *r)
     }
 }
 
+/* the result of range r's request q: into the range, for the next exchange */
+static void publish(struct plcrt_master *m, plcrt_range_t *r, const request_t *q, int status)
+{
+    mlock(m);
+    if (r->policy == POLICY_TRIGGER) {
+        r->pending = 0;
+        r->status_value = status;
+        r->result = status == 0 ? RESULT_OK : RESULT_ERROR;
+        if (status == 0 && !r->is_write) memcpy(r->in, q->data, sizeof q->data[0] * (size_t)r->size);
+    } else if (status == 0) {
+        if (r->is_write) {
+            memcpy(r->last, q->data, sizeof q->data[0] * (size_t)r->size);
+            r->have_last = 1;
+        } else {
+            memcpy(r->in, q->data, sizeof q->data[0] * (size_t)r->size);
+            r->fresh = 1;
+        }
+    }
+    munlock(m);
+}
+
+/* ---- serial line in virtual time
+ * In virtual mode an RTU device's exchange takes the time it takes on the wire: the request is
+ * taken at t, reaches the slave (the transport, the emulator core) when its last character has
+ * crossed the line, t + (request characters) x (character time); the answer follows one
+ * 3.5-character gap later and is shown when its last character has arrived; the next request on
+ * the line waits one more gap (and the device's pause). The devices on one line take it in turn.
+ * A character is 1 start + data + parity + stop bits; the gap is 1.75 ms above 19200 baud. In
+ * real time the line itself takes that time. */
+
+static uint64_t char_ns(const plcrt_device_t *o)
+{
+    int bits = 1 + o->data_bits + (o->parity != 'N') + o->stop_bits;
+    return (uint64_t)bits * 1000000000ull / (uint64_t)(o->baud > 0 ? o->baud : 19200);
+}
+
+static uint64_t gap_ns(const plcrt_device_t *o)
+{
+    return o->baud > 19200 ? 1750000ull : char_ns(o) * 7 / 2;
+}
+
+/* RTU frame lengths (unit id + PDU + CRC) of a request and of its answer */
+static int rtu_req_chars(const request_t *q)
+{
+    if (q->fc == 16) return 9 + 2 * q->count;
+    if (q->fc == 15) return 9 + (q->count + 7) / 8;
+    if (q->fc == 23) return 13 + 2 * q->wcount;
+    return 8;
+}
+
+static int rtu_rsp_chars(const request_t *q, int status)
+{
+    if (status > 0 && status < 1000) return 5; /* exception */
+    if (q->status_first) return 5 + 2 * 2; /* the first exchange: status and count */
+    if (q->fc == 3 || q->fc == 4 || q->fc == 23) return 5 + 2 * q->count;
+    if (q->fc == 1 || q->fc == 2) return 5 + (q->count + 7) / 8;
+    return 8;
+}
+
+static int line_modelled(plcrt_t *rt, const plcrt_device_t *d) { return d->rtu && !plcrt_threaded(rt); }
+
+/* moves the exchange on the line of owner o on to now; returns 1 while the line is busy */
+static int line_advance(plcrt_t *rt, struct plcrt_master *m, plcrt_device_t *o, uint64_t now)
+{
+    if (o->line_range < 0) return now < o->line_free_ns;
+    plcrt_range_t *r = &m->ranges[o->line_range];
+    plcrt_device_t *d = &m->devices[r->dev];
+    request_t *q = o->line_req;
+    if (o->line_phase == 1) {
+        if (now < o->line_send_ns) return 1;
+        /* the request is complete at the slave: the transport answers now */
+        request_t *w = &m->q;
+        memcpy(w, q, sizeof *w);
+        int status = range_request(rt, m, r, w, o->line_send_ns);
+        if (status < 0) status = STATUS_TRANSPORT(ENOTCONN);
+        memcpy(q, w, sizeof *q);
+        o->line_status = status;
+        o->line_phase = 2;
+        if (q->unit == 0)
+            o->line_done_ns = o->line_send_ns; /* broadcast: no answer */
+        else if (status >= 1000)
+            o->line_done_ns = o->line_send_ns + d->timeout_ns; /* silence: the master waits its timeout */
+        else
+            o->line_done_ns = o->line_send_ns + gap_ns(o) + (uint64_t)rtu_rsp_chars(q, status) * char_ns(o);
+        if (q->extra_req) /* status_first's further exchanges, one after the other */
+            o->line_done_ns += (uint64_t)(q->extra_req + q->extra_rsp) * char_ns(o) +
+                               (uint64_t)(q->extra_req / 8) * 2 * gap_ns(o);
+    }
+    if (now < o->line_done_ns) return 1;
+    publish(m, r, q, o->line_status);
+    if (o->line_range2 >= 0) publish(m, &m->ranges[o->line_range2], q, o->line_status);
+    o->line_range2 = -1;
+    o->line_busy_ns += o->line_done_ns - (o->line_send_ns - (uint64_t)rtu_req_chars(q) * char_ns(o));
+    o->line_free_ns = o->line_done_ns + gap_ns(o) + (d->pause_ns > o->pause_ns ? d->pause_ns : o->pause_ns);
+    o->line_range = -1;
+    return now < o->line_free_ns;
+}
+
+/* puts request q of range r on the idle line of owner o. A trigger request starts where the
+ * real-time master would start it: when the scan that raised the trigger ended (one tick before
+ * this I/O phase; scans take no virtual time), or when the line became free after that; a
+ * poll of a cycle / change range starts now. An exchange shorter than the rest of the tick then
+ * shows in this scan, as over TCP, and as in real time when it fits into the idle time. */
+static int line_start(plcrt_t *rt, struct plcrt_master *m, plcrt_device_t *o, plcrt_range_t *r,
+                      const request_t *q, uint64_t now, int pair)
+{
+    uint64_t start = now;
+    if (r->policy == POLICY_TRIGGER) {
+        start = now >= rt->tick_ns ? now - rt->tick_ns : 0;
+        if (start < o->line_free_ns) start = o->line_free_ns;
+    }
+    o->line_range2 = pair;
+    if (!o->line_req && !(o->line_req = malloc(sizeof *o->line_req))) return -1;
+    memcpy(o->line_req, q, sizeof *q);
+    o->line_range = (int)(r - m->ranges);
+    o->line_phase = 1;
+    o->line_send_ns = start + (uint64_t)rtu_req_chars(q) * char_ns(o);
+    return 0;
+}
+
 static void step(plcrt_t *rt, struct plcrt_master *m, uint64_t now, int writes_only)
 {
     request_t *q = &m->q; /* large: not on the stack */
-    for (int i = 0; i < m->n_ranges; i++) {
+    /* virtual time: exchanges on serial lines move on first (they may finish now) */
+    for (int i = 0; i < m->n_devices; i++) {
+        plcrt_device_t *o = &m->devices[i];
+        if (line_modelled(rt, o) && o->bus == i) line_advance(rt, m, o, now);
+    }
+    /* config order; with serial lines in virtual time the round starts after the range that
+     * last took a line, so that the ranges on a line take it in turn (in real time each pass
+     * does every due range, one after the other) */
+    int first = m->line_rr < m->n_ranges ? m->line_rr : 0;
+    for (int k = 0; k < m->n_ranges; k++) {
+        int i = (first + k) % m->n_ranges;
         plcrt_range_t *r = &m->ranges[i];
         if (writes_only && (!r->is_write || r->policy == POLICY_TRIGGER)) continue;
         plcrt_device_t *d = &m->devices[r->dev];
+        plcrt_device_t *line = line_modelled(rt, d) ? &m->devices[d->bus] : NULL;
+        if (line && (line->line_range >= 0 || now < line->line_free_ns)) continue; /* the line is taken */
         mlock(m);
         int go = 0;
         if (r->policy == POLICY_TRIGGER) {
@@ -479,10 +708,43 @@ static void step(plcrt_t *rt, struct plcrt_master *m, uint64_t now, int writes_o
                     go = 0;
             }
         }
+        if (go && d->fc23 && r->policy == POLICY_TRIGGER && r->is_write && r->table == 'h' &&
+            r->req_len <= 121) {
+            /* fc23: a write waits for the pending read of its device it goes with (in this pass) */
+            int waits = 0;
+            for (int j = 0; j < m->n_ranges && !waits; j++) {
+                plcrt_range_t *o = &m->ranges[j];
+                waits = o->dev == r->dev && !o->is_write && o->table == 'h' &&
+                        o->policy == POLICY_TRIGGER && o->pending && o->req_unit == r->req_unit &&
+                        (!line || line->line_range != j);
+            }
+            if (waits && k + 1 < m->n_ranges) {
+                munlock(m);
+                continue;
+            }
+        }
+        /* fc23: a pending trigger read goes with a pending trigger write of the device as one
+         * request (the write first, as the standard has it); writes over 121 registers go alone */
+        int pair = -1;
+        if (go && d->fc23 && r->policy == POLICY_TRIGGER && !r->is_write && r->table == 'h')
+            for (int j = 0; j < m->n_ranges; j++) {
+                plcrt_range_t *w = &m->ranges[j];
+                if (w->dev == r->dev && w->is_write && w->table == 'h' && w->policy == POLICY_TRIGGER &&
+                    w->pending && w->req_unit == r->req_unit && w->req_len >= 1 && w->req_len <= 121 &&
+                    w->req_len <= w->size) {
+                    pair = j;
+                    q->waddr = w->start;
+                    q->wcount = w->req_len;
+                    memcpy(q->wdata, w->req, sizeof q->wdata[0] * (size_t)w->req_len);
+                    break;
+                }
+            }
         munlock(m);
         if (!go) continue;
-        q->fc = function_code(r);
+        q->fc = pair >= 0 ? 23 : function_code(r);
         q->addr = r->start;
+        q->status_first = r->status_first;
+        q->extra_req = q->extra_rsp = 0;
         int status;
         if (q->unit < 0 || q->unit > 255) {
             /* unit_id = %QWn held a value that is no unit id: the request is not sent */
@@ -500,26 +762,20 @@ static void step(plcrt_t *rt, struct plcrt_master *m, uint64_t now, int writes_o
             log_limited(rt, d, LOG_LENGTH, now, "range %s: length word %%QW%d = %d is outside 1..%d",
                         r->name, r->length, q->count, r->size);
             status = STATUS_TRANSPORT(EINVAL);
+        } else if (line) {
+            /* on the wire from now on; the answer comes in a later step */
+            if (line_start(rt, m, line, r, q, now, pair) == 0) {
+                m->line_rr = i + 1;
+                line_advance(rt, m, line, now);
+                continue;
+            }
+            status = STATUS_TRANSPORT(ENOMEM);
         } else {
             status = range_request(rt, m, r, q, now);
             if (status < 0) continue; /* skipped: device in reconnect backoff */
         }
-        mlock(m);
-        if (r->policy == POLICY_TRIGGER) {
-            r->pending = 0;
-            r->status_value = status;
-            r->result = status == 0 ? RESULT_OK : RESULT_ERROR;
-            if (status == 0 && !r->is_write) memcpy(r->in, q->data, sizeof q->data[0] * (size_t)r->size);
-        } else if (status == 0) {
-            if (r->is_write) {
-                memcpy(r->last, q->data, sizeof q->data[0] * (size_t)r->size);
-                r->have_last = 1;
-            } else {
-                memcpy(r->in, q->data, sizeof q->data[0] * (size_t)r->size);
-                r->fresh = 1;
-            }
-        }
-        munlock(m);
+        publish(m, r, q, status);
+        if (pair >= 0) publish(m, &m->ranges[pair], q, status);
     }
 }
 

@@ -25,6 +25,7 @@ typedef struct plcrt_range {
     int image;       /* first word index (%IW/%QW), or flat bit index a*8+b (%IX/%QX) */
     int trigger, done, error; /* flat bit indexes, -1 = none */
     int status, length;       /* word indexes, -1 = none */
+    int status_first;         /* reads: the MIP read area's status word first (plcrt_master.c) */
     int dev;
     int line;
 
@@ -74,13 +75,38 @@ typedef struct plcrt_device {
     uint64_t log_last_ns[5], log_suppressed[5];
     unsigned char log_seen[5];
     char name[PLCRT_NAME_MAX];
-    char host[256];
+    char host[256];   /* TCP: host; RTU: the serial line's path */
     char last_error[160];
+    /* Modbus RTU (serial = PATH instead of host): libmodbus's RTU backend; devices on the same
+     * line share the first one's context (bus) and take the line in turn */
+    int rtu;
+    int fc23;              /* a pending trigger read and write of this device go as one FC23 */
+    int baud, data_bits, stop_bits;
+    char parity;           /* 'N', 'E', 'O' */
+    uint64_t pause_ns;     /* silence before each request on the line (OpenPLC's RTU_TX_Pause) */
+    int bus;               /* index of the device that owns the line's context (itself or an earlier one) */
+    uint64_t bus_free_ns;  /* owner: monotonic time the line's last exchange ended */
+    /* virtual time (owner of the line): the exchange on the wire, modelled from the character
+     * time, so a co-simulation pays the line's time (plcrt_master.c, "serial line in virtual
+     * time"); line_range < 0 = the line is idle */
+    struct request *line_req; /* the request on the line (allocated at the first use) */
+    int line_range;        /* its range */
+    int line_range2;       /* FC23: the write range that goes with it, -1 = none */
+    int line_phase;        /* 1: the request is on the wire, 2: the answer is */
+    int line_status;       /* phase 2: the result */
+    uint64_t line_send_ns; /* phase 1: its last character reaches the slave */
+    uint64_t line_done_ns; /* phase 2: the answer's last character reaches the master */
+    uint64_t line_free_ns; /* the next request may start (a 3.5-character gap after the answer) */
+    uint64_t line_busy_ns; /* total virtual time the line carried exchanges (statistics) */
 } plcrt_device_t;
 
 /* One request being built and done (step() in plcrt_master.c) */
 typedef struct request {
     int fc, addr, count;
+    int status_first;  /* read the status and count words alone first (range option) */
+    int extra_req, extra_rsp; /* characters of the follow-up exchanges status_first made */
+    int waddr, wcount;        /* FC23: the write part (fc 23; addr/count are the read part) */
+    uint16_t wdata[128];
     int unit; /* unit id of this request (0..255 by the time it is sent) */
     uint16_t data[PLCRT_MAX_BITS]; /* write data in, read data out */
 } request_t;
@@ -107,6 +133,7 @@ struct plcrt_master {
      * else the scanning thread), and a plain member, unlike a thread-local one, costs no
      * __tls_get_addr in a dlopen'ed libplc.so */
     request_t q;
+    int line_rr; /* virtual time, serial lines: the range after the one that last took a line */
 
     pthread_mutex_t lock;
     pthread_cond_t wake;

@@ -423,6 +423,22 @@ TEST(config_errors_name_file_and_line)
                         "bad.cfg:4: error: device: no [device nowhere]");
     expect_config_error(DEV "host = 127.0.0.2\n", "bad.cfg:3: error: key 'host' given twice (first on line 2)");
     expect_config_error("[device d]\nport = 5020\n", "bad.cfg:1: error: [device d]: missing key 'host'");
+    expect_config_error(DEV "[read r]\ndevice = d\nstart = 0\nsize = 10\nimage = %IW100\nstatus_first = maybe\n",
+                        "bad.cfg:8: error: status_first: 'maybe' is not yes or no");
+    expect_config_error(DEV "[read r]\ndevice = d\nstart = 0\nsize = 2\nimage = %IW100\nstatus_first = yes\n",
+                        "bad.cfg:8: error: status_first: for register reads of 3 or more");
+    expect_config_error(DEV "[write w]\ndevice = d\nstart = 0\nsize = 3\nimage = %QW100\nstatus_first = yes\n",
+                        "bad.cfg:8: error: unknown key 'status_first' in [write]");
+    expect_config_error(DEV "fc23 = sometimes\n", "bad.cfg:3: error: fc23: 'sometimes' is not yes or no");
+    expect_config_error("[device d]\nserial = /dev/ttyS0\nhost = 127.0.0.1\n",
+                        "bad.cfg:2: error: [device d]: host and serial");
+    expect_config_error(DEV "baud = 9600\n", "bad.cfg:3: error: baud, parity, data_bits, stop_bits and pause are keys of serial");
+    expect_config_error("[device d]\nserial = /dev/ttyS0\nbaud = 12345\n", "bad.cfg:3: error: baud: 12345 is not a standard rate");
+    expect_config_error("[device d]\nserial = /dev/ttyS0\nparity = mark\n", "bad.cfg:3: error: parity: 'mark' is not none, even or odd");
+    expect_config_error("[device d]\nserial = /dev/ttyS0\nport = 502\n", "bad.cfg:3: error: port is a key of TCP devices");
+    expect_config_error("[device d]\nserial = /dev/ttyS0\nunit_id = 250\n", "bad.cfg:3: error: unit_id: 250 is not a Modbus RTU address");
+    expect_config_error("[device d]\nserial = /dev/ttyS0\n[device e]\nserial = /dev/ttyS0\nbaud = 9600\n",
+                        "bad.cfg:3: error: device e: /dev/ttyS0 is also used by device d (line 1) with other line settings");
     expect_config_error(DEV "[read r]\ndevice = d\nsize = 1\nimage = %IW100\n",
                         "bad.cfg:3: error: [read r]: missing key 'start'");
     expect_config_error(DEV "timeout = 5 parsecs\n", "bad.cfg:3: error: timeout: unknown unit");
@@ -479,8 +495,14 @@ TEST(openplc_mbconfig_is_accepted_unchanged)
     CHECK_EQ(plcrt_device_count(rt), 2);
     CHECK_STR_CONTAINS(plcrt_device_name(rt, 0), "modem");
     plcrt_free(rt);
-    expect_config_error("Num_Devices = \"1\"\ndevice0.protocol = \"RTU\"\ndevice0.address = \"/dev/ttyS0\"\n",
-                        "bad.cfg:2: error: device0: protocol 'RTU' is not supported");
+    expect_config_error("Num_Devices = \"1\"\ndevice0.protocol = \"RTU\"\ndevice0.address = \"/dev/ttyS0\"\n"
+                        "device0.RTU_Baud_Rate = \"None\"\n",
+                        "bad.cfg:4: error: device0.RTU_Baud_Rate: 'None' is not a number");
+    expect_config_error("Num_Devices = \"1\"\ndevice0.protocol = \"RTU\"\ndevice0.address = \"/dev/ttyS0\"\n"
+                        "device0.RTU_Parity = \"Mark\"\n",
+                        "bad.cfg:4: error: device0.RTU_Parity: 'Mark' is not None, Even or Odd");
+    expect_config_error("Num_Devices = \"1\"\ndevice0.protocol = \"UDP\"\ndevice0.address = \"x\"\n",
+                        "bad.cfg:2: error: device0.protocol: unknown protocol 'UDP'");
     expect_config_error("Num_Devices = \"1\"\ndevice0.Colis_Size = \"1\"\n",
                         "bad.cfg:2: error: unknown key 'device0.Colis_Size'");
     expect_config_error("Num_Devices = \"1\"\ndevice0.protocol = \"TCP\"\ndevice0.address = \"127.0.0.1\"\n"
