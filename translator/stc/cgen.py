@@ -104,7 +104,9 @@ class Gen:
         self.lines = []
         self.ind = 0
         self.tmp = 0
-        self.matiec = getattr(project, "semantics", "matiec") == "matiec"
+        sem = getattr(project, "semantics", "matiec")
+        self.matiec = sem in ("matiec", "openplc")     # matiec's C and library, either flavour
+        self.fork = sem == "openplc"                   # OpenPLC v3's fork of matiec
 
     # ---- output helpers
     def w(self, s=""):
@@ -120,7 +122,8 @@ class Gen:
         files = {}
         with open(os.path.join(os.path.dirname(__file__), HEADER)) as f:
             files[HEADER] = f.read().replace(
-                "#define STC_MATIEC 0", f"#define STC_MATIEC {1 if self.matiec else 0}", 1)
+                "#define STC_MATIEC 0", f"#define STC_MATIEC {1 if self.matiec else 0}", 1).replace(
+                "#define STC_FORK 0", f"#define STC_FORK {1 if self.fork else 0}", 1)
         files["POUS.h"] = self.pous_h()
         files["POUS.c"] = self.pous_c()
         cfg_files = self.config_files()
@@ -238,6 +241,10 @@ class Gen:
             self.emit_type(v.type, done)
         self.w(f"typedef struct {{")
         any_field = False
+        if pou.kind == "function_block":
+            self.w("    uint8_t EN;")
+            self.w("    uint8_t ENO;")
+            any_field = True
         for v in pou.vars.values():
             if v.kind == "VAR_EXTERNAL" or v.location is not None:
                 continue
@@ -352,6 +359,9 @@ class Gen:
         self.w("{")
         self.ind += 1
         self.w("memset(data, 0, sizeof *data);")
+        if pou.kind == "function_block":
+            self.w("data->EN = 1;")
+            self.w("data->ENO = 1;")
         for v in pou.vars.values():
             if v.kind == "VAR_IN_OUT" and _own_copy(v):
                 # until a call binds it, an in-out refers to the instance's own copy
@@ -599,7 +609,7 @@ class Gen:
         elif t.is_struct:
             self.w(f"{lv} = {self.ex(value)};")
         elif t.is_elem and t.kind == "time":
-            self.w(f"{lv} = stc_time_of({self.ex(value)});")
+            self.w(f"{lv} = {self.ex(value)};" if self.matiec else f"{lv} = stc_time_of({self.ex(value)});")
         else:
             self.w(f"{lv} = {self.ex(value)};")
 
@@ -637,28 +647,22 @@ class Gen:
         en = getattr(c, "en", None)
         eno = getattr(c, "eno", None)
         if en is not None:
-            flag = self.new_tmp("en")
-            self.w("{")
-            self.ind += 1
-            self.w(f"uint8_t {flag} = (uint8_t)({self.ex(en)} != 0);")
-            self.w(f"if ({flag}) {{")
-            self.ind += 1
-        if pou.std is not None:
-            if pou.std.needs_time:
-                self.w(f"{pou.name}_body__(&{base}, stc_time_ns(__CURRENT_TIME));")
-            else:
-                self.w(f"{pou.name}_body__(&{base});")
+            self.w(f"{base}.EN = (uint8_t)({self.ex(en)} != 0);")
+        elif not self.matiec:
+            self.w(f"{base}.EN = 1;")    # IEC: EN not given is TRUE (matiec keeps the last one)
+        self.w(f"if ({base}.EN) {{")
+        self.ind += 1
+        self.w(f"{base}.ENO = 1;")
+        if pou.std is not None and pou.std.needs_time:
+            self.w(f"{pou.name}_body__(&{base}, stc_time_ns(__CURRENT_TIME));")
         else:
             self.w(f"{pou.name}_body__(&{base});")
-        if en is not None:
-            self.ind -= 1
-            self.w("}")
-            if eno is not None:
-                self.w(f"{self.lv(eno)} = {flag};")
-            self.ind -= 1
-            self.w("}")
-        elif eno is not None:
-            self.w(f"{self.lv(eno)} = 1;")
+        self.ind -= 1
+        self.w("} else {")
+        self.w(f"    {base}.ENO = 0;")
+        self.w("}")
+        if eno is not None:
+            self.w(f"{self.lv(eno)} = {base}.ENO;")
         for name, e in copied:
             self.w(f"memcpy(&{self.lv(e)}, &{base}.{name}__COPY, sizeof {base}.{name}__COPY);")
         for p, target in c.outs:
@@ -678,7 +682,7 @@ class Gen:
                 if e is None:
                     args.append(self.default_value(v))
                 elif v.type.is_elem and v.type.kind == "time":
-                    args.append(f"stc_time_of({self.ex(e)})")
+                    args.append(self.ex(e) if self.matiec else f"stc_time_of({self.ex(e)})")
                 elif v.type.is_struct or v.type.is_array:
                     args.append(self.lv(e))
                 else:
@@ -698,6 +702,8 @@ class Gen:
         t = v.type
         init = v.init if v.init is not None else getattr(t, "default", None)
         if t.is_elem and t.kind == "time":
+            if self.matiec:
+                return self.ex(init) if isinstance(init, S.Expr) else "stc_mt_of(INT64_C(0))"
             return f"stc_time_of({self.ex(init) if isinstance(init, S.Expr) else 'INT64_C(0)'})"
         if isinstance(init, S.Expr):
             return self.ex(init)
@@ -752,12 +758,17 @@ class Gen:
 
     def _ex(self, e):
         t = e.ty
+        if isinstance(e, S.RealLit) and self.matiec and t.kind == "real":
+            # matiec prints an untyped real literal as it is written: a C double, so the
+            # operation it takes part in is computed in double (0.1 + 0.2 > 0.3 on REALs is
+            # TRUE); a typed REAL#0.3 is (float)0.3
+            return lit(e.value, T.ELEMENTARY["LREAL"])
         if isinstance(e, (S.IntLit, S.RealLit, S.BoolLit)):
             return lit(e.value, t)
         if isinstance(e, S.StringLit):
             return lit(e.value, t)
         if isinstance(e, S.TimeLit):
-            return lit(e.ns, T.TIME)
+            return self.tval(lit(e.ns, T.TIME))
         if isinstance(e, S.TypedLit):
             if getattr(e, "enum_value", None):
                 et, _ = e.enum_value
@@ -768,7 +779,7 @@ class Gen:
             return f"{et.name}__{e.name}"
         if isinstance(e, (S.Name, S.Field, S.Index)):
             lv = self.lv(e)
-            if t.is_elem and t.kind == "time":
+            if t.is_elem and t.kind == "time" and not self.matiec:
                 return f"stc_time_ns({lv})"
             return lv
         if isinstance(e, S.UnOp):
@@ -780,7 +791,7 @@ class Gen:
             if k == "func":
                 call = self.func_call(e)
                 rt = e.pou.rtype
-                if rt.is_elem and rt.kind == "time":
+                if rt.is_elem and rt.kind == "time" and not self.matiec:
                     return f"stc_time_ns({call})"
                 return call
             if k == "conv":
@@ -799,8 +810,21 @@ class Gen:
                 if t.kind == "sint":
                     return f"(({t.ctype})stc_trunc_i64({x}, {lit(lo, T.LINT)}, {lit(hi, T.LINT)}))"
                 return f"(({t.ctype})stc_trunc_u64({x}, UINT64_C({hi})))"
-            return self.std_call(e)
+            r = self.std_call(e)
+            if self.matiec and t is not None and t.is_elem and t.kind == "real" and t.bits == 32:
+                r = f"((float){r})"     # matiec's typed function returns a REAL
+            return r
         raise AssertionError(f"cannot generate {e!r}")
+
+    def tval(self, ns):
+        """A TIME expression from C int64_t nanoseconds `ns`: the same in IEC mode; in the
+        matiec modes TIME expressions are stc_time pairs, as matiec's (so sums it leaves
+        unnormalised compare as they do there)."""
+        return f"stc_mt_of({ns})" if self.matiec else ns
+
+    def tns(self, x):
+        """int64_t nanoseconds of the C TIME expression x."""
+        return f"stc_time_ns({x})" if self.matiec else x
 
     def unop(self, e):
         t = e.ty
@@ -821,7 +845,7 @@ class Gen:
         if t.kind == "real":
             return f"(-{x})"
         if t.kind == "time":
-            return f"((int64_t)(0u - (uint64_t){x}))"
+            return self.tval(f"((int64_t)(0u - (uint64_t){self.tns(x)}))")
         if t.bits <= 16:
             return f"(({t.ctype})-{x})"
         return f"(({t.ctype})(0u - ({_wide(t)}){x}))"
@@ -855,6 +879,10 @@ class Gen:
             return f"(stc_str_cmp(&{a}, &{b}) {cop} 0)" if isinstance(e.left, (S.Name, S.Field, S.Index)) \
                 and isinstance(e.right, (S.Name, S.Field, S.Index)) else \
                 f"(stc_str_cmpv({a}, {b}) {cop} 0)"
+        if op in self._COP and self.matiec and e.left.ty.is_elem and e.left.ty.kind == "time":
+            # matiec compares tv_sec first, then tv_nsec (an unnormalised sum compares as such)
+            cop = {"=": "==", "<>": "!="}.get(op, op)
+            return f"(stc_mt_cmp({a}, {b}) {cop} 0)"
         if op in self._COP:
             ot = e.left.ty
             fam = "f" if ot.is_elem and ot.kind == "real" else \
@@ -868,10 +896,12 @@ class Gen:
             return f"(({t.ctype})({a} {cop} {b}))"
         if t.kind == "time":
             rt = e.right.ty           # TIME op number: check.py refuses number * TIME
+            if self.matiec:
+                # matiec's library: pairs added and normalised in one step; scaled in double
+                fn = {"+": "add", "-": "sub", "*": "mul", "/": "div"}[op]
+                return f"stc_mt_{fn}({a}, {b})" if op in ("+", "-") else f"stc_mt_{fn}({a}, (double){b})"
             if op in ("+", "-"):
                 return f"((int64_t)((uint64_t){a} {op} (uint64_t){b}))"
-            if self.matiec:
-                return f"stc_time_{'mul' if op == '*' else 'div'}_m({a}, (double){b})"
             if rt.kind == "real":
                 return f"stc_time_{'mulf' if op == '*' else 'divf'}({a}, (double){b})"
             return f"stc_time_{'mul' if op == '*' else 'div'}({a}, (int64_t){b})"
@@ -893,6 +923,14 @@ class Gen:
         x = self.ex(e.args[0].value)
         if dst.kind == "bool":
             return f"({x} != 0)"
+        if src.kind == "time" and self.matiec:
+            if dst.kind == "real":
+                return f"(({dst.ctype})((double)({x}).tv_sec + (double)({x}).tv_nsec / 1e9))"
+            return f"(({dst.ctype})({x}).tv_sec)"
+        if dst.kind == "time" and self.matiec:
+            if src.kind == "real":
+                return f"stc_mt_of_real((double){x})"
+            return f"stc_mt((long)({x}), 0)"
         if src.kind == "time":
             # matiec converts TIME to numbers in whole seconds (tv_sec); stc does the same
             if dst.kind == "real":
@@ -964,7 +1002,7 @@ class Gen:
         if not t.is_elem:
             return f"({_c_elem(t)}){{0}}"
         if t.kind == "time":
-            return "INT64_C(0)"
+            return self.tval("INT64_C(0)")
         return lit(0, t)
 
     def _minmax(self, xs, cmp, t):
@@ -975,7 +1013,10 @@ class Gen:
         fn = f"stc_{'lt' if cmp == '<' else 'gt'}_{fam}"
         out = xs[0]
         for x in xs[1:]:
-            out = f"({fn}({out}, {x}) ? {out} : {x})"
+            if self.matiec and t.is_elem and t.kind == "time":
+                out = f"((stc_mt_cmp({out}, {x}) {cmp} 0) ? {out} : {x})"
+            else:
+                out = f"({fn}({out}, {x}) ? {out} : {x})"
         return out
 
     # ---- configuration: Config0.c and one file per resource
@@ -1050,22 +1091,35 @@ class Gen:
             self.w("{")
             self.ind += 1
             self.w("(void)tick;")
-            order = sorted(r.tasks, key=lambda tk: tk.priority)
             runs = False
-            for task in order:
-                insts = [i for i in r.instances if i.task is task]
-                if not insts:
-                    continue
-                runs = True
-                period = max(1, task.interval_ns // tick) if tick else 1
-                self.w(f"if (tick % {period}u == 0u) {{  /* task {task.name}, {task.interval_ns} ns */")
-                for i in insts:
-                    self.w(f"    {i.pou.name}_body__(&{r.name}__{i.name});")
-                self.w("}")
-            for i in r.instances:
-                if i.task is None:
+            if self.matiec:
+                # matiec: the program instances in declaration order, each when its task is
+                # due; PRIORITY plays no part
+                for i in r.instances:
                     runs = True
-                    self.w(f"{i.pou.name}_body__(&{r.name}__{i.name});  /* no task: every tick */")
+                    if i.task is None:
+                        self.w(f"{i.pou.name}_body__(&{r.name}__{i.name});  /* no task: every tick */")
+                        continue
+                    period = max(1, i.task.interval_ns // tick) if tick else 1
+                    self.w(f"if (tick % {period}u == 0u) {{  /* task {i.task.name}, {i.task.interval_ns} ns */")
+                    self.w(f"    {i.pou.name}_body__(&{r.name}__{i.name});")
+                    self.w("}")
+            else:
+                # IEC: tasks due in the same tick run in PRIORITY order (0 first)
+                for task in sorted(r.tasks, key=lambda tk: tk.priority):
+                    insts = [i for i in r.instances if i.task is task]
+                    if not insts:
+                        continue
+                    runs = True
+                    period = max(1, task.interval_ns // tick) if tick else 1
+                    self.w(f"if (tick % {period}u == 0u) {{  /* task {task.name}, {task.interval_ns} ns */")
+                    for i in insts:
+                        self.w(f"    {i.pou.name}_body__(&{r.name}__{i.name});")
+                    self.w("}")
+                for i in r.instances:
+                    if i.task is None:
+                        runs = True
+                        self.w(f"{i.pou.name}_body__(&{r.name}__{i.name});  /* no task: every tick */")
             self.ind -= 1
             self.w("}")
             files[f"{r.name}.c"] = self.take()

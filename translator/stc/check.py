@@ -75,7 +75,7 @@ class Project:
         self.config = None
         self.located = []          # Var of every located variable, in declaration order
         self.enum_values = {}      # VALUE -> [EnumT] for bare enum names
-        self.semantics = "matiec"  # "matiec" or "iec": run-time values the C reproduces
+        self.semantics = "matiec"  # "matiec", "openplc" or "iec": run-time values the C reproduces
 
 
 _KIND_OK = {
@@ -906,7 +906,10 @@ class Checker:
             bt = self.expr(e.base, None, lvalue=True)
             if bt.is_fb:
                 ft = self.fb_member(e, bt)
-                fv = bt.pou.vars[e.name]
+                fv = bt.pou.vars.get(e.name)
+                if fv is None:
+                    self.fail(e.pos, f"{e.name} of a function block instance is set by its call "
+                              f"(EN := ... in the call), not by an assignment")
                 if fv.kind == "VAR_OUTPUT":
                     self.err(e.pos, f"writing output {e.name} of function block instance from "
                              "outside is not portable (matiec rejects it)")
@@ -932,6 +935,10 @@ class Checker:
                 self.err(e.pos, f"cannot assign to CONSTANT '{v.name}'")
 
     def fb_member(self, e, bt):
+        if e.name in ("EN", "ENO") and e.name not in bt.pou.vars:
+            # every instance has EN and ENO (matiec: readable as inst.ENO after a call)
+            e.ty = T.BOOL
+            return T.BOOL
         fv = bt.pou.vars.get(e.name)
         if fv is not None and fv.kind == "VAR" and bt.pou.std is None:
             e.ty = fv.type      # matiec lets a program read an instance's local variables

@@ -15,10 +15,11 @@ A file given both on the command line and through -I is read once.
 
 Output in OUTDIR: POUS.h, POUS.c, Config0.c, one <RESOURCE>.c per resource, stc_rt.h,
 LOCATED_VARIABLES.h, SYMBOLS.tsv and SOURCES.txt (the .c files to compile).
---semantics=matiec (the default) makes the C reproduce matiec's run-time values (what
-OpenPLC and Beremiz run) where they differ from IEC 61131-3; --semantics=iec gives the IEC
-values. Constructs whose value differs between the two get a portability warning
-(FILE:LINE:COL: warning: MESSAGE) in both modes; --werror-portability makes them errors.
+--semantics=matiec (the default) makes the C reproduce upstream matiec's run-time values
+(what Beremiz runs) where they differ from IEC 61131-3; --semantics=openplc those of the
+matiec fork OpenPLC v3 ships; --semantics=iec gives the IEC values. Constructs whose value
+differs between them get a portability warning (FILE:LINE:COL: warning: MESSAGE) in every
+mode; --werror-portability makes them errors.
 Errors are printed as FILE:LINE:COL: error: MESSAGE. Exit status: 0 success, 1 errors in
 the input, 2 bad usage."""
 
@@ -42,8 +43,9 @@ def main(argv=None):
     ap.add_argument("-o", dest="outdir", metavar="OUTDIR", help="directory for the generated files")
     ap.add_argument("-I", dest="libdirs", metavar="DIR", action="append", default=[],
                     help="also read the *.st files in DIR as library POUs")
-    ap.add_argument("--semantics", choices=["matiec", "iec"], default="matiec",
-                    help="run-time values to reproduce: matiec's (default) or IEC 61131-3's")
+    ap.add_argument("--semantics", choices=["matiec", "openplc", "iec"], default="matiec",
+                    help="run-time values to reproduce: upstream matiec's (default), those of "
+                         "OpenPLC v3's matiec fork, or IEC 61131-3's")
     ap.add_argument("--werror-portability", action="store_true",
                     help="treat portability warnings (matiec and IEC values differ) as errors")
     ap.add_argument("--version", action="version", version=f"stc {__version__}")

@@ -14,6 +14,9 @@
 /* 1: reproduce matiec's run-time values where they differ from IEC 61131-3 (stc
  * --semantics=matiec, the default); 0: IEC values (--semantics=iec). stc writes this line. */
 #define STC_MATIEC 0
+/* 1: the values of the matiec fork OpenPLC v3 ships (stc --semantics=openplc; STC_MATIEC is 1
+ * too), where they differ from upstream matiec's. */
+#define STC_FORK 0
 
 typedef struct { long tv_sec; long tv_nsec; } stc_time;
 /* matiec's STRING layout: a length and STR_MAX_LEN (126) characters, no terminating NUL */
@@ -23,7 +26,12 @@ static inline int stc_str_cmp(const stc_string *a, const stc_string *b)
 {
     size_t n = a->len < b->len ? a->len : b->len;
     int c = memcmp(a->body, b->body, n);
+#if STC_FORK
+    /* OpenPLC's fork compares the common length only: 'abc' = 'abcde' */
+    return c;
+#else
     return c != 0 ? c : (int)a->len - (int)b->len;
+#endif
 }
 static inline int stc_str_cmpv(stc_string a, stc_string b) { return stc_str_cmp(&a, &b); }
 /* CONCAT: the result is cut at 126 characters, as in matiec */
@@ -158,6 +166,55 @@ static inline int64_t stc_time_div_m(int64_t t, double k)
     return stc_m_time(s, stc_m_i64((double)nsec / k + (s_f - (double)s) * 1e9));
 }
 
+/* matiec's TIME arithmetic on {tv_sec, tv_nsec} pairs (--semantics=matiec/openplc): TIME
+ * expressions are pairs there. A pair is built with the seconds truncated toward zero and
+ * nanoseconds of the same sign; a sum or difference is normalised by one step that leaves
+ * tv_nsec = +-1e9 alone, so T#750ms + T#250ms is {0, 1000000000}, which compares (tv_sec first)
+ * below T#1s and converts to 0 seconds. */
+static inline stc_time stc_mt(long s, long ns) { stc_time t; t.tv_sec = s; t.tv_nsec = ns; return t; }
+static inline stc_time stc_mt_of(int64_t ns) { return stc_mt((long)(ns / 1000000000), (long)(ns % 1000000000)); }
+static inline stc_time stc_mt_of_real(double x)
+{
+    int64_t s = stc_m_i64(x);
+    return stc_mt((long)s, (long)stc_m_i64((x - (double)s) * 1e9));
+}
+static inline stc_time stc_mt_norm(stc_time t)
+{
+    if (t.tv_nsec < -1000000000 || (t.tv_sec > 0 && t.tv_nsec < 0)) { t.tv_sec--; t.tv_nsec += 1000000000; }
+    if (t.tv_nsec > 1000000000 || (t.tv_sec < 0 && t.tv_nsec > 0)) { t.tv_sec++; t.tv_nsec -= 1000000000; }
+    return t;
+}
+static inline stc_time stc_mt_add(stc_time a, stc_time b)
+{
+    return stc_mt_norm(stc_mt((long)((unsigned long)a.tv_sec + (unsigned long)b.tv_sec), a.tv_nsec + b.tv_nsec));
+}
+static inline stc_time stc_mt_sub(stc_time a, stc_time b)
+{
+    return stc_mt_norm(stc_mt((long)((unsigned long)a.tv_sec - (unsigned long)b.tv_sec), a.tv_nsec - b.tv_nsec));
+}
+static inline int stc_mt_cmp(stc_time a, stc_time b)
+{
+    if (a.tv_sec != b.tv_sec) return a.tv_sec < b.tv_sec ? -1 : 1;
+    return a.tv_nsec < b.tv_nsec ? -1 : a.tv_nsec > b.tv_nsec;
+}
+static inline stc_time stc_mt_mul(stc_time t, double k)
+{
+    double s_f = (double)t.tv_sec * k;
+    int64_t s = stc_m_i64(s_f), n = stc_m_i32((double)t.tv_nsec * k);
+    return stc_mt_norm(stc_mt((long)(s + n / 1000000000),
+                              (long)stc_m_i64((double)(n % 1000000000) + (s_f - (double)s) * 1e9)));
+}
+static inline stc_time stc_mt_div(stc_time t, double k)
+{
+    double s_f;
+    int64_t s;
+    if (k == 0.0)
+        return stc_mt(0, 0);     /* matiec: undefined (division by zero in C) */
+    s_f = (double)t.tv_sec / k;
+    s = stc_m_i64(s_f);
+    return stc_mt_norm(stc_mt((long)s, (long)stc_m_i64((double)t.tv_nsec / k + (s_f - (double)s) * 1e9)));
+}
+
 /* REAL ** number, EXPT, SQRT, LN, LOG, EXP: in double, like matiec (link with -lm). */
 static inline double stc_expt(double a, double b) { return pow(a, b); }
 
@@ -214,28 +271,98 @@ STC_CMP(f, double)
 
 /* ---- standard function blocks (IEC 61131-3 behaviour) ------------------------------- */
 
-typedef struct { uint8_t IN; stc_time PT; uint8_t Q; stc_time ET; uint8_t running; int64_t start; } TON;
-typedef struct { uint8_t IN; stc_time PT; uint8_t Q; stc_time ET; uint8_t running; int64_t start; } TOF;
-typedef struct { uint8_t IN; stc_time PT; uint8_t Q; stc_time ET; uint8_t running; uint8_t prev_in; int64_t start; } TP;
-typedef struct { uint8_t CLK; uint8_t Q; uint8_t mem; } R_TRIG;
-typedef struct { uint8_t CLK; uint8_t Q; uint8_t mem; } F_TRIG;
-typedef struct { uint8_t CU; uint8_t R; int16_t PV; uint8_t Q; int16_t CV; R_TRIG cu_edge; } CTU;
-typedef struct { uint8_t CD; uint8_t LD; int16_t PV; uint8_t Q; int16_t CV; R_TRIG cd_edge; } CTD;
-typedef struct { uint8_t CU; uint8_t CD; uint8_t R; uint8_t LD; int16_t PV; uint8_t QU; uint8_t QD; int16_t CV; R_TRIG cu_edge; R_TRIG cd_edge; } CTUD;
-typedef struct { uint8_t S1; uint8_t R; uint8_t Q1; } SR;
-typedef struct { uint8_t S; uint8_t R1; uint8_t Q1; } RS;
+/* EN / ENO: every instance has them (EN starts TRUE; a call without EN := leaves it as it is
+ * in matiec, sets it TRUE in IEC mode). state / prev_in: matiec's timer state machine. */
+typedef struct { uint8_t EN; uint8_t ENO; uint8_t IN; stc_time PT; uint8_t Q; stc_time ET; uint8_t running; uint8_t state; uint8_t prev_in; int64_t start; } TON;
+typedef struct { uint8_t EN; uint8_t ENO; uint8_t IN; stc_time PT; uint8_t Q; stc_time ET; uint8_t running; uint8_t state; uint8_t prev_in; int64_t start; } TOF;
+typedef struct { uint8_t EN; uint8_t ENO; uint8_t IN; stc_time PT; uint8_t Q; stc_time ET; uint8_t running; uint8_t state; uint8_t prev_in; int64_t start; } TP;
+typedef struct { uint8_t EN; uint8_t ENO; uint8_t CLK; uint8_t Q; uint8_t mem; } R_TRIG;
+typedef struct { uint8_t EN; uint8_t ENO; uint8_t CLK; uint8_t Q; uint8_t mem; } F_TRIG;
+typedef struct { uint8_t EN; uint8_t ENO; uint8_t CU; uint8_t R; int16_t PV; uint8_t Q; int16_t CV; R_TRIG cu_edge; } CTU;
+typedef struct { uint8_t EN; uint8_t ENO; uint8_t CD; uint8_t LD; int16_t PV; uint8_t Q; int16_t CV; R_TRIG cd_edge; } CTD;
+typedef struct { uint8_t EN; uint8_t ENO; uint8_t CU; uint8_t CD; uint8_t R; uint8_t LD; int16_t PV; uint8_t QU; uint8_t QD; int16_t CV; R_TRIG cu_edge; R_TRIG cd_edge; } CTUD;
+typedef struct { uint8_t EN; uint8_t ENO; uint8_t S1; uint8_t R; uint8_t Q1; } SR;
+typedef struct { uint8_t EN; uint8_t ENO; uint8_t S; uint8_t R1; uint8_t Q1; } RS;
 
-static inline void TON_init__(TON *fb) { memset(fb, 0, sizeof *fb); }
-static inline void TOF_init__(TOF *fb) { memset(fb, 0, sizeof *fb); }
-static inline void TP_init__(TP *fb) { memset(fb, 0, sizeof *fb); }
-static inline void R_TRIG_init__(R_TRIG *fb) { memset(fb, 0, sizeof *fb); }
-static inline void F_TRIG_init__(F_TRIG *fb) { memset(fb, 0, sizeof *fb); }
-static inline void CTU_init__(CTU *fb) { memset(fb, 0, sizeof *fb); }
-static inline void CTD_init__(CTD *fb) { memset(fb, 0, sizeof *fb); }
-static inline void CTUD_init__(CTUD *fb) { memset(fb, 0, sizeof *fb); }
-static inline void SR_init__(SR *fb) { memset(fb, 0, sizeof *fb); }
-static inline void RS_init__(RS *fb) { memset(fb, 0, sizeof *fb); }
+static inline void TON_init__(TON *fb) { memset(fb, 0, sizeof *fb); fb->EN = 1; fb->ENO = 1; }
+static inline void TOF_init__(TOF *fb) { memset(fb, 0, sizeof *fb); fb->EN = 1; fb->ENO = 1; }
+static inline void TP_init__(TP *fb) { memset(fb, 0, sizeof *fb); fb->EN = 1; fb->ENO = 1; }
+static inline void R_TRIG_init__(R_TRIG *fb) { memset(fb, 0, sizeof *fb); fb->EN = 1; fb->ENO = 1; }
+static inline void F_TRIG_init__(F_TRIG *fb) { memset(fb, 0, sizeof *fb); fb->EN = 1; fb->ENO = 1; }
+static inline void CTU_init__(CTU *fb) { memset(fb, 0, sizeof *fb); fb->EN = 1; fb->ENO = 1; }
+static inline void CTD_init__(CTD *fb) { memset(fb, 0, sizeof *fb); fb->EN = 1; fb->ENO = 1; }
+static inline void CTUD_init__(CTUD *fb) { memset(fb, 0, sizeof *fb); fb->EN = 1; fb->ENO = 1; }
+static inline void SR_init__(SR *fb) { memset(fb, 0, sizeof *fb); fb->EN = 1; fb->ENO = 1; }
+static inline void RS_init__(RS *fb) { memset(fb, 0, sizeof *fb); fb->EN = 1; fb->ENO = 1; }
 
+#if STC_MATIEC
+/* matiec's timers (upstream and fork): a state machine that only starts timing on the call
+ * that sees the edge and compares start + PT <= now from the next call on, so with PT = T#0s
+ * TON's and TP's Q change (and TOF's Q falls) one call late. */
+static inline void TON_body__(TON *fb, int64_t now)
+{
+    if (fb->state == 0 && !fb->prev_in && fb->IN) {
+        fb->state = 1;
+        fb->Q = 0;
+        fb->start = now;
+    } else if (!fb->IN) {
+        fb->ET = stc_time_of(0);
+        fb->Q = 0;
+        fb->state = 0;
+    } else if (fb->state == 1) {
+        if ((int64_t)((uint64_t)fb->start + (uint64_t)stc_time_ns(fb->PT)) <= now) {
+            fb->state = 2;
+            fb->Q = 1;
+            fb->ET = fb->PT;
+        } else {
+            fb->ET = stc_time_of(now - fb->start);
+        }
+    }
+    fb->prev_in = fb->IN;
+}
+
+static inline void TOF_body__(TOF *fb, int64_t now)
+{
+    if (fb->state == 0 && fb->prev_in && !fb->IN) {
+        fb->state = 1;
+        fb->start = now;
+    } else if (fb->IN) {
+        fb->ET = stc_time_of(0);
+        fb->state = 0;
+    } else if (fb->state == 1) {
+        if ((int64_t)((uint64_t)fb->start + (uint64_t)stc_time_ns(fb->PT)) <= now) {
+            fb->state = 2;
+            fb->ET = fb->PT;
+        } else {
+            fb->ET = stc_time_of(now - fb->start);
+        }
+    }
+    fb->Q = (uint8_t)(fb->IN || fb->state == 1);
+    fb->prev_in = fb->IN;
+}
+
+static inline void TP_body__(TP *fb, int64_t now)
+{
+    if (fb->state == 0 && !fb->prev_in && fb->IN) {
+        fb->state = 1;
+        fb->Q = 1;
+        fb->start = now;
+    } else if (fb->state == 1) {
+        if ((int64_t)((uint64_t)fb->start + (uint64_t)stc_time_ns(fb->PT)) <= now) {
+            fb->state = 2;
+            fb->Q = 0;
+            fb->ET = fb->PT;
+        } else {
+            fb->ET = stc_time_of(now - fb->start);
+        }
+    }
+    if (fb->state == 2 && !fb->IN) {
+        fb->ET = stc_time_of(0);
+        fb->state = 0;
+    }
+    fb->prev_in = fb->IN;
+}
+#else
 /* TON: Q goes TRUE when IN has been TRUE for PT; ET counts up to PT while IN is TRUE. */
 static inline void TON_body__(TON *fb, int64_t now)
 {
@@ -311,10 +438,12 @@ static inline void TP_body__(TP *fb, int64_t now)
         fb->ET = stc_time_of(0);
     }
 }
+#endif
 
 static inline void R_TRIG_body__(R_TRIG *fb) { fb->Q = (uint8_t)(fb->CLK && !fb->mem); fb->mem = fb->CLK; }
-#if STC_MATIEC
-/* matiec: M starts FALSE and holds NOT CLK, so Q is TRUE on the first call when CLK is FALSE */
+#if STC_MATIEC && !STC_FORK
+/* upstream matiec: M starts FALSE and holds NOT CLK, so Q is TRUE on the first call when CLK
+ * is FALSE (OpenPLC's fork keeps M = CLK, as IEC) */
 static inline void F_TRIG_body__(F_TRIG *fb) { fb->Q = (uint8_t)(!fb->CLK && !fb->mem); fb->mem = (uint8_t)!fb->CLK; }
 #else
 static inline void F_TRIG_body__(F_TRIG *fb) { fb->Q = (uint8_t)(!fb->CLK && fb->mem); fb->mem = fb->CLK; }
