@@ -802,7 +802,8 @@ class Gen:
             if k == "math":
                 xs = [f"(double){self.ex(a)}" for a in e.argv]
                 fn = {"SQRT": "sqrt", "LN": "log", "LOG": "log10", "EXP": "exp",
-                      "EXPT": "stc_expt"}[e.name]
+                      "EXPT": "stc_expt", "SIN": "sin", "COS": "cos", "TAN": "tan",
+                      "ASIN": "asin", "ACOS": "acos", "ATAN": "atan"}[e.name]
                 return f"(({t.ctype}){fn}({', '.join(xs)}))"
             if k == "trunc":
                 x = self.ex(e.argv[0])
@@ -961,7 +962,12 @@ class Gen:
                 return f"stc_{n.lower()}_{t.name}({xs[0]}, (int64_t){xs[1]} & {mask})"
             return f"stc_{n.lower()}_{t.name}({xs[0]}, (int64_t){xs[1]})"
         if n == "LEN":
-            return f"((int16_t){xs[0]}.len)"
+            return f"(({t.ctype}){xs[0]}.len)"
+        if n in T.STR_FUNCS:
+            cargs = [x if k.startswith("IN") else f"(int64_t){x}"
+                     for k, x in zip(T.STR_FUNCS[n], xs)]
+            r = f"stc_str_{n.lower()}({', '.join(cargs)})"
+            return f"(({t.ctype}){r})" if n == "FIND" else r
         if n == "CONCAT":
             out = xs[0]
             for x in xs[1:]:

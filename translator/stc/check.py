@@ -1492,6 +1492,35 @@ class Checker:
                 pass
         c.outs = outs
 
+    def str_func(self, c, n, expected):
+        """LEFT RIGHT MID FIND INSERT DELETE REPLACE: positional, or formal with the standard's
+        parameter names (IN, IN1, IN2, L, P) in any order."""
+        names = T.STR_FUNCS[n]
+        if len(c.args) != len(names):
+            self.fail(c.pos, f"{n} takes {len(names)} arguments ({', '.join(names)}), got {len(c.args)}")
+        if all(isinstance(a, S.ArgIn) for a in c.args):
+            given = {a.name: a.value for a in c.args}
+            if set(given) != set(names):
+                self.fail(c.pos, f"{n} takes the inputs {', '.join(names)}")
+            args = [given[k] for k in names]
+        elif any(isinstance(a, S.ArgIn) for a in c.args):
+            self.fail(c.pos, "mixing positional and named (:=) arguments is not allowed")
+        else:
+            args = [a.value for a in c.args]
+        for k, a in zip(names, args):
+            if k.startswith("IN"):
+                t = self.expr(a, T.STRING)
+                if not T.same_type(t, T.STRING):
+                    self.fail(a.pos, f"{n}: {k} is a STRING, not {t}")
+            else:
+                t = self.expr(a, None)
+                if t.is_lit and t.kind != "real":
+                    self.settle(a, T.INT)
+                elif not (t.is_elem and t.is_int):
+                    self.fail(a.pos, f"{n}: {k} is an integer, not {t}")
+        c.argv = args
+        return _int_result(expected) if n == "FIND" else T.STRING
+
     def conversion(self, c, conv):
         src, dst = conv
         args = c.args
@@ -1572,7 +1601,9 @@ class Checker:
             t = self.expr(args[0], T.STRING)
             if not T.same_type(t, T.STRING):
                 self.fail(args[0].pos, f"LEN needs a STRING, not {t}")
-            return T.INT
+            return _int_result(expected)
+        if n in T.STR_FUNCS:
+            return self.str_func(c, n, expected)
         if n == "CONCAT":
             if len(args) < 2:
                 self.fail(c.pos, "CONCAT takes at least 2 arguments")
@@ -1581,7 +1612,7 @@ class Checker:
                 if not T.same_type(t, T.STRING):
                     self.fail(a.pos, f"CONCAT needs STRINGs, not {t}")
             return T.STRING
-        if n in ("SQRT", "LN", "LOG", "EXP"):
+        if n in ("SQRT", "LN", "LOG", "EXP", "SIN", "COS", "TAN", "ASIN", "ACOS", "ATAN"):
             need(1)
             t = same(args, expected)
             if not (t.is_elem and t.kind == "real"):
@@ -1670,6 +1701,14 @@ class Checker:
             c.kind = "math"
             return t
         self.fail(c.pos, f"standard function {n} is not supported by stc")
+
+
+def _int_result(expected):
+    """Result type of LEN and FIND (ANY_INT in matiec): the integer type the context wants,
+    INT otherwise."""
+    if expected is not None and expected.is_elem and expected.is_int and not expected.is_lit:
+        return expected
+    return T.INT
 
 
 _KW = []

@@ -45,6 +45,137 @@ static inline stc_string stc_str_concat(stc_string a, stc_string b)
     return a;
 }
 
+/* The standard string functions, as matiec's library computes them (positions count from 1).
+ * Its length type is uint8_t upstream and int8_t in OpenPLC's fork; a negative L or P gives
+ * ''. Where matiec would copy outside the 126 characters (P = 0 in DELETE or REPLACE), stc
+ * stops at the bounds. */
+#if STC_FORK
+typedef int8_t stc_strlen;
+#else
+typedef uint8_t stc_strlen;
+#endif
+static inline size_t stc_str_n(int64_t n, int64_t room)
+{
+    return n <= 0 || room <= 0 ? 0u : (size_t)(n > room ? room : n);
+}
+static inline int64_t stc_sl(stc_strlen x) { return (int64_t)x; }
+static inline stc_string stc_str_empty(void) { stc_string r; r.len = 0; return r; }
+static inline stc_string stc_str_left(stc_string in, int64_t l)
+{
+    stc_string r = stc_str_empty();
+    if (l < 0) return r;
+    if (l > in.len) l = in.len;
+    r.len = (uint8_t)stc_str_n(l, 126);
+    memcpy(r.body, in.body, r.len);
+    return r;
+}
+static inline stc_string stc_str_right(stc_string in, int64_t l)
+{
+    stc_string r = stc_str_empty();
+    if (l < 0) return r;
+    if (l > in.len) l = in.len;
+    r.len = (uint8_t)stc_str_n(l, 126);
+    memcpy(r.body, in.body + (in.len - r.len), r.len);
+    return r;
+}
+static inline stc_string stc_str_mid(stc_string in, int64_t l, int64_t p)
+{
+    stc_string r = stc_str_empty();
+    const uint8_t *raw = (const uint8_t *)&in;     /* the length byte, then the characters */
+    if (l < 0 || p < 0 || p > in.len) return r;
+    p -= 1;          /* matiec: P = 0 starts at the length byte */
+    if (l + p > in.len) l = in.len - p;
+    r.len = (uint8_t)stc_str_n(l, 126 - p);
+    memcpy(r.body, raw + 1 + p, r.len);
+    return r;
+}
+static inline stc_string stc_str_insert(stc_string a, stc_string b, int64_t p64)
+{
+    stc_string r = stc_str_empty();
+    stc_strlen p = (stc_strlen)p64;
+    size_t n;
+    if (p64 < 0) return r;
+    n = stc_str_n(p > a.len ? a.len : p, 126);
+    memcpy(r.body, a.body, n);
+    r.len = (uint8_t)n;
+    n = stc_str_n(b.len, 126 - r.len);
+    memcpy(r.body + r.len, b.body, n);
+    r.len = (uint8_t)(r.len + n);
+    n = stc_str_n(a.len - (int64_t)(p > a.len ? a.len : stc_sl(p) < 0 ? 0 : p), 126 - r.len);
+    memcpy(r.body + r.len, a.body + (p > a.len ? a.len : stc_sl(p) < 0 ? 0 : p), n);
+    r.len = (uint8_t)(r.len + n);
+    return r;
+}
+static inline stc_string stc_str_delete(stc_string in, int64_t l64, int64_t p64)
+{
+    stc_string r = stc_str_empty();
+    stc_strlen l = (stc_strlen)l64, p = (stc_strlen)p64;
+    size_t n;
+    if (l64 < 0 || p64 < 0) return r;
+    n = stc_str_n(p > in.len ? in.len : p - 1, in.len);
+    memcpy(r.body, in.body, n);
+    r.len = (uint8_t)n;
+    if ((int64_t)in.len > (int64_t)n + l) {
+        size_t k = stc_str_n((int64_t)in.len - (int64_t)n - l, 126 - r.len);
+        memcpy(r.body + r.len, in.body + n + l, k);
+        r.len = (uint8_t)(r.len + k);
+    }
+    return r;
+}
+static inline stc_string stc_str_replace(stc_string a, stc_string b, int64_t l64, int64_t p64)
+{
+    stc_string r = stc_str_empty();
+    stc_strlen l = (stc_strlen)l64, p = (stc_strlen)p64;
+    size_t n;
+    int64_t rest;
+    if (l64 < 0 || p64 < 0) return r;
+    n = stc_str_n(p > a.len ? a.len : p - 1, a.len);
+    memcpy(r.body, a.body, n);
+    r.len = (uint8_t)n;
+#if STC_MATIEC
+    n = stc_str_n(b.len < l ? b.len : l, 126 - r.len);  /* matiec inserts at most L of IN2 */
+#else
+    n = stc_str_n(b.len, 126 - r.len);
+#endif
+    memcpy(r.body + r.len, b.body, n);
+    r.len = (uint8_t)(r.len + n);
+    rest = (int64_t)(stc_strlen)(r.len - n + l);
+    if (r.len < 126 && rest >= 0 && rest < a.len) {
+        n = stc_str_n(a.len - rest, 126 - r.len);
+        memcpy(r.body + r.len, a.body + rest, n);
+        r.len = (uint8_t)(r.len + n);
+    }
+    return r;
+}
+static inline int64_t stc_str_find(stc_string a, stc_string b)
+{
+    unsigned i = 0, k = 0;     /* matiec: offset of the candidate, characters matched */
+#if STC_MATIEC
+#if !STC_FORK
+    if (!(b.len > 0 && a.len >= b.len)) return 0;
+#endif
+    while (i + k < a.len && k < b.len) {
+        if (a.body[i + k] != b.body[k]) {
+            i += k + 1;      /* matiec resumes after the partial match: FIND('aab', 'ab') = 0 */
+            k = 0;
+        } else {
+            k++;
+        }
+    }
+#if STC_FORK
+    return (int)k == (int)b.len - 1 ? 0 : (int64_t)i + 1;   /* the fork: 0 only then */
+#else
+    return k == b.len ? (int64_t)i + 1 : 0;
+#endif
+#else
+    if (b.len == 0 || b.len > a.len) return 0;
+    for (i = 0; i + b.len <= a.len; i++)
+        if (memcmp(a.body + i, b.body, b.len) == 0) return (int64_t)i + 1;
+    (void)k;
+    return 0;
+#endif
+}
+
 /* C storage type of each IEC type name that can appear in LOCATED_VARIABLES.h, so a runtime
  * can define the located storage with an X-macro:
  *   #define __LOCATED_VAR(type, name, ...) stc_ctype_##type name##_store, *name = &name##_store; */
