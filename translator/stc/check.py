@@ -866,11 +866,34 @@ class Checker:
             if e is not None:
                 t = self.expr(e, vt)
                 self.coerce(e, t, vt, "FOR bound")
+        if vt.is_elem and vt.is_int:
+            self._for_wraps(s, vt)
         if not s.body:
             self.err(s.pos, "empty FOR body is not portable (matiec rejects it)")
         self.loop_depth += 1
         self.stmts(s.body)
         self.loop_depth -= 1
+
+    def _for_wraps(self, s, vt):
+        """Portability warning for a FOR whose variable would step past its type's limit:
+        OpenPLC's fork runs FOR as 'while i <= end: body; i += step', which wraps there and
+        never ends (stc and upstream matiec stop). Constant bounds only."""
+        end = self.const_value(s.end)
+        step = self.const_value(s.step) if s.step is not None else 1
+        start = self.const_value(s.start)
+        if end is None or step is None or step == 0:
+            return
+        lo, hi = vt.range()
+        if start is not None:
+            if (step > 0 and start > end) or (step < 0 and start < end):
+                return
+            last = start + (end - start) // step * step
+        else:
+            last = end      # the last value is at most end: warn when end itself is the limit
+        if (step > 0 and last + step > hi) or (step < 0 and last + step < lo):
+            self.warn(s.pos, f"portability: this FOR steps {s.var.name} past the limit of {vt} "
+                      f"after its last pass: OpenPLC's matiec fork wraps it and loops forever "
+                      f"(stc and upstream matiec stop); use a wider variable or EXIT")
 
     # ---- lookup
     def lookup(self, name_node):
