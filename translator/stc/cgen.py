@@ -1,6 +1,7 @@
 """C code generation from a checked Project (runtime ABI of docs/dev/interfaces.md section 1)."""
 import math
 import os
+import re
 from functools import reduce
 
 from . import syntax as S
@@ -768,6 +769,10 @@ class Gen:
         if isinstance(e, S.StringLit):
             return lit(e.value, t)
         if isinstance(e, S.TimeLit):
+            comps = _matiec_time_parts(e.text) if self.matiec else None
+            if comps is not None:
+                # as matiec's __time_to_timespec: T#1ms is 999999 ns there
+                return f"stc_mt_lit({', '.join(comps)})"
             return self.tval(lit(e.ns, T.TIME))
         if isinstance(e, S.TypedLit):
             if getattr(e, "enum_value", None):
@@ -1292,6 +1297,31 @@ def _type_tag(t):
     if t.is_fb:
         return f"FB:{t.pou.name}"
     return t.name
+
+
+_MT_PART = re.compile(r"([0-9]+(?:\.[0-9]+)?)(ms|d|h|m|s)", re.I)
+
+
+def _matiec_time_parts(text):
+    """matiec's arguments (sign, ms, s, m, h, d) for a duration literal such as T#1h2m3s4ms,
+    each number as written; None for what matiec's literal does not have (us, ns, a unit
+    twice)."""
+    body = (text or "").split("#", 1)[-1].replace("_", "")
+    sign = "1"
+    if body[:1] in "+-" and body:
+        sign = "-1" if body[0] == "-" else "1"
+        body = body[1:]
+    parts, pos = {}, 0
+    while pos < len(body):
+        m = _MT_PART.match(body, pos)
+        if not m or m.group(2).lower() in parts:
+            return None
+        parts[m.group(2).lower()] = m.group(1)
+        pos = m.end()
+    if not parts:
+        return None
+    return [sign] + [(v if "." in v else f"{int(v)}.0") for v in
+                     (parts.get(u, "0") for u in ("ms", "s", "m", "h", "d"))]
 
 
 def _balanced(s):

@@ -76,6 +76,9 @@ class Project:
         self.located = []          # Var of every located variable, in declaration order
         self.enum_values = {}      # VALUE -> [EnumT] for bare enum names
         self.semantics = "matiec"  # "matiec", "openplc" or "iec": run-time values the C reproduces
+        # (file, (line, col), kind, text): every construct on the divergence list (matiec,
+        # OpenPLC's fork and IEC may give other values), warned or not; see DIVERGENCES
+        self.divergences = []
 
 
 _KIND_OK = {
@@ -102,6 +105,11 @@ class Checker:
     def warn(self, pos, msg):
         """Portability warning: the construct's value differs between matiec and IEC."""
         self.d.warn(self.file, pos, msg)
+        self.note(pos, "warned", msg.replace("portability: ", "", 1))
+
+    def note(self, pos, kind, text):
+        """A construct on the divergence list (stc --divergences lists them)."""
+        self.p.divergences.append((self.file, pos, kind, text))
 
     # ---- errors
     def err(self, pos, msg, file=None):
@@ -891,6 +899,7 @@ class Checker:
         else:
             last = end      # the last value is at most end: warn when end itself is the limit
         if (step > 0 and last + step > hi) or (step < 0 and last + step < lo):
+            self.note(s.pos, "for-wrap", "FOR past the type's limit")
             self.warn(s.pos, f"portability: this FOR steps {s.var.name} past the limit of {vt} "
                       f"after its last pass: OpenPLC's matiec fork wraps it and loops forever "
                       f"(stc and upstream matiec stop); use a wider variable or EXIT")
@@ -960,6 +969,7 @@ class Checker:
     def fb_member(self, e, bt):
         if e.name in ("EN", "ENO") and e.name not in bt.pou.vars:
             # every instance has EN and ENO (matiec: readable as inst.ENO after a call)
+            self.note(e.pos, "en-eno", f"{e.name} of an instance")
             e.ty = T.BOOL
             return T.BOOL
         fv = bt.pou.vars.get(e.name)
@@ -1165,6 +1175,8 @@ class Checker:
                       "write TIME * number")
         if op in ("+", "-") and lt.is_elem and lt.kind == "time":
             if rt.is_elem and rt.kind == "time":
+                self.note(e.pos, "time-sum", f"TIME '{op}': matiec leaves a nanosecond part of "
+                          "exactly 1e9 unnormalised (it compares below the whole second)")
                 return T.TIME
             self.fail(e.pos, f"TIME {op} {rt}: both operands must be TIME (write e.g. T#5ms)")
         if op == "**":
@@ -1193,6 +1205,15 @@ class Checker:
             self.fail(e.pos, f"'{op}' between {lt} and {rt}: IEC strict typing needs the same "
                       f"type on both sides; convert explicitly (e.g. {_conv_hint(rt, lt)})")
         t = lt
+        if t.is_elem and t.kind == "real" and t.bits == 32 and any(
+                isinstance(_strip_paren(x), S.RealLit) or (isinstance(_strip_paren(x), S.UnOp)
+                                                          and isinstance(_strip_paren(x).operand, S.RealLit))
+                for x in (e.left, e.right)):
+            self.note(e.pos, "real-literal", f"'{op}' of a REAL with an untyped real literal: "
+                      "matiec computes it in double (write REAL#...)")
+        if t.is_elem and t.kind == "string" and op in self._CMP:
+            self.note(e.pos, "string-compare", "STRING comparison: OpenPLC's fork compares "
+                      "the common length only")
         if op in self._CMP or op in ("/", "MOD"):
             self._warn_narrow(e, t)
         if op in self._CMP:
@@ -1431,6 +1452,16 @@ class Checker:
                 self.warn(c.pos, "portability: F_TRIG differs between matiec and the OpenPLC "
                           "fork / IEC mode on the first call: matiec gives Q = TRUE when CLK is "
                           "FALSE on the first call; ignore Q on the first scan")
+        elif std in ("TON", "TOF", "TP"):
+            pt = c.bound.get("PT")
+            k = _strip_paren(pt).ns if isinstance(_strip_paren(pt), S.TimeLit) else None
+            if k is not None and k <= 0:
+                self.warn(pt.pos, f"portability: {std} with PT = T#0s differs between matiec and "
+                          "IEC: matiec's Q changes one call late (it compares from the call after "
+                          "the edge)")
+            elif k is None and not _is_false(c.bound.get("IN")):
+                self.note(c.pos, "timer-pt", f"{std} with a PT that is not a constant: at "
+                          "T#0s matiec's Q changes one call late")
         elif std in ("CTU", "CTD", "CTUD"):
             self.warn(c.pos, f"portability: {std} differs between matiec and IEC at its limits: "
                       "matiec stops counting up at PV and down at 0, IEC at the limits of INT")
@@ -1453,6 +1484,8 @@ class Checker:
         for a in named:
             if fb and a.name in ("EN", "ENO") and isinstance(a, S.ArgIn if a.name == "EN" else S.ArgOut):
                 # EN := cond runs the body only when cond is TRUE; ENO => v tells whether it ran
+                self.note(a.pos, "en-eno", "EN/ENO on a call: matiec keeps EN from the last "
+                          "call that gave it")
                 if a.name == "EN":
                     self.cond(a.value, "EN")
                     c.en = a.value
@@ -1626,6 +1659,8 @@ class Checker:
                 self.fail(args[0].pos, f"LEN needs a STRING, not {t}")
             return _int_result(expected)
         if n in T.STR_FUNCS:
+            self.note(c.pos, "string-function", f"{n}: matiec's library has its own results "
+                      "at the edges (FIND, REPLACE, positions 0)")
             return self.str_func(c, n, expected)
         if n == "CONCAT":
             if len(args) < 2:
@@ -1724,6 +1759,17 @@ class Checker:
             c.kind = "math"
             return t
         self.fail(c.pos, f"standard function {n} is not supported by stc")
+
+
+def _is_false(e):
+    e = _strip_paren(e) if e is not None else None
+    return isinstance(e, S.BoolLit) and not e.value
+
+
+def _strip_paren(e):
+    while isinstance(e, S.Paren):
+        e = e.inner
+    return e
 
 
 def _int_result(expected):

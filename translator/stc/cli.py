@@ -48,6 +48,10 @@ def main(argv=None):
                          "OpenPLC v3's matiec fork, or IEC 61131-3's")
     ap.add_argument("--werror-portability", action="store_true",
                     help="treat portability warnings (matiec and IEC values differ) as errors")
+    ap.add_argument("--divergences", action="store_true",
+                    help="also list every construct whose value can differ between upstream "
+                         "matiec, OpenPLC's fork and IEC (FILE:LINE:COL: note: KIND: ...), "
+                         "warned or not")
     ap.add_argument("--version", action="version", version=f"stc {__version__}")
     ap.add_argument("files", nargs="*", metavar="FILE.st")
     args = ap.parse_args(argv)
@@ -60,7 +64,7 @@ def main(argv=None):
     def work():
         try:
             result.append(run(args.files, args.libdirs, args.outdir, args.semantics,
-                              args.werror_portability))
+                              args.werror_portability, args.divergences))
         except Exception as e:  # last resort: never show a traceback to the user
             if os.environ.get("STC_DEBUG"):
                 raise
@@ -92,7 +96,8 @@ def run_deep(fn):
             sys.setrecursionlimit(old)
 
 
-def run(files, libdirs, outdir, semantics="matiec", werror_portability=False):
+def run(files, libdirs, outdir, semantics="matiec", werror_portability=False,
+        divergences=False):
     from .compiler import compile_files
     sources = []
     seen = set()
@@ -126,6 +131,13 @@ def run(files, libdirs, outdir, semantics="matiec", werror_portability=False):
         if werror_portability:   # the warnings are what fails the build: say so
             line = line.replace(": warning: ", ": error: ", 1) + " [--werror-portability]"
         print(line, file=sys.stderr)
+    if divergences and project is not None:
+        seen = set()
+        for f, pos, kind, text in project.divergences:
+            if kind == "warned" or (f, pos, kind) in seen:
+                continue     # warnings are printed above
+            seen.add((f, pos, kind))
+            print(f"{f}:{pos[0]}:{pos[1]}: note: {kind}: {text}", file=sys.stderr)
     if diags or (werror_portability and diags.warnings):
         for line in diags.format():
             print(line, file=sys.stderr)

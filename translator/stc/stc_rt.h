@@ -304,6 +304,16 @@ static inline int64_t stc_time_div_m(int64_t t, double k)
  * below T#1s and converts to 0 seconds. */
 static inline stc_time stc_mt(long s, long ns) { stc_time t; t.tv_sec = s; t.tv_nsec = ns; return t; }
 static inline stc_time stc_mt_of(int64_t ns) { return stc_mt((long)(ns / 1000000000), (long)(ns % 1000000000)); }
+/* a duration literal as matiec's __time_to_timespec computes it, in long double (x86-64:
+ * 80-bit), from the numbers as written: T#1ms is 999999 ns, T#64ms 63999999 ns */
+static inline stc_time stc_mt_lit(int sign, double ms, double s, double m, double h, double d)
+{
+    long double total = (sign >= 0 ? 1 : -1) *
+        ((((long double)d * 24 + (long double)h) * 60 + (long double)m) * 60 + (long double)s +
+         (long double)ms / 1e3);
+    long sec = (long)total;
+    return stc_mt(sec, (long)((total - (long double)sec) * 1e9));
+}
 static inline stc_time stc_mt_of_real(double x)
 {
     int64_t s = stc_m_i64(x);
