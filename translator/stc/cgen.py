@@ -697,7 +697,23 @@ class Gen:
                     args.append(f"&{self.lv(t)}")
                 else:
                     args.append(f"&({cdecl(v.type, '')}){{0}}")
-        return f"{pou.name}({', '.join(args)})"
+        call = f"{pou.name}({', '.join(args)})"
+        en = getattr(c, "en", None)
+        eno = getattr(c, "eno", None)
+        if en is None and eno is None:
+            return call
+        # EN := cond: the function runs only when cond is TRUE, otherwise its result is the
+        # initial value of its type (matiec); ENO => v tells whether it ran
+        rt = pou.rtype
+        zero = "0" if rt is None else self.default_value(pou.result_var) \
+            if getattr(pou, "result_var", None) is not None else self._zero(rt)
+        if rt is not None and rt.is_elem and rt.kind == "time" and not self.matiec:
+            zero = "stc_time_of(INT64_C(0))"   # the call returns stc_time; see _ex
+        set1 = f"{self.lv(eno)} = 1, " if eno is not None else ""
+        set0 = f"{self.lv(eno)} = 0, " if eno is not None else ""
+        if en is None:
+            return f"({set1}{call})"
+        return f"(({self.ex(en)}) ? ({set1}{call}) : ({set0}{zero}))"
 
     def default_value(self, v):
         t = v.type

@@ -1482,7 +1482,11 @@ class Checker:
                 bound[p.name] = a.value
         c.en = c.eno = None
         for a in named:
-            if fb and a.name in ("EN", "ENO") and isinstance(a, S.ArgIn if a.name == "EN" else S.ArgOut):
+            if a.name in ("EN", "ENO") and isinstance(a, S.ArgIn if a.name == "EN" else S.ArgOut):
+                if not fb and pou.rtype is not None and not pou.rtype.is_elem and not pou.rtype.is_enum:
+                    self.err(a.pos, f"EN/ENO on a call of {pou.name}, which returns {pou.rtype}, "
+                             "is not supported by stc: test the condition around the call")
+                    continue
                 # EN := cond runs the body only when cond is TRUE; ENO => v tells whether it ran
                 self.note(a.pos, "en-eno", "EN/ENO on a call: matiec keeps EN from the last "
                           "call that gave it")
