@@ -1006,6 +1006,9 @@ class Checker:
         if isinstance(e, S.TimeLit):
             if e.ns is None:
                 self.fail(e.pos, f"malformed TIME literal {e.text}")
+            if re.search(r"[0-9](us|ns)", e.text or "", re.I):
+                self.fail(e.pos, f"{e.text}: the units us and ns are not portable (matiec rejects "
+                          "them): write fractions of ms, e.g. T#0.1ms")
             return T.TIME
         if isinstance(e, S.StringLit):
             if e.text.startswith('"'):
@@ -1839,7 +1842,7 @@ def _c_i64(d):
 
 
 def _matiec_time_mul(ns, k):
-    """matiec's TIME * k in nanoseconds (see stc_time_mul_m in stc_rt.h)."""
+    """matiec's TIME * k in nanoseconds (see stc_mt_mul in stc_rt.h)."""
     sec, nsec = _c_div(ns, 10**9), ns - _c_div(ns, 10**9) * 10**9
     s_f = float(sec) * k
     s = _c_i64(s_f)

@@ -271,32 +271,12 @@ static inline int64_t stc_time_mul(int64_t t, int64_t n) { return (int64_t)((uin
 static inline int64_t stc_time_mulf(int64_t t, double n) { double r = (double)t * n; return (r >= 9.2e18 || r <= -9.2e18) ? 0 : (int64_t)r; }
 static inline int64_t stc_time_divf(int64_t t, double n) { double r = n == 0.0 ? 0.0 : (double)t / n; return (r >= 9.2e18 || r <= -9.2e18) ? 0 : (int64_t)r; }
 
-/* matiec's TIME * number and TIME / number (--semantics=matiec). Its library scales the
- * seconds in double and the nanoseconds part through a 32-bit int: a double outside the int
- * range converts to INT_MIN on x86, so T#1ms * 2148 gives -2.147483648 s. Same arithmetic here,
- * without undefined behaviour. */
+/* matiec's TIME * number and TIME / number (the matiec modes, stc_mt_mul / stc_mt_div below).
+ * Its library scales the seconds in double and the nanoseconds part through a 32-bit int: a
+ * double outside the int range converts to INT_MIN on x86, so T#1ms * 2148 gives
+ * -2.147483648 s. Same arithmetic here, without undefined behaviour. */
 static inline int64_t stc_m_i32(double d) { return (d >= -2147483648.0 && d < 2147483648.0) ? (int64_t)(int32_t)d : (int64_t)INT32_MIN; }
 static inline int64_t stc_m_i64(double d) { return (d >= -9.2e18 && d < 9.2e18) ? (int64_t)d : INT64_MIN; }
-static inline int64_t stc_m_time(int64_t sec, int64_t nsec) { return (int64_t)((uint64_t)sec * 1000000000u + (uint64_t)nsec); }
-static inline int64_t stc_time_mul_m(int64_t t, double k)
-{
-    int64_t sec = t / 1000000000, nsec = t % 1000000000, s, n;
-    double s_f = (double)sec * k;
-    s = stc_m_i64(s_f);
-    n = stc_m_i32((double)nsec * k);
-    return stc_m_time(s + n / 1000000000, stc_m_i64((double)(n % 1000000000) + (s_f - (double)s) * 1e9));
-}
-static inline int64_t stc_time_div_m(int64_t t, double k)
-{
-    int64_t sec = t / 1000000000, nsec = t % 1000000000, s;
-    double s_f;
-    if (k == 0.0)
-        return 0;     /* matiec: undefined (division by zero in C) */
-    s_f = (double)sec / k;
-    s = stc_m_i64(s_f);
-    return stc_m_time(s, stc_m_i64((double)nsec / k + (s_f - (double)s) * 1e9));
-}
-
 /* matiec's TIME arithmetic on {tv_sec, tv_nsec} pairs (--semantics=matiec/openplc): TIME
  * expressions are pairs there. A pair is built with the seconds truncated toward zero and
  * nanoseconds of the same sign; a sum or difference is normalised by one step that leaves
@@ -321,17 +301,26 @@ static inline stc_time stc_mt_of_real(double x)
 }
 static inline stc_time stc_mt_norm(stc_time t)
 {
-    if (t.tv_nsec < -1000000000 || (t.tv_sec > 0 && t.tv_nsec < 0)) { t.tv_sec--; t.tv_nsec += 1000000000; }
-    if (t.tv_nsec > 1000000000 || (t.tv_sec < 0 && t.tv_nsec > 0)) { t.tv_sec++; t.tv_nsec -= 1000000000; }
+    /* wrapping (unsigned) arithmetic where matiec's C would overflow */
+    if (t.tv_nsec < -1000000000 || (t.tv_sec > 0 && t.tv_nsec < 0)) {
+        t.tv_sec = (long)((unsigned long)t.tv_sec - 1u);
+        t.tv_nsec = (long)((unsigned long)t.tv_nsec + 1000000000u);
+    }
+    if (t.tv_nsec > 1000000000 || (t.tv_sec < 0 && t.tv_nsec > 0)) {
+        t.tv_sec = (long)((unsigned long)t.tv_sec + 1u);
+        t.tv_nsec = (long)((unsigned long)t.tv_nsec - 1000000000u);
+    }
     return t;
 }
 static inline stc_time stc_mt_add(stc_time a, stc_time b)
 {
-    return stc_mt_norm(stc_mt((long)((unsigned long)a.tv_sec + (unsigned long)b.tv_sec), a.tv_nsec + b.tv_nsec));
+    return stc_mt_norm(stc_mt((long)((unsigned long)a.tv_sec + (unsigned long)b.tv_sec),
+                              (long)((unsigned long)a.tv_nsec + (unsigned long)b.tv_nsec)));
 }
 static inline stc_time stc_mt_sub(stc_time a, stc_time b)
 {
-    return stc_mt_norm(stc_mt((long)((unsigned long)a.tv_sec - (unsigned long)b.tv_sec), a.tv_nsec - b.tv_nsec));
+    return stc_mt_norm(stc_mt((long)((unsigned long)a.tv_sec - (unsigned long)b.tv_sec),
+                              (long)((unsigned long)a.tv_nsec - (unsigned long)b.tv_nsec)));
 }
 static inline int stc_mt_cmp(stc_time a, stc_time b)
 {
@@ -342,7 +331,7 @@ static inline stc_time stc_mt_mul(stc_time t, double k)
 {
     double s_f = (double)t.tv_sec * k;
     int64_t s = stc_m_i64(s_f), n = stc_m_i32((double)t.tv_nsec * k);
-    return stc_mt_norm(stc_mt((long)(s + n / 1000000000),
+    return stc_mt_norm(stc_mt((long)((uint64_t)s + (uint64_t)(n / 1000000000)),
                               (long)stc_m_i64((double)(n % 1000000000) + (s_f - (double)s) * 1e9)));
 }
 static inline stc_time stc_mt_div(stc_time t, double k)
