@@ -943,6 +943,16 @@ class Gen:
     def conversion(self, e):
         src, dst = e.conv
         x = self.ex(e.args[0].value)
+        if dst.kind == "string":
+            # matiec: TRUE/FALSE, %lld, %llu, 16#%llx for bit strings, %.10g for REAL/LREAL
+            fn = {"bool": "bool", "sint": "i", "uint": "u", "bit": "bits", "real": "real"}[src.kind]
+            return f"stc_str_of_{fn}({x})"
+        if src.kind == "string":
+            if dst.kind == "bool":
+                return f"stc_str_to_bool({x})"
+            if dst.kind == "real":
+                return f"(({dst.ctype})stc_str_to_real({x}))"
+            return f"(({dst.ctype})stc_str_to_i({x}))"
         if dst.kind == "bool":
             return f"({x} != 0)"
         if src.kind == "time" and self.matiec:

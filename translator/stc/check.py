@@ -1876,6 +1876,9 @@ def _conversion(name):
     a, _, b = name.partition("_TO_")
     if a in T.CONVERTIBLE and b in T.CONVERTIBLE and a != b:
         return (a, b)
+    if "STRING" in (a, b) and a != b and (a in T.CONVERTIBLE or b in T.CONVERTIBLE) \
+            and "TIME" not in (a, b):
+        return (a, b)       # <elementary>_TO_STRING, STRING_TO_<elementary> (not TIME)
     return None
 
 

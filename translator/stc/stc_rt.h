@@ -7,8 +7,11 @@
 #ifndef STC_RT_H
 #define STC_RT_H
 
+#include <ctype.h>
 #include <math.h>
 #include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 /* 1: reproduce matiec's run-time values where they differ from IEC 61131-3 (stc
@@ -174,6 +177,97 @@ static inline int64_t stc_str_find(stc_string a, stc_string b)
     (void)k;
     return 0;
 #endif
+}
+
+/* <type>_TO_STRING and STRING_TO_<type> as matiec's library: snprintf of at most 125
+ * characters ("TRUE"/"FALSE", %lld, %llu, 16#%llx for bit strings, %.10g for REAL), and a
+ * parser that takes 2#, 8#, 16# prefixes, and otherwise the digits before the last character
+ * from '.' up ('12.7' and '12a3' give 12), 20 digits at most. */
+static inline stc_string stc_str_fmt(int n, const char *buf)
+{
+    stc_string r = stc_str_empty();
+    if (n < 0) n = 0;
+    memcpy(r.body, buf, (size_t)(n < 125 ? n : 125));
+    r.len = (uint8_t)(n > 126 ? 126 : n);
+    return r;
+}
+static inline stc_string stc_str_of_bool(int x)
+{
+    return x ? stc_str_fmt(4, "TRUE") : stc_str_fmt(5, "FALSE");
+}
+static inline stc_string stc_str_of_i(int64_t x)
+{
+    char buf[128];
+    return stc_str_fmt(snprintf(buf, 126, "%lld", (long long)x), buf);
+}
+static inline stc_string stc_str_of_u(uint64_t x)
+{
+    char buf[128];
+    return stc_str_fmt(snprintf(buf, 126, "%llu", (unsigned long long)x), buf);
+}
+static inline stc_string stc_str_of_bits(uint64_t x)
+{
+    char buf[128];
+    return stc_str_fmt(snprintf(buf, 126, "16#%llx", (unsigned long long)x), buf);
+}
+static inline stc_string stc_str_of_real(double x)
+{
+    char buf[128];
+    return stc_str_fmt(snprintf(buf, 126, "%.10g", x), buf);
+}
+static inline uint8_t stc_str_to_bool(stc_string s)
+{
+    int i;
+    if (s.len == 1) return s.body[0] == '1';
+    if (s.len != 4) return 0;
+    for (i = 0; i < 4; i++) s.body[i] = (uint8_t)toupper(s.body[i]);
+    return memcmp(s.body, "TRUE", 4) == 0;
+}
+static inline int64_t stc_str_to_i(stc_string s)
+{
+    uint64_t res = 0;
+    int l, shift = 0;
+    if (s.len < 1) return 0;
+    if (s.len > 1 && s.body[0] == '2' && s.body[1] == '#') {
+        for (l = s.len - 1; l >= 2 && shift < 64; l--)
+            if (s.body[l] == '0' || s.body[l] == '1') { res |= (uint64_t)(s.body[l] - '0') << shift; shift += 1; }
+    } else if (s.len > 1 && s.body[0] == '8' && s.body[1] == '#') {
+        for (l = s.len - 1; l >= 2 && shift < 64; l--)
+            if (s.body[l] >= '0' && s.body[l] <= '7') { res |= (uint64_t)(s.body[l] - '0') << shift; shift += 3; }
+    } else if (s.len > 2 && s.body[0] == '1' && s.body[1] == '6' && s.body[2] == '#') {
+        for (l = s.len - 1; l >= 3 && shift < 64; l--) {
+            int c = s.body[l];
+            int d = (c >= '0' && c <= '9') ? c - '0' : (c >= 'a' && c <= 'f') ? c - 'a' + 10 :
+                    (c >= 'A' && c <= 'F') ? c - 'A' + 10 : -1;
+            if (d >= 0) { res |= (uint64_t)d << shift; shift += 4; }
+        }
+    } else {
+        int64_t fac = s.body[0] == '-' ? -1 : 1;
+        for (l = s.len; l > 0 && shift < 20; l--) {
+            int c = s.body[l - 1];
+            if (c >= '0' && c <= '9') {
+                res += (uint64_t)((int64_t)(c - '0') * fac);
+                fac = (int64_t)((uint64_t)fac * 10u);
+                shift += 1;
+            } else if (c >= '.') {
+                res = 0;
+                fac = s.body[0] == '-' ? -1 : 1;
+                shift = 0;
+            }
+        }
+    }
+    return (int64_t)res;
+}
+static inline double stc_str_to_real(stc_string s)
+{
+    char buf[128];
+    int l = s.len;
+    while (l > 0 && s.body[--l] != '.')
+        ;
+    if (l == 0) return (double)stc_str_to_i(s);
+    memcpy(buf, s.body, s.len);
+    buf[s.len] = 0;
+    return atof(buf);
 }
 
 /* C storage type of each IEC type name that can appear in LOCATED_VARIABLES.h, so a runtime
