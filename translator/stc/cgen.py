@@ -821,7 +821,7 @@ class Gen:
                 r = self.binop(e.binop)    # ADD(a, b) ...: a typed function in matiec
                 return f"(({t.ctype}){r})" if getattr(e.binop, "wide", False) else r
             if k == "math":
-                xs = [f"(double){self.ex(a)}" for a in e.argv]
+                xs = [f"(double){self.fex(a)}" for a in e.argv]
                 fn = {"SQRT": "sqrt", "LN": "log", "LOG": "log10", "EXP": "exp",
                       "EXPT": "stc_expt", "SIN": "sin", "COS": "cos", "TAN": "tan",
                       "ASIN": "asin", "ACOS": "acos", "ATAN": "atan"}[e.name]
@@ -837,6 +837,16 @@ class Gen:
                 r = f"((float){r})"     # matiec's typed function returns a REAL
             return r
         raise AssertionError(f"cannot generate {e!r}")
+
+    def fex(self, e):
+        """C expression of an argument of a standard function: matiec passes it as the
+        function's parameter type, so a REAL computed in double (an untyped real literal in
+        it) is rounded to float first."""
+        x = self.ex(e)
+        t = e.ty
+        if self.matiec and t is not None and t.is_elem and t.kind == "real" and t.bits == 32:
+            return f"((float){x})"
+        return x
 
     def tval(self, ns):
         """A TIME expression from C int64_t nanoseconds `ns`: the same in IEC mode; in the
@@ -942,7 +952,7 @@ class Gen:
 
     def conversion(self, e):
         src, dst = e.conv
-        x = self.ex(e.args[0].value)
+        x = self.fex(e.args[0].value)
         if dst.kind == "string":
             # matiec: TRUE/FALSE, %lld, %llu, 16#%llx for bit strings, %.10g for REAL/LREAL
             fn = {"bool": "bool", "sint": "i", "uint": "u", "bit": "bits", "real": "real"}[src.kind]
@@ -984,7 +994,7 @@ class Gen:
         n = e.name
         args = e.argv
         t = e.ty
-        xs = [self.ex(a) for a in args]
+        xs = [self.fex(a) for a in args]
         if n in ("SHL", "SHR", "ROL", "ROR"):
             if self.matiec and n in ("SHL", "SHR") and t.bits > 1:
                 # matiec shifts in C: x86 takes the count modulo 32 (64 for LWORD), after the
