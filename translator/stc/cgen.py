@@ -583,8 +583,18 @@ class Gen:
         self.w(f"{cv} = {self.ex(s.start)};")
         self.w(f"{end} = {self.ex(s.end)};")
         self.w(f"{by} = {step};")
-        fn = "stc_for_count_u" if t.kind == "uint" and t.bits == 64 else "stc_for_count"
-        self.w(f"for ({n} = {fn}({cv}, {end}, {by}); {n} > 0u; {n}--, {cv} = ({t.ctype})({_wide(t)})({cv} + ({_wide(t)}){by})) {{")
+        u64 = t.kind == "uint" and t.bits == 64
+        fn = "stc_for_count_u" if u64 else "stc_for_count"
+        inc = f"{cv} = ({t.ctype})({_wide(t)})({cv} + ({_wide(t)}){by})"
+        if self.matiec and not self.fork:
+            # upstream matiec: no pass unless the first test holds; the increment comes before
+            # the next pass's body, so the variable keeps the last value
+            first = f"{'stc_for_first_up_u' if u64 else 'stc_for_first_up'}({cv}, {end}, {by}, " \
+                    f"{0 if s.step is None else 1})"
+            self.w(f"for ({n} = {first} ? {fn}({cv}, {end}, {by}) : 0u; {n} > 0u; "
+                   f"{n}--, ({n} > 0u ? (void)({inc}) : (void)0)) {{")
+        else:
+            self.w(f"for ({n} = {fn}({cv}, {end}, {by}); {n} > 0u; {n}--, {inc}) {{")
         self.ind += 1
         self.stmts(s.body)
         self.ind -= 1

@@ -330,6 +330,26 @@ static inline uint64_t stc_for_count_u(uint64_t start, uint64_t end, uint64_t st
     return (step > 0u && start <= end) ? (end - start) / step + 1u : 0u;
 }
 
+/* upstream matiec's FOR (--semantics=matiec) tests before each pass, and before the
+ * increment: the first pass needs start < end (no BY) or start + BY <= end (>= for a negative
+ * BY), so FOR i := 5 TO 5 runs zero times; after the loop the variable holds the last value. */
+static inline int stc_for_first_up(int64_t start, int64_t end, int64_t step, int has_by)
+{
+    if (!has_by)
+        return start < end;
+    if (step > 0)
+        return start <= end && (uint64_t)end - (uint64_t)start >= (uint64_t)step;
+    if (step < 0)
+        return start >= end && (uint64_t)start - (uint64_t)end >= 0u - (uint64_t)step;
+    return 0;
+}
+static inline int stc_for_first_up_u(uint64_t start, uint64_t end, uint64_t step, int has_by)
+{
+    if (!has_by)
+        return start < end;
+    return step > 0u && start <= end && end - start >= step;
+}
+
 /* Integer division and modulo: x / 0 = 0, x MOD 0 = 0, MIN / -1 wraps to MIN. */
 #define STC_DIV_SIGNED(T, N, MINV) \
     static inline T stc_div_##N(T a, T b) { return b == 0 ? 0 : (b == -1 ? (T)(0u - (uint64_t)a) : (T)(a / b)); } \
