@@ -118,13 +118,15 @@ def test_lint_finds_a_divergence(tmp_path):
                    "k : INT; ton1 : TON; END_VAR\n"
                    "x := a > 0.3;\nt := t + T#1s;\nx := s = 'a';\nf(CLK := x);\n"
                    "k := FIND(s, 'a');\nton1(IN := x, PT := t);\nx := ton1.ENO;\n"
-                   "FOR k := 1 TO 32767 DO x := TRUE; END_FOR;\nEND_PROGRAM\n")
+                   "FOR k := 1 TO 32767 DO x := TRUE; END_FOR;\n"
+                   "FOR k := 1 TO k DO x := TRUE; END_FOR;\nEND_PROGRAM\n")
     d = Diagnostics()
     project = compile_files([(str(src), src.read_text(), False)], d, "matiec")
     assert not d, d.format()
     kinds = {(pos[0], kind) for _, pos, kind, _ in project.divergences}
     assert {(3, "real-literal"), (4, "time-sum"), (5, "string-compare"), (6, "warned"),
-            (7, "string-function"), (8, "timer-pt"), (9, "en-eno"), (10, "for-wrap")} <= kinds
+            (7, "string-function"), (8, "timer-pt"), (9, "en-eno"), (10, "for-wrap"),
+            (11, "for-once")} <= kinds
 
 
 # ---- body comments naming another POU

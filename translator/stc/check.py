@@ -876,11 +876,27 @@ class Checker:
                 self.coerce(e, t, vt, "FOR bound")
         if vt.is_elem and vt.is_int:
             self._for_wraps(s, vt)
+            self._for_upstream(s)
         if not s.body:
             self.err(s.pos, "empty FOR body is not portable (matiec rejects it)")
         self.loop_depth += 1
         self.stmts(s.body)
         self.loop_depth -= 1
+
+    def _for_upstream(self, s):
+        """Upstream matiec runs no pass unless start < end (start + BY <= end with BY): a FOR
+        whose bounds may be equal (start + BY past end) runs once elsewhere, never there."""
+        start, end = self.const_value(s.start), self.const_value(s.end)
+        step = self.const_value(s.step) if s.step is not None else 1
+        if start is not None and end is not None and step is not None and step != 0:
+            if step > 0 and start <= end and start + step > end or \
+                    step < 0 and start >= end and start + step < end:
+                self.warn(s.pos, "portability: this FOR runs once in IEC and OpenPLC's matiec "
+                          "fork but zero times in upstream matiec (it needs start < end, or "
+                          "start + BY within end, for the first pass)")
+            return
+        self.note(s.pos, "for-once", "FOR with bounds that are not constants: when they allow "
+                  "exactly one pass, upstream matiec runs none")
 
     def _for_wraps(self, s, vt):
         """Portability warning for a FOR whose variable would step past its type's limit:
