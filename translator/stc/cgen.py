@@ -318,6 +318,9 @@ class Gen:
                 acc[v.name] = f"(*{v.name})" if v.kind in ("VAR_IN_OUT", "VAR_OUTPUT") else v.name
             else:
                 acc[v.name] = f"(*data->{v.name})" if v.kind == "VAR_IN_OUT" else f"data->{v.name}"
+        if pou.kind == "function_block":
+            acc.setdefault("EN", "data->EN")       # the instance's EN / ENO (see fb_call)
+            acc.setdefault("ENO", "data->ENO")
         if pou.kind == "function":
             acc["\0result"] = f"(*{pou.name}__RESULT_p)" if pou.rtype.is_array else f"{pou.name}__RESULT"
         return acc
