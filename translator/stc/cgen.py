@@ -976,6 +976,8 @@ class Gen:
             if dst.kind == "real":
                 return f"(({dst.ctype})stc_str_to_real({x}))"
             return f"(({dst.ctype})stc_str_to_i({x}))"
+        if dst.kind == "bool" and src.kind == "time" and self.matiec:
+            return f"(({x}).tv_sec != 0 || ({x}).tv_nsec != 0)"
         if dst.kind == "bool":
             return f"({x} != 0)"
         if src.kind == "time" and self.matiec:
