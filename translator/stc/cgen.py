@@ -268,6 +268,8 @@ class Gen:
                 params.append(cdecl(v.type, v.name))
             elif v.kind in ("VAR_IN_OUT", "VAR_OUTPUT"):
                 params.append(ptr_decl(v.type, v.name))
+        if _body_eno(pou):
+            params.append("uint8_t *ENO__p")     # the body sets ENO: the caller gets it
         rt = pou.rtype
         ret = "stc_time" if rt.is_elem and rt.kind == "time" else _c_elem(rt)
         if rt.is_array:
@@ -322,6 +324,8 @@ class Gen:
             acc.setdefault("EN", "data->EN")       # the instance's EN / ENO (see fb_call)
             acc.setdefault("ENO", "data->ENO")
         if pou.kind == "function":
+            acc.setdefault("EN", "EN")
+            acc.setdefault("ENO", "ENO")
             acc["\0result"] = f"(*{pou.name}__RESULT_p)" if pou.rtype.is_array else f"{pou.name}__RESULT"
         return acc
 
@@ -342,6 +346,11 @@ class Gen:
         for v in pou.vars.values():
             if v.kind in ("VAR_INPUT", "VAR_IN_OUT", "VAR_OUTPUT"):
                 self.w(f"(void){v.name};  /* parameters may be unused */")
+        if "EN" in getattr(pou, "implicit", {}):
+            self.w("uint8_t EN = 1;  /* the body runs only when EN is TRUE */")
+            self.w("(void)EN;")
+        if _body_eno(pou):
+            self.w("uint8_t ENO = 1;")
         self.w(f"memset(&{res}, 0, sizeof {res});")
         self.init_storage(res, rt, None)
         for v in pou.vars.values():
@@ -350,6 +359,8 @@ class Gen:
                 self.w(f"memset(&{lv}, 0, sizeof {lv});")
                 self.init_storage(lv, v.type, v.init)
         self.stmts(pou.node.body)
+        if _body_eno(pou):
+            self.w("*ENO__p = ENO;")
         self.w("return;" if rt.is_array else f"return {pou.name}__RESULT;")
         self.ind -= 1
         self.w("}")
@@ -501,6 +512,8 @@ class Gen:
         elif isinstance(s, S.Continue):
             self.w("continue;")
         elif isinstance(s, S.Return):
+            if self.pou.kind == "function" and _body_eno(self.pou):
+                self.w("*ENO__p = ENO;")
             if self.pou.kind == "function" and not self.pou.rtype.is_array:
                 self.w(f"return {self.pou.name}__RESULT;")
             else:
@@ -710,10 +723,13 @@ class Gen:
                     args.append(f"&{self.lv(t)}")
                 else:
                     args.append(f"&({cdecl(v.type, '')}){{0}}")
-        call = f"{pou.name}({', '.join(args)})"
         en = getattr(c, "en", None)
         eno = getattr(c, "eno", None)
-        if en is None and eno is None:
+        body_eno = _body_eno(pou)
+        if body_eno:
+            args.append(f"&{self.lv(eno)}" if eno is not None else "&(uint8_t){0}")
+        call = f"{pou.name}({', '.join(args)})"
+        if en is None and (eno is None or body_eno):
             return call
         # EN := cond: the function runs only when cond is TRUE, otherwise its result is the
         # initial value of its type (matiec); ENO => v tells whether it ran
@@ -722,7 +738,7 @@ class Gen:
             if getattr(pou, "result_var", None) is not None else self._zero(rt)
         if rt is not None and rt.is_elem and rt.kind == "time" and not self.matiec:
             zero = "stc_time_of(INT64_C(0))"   # the call returns stc_time; see _ex
-        set1 = f"{self.lv(eno)} = 1, " if eno is not None else ""
+        set1 = f"{self.lv(eno)} = 1, " if eno is not None and not body_eno else ""
         set0 = f"{self.lv(eno)} = 0, " if eno is not None else ""
         if en is None:
             return f"({set1}{call})"
@@ -1348,6 +1364,11 @@ def _type_tag(t):
     if t.is_fb:
         return f"FB:{t.pou.name}"
     return t.name
+
+
+def _body_eno(pou):
+    """The FUNCTION's body sets ENO (it then reports it through a pointer argument)."""
+    return pou.kind == "function" and "ENO" in getattr(pou, "implicit", {})
 
 
 _MT_PART = re.compile(r"([0-9]+(?:\.[0-9]+)?)(ms|d|h|m|s)", re.I)

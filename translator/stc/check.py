@@ -929,16 +929,15 @@ class Checker:
         if self.cur is not None and self.cur.kind == "function" and n == self.cur.name:
             return self._result_var(self.cur)
         if n in ("EN", "ENO") and self.cur is not None:
-            if self.cur.kind == "function_block":
+            if self.cur.kind in ("function_block", "function"):
                 # the instance's own EN and ENO (the body may clear ENO: the caller reads it)
-                self.note(name_node.pos, "en-eno", f"{n} in a function block body")
+                self.note(name_node.pos, "en-eno", f"{n} in a {self.cur.kind.replace('_', ' ')} body")
                 imp = self.cur.__dict__.setdefault("implicit", {})
                 if n not in imp:
                     imp[n] = Var(n, "VAR_INPUT" if n == "EN" else "VAR_OUTPUT", T.BOOL, None,
                                  self.cur.node.pos, self.cur.file)
                 return imp[n]
-            self.fail(name_node.pos, f"{n} in a {self.cur.kind.replace('_', ' ').upper()} body "
-                      "is not supported by stc (only in a FUNCTION_BLOCK)")
+            self.fail(name_node.pos, f"{n} in a PROGRAM body is not portable (matiec rejects it)")
         self.fail(name_node.pos, f"unknown variable '{n}'")
 
     def _result_var(self, pou):
