@@ -181,3 +181,18 @@ def test_body_comment_lint_sees_a_bad_comment(tmp_path):
     pous = {m.group(2).upper(): (str(f), text, m) for m in _POU.finditer(text)}
     found = body_comment_findings(pous)
     assert [(line, pou, other) for _, line, pou, other in found] == [(7, "B", "A")]
+
+
+def test_cli_lists_divergences(tmp_path):
+    src = tmp_path / "d.st"
+    src.write_text("PROGRAM Main\nVAR a : REAL; x : BOOL; s : STRING; END_VAR\nx := a > 0.3;\n"
+                   "x := s <> 'a';\nEND_PROGRAM\n")
+    r = H.run_stc(["--divergences", "-o", str(tmp_path / "out"), str(src)])
+    assert r.returncode == 0, r.stderr
+    lines = r.stderr.splitlines()
+    assert lines == [f"{src}:3:8: note: real-literal: '>' of a REAL with an untyped real literal: "
+                     "matiec computes it in double (write REAL#...)",
+                     f"{src}:4:8: note: string-compare: STRING comparison: OpenPLC's fork "
+                     "compares the common length only"]
+    r = H.run_stc(["-o", str(tmp_path / "out2"), str(src)])
+    assert r.returncode == 0 and r.stderr == ""
