@@ -77,7 +77,7 @@ class Project:
         self.enum_values = {}      # VALUE -> [EnumT] for bare enum names
         self.semantics = "matiec"  # "matiec", "openplc" or "iec": run-time values the C reproduces
         # (file, (line, col), kind, text): every construct on the divergence list (matiec,
-        # OpenPLC's fork and IEC may give other values), warned or not; see DIVERGENCES
+        # OpenPLC's fork and IEC may give other values), warned or not: stc --divergences
         self.divergences = []
 
 
