@@ -127,12 +127,15 @@ class Slave:
         self.c.close()
 
 
-def build_programs(outdir):
+def build_programs(outdir, semantics=None):
+    """plc/outstation.st and plc/central.st built into outdir; semantics: stc --semantics
+    (openplc for programs that run with OpenPLC's mbconfig.cfg; default PLCRT_SEMANTICS)."""
     from plcharness.build import BuildError, build_program
     res = {}
     for role in ("outstation", "central"):
         try:
-            res[role] = build_program(L.program_sources(role, False), outdir / role)
+            res[role] = build_program(L.program_sources(role, False), outdir / role,
+                                      semantics=semantics)
         except BuildError as e:
             raise DemoError(f"building plc/{role}.st: {e}") from None
     return res

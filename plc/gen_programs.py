@@ -505,7 +505,9 @@ snapReq := FALSE;   (* not RETAIN: no snapshots wanted *)
 (* 3. start requests: the next write asked for (round robin), the next station's read *)
 IF xRun AND xWrIdle THEN
   uK := 0;
-  FOR uI := 1 TO uStations DO
+  uI := 0;
+  WHILE uI < uStations DO   (* not FOR uI := 1 TO uStations: upstream matiec runs that zero times for one station *)
+    uI := uI + 1;
     IF axWrReq[uWrNext] THEN
       uK := uWrNext;
     END_IF;
@@ -513,7 +515,7 @@ IF xRun AND xWrIdle THEN
     IF uK <> 0 THEN
       EXIT;
     END_IF;
-  END_FOR;
+  END_WHILE;
   IF uK <> 0 THEN
     CASE uK OF"""]
     code += [f"      {s}: aWr := rcv{s}.aWrite; uWrLen := rcv{s}.uWriteLen;" for s in range(1, n + 1)]

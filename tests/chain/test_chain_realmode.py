@@ -102,8 +102,11 @@ def test_chain_demo_bad_option_one_line(tmp_path):
 
 
 def test_chain_openplc_mbconfig_static_mode(tmp_path):
-    """The committed plc/openplc/*.cfg, ports changed, with the cyclic-I/O flag."""
-    progs = demo.build_programs(tmp_path / "build")
+    """The committed plc/openplc/*.cfg, ports changed, with the cyclic-I/O flag; the programs
+    built with the values of OpenPLC's matiec fork (stc --semantics=openplc), as OpenPLC runs
+    them (PLCRT_SEMANTICS, when set, wins)."""
+    progs = demo.build_programs(tmp_path / "build",
+                                semantics=os.environ.get("PLCRT_SEMANTICS") or "openplc")
     procs = demo.Procs()
     slaves = []
     try:

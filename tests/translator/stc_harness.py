@@ -94,21 +94,79 @@ _SET = re.compile(r"\(\*\s*SET\s+(\S+)\s*=\s*(\S+)\s*\*\)", re.I)
 _ERROR = re.compile(r"\(\*\s*ERROR\s+(\d+):(\d+):\s*(.*?)\s*\*\)", re.I)
 
 
-_EXPECT_MODE = re.compile(r"\(\*\s*EXPECT-(MATIEC|IEC)\s+(\S+)\s*=\s*(.*?)\s*\*\)", re.I)
+_EXPECT_MODE = re.compile(r"\(\*\s*EXPECT-(MATIEC|OPENPLC|IEC)\s+(\S+)\s*=\s*(.*?)\s*\*\)", re.I)
 
 
 def expectations(text, semantics="matiec"):
     """(scans, [(path, value)], [(path, value)]) for one semantics: (* EXPECT p = v *) holds
-    in both, (* EXPECT-MATIEC p = v *) / (* EXPECT-IEC p = v *) in one mode only."""
+    in every mode, (* EXPECT-MATIEC p = v *) in both matiec flavours (upstream and OpenPLC's
+    fork) unless (* EXPECT-OPENPLC p = v *) names the same path, (* EXPECT-IEC p = v *) in
+    the IEC mode only."""
     m = _SCANS.search(text)
     scans = int(m.group(1)) if m else 1
     expects = _EXPECT.findall(text)
-    expects += [(p, v) for mode, p, v in _EXPECT_MODE.findall(text) if mode.lower() == semantics]
+    modes = [(mode.lower(), p, v) for mode, p, v in _EXPECT_MODE.findall(text)]
+    if semantics == "openplc":
+        fork = [(p, v) for mode, p, v in modes if mode == "openplc"]
+        own = {p.upper() for p, _ in fork}
+        expects += [(p, v) for mode, p, v in modes if mode == "matiec" and p.upper() not in own]
+        expects += fork
+    else:
+        expects += [(p, v) for mode, p, v in modes if mode == semantics]
     return scans, expects, _SET.findall(text)
 
 
 def expected_errors(text):
     return [(int(a), int(b), msg) for a, b, msg in _ERROR.findall(text)]
+
+
+_FLAVOUR_PROBE = """PROGRAM Main
+VAR f : F_TRIG; q : BOOL; END_VAR
+f(CLK := FALSE);
+q := f.Q;
+END_PROGRAM
+CONFIGURATION Config0
+RESOURCE Res0 ON PLC
+TASK t(INTERVAL := T#10ms, PRIORITY := 0);
+PROGRAM Main0 WITH t : Main;
+END_RESOURCE
+END_CONFIGURATION
+"""
+_FLAVOUR_MAIN = """#include <stdio.h>
+#include "iec_std_lib.h"
+#include "POUS.h"
+TIME __CURRENT_TIME;
+BOOL __DEBUG;
+extern MAIN RES0__MAIN0;
+void config_init__(void);
+void config_run__(unsigned long tick);
+int main(void) { config_init__(); config_run__(0); printf("%d\\n", (int)RES0__MAIN0.Q.value); return 0; }
+"""
+_flavour = {}
+
+
+def iec2c_flavour(exe, lib, workdir):
+    """Which matiec the iec2c at exe is: "matiec" (upstream) or "openplc" (the fork OpenPLC v3
+    ships). IEC2C_FLAVOUR names it; otherwise a probe tells them apart by their F_TRIG (on
+    its first call with CLK FALSE, upstream's gives Q, the fork's does not)."""
+    if os.environ.get("IEC2C_FLAVOUR"):
+        return os.environ["IEC2C_FLAVOUR"]
+    if exe in _flavour:
+        return _flavour[exe]
+    d = os.path.join(str(workdir), "flavour")
+    os.makedirs(d, exist_ok=True)
+    with open(os.path.join(d, "probe.st"), "w") as f:
+        f.write(_FLAVOUR_PROBE)
+    with open(os.path.join(d, "main.c"), "w") as f:
+        f.write(_FLAVOUR_MAIN)
+    subprocess.run([exe, "-I", lib, "-T", d, os.path.join(d, "probe.st")], check=True,
+                   capture_output=True)
+    srcs = [os.path.join(d, f) for f in ("main.c", "Config0.c", "Res0.c")]
+    subprocess.run(["cc", "-w", "-I", d, "-I", os.path.join(lib, "C"), "-o",
+                    os.path.join(d, "probe"), *srcs, "-lm"], check=True, capture_output=True)
+    out = subprocess.run([os.path.join(d, "probe")], check=True, capture_output=True, text=True)
+    _flavour[exe] = "matiec" if out.stdout.strip() == "1" else "openplc"
+    return _flavour[exe]
 
 
 def find_iec2c():

@@ -16,7 +16,7 @@ def _id(p):
     return os.path.splitext(os.path.basename(p))[0]
 
 
-@pytest.mark.parametrize("semantics", ["matiec", "iec"])
+@pytest.mark.parametrize("semantics", ["matiec", "openplc", "iec"])
 @pytest.mark.parametrize("path", ACCEPT, ids=_id)
 def test_accept(path, semantics, tmp_path):
     with open(path) as f:

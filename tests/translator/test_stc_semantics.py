@@ -1,4 +1,4 @@
-"""stc --semantics=matiec|iec, portability warnings, and hostile input (deep nesting, unclosed
+"""stc --semantics=matiec|openplc|iec, portability warnings, and hostile input (deep nesting, unclosed
 and huge comments): what a user sees on the command line and in the values the C computes."""
 import os
 import subprocess
@@ -43,13 +43,17 @@ IF ft.Q THEN fcount := fcount + 1; END_IF;
 END_PROGRAM
 """ + CONFIG
 
-MATIEC = {"T1": "-2147483648", "T2": "2147000000", "TSEC": "2148000000000", "SH": "1",
+# (matiec's T#1ms is 999999 ns: T#1ms * 2147 = 2.146997853 s)
+MATIEC = {"T1": "-2147483648", "T2": "2146997853", "TSEC": "2148000000000", "SH": "1",
           "AVG": "30000", "BIG": "1", "M": "0", "CV": "2", "FCOUNT": "1"}
 IEC = {"T1": "2148000000", "T2": "2147000000", "TSEC": "2148000000000", "SH": "0",
        "AVG": "-2768", "BIG": "0", "M": "30", "CV": "5", "FCOUNT": "0"}
+# OpenPLC's fork: matiec's values, but its F_TRIG gives no pulse on the first call
+OPENPLC = dict(MATIEC, FCOUNT="0")
 
 
-@pytest.mark.parametrize("semantics,want", [("matiec", MATIEC), ("iec", IEC), (None, MATIEC)])
+@pytest.mark.parametrize("semantics,want", [("matiec", MATIEC), ("openplc", OPENPLC), ("iec", IEC),
+                                            (None, MATIEC)])
 def test_values_per_semantics(tmp_path, semantics, want):
     src = tmp_path / "d.st"
     src.write_text(DIFFERS)

@@ -1,6 +1,7 @@
 """C code generation from a checked Project (runtime ABI of docs/dev/interfaces.md section 1)."""
 import math
 import os
+import re
 from functools import reduce
 
 from . import syntax as S
@@ -104,7 +105,9 @@ class Gen:
         self.lines = []
         self.ind = 0
         self.tmp = 0
-        self.matiec = getattr(project, "semantics", "matiec") == "matiec"
+        sem = getattr(project, "semantics", "matiec")
+        self.matiec = sem in ("matiec", "openplc")     # matiec's C and library, either flavour
+        self.fork = sem == "openplc"                   # OpenPLC v3's fork of matiec
 
     # ---- output helpers
     def w(self, s=""):
@@ -120,7 +123,8 @@ class Gen:
         files = {}
         with open(os.path.join(os.path.dirname(__file__), HEADER)) as f:
             files[HEADER] = f.read().replace(
-                "#define STC_MATIEC 0", f"#define STC_MATIEC {1 if self.matiec else 0}", 1)
+                "#define STC_MATIEC 0", f"#define STC_MATIEC {1 if self.matiec else 0}", 1).replace(
+                "#define STC_FORK 0", f"#define STC_FORK {1 if self.fork else 0}", 1)
         files["POUS.h"] = self.pous_h()
         files["POUS.c"] = self.pous_c()
         cfg_files = self.config_files()
@@ -238,6 +242,10 @@ class Gen:
             self.emit_type(v.type, done)
         self.w(f"typedef struct {{")
         any_field = False
+        if pou.kind == "function_block":
+            self.w("    uint8_t EN;")
+            self.w("    uint8_t ENO;")
+            any_field = True
         for v in pou.vars.values():
             if v.kind == "VAR_EXTERNAL" or v.location is not None:
                 continue
@@ -260,6 +268,8 @@ class Gen:
                 params.append(cdecl(v.type, v.name))
             elif v.kind in ("VAR_IN_OUT", "VAR_OUTPUT"):
                 params.append(ptr_decl(v.type, v.name))
+        if _body_eno(pou):
+            params.append("uint8_t *ENO__p")     # the body sets ENO: the caller gets it
         rt = pou.rtype
         ret = "stc_time" if rt.is_elem and rt.kind == "time" else _c_elem(rt)
         if rt.is_array:
@@ -310,7 +320,12 @@ class Gen:
                 acc[v.name] = f"(*{v.name})" if v.kind in ("VAR_IN_OUT", "VAR_OUTPUT") else v.name
             else:
                 acc[v.name] = f"(*data->{v.name})" if v.kind == "VAR_IN_OUT" else f"data->{v.name}"
+        if pou.kind == "function_block":
+            acc.setdefault("EN", "data->EN")       # the instance's EN / ENO (see fb_call)
+            acc.setdefault("ENO", "data->ENO")
         if pou.kind == "function":
+            acc.setdefault("EN", "EN")
+            acc.setdefault("ENO", "ENO")
             acc["\0result"] = f"(*{pou.name}__RESULT_p)" if pou.rtype.is_array else f"{pou.name}__RESULT"
         return acc
 
@@ -331,6 +346,11 @@ class Gen:
         for v in pou.vars.values():
             if v.kind in ("VAR_INPUT", "VAR_IN_OUT", "VAR_OUTPUT"):
                 self.w(f"(void){v.name};  /* parameters may be unused */")
+        if "EN" in getattr(pou, "implicit", {}):
+            self.w("uint8_t EN = 1;  /* the body runs only when EN is TRUE */")
+            self.w("(void)EN;")
+        if _body_eno(pou):
+            self.w("uint8_t ENO = 1;")
         self.w(f"memset(&{res}, 0, sizeof {res});")
         self.init_storage(res, rt, None)
         for v in pou.vars.values():
@@ -339,6 +359,8 @@ class Gen:
                 self.w(f"memset(&{lv}, 0, sizeof {lv});")
                 self.init_storage(lv, v.type, v.init)
         self.stmts(pou.node.body)
+        if _body_eno(pou):
+            self.w("*ENO__p = ENO;")
         self.w("return;" if rt.is_array else f"return {pou.name}__RESULT;")
         self.ind -= 1
         self.w("}")
@@ -352,6 +374,9 @@ class Gen:
         self.w("{")
         self.ind += 1
         self.w("memset(data, 0, sizeof *data);")
+        if pou.kind == "function_block":
+            self.w("data->EN = 1;")
+            self.w("data->ENO = 1;")
         for v in pou.vars.values():
             if v.kind == "VAR_IN_OUT" and _own_copy(v):
                 # until a call binds it, an in-out refers to the instance's own copy
@@ -487,6 +512,8 @@ class Gen:
         elif isinstance(s, S.Continue):
             self.w("continue;")
         elif isinstance(s, S.Return):
+            if self.pou.kind == "function" and _body_eno(self.pou):
+                self.w("*ENO__p = ENO;")
             if self.pou.kind == "function" and not self.pou.rtype.is_array:
                 self.w(f"return {self.pou.name}__RESULT;")
             else:
@@ -572,8 +599,18 @@ class Gen:
         self.w(f"{cv} = {self.ex(s.start)};")
         self.w(f"{end} = {self.ex(s.end)};")
         self.w(f"{by} = {step};")
-        fn = "stc_for_count_u" if t.kind == "uint" and t.bits == 64 else "stc_for_count"
-        self.w(f"for ({n} = {fn}({cv}, {end}, {by}); {n} > 0u; {n}--, {cv} = ({t.ctype})({_wide(t)})({cv} + ({_wide(t)}){by})) {{")
+        u64 = t.kind == "uint" and t.bits == 64
+        fn = "stc_for_count_u" if u64 else "stc_for_count"
+        inc = f"{cv} = ({t.ctype})({_wide(t)})({cv} + ({_wide(t)}){by})"
+        if self.matiec and not self.fork:
+            # upstream matiec: no pass unless the first test holds; the increment comes before
+            # the next pass's body, so the variable keeps the last value
+            first = f"{'stc_for_first_up_u' if u64 else 'stc_for_first_up'}({cv}, {end}, {by}, " \
+                    f"{0 if s.step is None else 1})"
+            self.w(f"for ({n} = {first} ? {fn}({cv}, {end}, {by}) : 0u; {n} > 0u; "
+                   f"{n}--, ({n} > 0u ? (void)({inc}) : (void)0)) {{")
+        else:
+            self.w(f"for ({n} = {fn}({cv}, {end}, {by}); {n} > 0u; {n}--, {inc}) {{")
         self.ind += 1
         self.stmts(s.body)
         self.ind -= 1
@@ -599,7 +636,7 @@ class Gen:
         elif t.is_struct:
             self.w(f"{lv} = {self.ex(value)};")
         elif t.is_elem and t.kind == "time":
-            self.w(f"{lv} = stc_time_of({self.ex(value)});")
+            self.w(f"{lv} = {self.ex(value)};" if self.matiec else f"{lv} = stc_time_of({self.ex(value)});")
         else:
             self.w(f"{lv} = {self.ex(value)};")
 
@@ -637,28 +674,22 @@ class Gen:
         en = getattr(c, "en", None)
         eno = getattr(c, "eno", None)
         if en is not None:
-            flag = self.new_tmp("en")
-            self.w("{")
-            self.ind += 1
-            self.w(f"uint8_t {flag} = (uint8_t)({self.ex(en)} != 0);")
-            self.w(f"if ({flag}) {{")
-            self.ind += 1
-        if pou.std is not None:
-            if pou.std.needs_time:
-                self.w(f"{pou.name}_body__(&{base}, stc_time_ns(__CURRENT_TIME));")
-            else:
-                self.w(f"{pou.name}_body__(&{base});")
+            self.w(f"{base}.EN = (uint8_t)({self.ex(en)} != 0);")
+        elif not self.matiec:
+            self.w(f"{base}.EN = 1;")    # IEC: EN not given is TRUE (matiec keeps the last one)
+        self.w(f"if ({base}.EN) {{")
+        self.ind += 1
+        self.w(f"{base}.ENO = 1;")
+        if pou.std is not None and pou.std.needs_time:
+            self.w(f"{pou.name}_body__(&{base}, stc_time_ns(__CURRENT_TIME));")
         else:
             self.w(f"{pou.name}_body__(&{base});")
-        if en is not None:
-            self.ind -= 1
-            self.w("}")
-            if eno is not None:
-                self.w(f"{self.lv(eno)} = {flag};")
-            self.ind -= 1
-            self.w("}")
-        elif eno is not None:
-            self.w(f"{self.lv(eno)} = 1;")
+        self.ind -= 1
+        self.w("} else {")
+        self.w(f"    {base}.ENO = 0;")
+        self.w("}")
+        if eno is not None:
+            self.w(f"{self.lv(eno)} = {base}.ENO;")
         for name, e in copied:
             self.w(f"memcpy(&{self.lv(e)}, &{base}.{name}__COPY, sizeof {base}.{name}__COPY);")
         for p, target in c.outs:
@@ -678,7 +709,7 @@ class Gen:
                 if e is None:
                     args.append(self.default_value(v))
                 elif v.type.is_elem and v.type.kind == "time":
-                    args.append(f"stc_time_of({self.ex(e)})")
+                    args.append(self.ex(e) if self.matiec else f"stc_time_of({self.ex(e)})")
                 elif v.type.is_struct or v.type.is_array:
                     args.append(self.lv(e))
                 else:
@@ -692,12 +723,33 @@ class Gen:
                     args.append(f"&{self.lv(t)}")
                 else:
                     args.append(f"&({cdecl(v.type, '')}){{0}}")
-        return f"{pou.name}({', '.join(args)})"
+        en = getattr(c, "en", None)
+        eno = getattr(c, "eno", None)
+        body_eno = _body_eno(pou)
+        if body_eno:
+            args.append(f"&{self.lv(eno)}" if eno is not None else "&(uint8_t){0}")
+        call = f"{pou.name}({', '.join(args)})"
+        if en is None and (eno is None or body_eno):
+            return call
+        # EN := cond: the function runs only when cond is TRUE, otherwise its result is the
+        # initial value of its type (matiec); ENO => v tells whether it ran
+        rt = pou.rtype
+        zero = "0" if rt is None else self.default_value(pou.result_var) \
+            if getattr(pou, "result_var", None) is not None else self._zero(rt)
+        if rt is not None and rt.is_elem and rt.kind == "time" and not self.matiec:
+            zero = "stc_time_of(INT64_C(0))"   # the call returns stc_time; see _ex
+        set1 = f"{self.lv(eno)} = 1, " if eno is not None and not body_eno else ""
+        set0 = f"{self.lv(eno)} = 0, " if eno is not None else ""
+        if en is None:
+            return f"({set1}{call})"
+        return f"(({self.ex(en)}) ? ({set1}{call}) : ({set0}{zero}))"
 
     def default_value(self, v):
         t = v.type
         init = v.init if v.init is not None else getattr(t, "default", None)
         if t.is_elem and t.kind == "time":
+            if self.matiec:
+                return self.ex(init) if isinstance(init, S.Expr) else "stc_mt_of(INT64_C(0))"
             return f"stc_time_of({self.ex(init) if isinstance(init, S.Expr) else 'INT64_C(0)'})"
         if isinstance(init, S.Expr):
             return self.ex(init)
@@ -752,12 +804,21 @@ class Gen:
 
     def _ex(self, e):
         t = e.ty
+        if isinstance(e, S.RealLit) and self.matiec and t.kind == "real":
+            # matiec prints an untyped real literal as it is written: a C double, so the
+            # operation it takes part in is computed in double (0.1 + 0.2 > 0.3 on REALs is
+            # TRUE); a typed REAL#0.3 is (float)0.3
+            return lit(e.value, T.ELEMENTARY["LREAL"])
         if isinstance(e, (S.IntLit, S.RealLit, S.BoolLit)):
             return lit(e.value, t)
         if isinstance(e, S.StringLit):
             return lit(e.value, t)
         if isinstance(e, S.TimeLit):
-            return lit(e.ns, T.TIME)
+            comps = _matiec_time_parts(e.text) if self.matiec else None
+            if comps is not None:
+                # as matiec's __time_to_timespec: T#1ms is 999999 ns there
+                return f"stc_mt_lit({', '.join(comps)})"
+            return self.tval(lit(e.ns, T.TIME))
         if isinstance(e, S.TypedLit):
             if getattr(e, "enum_value", None):
                 et, _ = e.enum_value
@@ -768,7 +829,7 @@ class Gen:
             return f"{et.name}__{e.name}"
         if isinstance(e, (S.Name, S.Field, S.Index)):
             lv = self.lv(e)
-            if t.is_elem and t.kind == "time":
+            if t.is_elem and t.kind == "time" and not self.matiec:
                 return f"stc_time_ns({lv})"
             return lv
         if isinstance(e, S.UnOp):
@@ -780,7 +841,7 @@ class Gen:
             if k == "func":
                 call = self.func_call(e)
                 rt = e.pou.rtype
-                if rt.is_elem and rt.kind == "time":
+                if rt.is_elem and rt.kind == "time" and not self.matiec:
                     return f"stc_time_ns({call})"
                 return call
             if k == "conv":
@@ -789,9 +850,10 @@ class Gen:
                 r = self.binop(e.binop)    # ADD(a, b) ...: a typed function in matiec
                 return f"(({t.ctype}){r})" if getattr(e.binop, "wide", False) else r
             if k == "math":
-                xs = [f"(double){self.ex(a)}" for a in e.argv]
+                xs = [f"(double){self.fex(a)}" for a in e.argv]
                 fn = {"SQRT": "sqrt", "LN": "log", "LOG": "log10", "EXP": "exp",
-                      "EXPT": "stc_expt"}[e.name]
+                      "EXPT": "stc_expt", "SIN": "sin", "COS": "cos", "TAN": "tan",
+                      "ASIN": "asin", "ACOS": "acos", "ATAN": "atan"}[e.name]
                 return f"(({t.ctype}){fn}({', '.join(xs)}))"
             if k == "trunc":
                 x = self.ex(e.argv[0])
@@ -799,8 +861,31 @@ class Gen:
                 if t.kind == "sint":
                     return f"(({t.ctype})stc_trunc_i64({x}, {lit(lo, T.LINT)}, {lit(hi, T.LINT)}))"
                 return f"(({t.ctype})stc_trunc_u64({x}, UINT64_C({hi})))"
-            return self.std_call(e)
+            r = self.std_call(e)
+            if self.matiec and t is not None and t.is_elem and t.kind == "real" and t.bits == 32:
+                r = f"((float){r})"     # matiec's typed function returns a REAL
+            return r
         raise AssertionError(f"cannot generate {e!r}")
+
+    def fex(self, e):
+        """C expression of an argument of a standard function: matiec passes it as the
+        function's parameter type, so a REAL computed in double (an untyped real literal in
+        it) is rounded to float first."""
+        x = self.ex(e)
+        t = e.ty
+        if self.matiec and t is not None and t.is_elem and t.kind == "real" and t.bits == 32:
+            return f"((float){x})"
+        return x
+
+    def tval(self, ns):
+        """A TIME expression from C int64_t nanoseconds `ns`: the same in IEC mode; in the
+        matiec modes TIME expressions are stc_time pairs, as matiec's (so sums it leaves
+        unnormalised compare as they do there)."""
+        return f"stc_mt_of({ns})" if self.matiec else ns
+
+    def tns(self, x):
+        """int64_t nanoseconds of the C TIME expression x."""
+        return f"stc_time_ns({x})" if self.matiec else x
 
     def unop(self, e):
         t = e.ty
@@ -821,7 +906,7 @@ class Gen:
         if t.kind == "real":
             return f"(-{x})"
         if t.kind == "time":
-            return f"((int64_t)(0u - (uint64_t){x}))"
+            return self.tval(f"((int64_t)(0u - (uint64_t){self.tns(x)}))")
         if t.bits <= 16:
             return f"(({t.ctype})-{x})"
         return f"(({t.ctype})(0u - ({_wide(t)}){x}))"
@@ -855,6 +940,10 @@ class Gen:
             return f"(stc_str_cmp(&{a}, &{b}) {cop} 0)" if isinstance(e.left, (S.Name, S.Field, S.Index)) \
                 and isinstance(e.right, (S.Name, S.Field, S.Index)) else \
                 f"(stc_str_cmpv({a}, {b}) {cop} 0)"
+        if op in self._COP and self.matiec and e.left.ty.is_elem and e.left.ty.kind == "time":
+            # matiec compares tv_sec first, then tv_nsec (an unnormalised sum compares as such)
+            cop = {"=": "==", "<>": "!="}.get(op, op)
+            return f"(stc_mt_cmp({a}, {b}) {cop} 0)"
         if op in self._COP:
             ot = e.left.ty
             fam = "f" if ot.is_elem and ot.kind == "real" else \
@@ -868,10 +957,12 @@ class Gen:
             return f"(({t.ctype})({a} {cop} {b}))"
         if t.kind == "time":
             rt = e.right.ty           # TIME op number: check.py refuses number * TIME
+            if self.matiec:
+                # matiec's library: pairs added and normalised in one step; scaled in double
+                fn = {"+": "add", "-": "sub", "*": "mul", "/": "div"}[op]
+                return f"stc_mt_{fn}({a}, {b})" if op in ("+", "-") else f"stc_mt_{fn}({a}, (double){b})"
             if op in ("+", "-"):
                 return f"((int64_t)((uint64_t){a} {op} (uint64_t){b}))"
-            if self.matiec:
-                return f"stc_time_{'mul' if op == '*' else 'div'}_m({a}, (double){b})"
             if rt.kind == "real":
                 return f"stc_time_{'mulf' if op == '*' else 'divf'}({a}, (double){b})"
             return f"stc_time_{'mul' if op == '*' else 'div'}({a}, (int64_t){b})"
@@ -890,9 +981,29 @@ class Gen:
 
     def conversion(self, e):
         src, dst = e.conv
-        x = self.ex(e.args[0].value)
+        x = self.fex(e.args[0].value)
+        if dst.kind == "string":
+            # matiec: TRUE/FALSE, %lld, %llu, 16#%llx for bit strings, %.10g for REAL/LREAL
+            fn = {"bool": "bool", "sint": "i", "uint": "u", "bit": "bits", "real": "real"}[src.kind]
+            return f"stc_str_of_{fn}({x})"
+        if src.kind == "string":
+            if dst.kind == "bool":
+                return f"stc_str_to_bool({x})"
+            if dst.kind == "real":
+                return f"(({dst.ctype})stc_str_to_real({x}))"
+            return f"(({dst.ctype})stc_str_to_i({x}))"
+        if dst.kind == "bool" and src.kind == "time" and self.matiec:
+            return f"(({x}).tv_sec != 0 || ({x}).tv_nsec != 0)"
         if dst.kind == "bool":
             return f"({x} != 0)"
+        if src.kind == "time" and self.matiec:
+            if dst.kind == "real":
+                return f"(({dst.ctype})((double)({x}).tv_sec + (double)({x}).tv_nsec / 1e9))"
+            return f"(({dst.ctype})({x}).tv_sec)"
+        if dst.kind == "time" and self.matiec:
+            if src.kind == "real":
+                return f"stc_mt_of_real((double){x})"
+            return f"stc_mt((long)({x}), 0)"
         if src.kind == "time":
             # matiec converts TIME to numbers in whole seconds (tv_sec); stc does the same
             if dst.kind == "real":
@@ -914,7 +1025,7 @@ class Gen:
         n = e.name
         args = e.argv
         t = e.ty
-        xs = [self.ex(a) for a in args]
+        xs = [self.fex(a) for a in args]
         if n in ("SHL", "SHR", "ROL", "ROR"):
             if self.matiec and n in ("SHL", "SHR") and t.bits > 1:
                 # matiec shifts in C: x86 takes the count modulo 32 (64 for LWORD), after the
@@ -923,7 +1034,12 @@ class Gen:
                 return f"stc_{n.lower()}_{t.name}({xs[0]}, (int64_t){xs[1]} & {mask})"
             return f"stc_{n.lower()}_{t.name}({xs[0]}, (int64_t){xs[1]})"
         if n == "LEN":
-            return f"((int16_t){xs[0]}.len)"
+            return f"(({t.ctype}){xs[0]}.len)"
+        if n in T.STR_FUNCS:
+            cargs = [x if k.startswith("IN") else f"(int64_t){x}"
+                     for k, x in zip(T.STR_FUNCS[n], xs)]
+            r = f"stc_str_{n.lower()}({', '.join(cargs)})"
+            return f"(({t.ctype}){r})" if n == "FIND" else r
         if n == "CONCAT":
             out = xs[0]
             for x in xs[1:]:
@@ -964,7 +1080,7 @@ class Gen:
         if not t.is_elem:
             return f"({_c_elem(t)}){{0}}"
         if t.kind == "time":
-            return "INT64_C(0)"
+            return self.tval("INT64_C(0)")
         return lit(0, t)
 
     def _minmax(self, xs, cmp, t):
@@ -975,7 +1091,10 @@ class Gen:
         fn = f"stc_{'lt' if cmp == '<' else 'gt'}_{fam}"
         out = xs[0]
         for x in xs[1:]:
-            out = f"({fn}({out}, {x}) ? {out} : {x})"
+            if self.matiec and t.is_elem and t.kind == "time":
+                out = f"((stc_mt_cmp({out}, {x}) {cmp} 0) ? {out} : {x})"
+            else:
+                out = f"({fn}({out}, {x}) ? {out} : {x})"
         return out
 
     # ---- configuration: Config0.c and one file per resource
@@ -1050,22 +1169,35 @@ class Gen:
             self.w("{")
             self.ind += 1
             self.w("(void)tick;")
-            order = sorted(r.tasks, key=lambda tk: tk.priority)
             runs = False
-            for task in order:
-                insts = [i for i in r.instances if i.task is task]
-                if not insts:
-                    continue
-                runs = True
-                period = max(1, task.interval_ns // tick) if tick else 1
-                self.w(f"if (tick % {period}u == 0u) {{  /* task {task.name}, {task.interval_ns} ns */")
-                for i in insts:
-                    self.w(f"    {i.pou.name}_body__(&{r.name}__{i.name});")
-                self.w("}")
-            for i in r.instances:
-                if i.task is None:
+            if self.matiec:
+                # matiec: the program instances in declaration order, each when its task is
+                # due; PRIORITY plays no part
+                for i in r.instances:
                     runs = True
-                    self.w(f"{i.pou.name}_body__(&{r.name}__{i.name});  /* no task: every tick */")
+                    if i.task is None:
+                        self.w(f"{i.pou.name}_body__(&{r.name}__{i.name});  /* no task: every tick */")
+                        continue
+                    period = max(1, i.task.interval_ns // tick) if tick else 1
+                    self.w(f"if (tick % {period}u == 0u) {{  /* task {i.task.name}, {i.task.interval_ns} ns */")
+                    self.w(f"    {i.pou.name}_body__(&{r.name}__{i.name});")
+                    self.w("}")
+            else:
+                # IEC: tasks due in the same tick run in PRIORITY order (0 first)
+                for task in sorted(r.tasks, key=lambda tk: tk.priority):
+                    insts = [i for i in r.instances if i.task is task]
+                    if not insts:
+                        continue
+                    runs = True
+                    period = max(1, task.interval_ns // tick) if tick else 1
+                    self.w(f"if (tick % {period}u == 0u) {{  /* task {task.name}, {task.interval_ns} ns */")
+                    for i in insts:
+                        self.w(f"    {i.pou.name}_body__(&{r.name}__{i.name});")
+                    self.w("}")
+                for i in r.instances:
+                    if i.task is None:
+                        runs = True
+                        self.w(f"{i.pou.name}_body__(&{r.name}__{i.name});  /* no task: every tick */")
             self.ind -= 1
             self.w("}")
             files[f"{r.name}.c"] = self.take()
@@ -1232,6 +1364,36 @@ def _type_tag(t):
     if t.is_fb:
         return f"FB:{t.pou.name}"
     return t.name
+
+
+def _body_eno(pou):
+    """The FUNCTION's body sets ENO (it then reports it through a pointer argument)."""
+    return pou.kind == "function" and "ENO" in getattr(pou, "implicit", {})
+
+
+_MT_PART = re.compile(r"([0-9]+(?:\.[0-9]+)?)(ms|d|h|m|s)", re.I)
+
+
+def _matiec_time_parts(text):
+    """matiec's arguments (sign, ms, s, m, h, d) for a duration literal such as T#1h2m3s4ms,
+    each number as written; None for what matiec's literal does not have (us, ns, a unit
+    twice)."""
+    body = (text or "").split("#", 1)[-1].replace("_", "")
+    sign = "1"
+    if body[:1] in "+-" and body:
+        sign = "-1" if body[0] == "-" else "1"
+        body = body[1:]
+    parts, pos = {}, 0
+    while pos < len(body):
+        m = _MT_PART.match(body, pos)
+        if not m or m.group(2).lower() in parts:
+            return None
+        parts[m.group(2).lower()] = m.group(1)
+        pos = m.end()
+    if not parts:
+        return None
+    return [sign] + [(v if "." in v else f"{int(v)}.0") for v in
+                     (parts.get(u, "0") for u in ("ms", "s", "m", "h", "d"))]
 
 
 def _balanced(s):

@@ -75,7 +75,10 @@ class Project:
         self.config = None
         self.located = []          # Var of every located variable, in declaration order
         self.enum_values = {}      # VALUE -> [EnumT] for bare enum names
-        self.semantics = "matiec"  # "matiec" or "iec": run-time values the C reproduces
+        self.semantics = "matiec"  # "matiec", "openplc" or "iec": run-time values the C reproduces
+        # (file, (line, col), kind, text): every construct on the divergence list (matiec,
+        # OpenPLC's fork and IEC may give other values), warned or not: stc --divergences
+        self.divergences = []
 
 
 _KIND_OK = {
@@ -103,6 +106,11 @@ class Checker:
     def warn(self, pos, msg):
         """Portability warning: the construct's value differs between matiec and IEC."""
         self.d.warn(self.file, pos, msg)
+        self.note(pos, "warned", msg.replace("portability: ", "", 1))
+
+    def note(self, pos, kind, text):
+        """A construct on the divergence list (stc --divergences lists them)."""
+        self.p.divergences.append((self.file, pos, kind, text))
 
     # ---- errors
     def err(self, pos, msg, file=None):
@@ -867,11 +875,51 @@ class Checker:
             if e is not None:
                 t = self.expr(e, vt)
                 self.coerce(e, t, vt, "FOR bound")
+        if vt.is_elem and vt.is_int:
+            self._for_wraps(s, vt)
+            self._for_upstream(s)
         if not s.body:
             self.err(s.pos, "empty FOR body is not portable (matiec rejects it)")
         self.loop_depth += 1
         self.stmts(s.body)
         self.loop_depth -= 1
+
+    def _for_upstream(self, s):
+        """Upstream matiec runs no pass unless start < end (start + BY <= end with BY): a FOR
+        whose bounds may be equal (start + BY past end) runs once elsewhere, never there."""
+        start, end = self.const_value(s.start), self.const_value(s.end)
+        step = self.const_value(s.step) if s.step is not None else 1
+        if start is not None and end is not None and step is not None and step != 0:
+            if step > 0 and start <= end and start + step > end or \
+                    step < 0 and start >= end and start + step < end:
+                self.warn(s.pos, "portability: this FOR runs once in IEC and OpenPLC's matiec "
+                          "fork but zero times in upstream matiec (it needs start < end, or "
+                          "start + BY within end, for the first pass)")
+            return
+        self.note(s.pos, "for-once", "FOR with bounds that are not constants: when they allow "
+                  "exactly one pass, upstream matiec runs none")
+
+    def _for_wraps(self, s, vt):
+        """Portability warning for a FOR whose variable would step past its type's limit:
+        OpenPLC's fork runs FOR as 'while i <= end: body; i += step', which wraps there and
+        never ends (stc and upstream matiec stop). Constant bounds only."""
+        end = self.const_value(s.end)
+        step = self.const_value(s.step) if s.step is not None else 1
+        start = self.const_value(s.start)
+        if end is None or step is None or step == 0:
+            return
+        lo, hi = vt.range()
+        if start is not None:
+            if (step > 0 and start > end) or (step < 0 and start < end):
+                return
+            last = start + (end - start) // step * step
+        else:
+            last = end      # the last value is at most end: warn when end itself is the limit
+        if (step > 0 and last + step > hi) or (step < 0 and last + step < lo):
+            self.note(s.pos, "for-wrap", "FOR past the type's limit")
+            self.warn(s.pos, f"portability: this FOR steps {s.var.name} past the limit of {vt} "
+                      f"after its last pass: OpenPLC's matiec fork wraps it and loops forever "
+                      f"(stc and upstream matiec stop); use a wider variable or EXIT")
 
     # ---- lookup
     def lookup(self, name_node):
@@ -881,6 +929,16 @@ class Checker:
             return v
         if self.cur is not None and self.cur.kind == "function" and n == self.cur.name:
             return self._result_var(self.cur)
+        if n in ("EN", "ENO") and self.cur is not None:
+            if self.cur.kind in ("function_block", "function"):
+                # the instance's own EN and ENO (the body may clear ENO: the caller reads it)
+                self.note(name_node.pos, "en-eno", f"{n} in a {self.cur.kind.replace('_', ' ')} body")
+                imp = self.cur.__dict__.setdefault("implicit", {})
+                if n not in imp:
+                    imp[n] = Var(n, "VAR_INPUT" if n == "EN" else "VAR_OUTPUT", T.BOOL, None,
+                                 self.cur.node.pos, self.cur.file)
+                return imp[n]
+            self.fail(name_node.pos, f"{n} in a PROGRAM body is not portable (matiec rejects it)")
         self.fail(name_node.pos, f"unknown variable '{n}'")
 
     def _result_var(self, pou):
@@ -907,7 +965,10 @@ class Checker:
             bt = self.expr(e.base, None, lvalue=True)
             if bt.is_fb:
                 ft = self.fb_member(e, bt)
-                fv = bt.pou.vars[e.name]
+                fv = bt.pou.vars.get(e.name)
+                if fv is None:
+                    self.fail(e.pos, f"{e.name} of a function block instance is set by its call "
+                              f"(EN := ... in the call), not by an assignment")
                 if fv.kind == "VAR_OUTPUT":
                     self.err(e.pos, f"writing output {e.name} of function block instance from "
                              "outside is not portable (matiec rejects it)")
@@ -933,6 +994,11 @@ class Checker:
                 self.err(e.pos, f"cannot assign to CONSTANT '{v.name}'")
 
     def fb_member(self, e, bt):
+        if e.name in ("EN", "ENO") and e.name not in bt.pou.vars:
+            # every instance has EN and ENO (matiec: readable as inst.ENO after a call)
+            self.note(e.pos, "en-eno", f"{e.name} of an instance")
+            e.ty = T.BOOL
+            return T.BOOL
         fv = bt.pou.vars.get(e.name)
         if fv is not None and fv.kind == "VAR" and bt.pou.std is None:
             e.ty = fv.type      # matiec lets a program read an instance's local variables
@@ -967,6 +1033,9 @@ class Checker:
         if isinstance(e, S.TimeLit):
             if e.ns is None:
                 self.fail(e.pos, f"malformed TIME literal {e.text}")
+            if re.search(r"[0-9](us|ns)", e.text or "", re.I):
+                self.fail(e.pos, f"{e.text}: the units us and ns are not portable (matiec rejects "
+                          "them): write fractions of ms, e.g. T#0.1ms")
             return T.TIME
         if isinstance(e, S.StringLit):
             if e.text.startswith('"'):
@@ -1136,6 +1205,8 @@ class Checker:
                       "write TIME * number")
         if op in ("+", "-") and lt.is_elem and lt.kind == "time":
             if rt.is_elem and rt.kind == "time":
+                self.note(e.pos, "time-sum", f"TIME '{op}': matiec leaves a nanosecond part of "
+                          "exactly 1e9 unnormalised (it compares below the whole second)")
                 return T.TIME
             self.fail(e.pos, f"TIME {op} {rt}: both operands must be TIME (write e.g. T#5ms)")
         if op == "**":
@@ -1164,6 +1235,15 @@ class Checker:
             self.fail(e.pos, f"'{op}' between {lt} and {rt}: IEC strict typing needs the same "
                       f"type on both sides; convert explicitly (e.g. {_conv_hint(rt, lt)})")
         t = lt
+        if t.is_elem and t.kind == "real" and t.bits == 32 and any(
+                isinstance(_strip_paren(x), S.RealLit) or (isinstance(_strip_paren(x), S.UnOp)
+                                                          and isinstance(_strip_paren(x).operand, S.RealLit))
+                for x in (e.left, e.right)):
+            self.note(e.pos, "real-literal", f"'{op}' of a REAL with an untyped real literal: "
+                      "matiec computes it in double (write REAL#...)")
+        if t.is_elem and t.kind == "string" and op in self._CMP:
+            self.note(e.pos, "string-compare", "STRING comparison: OpenPLC's fork compares "
+                      "the common length only")
         if op in self._CMP or op in ("/", "MOD"):
             self._warn_narrow(e, t)
         if op in self._CMP:
@@ -1414,6 +1494,16 @@ class Checker:
                 self.warn(c.pos, "portability: F_TRIG differs between matiec and the OpenPLC "
                           "fork / IEC mode on the first call: matiec gives Q = TRUE when CLK is "
                           "FALSE on the first call; ignore Q on the first scan")
+        elif std in ("TON", "TOF", "TP"):
+            pt = c.bound.get("PT")
+            k = _strip_paren(pt).ns if isinstance(_strip_paren(pt), S.TimeLit) else None
+            if k is not None and k <= 0:
+                self.warn(pt.pos, f"portability: {std} with PT = T#0s differs between matiec and "
+                          "IEC: matiec's Q changes one call late (it compares from the call after "
+                          "the edge)")
+            elif k is None and not _is_false(c.bound.get("IN")):
+                self.note(c.pos, "timer-pt", f"{std} with a PT that is not a constant: at "
+                          "T#0s matiec's Q changes one call late")
         elif std in ("CTU", "CTD", "CTUD"):
             self.warn(c.pos, f"portability: {std} differs between matiec and IEC at its limits: "
                       "matiec stops counting up at PV and down at 0, IEC at the limits of INT")
@@ -1434,8 +1524,14 @@ class Checker:
                 bound[p.name] = a.value
         c.en = c.eno = None
         for a in named:
-            if fb and a.name in ("EN", "ENO") and isinstance(a, S.ArgIn if a.name == "EN" else S.ArgOut):
+            if a.name in ("EN", "ENO") and isinstance(a, S.ArgIn if a.name == "EN" else S.ArgOut):
+                if not fb and pou.rtype is not None and not pou.rtype.is_elem and not pou.rtype.is_enum:
+                    self.err(a.pos, f"EN/ENO on a call of {pou.name}, which returns {pou.rtype}, "
+                             "is not supported by stc: test the condition around the call")
+                    continue
                 # EN := cond runs the body only when cond is TRUE; ENO => v tells whether it ran
+                self.note(a.pos, "en-eno", "EN/ENO on a call: matiec keeps EN from the last "
+                          "call that gave it")
                 if a.name == "EN":
                     self.cond(a.value, "EN")
                     c.en = a.value
@@ -1497,6 +1593,35 @@ class Checker:
             except CompileError:
                 pass
         c.outs = outs
+
+    def str_func(self, c, n, expected):
+        """LEFT RIGHT MID FIND INSERT DELETE REPLACE: positional, or formal with the standard's
+        parameter names (IN, IN1, IN2, L, P) in any order."""
+        names = T.STR_FUNCS[n]
+        if len(c.args) != len(names):
+            self.fail(c.pos, f"{n} takes {len(names)} arguments ({', '.join(names)}), got {len(c.args)}")
+        if all(isinstance(a, S.ArgIn) for a in c.args):
+            given = {a.name: a.value for a in c.args}
+            if set(given) != set(names):
+                self.fail(c.pos, f"{n} takes the inputs {', '.join(names)}")
+            args = [given[k] for k in names]
+        elif any(isinstance(a, S.ArgIn) for a in c.args):
+            self.fail(c.pos, "mixing positional and named (:=) arguments is not allowed")
+        else:
+            args = [a.value for a in c.args]
+        for k, a in zip(names, args):
+            if k.startswith("IN"):
+                t = self.expr(a, T.STRING)
+                if not T.same_type(t, T.STRING):
+                    self.fail(a.pos, f"{n}: {k} is a STRING, not {t}")
+            else:
+                t = self.expr(a, None)
+                if t.is_lit and t.kind != "real":
+                    self.settle(a, T.INT)
+                elif not (t.is_elem and t.is_int):
+                    self.fail(a.pos, f"{n}: {k} is an integer, not {t}")
+        c.argv = args
+        return _int_result(expected) if n == "FIND" else T.STRING
 
     def conversion(self, c, conv):
         src, dst = conv
@@ -1578,7 +1703,11 @@ class Checker:
             t = self.expr(args[0], T.STRING)
             if not T.same_type(t, T.STRING):
                 self.fail(args[0].pos, f"LEN needs a STRING, not {t}")
-            return T.INT
+            return _int_result(expected)
+        if n in T.STR_FUNCS:
+            self.note(c.pos, "string-function", f"{n}: matiec's library has its own results "
+                      "at the edges (FIND, REPLACE, positions 0)")
+            return self.str_func(c, n, expected)
         if n == "CONCAT":
             if len(args) < 2:
                 self.fail(c.pos, "CONCAT takes at least 2 arguments")
@@ -1587,7 +1716,7 @@ class Checker:
                 if not T.same_type(t, T.STRING):
                     self.fail(a.pos, f"CONCAT needs STRINGs, not {t}")
             return T.STRING
-        if n in ("SQRT", "LN", "LOG", "EXP"):
+        if n in ("SQRT", "LN", "LOG", "EXP", "SIN", "COS", "TAN", "ASIN", "ACOS", "ATAN"):
             need(1)
             t = same(args, expected)
             if not (t.is_elem and t.kind == "real"):
@@ -1678,6 +1807,25 @@ class Checker:
         self.fail(c.pos, f"standard function {n} is not supported by stc")
 
 
+def _is_false(e):
+    e = _strip_paren(e) if e is not None else None
+    return isinstance(e, S.BoolLit) and not e.value
+
+
+def _strip_paren(e):
+    while isinstance(e, S.Paren):
+        e = e.inner
+    return e
+
+
+def _int_result(expected):
+    """Result type of LEN and FIND (ANY_INT in matiec): the integer type the context wants,
+    INT otherwise."""
+    if expected is not None and expected.is_elem and expected.is_int and not expected.is_lit:
+        return expected
+    return T.INT
+
+
 _KW = []
 
 # standard function names matiec accepts as STRUCT member names (a member is always written
@@ -1733,7 +1881,7 @@ def _c_i64(d):
 
 
 def _matiec_time_mul(ns, k):
-    """matiec's TIME * k in nanoseconds (see stc_time_mul_m in stc_rt.h)."""
+    """matiec's TIME * k in nanoseconds (see stc_mt_mul in stc_rt.h)."""
     sec, nsec = _c_div(ns, 10**9), ns - _c_div(ns, 10**9) * 10**9
     s_f = float(sec) * k
     s = _c_i64(s_f)
@@ -1767,6 +1915,9 @@ def _conversion(name):
     a, _, b = name.partition("_TO_")
     if a in T.CONVERTIBLE and b in T.CONVERTIBLE and a != b:
         return (a, b)
+    if "STRING" in (a, b) and a != b and (a in T.CONVERTIBLE or b in T.CONVERTIBLE) \
+            and "TIME" not in (a, b):
+        return (a, b)       # <elementary>_TO_STRING, STRING_TO_<elementary> (not TIME)
     return None
 
 

@@ -15,10 +15,11 @@ A file given both on the command line and through -I is read once.
 
 Output in OUTDIR: POUS.h, POUS.c, Config0.c, one <RESOURCE>.c per resource, stc_rt.h,
 LOCATED_VARIABLES.h, SYMBOLS.tsv and SOURCES.txt (the .c files to compile).
---semantics=matiec (the default) makes the C reproduce matiec's run-time values (what
-OpenPLC and Beremiz run) where they differ from IEC 61131-3; --semantics=iec gives the IEC
-values. Constructs whose value differs between the two get a portability warning
-(FILE:LINE:COL: warning: MESSAGE) in both modes; --werror-portability makes them errors.
+--semantics=matiec (the default) makes the C reproduce upstream matiec's run-time values
+(what Beremiz runs) where they differ from IEC 61131-3; --semantics=openplc those of the
+matiec fork OpenPLC v3 ships; --semantics=iec gives the IEC values. Constructs whose value
+differs between them get a portability warning (FILE:LINE:COL: warning: MESSAGE) in every
+mode; --werror-portability makes them errors.
 --strict-iec adds warnings where a strict IEC 61131-3 edition-2 checker rejects what matiec
 accepts (an untyped integer literal stored in an ANY_BIT variable: write WORD#0 or 16#0).
 Errors are printed as FILE:LINE:COL: error: MESSAGE. Exit status: 0 success, 1 errors in
@@ -44,13 +45,18 @@ def main(argv=None):
     ap.add_argument("-o", dest="outdir", metavar="OUTDIR", help="directory for the generated files")
     ap.add_argument("-I", dest="libdirs", metavar="DIR", action="append", default=[],
                     help="also read the *.st files in DIR as library POUs")
-    ap.add_argument("--semantics", choices=["matiec", "iec"], default="matiec",
-                    help="run-time values to reproduce: matiec's (default) or IEC 61131-3's")
+    ap.add_argument("--semantics", choices=["matiec", "openplc", "iec"], default="matiec",
+                    help="run-time values to reproduce: upstream matiec's (default), those of "
+                         "OpenPLC v3's matiec fork, or IEC 61131-3's")
     ap.add_argument("--werror-portability", action="store_true",
                     help="treat portability warnings (matiec and IEC values differ) as errors")
     ap.add_argument("--strict-iec", action="store_true",
                     help="also warn where a strict IEC 61131-3 edition-2 checker rejects what "
                          "matiec accepts (an untyped integer literal stored in BYTE/WORD/...)")
+    ap.add_argument("--divergences", action="store_true",
+                    help="also list every construct whose value can differ between upstream "
+                         "matiec, OpenPLC's fork and IEC (FILE:LINE:COL: note: KIND: ...), "
+                         "warned or not")
     ap.add_argument("--version", action="version", version=f"stc {__version__}")
     ap.add_argument("files", nargs="*", metavar="FILE.st")
     args = ap.parse_args(argv)
@@ -63,7 +69,7 @@ def main(argv=None):
     def work():
         try:
             result.append(run(args.files, args.libdirs, args.outdir, args.semantics,
-                              args.werror_portability, args.strict_iec))
+                              args.werror_portability, args.strict_iec, args.divergences))
         except Exception as e:  # last resort: never show a traceback to the user
             if os.environ.get("STC_DEBUG"):
                 raise
@@ -95,7 +101,8 @@ def run_deep(fn):
             sys.setrecursionlimit(old)
 
 
-def run(files, libdirs, outdir, semantics="matiec", werror_portability=False, strict_iec=False):
+def run(files, libdirs, outdir, semantics="matiec", werror_portability=False, strict_iec=False,
+        divergences=False):
     from .compiler import compile_files
     sources = []
     seen = set()
@@ -129,6 +136,13 @@ def run(files, libdirs, outdir, semantics="matiec", werror_portability=False, st
         if werror_portability:   # the warnings are what fails the build: say so
             line = line.replace(": warning: ", ": error: ", 1) + " [--werror-portability]"
         print(line, file=sys.stderr)
+    if divergences and project is not None:
+        seen = set()
+        for f, pos, kind, text in project.divergences:
+            if kind == "warned" or (f, pos, kind) in seen:
+                continue     # warnings are printed above
+            seen.add((f, pos, kind))
+            print(f"{f}:{pos[0]}:{pos[1]}: note: {kind}: {text}", file=sys.stderr)
     if diags or (werror_portability and diags.warnings):
         for line in diags.format():
             print(line, file=sys.stderr)

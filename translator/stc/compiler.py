@@ -4,13 +4,14 @@ from . import syntax as S
 from .check import Checker
 
 
-SEMANTICS = ("matiec", "iec")
+SEMANTICS = ("matiec", "openplc", "iec")
 
 
 def compile_files(texts, diags, semantics="matiec", strict_iec=False):
     """texts: [(filename, text, is_library)]. Returns a Project (valid only without errors).
-    semantics: "matiec" (reproduce matiec's run-time values, the default) or "iec"
-    (IEC 61131-3 values); portability warnings go to diags.warnings in both modes."""
+    semantics: "matiec" (reproduce upstream matiec's run-time values, the default), "openplc"
+    (the matiec fork OpenPLC v3 ships) or "iec" (IEC 61131-3 values); portability warnings go
+    to diags.warnings in every mode."""
     if semantics not in SEMANTICS:
         raise ValueError(f"semantics must be one of {', '.join(SEMANTICS)}, not {semantics!r}")
     parsed = []

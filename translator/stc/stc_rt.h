@@ -7,13 +7,19 @@
 #ifndef STC_RT_H
 #define STC_RT_H
 
+#include <ctype.h>
 #include <math.h>
 #include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 /* 1: reproduce matiec's run-time values where they differ from IEC 61131-3 (stc
  * --semantics=matiec, the default); 0: IEC values (--semantics=iec). stc writes this line. */
 #define STC_MATIEC 0
+/* 1: the values of the matiec fork OpenPLC v3 ships (stc --semantics=openplc; STC_MATIEC is 1
+ * too), where they differ from upstream matiec's. */
+#define STC_FORK 0
 
 typedef struct { long tv_sec; long tv_nsec; } stc_time;
 /* matiec's STRING layout: a length and STR_MAX_LEN (126) characters, no terminating NUL */
@@ -23,7 +29,12 @@ static inline int stc_str_cmp(const stc_string *a, const stc_string *b)
 {
     size_t n = a->len < b->len ? a->len : b->len;
     int c = memcmp(a->body, b->body, n);
+#if STC_FORK
+    /* OpenPLC's fork compares the common length only: 'abc' = 'abcde' */
+    return c;
+#else
     return c != 0 ? c : (int)a->len - (int)b->len;
+#endif
 }
 static inline int stc_str_cmpv(stc_string a, stc_string b) { return stc_str_cmp(&a, &b); }
 /* CONCAT: the result is cut at 126 characters, as in matiec */
@@ -35,6 +46,228 @@ static inline stc_string stc_str_concat(stc_string a, stc_string b)
     memcpy(a.body + a.len, b.body, n);
     a.len = (uint8_t)(a.len + n);
     return a;
+}
+
+/* The standard string functions, as matiec's library computes them (positions count from 1).
+ * Its length type is uint8_t upstream and int8_t in OpenPLC's fork; a negative L or P gives
+ * ''. Where matiec would copy outside the 126 characters (P = 0 in DELETE or REPLACE), stc
+ * stops at the bounds. */
+#if STC_FORK
+typedef int8_t stc_strlen;
+#else
+typedef uint8_t stc_strlen;
+#endif
+static inline size_t stc_str_n(int64_t n, int64_t room)
+{
+    return n <= 0 || room <= 0 ? 0u : (size_t)(n > room ? room : n);
+}
+static inline int64_t stc_sl(stc_strlen x) { return (int64_t)x; }
+static inline stc_string stc_str_empty(void) { stc_string r; r.len = 0; return r; }
+static inline stc_string stc_str_left(stc_string in, int64_t l)
+{
+    stc_string r = stc_str_empty();
+    if (l < 0) return r;
+    if (l > in.len) l = in.len;
+    r.len = (uint8_t)stc_str_n(l, 126);
+    memcpy(r.body, in.body, r.len);
+    return r;
+}
+static inline stc_string stc_str_right(stc_string in, int64_t l)
+{
+    stc_string r = stc_str_empty();
+    if (l < 0) return r;
+    if (l > in.len) l = in.len;
+    r.len = (uint8_t)stc_str_n(l, 126);
+    memcpy(r.body, in.body + (in.len - r.len), r.len);
+    return r;
+}
+static inline stc_string stc_str_mid(stc_string in, int64_t l, int64_t p)
+{
+    stc_string r = stc_str_empty();
+    const uint8_t *raw = (const uint8_t *)&in;     /* the length byte, then the characters */
+    if (l < 0 || p < 0 || p > in.len) return r;
+    p -= 1;          /* matiec: P = 0 starts at the length byte */
+    if (l + p > in.len) l = in.len - p;
+    r.len = (uint8_t)stc_str_n(l, 126 - p);
+    memcpy(r.body, raw + 1 + p, r.len);
+    return r;
+}
+static inline stc_string stc_str_insert(stc_string a, stc_string b, int64_t p64)
+{
+    stc_string r = stc_str_empty();
+    stc_strlen p = (stc_strlen)p64;
+    size_t n;
+    if (p64 < 0) return r;
+    n = stc_str_n(p > a.len ? a.len : p, 126);
+    memcpy(r.body, a.body, n);
+    r.len = (uint8_t)n;
+    n = stc_str_n(b.len, 126 - r.len);
+    memcpy(r.body + r.len, b.body, n);
+    r.len = (uint8_t)(r.len + n);
+    n = stc_str_n(a.len - (int64_t)(p > a.len ? a.len : stc_sl(p) < 0 ? 0 : p), 126 - r.len);
+    memcpy(r.body + r.len, a.body + (p > a.len ? a.len : stc_sl(p) < 0 ? 0 : p), n);
+    r.len = (uint8_t)(r.len + n);
+    return r;
+}
+static inline stc_string stc_str_delete(stc_string in, int64_t l64, int64_t p64)
+{
+    stc_string r = stc_str_empty();
+    stc_strlen l = (stc_strlen)l64, p = (stc_strlen)p64;
+    size_t n;
+    if (l64 < 0 || p64 < 0) return r;
+    n = stc_str_n(p > in.len ? in.len : p - 1, in.len);
+    memcpy(r.body, in.body, n);
+    r.len = (uint8_t)n;
+    if ((int64_t)in.len > (int64_t)n + l) {
+        size_t k = stc_str_n((int64_t)in.len - (int64_t)n - l, 126 - r.len);
+        memcpy(r.body + r.len, in.body + n + l, k);
+        r.len = (uint8_t)(r.len + k);
+    }
+    return r;
+}
+static inline stc_string stc_str_replace(stc_string a, stc_string b, int64_t l64, int64_t p64)
+{
+    stc_string r = stc_str_empty();
+    stc_strlen l = (stc_strlen)l64, p = (stc_strlen)p64;
+    size_t n;
+    int64_t rest;
+    if (l64 < 0 || p64 < 0) return r;
+    n = stc_str_n(p > a.len ? a.len : p - 1, a.len);
+    memcpy(r.body, a.body, n);
+    r.len = (uint8_t)n;
+#if STC_MATIEC
+    n = stc_str_n(b.len < l ? b.len : l, 126 - r.len);  /* matiec inserts at most L of IN2 */
+#else
+    n = stc_str_n(b.len, 126 - r.len);
+#endif
+    memcpy(r.body + r.len, b.body, n);
+    r.len = (uint8_t)(r.len + n);
+    rest = (int64_t)(stc_strlen)(r.len - n + l);
+    if (r.len < 126 && rest >= 0 && rest < a.len) {
+        n = stc_str_n(a.len - rest, 126 - r.len);
+        memcpy(r.body + r.len, a.body + rest, n);
+        r.len = (uint8_t)(r.len + n);
+    }
+    return r;
+}
+static inline int64_t stc_str_find(stc_string a, stc_string b)
+{
+    unsigned i = 0, k = 0;     /* matiec: offset of the candidate, characters matched */
+#if STC_MATIEC
+#if !STC_FORK
+    if (!(b.len > 0 && a.len >= b.len)) return 0;
+#endif
+    while (i + k < a.len && k < b.len) {
+        if (a.body[i + k] != b.body[k]) {
+            i += k + 1;      /* matiec resumes after the partial match: FIND('aab', 'ab') = 0 */
+            k = 0;
+        } else {
+            k++;
+        }
+    }
+#if STC_FORK
+    return (int)k == (int)b.len - 1 ? 0 : (int64_t)i + 1;   /* the fork: 0 only then */
+#else
+    return k == b.len ? (int64_t)i + 1 : 0;
+#endif
+#else
+    if (b.len == 0 || b.len > a.len) return 0;
+    for (i = 0; i + b.len <= a.len; i++)
+        if (memcmp(a.body + i, b.body, b.len) == 0) return (int64_t)i + 1;
+    (void)k;
+    return 0;
+#endif
+}
+
+/* <type>_TO_STRING and STRING_TO_<type> as matiec's library: snprintf of at most 125
+ * characters ("TRUE"/"FALSE", %lld, %llu, 16#%llx for bit strings, %.10g for REAL), and a
+ * parser that takes 2#, 8#, 16# prefixes, and otherwise the digits before the last character
+ * from '.' up ('12.7' and '12a3' give 12), 20 digits at most. */
+static inline stc_string stc_str_fmt(int n, const char *buf)
+{
+    stc_string r = stc_str_empty();
+    if (n < 0) n = 0;
+    memcpy(r.body, buf, (size_t)(n < 125 ? n : 125));
+    r.len = (uint8_t)(n > 126 ? 126 : n);
+    return r;
+}
+static inline stc_string stc_str_of_bool(int x)
+{
+    return x ? stc_str_fmt(4, "TRUE") : stc_str_fmt(5, "FALSE");
+}
+static inline stc_string stc_str_of_i(int64_t x)
+{
+    char buf[128];
+    return stc_str_fmt(snprintf(buf, 126, "%lld", (long long)x), buf);
+}
+static inline stc_string stc_str_of_u(uint64_t x)
+{
+    char buf[128];
+    return stc_str_fmt(snprintf(buf, 126, "%llu", (unsigned long long)x), buf);
+}
+static inline stc_string stc_str_of_bits(uint64_t x)
+{
+    char buf[128];
+    return stc_str_fmt(snprintf(buf, 126, "16#%llx", (unsigned long long)x), buf);
+}
+static inline stc_string stc_str_of_real(double x)
+{
+    char buf[128];
+    return stc_str_fmt(snprintf(buf, 126, "%.10g", x), buf);
+}
+static inline uint8_t stc_str_to_bool(stc_string s)
+{
+    int i;
+    if (s.len == 1) return s.body[0] == '1';
+    if (s.len != 4) return 0;
+    for (i = 0; i < 4; i++) s.body[i] = (uint8_t)toupper(s.body[i]);
+    return memcmp(s.body, "TRUE", 4) == 0;
+}
+static inline int64_t stc_str_to_i(stc_string s)
+{
+    uint64_t res = 0;
+    int l, shift = 0;
+    if (s.len < 1) return 0;
+    if (s.len > 1 && s.body[0] == '2' && s.body[1] == '#') {
+        for (l = s.len - 1; l >= 2 && shift < 64; l--)
+            if (s.body[l] == '0' || s.body[l] == '1') { res |= (uint64_t)(s.body[l] - '0') << shift; shift += 1; }
+    } else if (s.len > 1 && s.body[0] == '8' && s.body[1] == '#') {
+        for (l = s.len - 1; l >= 2 && shift < 64; l--)
+            if (s.body[l] >= '0' && s.body[l] <= '7') { res |= (uint64_t)(s.body[l] - '0') << shift; shift += 3; }
+    } else if (s.len > 2 && s.body[0] == '1' && s.body[1] == '6' && s.body[2] == '#') {
+        for (l = s.len - 1; l >= 3 && shift < 64; l--) {
+            int c = s.body[l];
+            int d = (c >= '0' && c <= '9') ? c - '0' : (c >= 'a' && c <= 'f') ? c - 'a' + 10 :
+                    (c >= 'A' && c <= 'F') ? c - 'A' + 10 : -1;
+            if (d >= 0) { res |= (uint64_t)d << shift; shift += 4; }
+        }
+    } else {
+        int64_t fac = s.body[0] == '-' ? -1 : 1;
+        for (l = s.len; l > 0 && shift < 20; l--) {
+            int c = s.body[l - 1];
+            if (c >= '0' && c <= '9') {
+                res += (uint64_t)((int64_t)(c - '0') * fac);
+                fac = (int64_t)((uint64_t)fac * 10u);
+                shift += 1;
+            } else if (c >= '.') {
+                res = 0;
+                fac = s.body[0] == '-' ? -1 : 1;
+                shift = 0;
+            }
+        }
+    }
+    return (int64_t)res;
+}
+static inline double stc_str_to_real(stc_string s)
+{
+    char buf[128];
+    int l = s.len;
+    while (l > 0 && s.body[--l] != '.')
+        ;
+    if (l == 0) return (double)stc_str_to_i(s);
+    memcpy(buf, s.body, s.len);
+    buf[s.len] = 0;
+    return atof(buf);
 }
 
 /* C storage type of each IEC type name that can appear in LOCATED_VARIABLES.h, so a runtime
@@ -97,6 +330,26 @@ static inline uint64_t stc_for_count_u(uint64_t start, uint64_t end, uint64_t st
     return (step > 0u && start <= end) ? (end - start) / step + 1u : 0u;
 }
 
+/* upstream matiec's FOR (--semantics=matiec) tests before each pass, and before the
+ * increment: the first pass needs start < end (no BY) or start + BY <= end (>= for a negative
+ * BY), so FOR i := 5 TO 5 runs zero times; after the loop the variable holds the last value. */
+static inline int stc_for_first_up(int64_t start, int64_t end, int64_t step, int has_by)
+{
+    if (!has_by)
+        return start < end;
+    if (step > 0)
+        return start <= end && (uint64_t)end - (uint64_t)start >= (uint64_t)step;
+    if (step < 0)
+        return start >= end && (uint64_t)start - (uint64_t)end >= 0u - (uint64_t)step;
+    return 0;
+}
+static inline int stc_for_first_up_u(uint64_t start, uint64_t end, uint64_t step, int has_by)
+{
+    if (!has_by)
+        return start < end;
+    return step > 0u && start <= end && end - start >= step;
+}
+
 /* Integer division and modulo: x / 0 = 0, x MOD 0 = 0, MIN / -1 wraps to MIN. */
 #define STC_DIV_SIGNED(T, N, MINV) \
     static inline T stc_div_##N(T a, T b) { return b == 0 ? 0 : (b == -1 ? (T)(0u - (uint64_t)a) : (T)(a / b)); } \
@@ -132,30 +385,78 @@ static inline int64_t stc_time_mul(int64_t t, int64_t n) { return (int64_t)((uin
 static inline int64_t stc_time_mulf(int64_t t, double n) { double r = (double)t * n; return (r >= 9.2e18 || r <= -9.2e18) ? 0 : (int64_t)r; }
 static inline int64_t stc_time_divf(int64_t t, double n) { double r = n == 0.0 ? 0.0 : (double)t / n; return (r >= 9.2e18 || r <= -9.2e18) ? 0 : (int64_t)r; }
 
-/* matiec's TIME * number and TIME / number (--semantics=matiec). Its library scales the
- * seconds in double and the nanoseconds part through a 32-bit int: a double outside the int
- * range converts to INT_MIN on x86, so T#1ms * 2148 gives -2.147483648 s. Same arithmetic here,
- * without undefined behaviour. */
+/* matiec's TIME * number and TIME / number (the matiec modes, stc_mt_mul / stc_mt_div below).
+ * Its library scales the seconds in double and the nanoseconds part through a 32-bit int: a
+ * double outside the int range converts to INT_MIN on x86, so T#1ms * 2148 gives
+ * -2.147483648 s. Same arithmetic here, without undefined behaviour. */
 static inline int64_t stc_m_i32(double d) { return (d >= -2147483648.0 && d < 2147483648.0) ? (int64_t)(int32_t)d : (int64_t)INT32_MIN; }
 static inline int64_t stc_m_i64(double d) { return (d >= -9.2e18 && d < 9.2e18) ? (int64_t)d : INT64_MIN; }
-static inline int64_t stc_m_time(int64_t sec, int64_t nsec) { return (int64_t)((uint64_t)sec * 1000000000u + (uint64_t)nsec); }
-static inline int64_t stc_time_mul_m(int64_t t, double k)
+/* matiec's TIME arithmetic on {tv_sec, tv_nsec} pairs (--semantics=matiec/openplc): TIME
+ * expressions are pairs there. A pair is built with the seconds truncated toward zero and
+ * nanoseconds of the same sign; a sum or difference is normalised by one step that leaves
+ * tv_nsec = +-1e9 alone, so T#750ms + T#250ms is {0, 1000000000}, which compares (tv_sec first)
+ * below T#1s and converts to 0 seconds. */
+static inline stc_time stc_mt(long s, long ns) { stc_time t; t.tv_sec = s; t.tv_nsec = ns; return t; }
+static inline stc_time stc_mt_of(int64_t ns) { return stc_mt((long)(ns / 1000000000), (long)(ns % 1000000000)); }
+/* a duration literal as matiec's __time_to_timespec computes it, in long double (x86-64:
+ * 80-bit), from the numbers as written: T#1ms is 999999 ns, T#64ms 63999999 ns */
+static inline stc_time stc_mt_lit(int sign, double ms, double s, double m, double h, double d)
 {
-    int64_t sec = t / 1000000000, nsec = t % 1000000000, s, n;
-    double s_f = (double)sec * k;
-    s = stc_m_i64(s_f);
-    n = stc_m_i32((double)nsec * k);
-    return stc_m_time(s + n / 1000000000, stc_m_i64((double)(n % 1000000000) + (s_f - (double)s) * 1e9));
+    long double total = (sign >= 0 ? 1 : -1) *
+        ((((long double)d * 24 + (long double)h) * 60 + (long double)m) * 60 + (long double)s +
+         (long double)ms / 1e3);
+    long sec = (long)total;
+    return stc_mt(sec, (long)((total - (long double)sec) * 1e9));
 }
-static inline int64_t stc_time_div_m(int64_t t, double k)
+static inline stc_time stc_mt_of_real(double x)
 {
-    int64_t sec = t / 1000000000, nsec = t % 1000000000, s;
+    int64_t s = stc_m_i64(x);
+    return stc_mt((long)s, (long)stc_m_i64((x - (double)s) * 1e9));
+}
+static inline stc_time stc_mt_norm(stc_time t)
+{
+    /* wrapping (unsigned) arithmetic where matiec's C would overflow */
+    if (t.tv_nsec < -1000000000 || (t.tv_sec > 0 && t.tv_nsec < 0)) {
+        t.tv_sec = (long)((unsigned long)t.tv_sec - 1u);
+        t.tv_nsec = (long)((unsigned long)t.tv_nsec + 1000000000u);
+    }
+    if (t.tv_nsec > 1000000000 || (t.tv_sec < 0 && t.tv_nsec > 0)) {
+        t.tv_sec = (long)((unsigned long)t.tv_sec + 1u);
+        t.tv_nsec = (long)((unsigned long)t.tv_nsec - 1000000000u);
+    }
+    return t;
+}
+static inline stc_time stc_mt_add(stc_time a, stc_time b)
+{
+    return stc_mt_norm(stc_mt((long)((unsigned long)a.tv_sec + (unsigned long)b.tv_sec),
+                              (long)((unsigned long)a.tv_nsec + (unsigned long)b.tv_nsec)));
+}
+static inline stc_time stc_mt_sub(stc_time a, stc_time b)
+{
+    return stc_mt_norm(stc_mt((long)((unsigned long)a.tv_sec - (unsigned long)b.tv_sec),
+                              (long)((unsigned long)a.tv_nsec - (unsigned long)b.tv_nsec)));
+}
+static inline int stc_mt_cmp(stc_time a, stc_time b)
+{
+    if (a.tv_sec != b.tv_sec) return a.tv_sec < b.tv_sec ? -1 : 1;
+    return a.tv_nsec < b.tv_nsec ? -1 : a.tv_nsec > b.tv_nsec;
+}
+static inline stc_time stc_mt_mul(stc_time t, double k)
+{
+    double s_f = (double)t.tv_sec * k;
+    int64_t s = stc_m_i64(s_f), n = stc_m_i32((double)t.tv_nsec * k);
+    return stc_mt_norm(stc_mt((long)((uint64_t)s + (uint64_t)(n / 1000000000)),
+                              (long)stc_m_i64((double)(n % 1000000000) + (s_f - (double)s) * 1e9)));
+}
+static inline stc_time stc_mt_div(stc_time t, double k)
+{
     double s_f;
+    int64_t s;
     if (k == 0.0)
-        return 0;     /* matiec: undefined (division by zero in C) */
-    s_f = (double)sec / k;
+        return stc_mt(0, 0);     /* matiec: undefined (division by zero in C) */
+    s_f = (double)t.tv_sec / k;
     s = stc_m_i64(s_f);
-    return stc_m_time(s, stc_m_i64((double)nsec / k + (s_f - (double)s) * 1e9));
+    return stc_mt_norm(stc_mt((long)s, (long)stc_m_i64((double)t.tv_nsec / k + (s_f - (double)s) * 1e9)));
 }
 
 /* REAL ** number, EXPT, SQRT, LN, LOG, EXP: in double, like matiec (link with -lm). */
@@ -214,28 +515,98 @@ STC_CMP(f, double)
 
 /* ---- standard function blocks (IEC 61131-3 behaviour) ------------------------------- */
 
-typedef struct { uint8_t IN; stc_time PT; uint8_t Q; stc_time ET; uint8_t running; int64_t start; } TON;
-typedef struct { uint8_t IN; stc_time PT; uint8_t Q; stc_time ET; uint8_t running; int64_t start; } TOF;
-typedef struct { uint8_t IN; stc_time PT; uint8_t Q; stc_time ET; uint8_t running; uint8_t prev_in; int64_t start; } TP;
-typedef struct { uint8_t CLK; uint8_t Q; uint8_t mem; } R_TRIG;
-typedef struct { uint8_t CLK; uint8_t Q; uint8_t mem; } F_TRIG;
-typedef struct { uint8_t CU; uint8_t R; int16_t PV; uint8_t Q; int16_t CV; R_TRIG cu_edge; } CTU;
-typedef struct { uint8_t CD; uint8_t LD; int16_t PV; uint8_t Q; int16_t CV; R_TRIG cd_edge; } CTD;
-typedef struct { uint8_t CU; uint8_t CD; uint8_t R; uint8_t LD; int16_t PV; uint8_t QU; uint8_t QD; int16_t CV; R_TRIG cu_edge; R_TRIG cd_edge; } CTUD;
-typedef struct { uint8_t S1; uint8_t R; uint8_t Q1; } SR;
-typedef struct { uint8_t S; uint8_t R1; uint8_t Q1; } RS;
+/* EN / ENO: every instance has them (EN starts TRUE; a call without EN := leaves it as it is
+ * in matiec, sets it TRUE in IEC mode). state / prev_in: matiec's timer state machine. */
+typedef struct { uint8_t EN; uint8_t ENO; uint8_t IN; stc_time PT; uint8_t Q; stc_time ET; uint8_t running; uint8_t state; uint8_t prev_in; int64_t start; } TON;
+typedef struct { uint8_t EN; uint8_t ENO; uint8_t IN; stc_time PT; uint8_t Q; stc_time ET; uint8_t running; uint8_t state; uint8_t prev_in; int64_t start; } TOF;
+typedef struct { uint8_t EN; uint8_t ENO; uint8_t IN; stc_time PT; uint8_t Q; stc_time ET; uint8_t running; uint8_t state; uint8_t prev_in; int64_t start; } TP;
+typedef struct { uint8_t EN; uint8_t ENO; uint8_t CLK; uint8_t Q; uint8_t mem; } R_TRIG;
+typedef struct { uint8_t EN; uint8_t ENO; uint8_t CLK; uint8_t Q; uint8_t mem; } F_TRIG;
+typedef struct { uint8_t EN; uint8_t ENO; uint8_t CU; uint8_t R; int16_t PV; uint8_t Q; int16_t CV; R_TRIG cu_edge; } CTU;
+typedef struct { uint8_t EN; uint8_t ENO; uint8_t CD; uint8_t LD; int16_t PV; uint8_t Q; int16_t CV; R_TRIG cd_edge; } CTD;
+typedef struct { uint8_t EN; uint8_t ENO; uint8_t CU; uint8_t CD; uint8_t R; uint8_t LD; int16_t PV; uint8_t QU; uint8_t QD; int16_t CV; R_TRIG cu_edge; R_TRIG cd_edge; } CTUD;
+typedef struct { uint8_t EN; uint8_t ENO; uint8_t S1; uint8_t R; uint8_t Q1; } SR;
+typedef struct { uint8_t EN; uint8_t ENO; uint8_t S; uint8_t R1; uint8_t Q1; } RS;
 
-static inline void TON_init__(TON *fb) { memset(fb, 0, sizeof *fb); }
-static inline void TOF_init__(TOF *fb) { memset(fb, 0, sizeof *fb); }
-static inline void TP_init__(TP *fb) { memset(fb, 0, sizeof *fb); }
-static inline void R_TRIG_init__(R_TRIG *fb) { memset(fb, 0, sizeof *fb); }
-static inline void F_TRIG_init__(F_TRIG *fb) { memset(fb, 0, sizeof *fb); }
-static inline void CTU_init__(CTU *fb) { memset(fb, 0, sizeof *fb); }
-static inline void CTD_init__(CTD *fb) { memset(fb, 0, sizeof *fb); }
-static inline void CTUD_init__(CTUD *fb) { memset(fb, 0, sizeof *fb); }
-static inline void SR_init__(SR *fb) { memset(fb, 0, sizeof *fb); }
-static inline void RS_init__(RS *fb) { memset(fb, 0, sizeof *fb); }
+static inline void TON_init__(TON *fb) { memset(fb, 0, sizeof *fb); fb->EN = 1; fb->ENO = 1; }
+static inline void TOF_init__(TOF *fb) { memset(fb, 0, sizeof *fb); fb->EN = 1; fb->ENO = 1; }
+static inline void TP_init__(TP *fb) { memset(fb, 0, sizeof *fb); fb->EN = 1; fb->ENO = 1; }
+static inline void R_TRIG_init__(R_TRIG *fb) { memset(fb, 0, sizeof *fb); fb->EN = 1; fb->ENO = 1; }
+static inline void F_TRIG_init__(F_TRIG *fb) { memset(fb, 0, sizeof *fb); fb->EN = 1; fb->ENO = 1; }
+static inline void CTU_init__(CTU *fb) { memset(fb, 0, sizeof *fb); fb->EN = 1; fb->ENO = 1; }
+static inline void CTD_init__(CTD *fb) { memset(fb, 0, sizeof *fb); fb->EN = 1; fb->ENO = 1; }
+static inline void CTUD_init__(CTUD *fb) { memset(fb, 0, sizeof *fb); fb->EN = 1; fb->ENO = 1; }
+static inline void SR_init__(SR *fb) { memset(fb, 0, sizeof *fb); fb->EN = 1; fb->ENO = 1; }
+static inline void RS_init__(RS *fb) { memset(fb, 0, sizeof *fb); fb->EN = 1; fb->ENO = 1; }
 
+#if STC_MATIEC
+/* matiec's timers (upstream and fork): a state machine that only starts timing on the call
+ * that sees the edge and compares start + PT <= now from the next call on, so with PT = T#0s
+ * TON's and TP's Q change (and TOF's Q falls) one call late. */
+static inline void TON_body__(TON *fb, int64_t now)
+{
+    if (fb->state == 0 && !fb->prev_in && fb->IN) {
+        fb->state = 1;
+        fb->Q = 0;
+        fb->start = now;
+    } else if (!fb->IN) {
+        fb->ET = stc_time_of(0);
+        fb->Q = 0;
+        fb->state = 0;
+    } else if (fb->state == 1) {
+        if ((int64_t)((uint64_t)fb->start + (uint64_t)stc_time_ns(fb->PT)) <= now) {
+            fb->state = 2;
+            fb->Q = 1;
+            fb->ET = fb->PT;
+        } else {
+            fb->ET = stc_time_of(now - fb->start);
+        }
+    }
+    fb->prev_in = fb->IN;
+}
+
+static inline void TOF_body__(TOF *fb, int64_t now)
+{
+    if (fb->state == 0 && fb->prev_in && !fb->IN) {
+        fb->state = 1;
+        fb->start = now;
+    } else if (fb->IN) {
+        fb->ET = stc_time_of(0);
+        fb->state = 0;
+    } else if (fb->state == 1) {
+        if ((int64_t)((uint64_t)fb->start + (uint64_t)stc_time_ns(fb->PT)) <= now) {
+            fb->state = 2;
+            fb->ET = fb->PT;
+        } else {
+            fb->ET = stc_time_of(now - fb->start);
+        }
+    }
+    fb->Q = (uint8_t)(fb->IN || fb->state == 1);
+    fb->prev_in = fb->IN;
+}
+
+static inline void TP_body__(TP *fb, int64_t now)
+{
+    if (fb->state == 0 && !fb->prev_in && fb->IN) {
+        fb->state = 1;
+        fb->Q = 1;
+        fb->start = now;
+    } else if (fb->state == 1) {
+        if ((int64_t)((uint64_t)fb->start + (uint64_t)stc_time_ns(fb->PT)) <= now) {
+            fb->state = 2;
+            fb->Q = 0;
+            fb->ET = fb->PT;
+        } else {
+            fb->ET = stc_time_of(now - fb->start);
+        }
+    }
+    if (fb->state == 2 && !fb->IN) {
+        fb->ET = stc_time_of(0);
+        fb->state = 0;
+    }
+    fb->prev_in = fb->IN;
+}
+#else
 /* TON: Q goes TRUE when IN has been TRUE for PT; ET counts up to PT while IN is TRUE. */
 static inline void TON_body__(TON *fb, int64_t now)
 {
@@ -311,10 +682,12 @@ static inline void TP_body__(TP *fb, int64_t now)
         fb->ET = stc_time_of(0);
     }
 }
+#endif
 
 static inline void R_TRIG_body__(R_TRIG *fb) { fb->Q = (uint8_t)(fb->CLK && !fb->mem); fb->mem = fb->CLK; }
-#if STC_MATIEC
-/* matiec: M starts FALSE and holds NOT CLK, so Q is TRUE on the first call when CLK is FALSE */
+#if STC_MATIEC && !STC_FORK
+/* upstream matiec: M starts FALSE and holds NOT CLK, so Q is TRUE on the first call when CLK
+ * is FALSE (OpenPLC's fork keeps M = CLK, as IEC) */
 static inline void F_TRIG_body__(F_TRIG *fb) { fb->Q = (uint8_t)(!fb->CLK && !fb->mem); fb->mem = (uint8_t)!fb->CLK; }
 #else
 static inline void F_TRIG_body__(F_TRIG *fb) { fb->Q = (uint8_t)(!fb->CLK && fb->mem); fb->mem = fb->CLK; }

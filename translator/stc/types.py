@@ -186,7 +186,13 @@ STD_FBS = {fb.name: fb for fb in [
 # generic standard functions handled by the checker (names are reserved as identifiers)
 STD_FUNCS = {"ABS", "MIN", "MAX", "LIMIT", "SEL", "MUX", "SHL", "SHR", "ROL", "ROR", "MOVE",
              "ADD", "SUB", "MUL", "DIV", "SQRT", "EXPT", "TRUNC", "LN", "LOG", "EXP",
-             "LEN", "CONCAT"}
+             "LEN", "CONCAT", "LEFT", "RIGHT", "MID", "FIND", "INSERT", "DELETE", "REPLACE",
+             "SIN", "COS", "TAN", "ASIN", "ACOS", "ATAN"}
+
+# the standard string functions: parameter names in order (STRING or integer)
+STR_FUNCS = {"LEFT": ("IN", "L"), "RIGHT": ("IN", "L"), "MID": ("IN", "L", "P"),
+             "FIND": ("IN1", "IN2"), "INSERT": ("IN1", "IN2", "P"), "DELETE": ("IN", "L", "P"),
+             "REPLACE": ("IN1", "IN2", "L", "P")}
 
 STRING = ELEMENTARY["STRING"]
 STR_MAX = 126      # matiec's STR_MAX_LEN: characters a STRING holds

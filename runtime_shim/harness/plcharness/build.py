@@ -107,6 +107,24 @@ def _run(cmd, what, cwd=None):
     return proc
 
 
+SEMANTICS = (None, "matiec", "openplc", "iec")
+
+
+def is_openplc_config(path) -> bool:
+    """True for an OpenPLC v3 mbconfig.cfg (no [sections]; its first key is Num_Devices or a
+    deviceN. key), the same test the runtime's config loader makes."""
+    try:
+        text = Path(path).read_text(errors="replace")
+    except OSError:
+        return False
+    for raw in text.splitlines():
+        line = raw.strip()
+        if not line or line.startswith("#"):
+            continue
+        return bool(re.match(r"(Num_Devices|device\d+\.)", line))
+    return False
+
+
 def _translate_stc(sources, gen, semantics=None):
     sem = [f"--semantics={semantics}"] if semantics else []
     cmd = _stc_command() + sem + ["-o", str(gen)] + [str(s) for s in sources]
@@ -454,8 +472,9 @@ def _check_outdir(outdir: Path):
 
 def build_program(sources, outdir, compiler="auto", cflags=None, semantics=None) -> BuildResult:
     """Translate and link ST sources; the result lands in outdir (created).
-    semantics: None (stc's default, matiec) or "matiec" / "iec" (stc --semantics; ignored
-    when matiec itself translates)."""
+    semantics: None (stc's default, matiec) or "matiec" / "openplc" / "iec" (stc --semantics:
+    upstream matiec's values, those of OpenPLC v3's matiec fork, IEC 61131-3's; ignored when
+    matiec itself translates)."""
     sources = [Path(s).resolve() for s in sources]
     for s in sources:
         if not s.exists():
@@ -465,11 +484,11 @@ def build_program(sources, outdir, compiler="auto", cflags=None, semantics=None)
                              "not an ST source")
     compiler = resolve_compiler(compiler)
     if semantics is None:
-        # PLCRT_SEMANTICS=iec runs a whole test suite under IEC values (make test does, for
-        # st_lib and the chain: an outcome that differs is a portability bug in our ST)
+        # PLCRT_SEMANTICS=iec (or openplc) runs a whole test suite under those values (make
+        # test does, for st_lib and the chain: an outcome that differs is a portability bug)
         semantics = os.environ.get("PLCRT_SEMANTICS") or None
-    if semantics not in (None, "matiec", "iec"):
-        raise BuildError(f"semantics {semantics!r}: error: give matiec or iec")
+    if semantics not in SEMANTICS:
+        raise BuildError(f"semantics {semantics!r}: error: give matiec, openplc or iec")
     outdir = Path(outdir).resolve()
     _check_outdir(outdir)
     key = _hash_inputs(sources, compiler, _compiler_fingerprint(compiler) + repr(cflags) +
@@ -609,8 +628,9 @@ def main(argv=None):
     ap = _OneLineParser(prog="plcrt-build", description=__doc__.split("\n\n")[0])
     ap.add_argument("-o", "--outdir", required=True)
     ap.add_argument("--compiler", default="auto", choices=["auto", "stc", "matiec"])
-    ap.add_argument("--semantics", choices=["matiec", "iec"], default=None,
-                    help="stc only: run-time values of matiec (stc's default) or IEC 61131-3")
+    ap.add_argument("--semantics", choices=["matiec", "openplc", "iec"], default=None,
+                    help="stc only: run-time values of upstream matiec (stc's default), of "
+                         "OpenPLC v3's matiec fork, or IEC 61131-3 (default: PLCRT_SEMANTICS)")
     ap.add_argument("sources", nargs="+")
     args = ap.parse_args(argv)
     try:

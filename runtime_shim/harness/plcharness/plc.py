@@ -9,7 +9,7 @@ import shutil
 import tempfile
 from pathlib import Path
 
-from .build import BuildError, BuildResult, build_program
+from .build import BuildError, BuildResult, build_program, is_openplc_config
 
 
 class PlcError(Exception):
@@ -226,15 +226,22 @@ class Plc:
     # ------------------------------------------------------------ construction
 
     @classmethod
-    def build(cls, sources, workdir=None, compiler="auto", config=None) -> "Plc":
+    def build(cls, sources, workdir=None, compiler="auto", config=None,
+              semantics=None) -> "Plc":
         """Translate and link the ST sources, load the program, run config_init__.
         config: a plcrt config (or OpenPLC mbconfig.cfg) whose Modbus master runs in the
-        same virtual time."""
+        same virtual time. semantics: stc --semantics (matiec, openplc, iec); by default
+        PLCRT_SEMANTICS, else openplc with an OpenPLC mbconfig.cfg (the program is meant for
+        OpenPLC, whose matiec fork computes some values differently), else stc's default."""
+        if semantics is None and not os.environ.get("PLCRT_SEMANTICS") and config is not None \
+                and is_openplc_config(config):
+            semantics = "openplc"
         if workdir is None:
             workdir = Path(tempfile.mkdtemp(prefix="plcharness-"))
         workdir = Path(workdir)
         workdir.mkdir(parents=True, exist_ok=True)
-        result = build_program(sources, workdir / "plc-build", compiler=compiler)
+        result = build_program(sources, workdir / "plc-build", compiler=compiler,
+                               semantics=semantics)
         return cls(result, workdir, config=config)
 
     def _err(self):
