@@ -30,12 +30,13 @@ def _pages():
 def test_inline_make_commands_name_real_targets():
     """Every `make ...` a page names in running text is a target the Makefile has (make -n:
     nothing runs). The command blocks themselves run in test_docs_commands.py."""
+    import shlex
     import subprocess
     found = {}
     for page in _pages():
         for m in re.finditer(r"`make ([^`]+)`", page.read_text()):
             cmd = re.split(r"\s(?:&&|\|\|?|;|>>?|<)\s", m.group(1) + " ")[0]
-            words = [w for w in cmd.split() if "=" not in w and not w.startswith("-")]
+            words = [w for w in shlex.split(cmd) if "=" not in w and not w.startswith("-")]
             for target in words:
                 found.setdefault(target, f"{page.relative_to(REPO)}")
     assert {"run", "test", "dist", "docs"} <= set(found)
