@@ -23,6 +23,7 @@ import hashlib
 import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -184,6 +185,21 @@ KNOWN = [
 ]
 
 
+# Configurations whose whole state space does not fit a search on CI's machine (2 cores,
+# 24 GB, minutes): measured with -DCOLLAPSE, each stops at 4 GB after about 26 M of (far) more
+# states (the runner before took that stop for "holds"). Until the model is reduced for them,
+# they run a bounded search: as much of the state space as --memlim holds (at 4096 MB more than
+# the runner before searched), in pan's depth-first order, every violation in that part found;
+# the verdict says "bounded", and it is not a proof.
+BOUNDED = [
+    (r"^win2/bidi/ours-ours/spont/(up|down)\+rst-(snd|rcv)$",
+     "the pipelined link with a restart of either side: hundreds of millions of states"),
+]
+
+def bounded(name):
+    return any(re.search(rx, name) for rx, _ in BOUNDED)
+
+
 def expectation(name):
     for rx, kind, why in KNOWN:
         if re.search(rx, name):
@@ -321,6 +337,23 @@ def readable_trace(work, defs, limit=60):
     return text
 
 
+def run_pan(cmd, cwd, timeout):
+    """pan's output; at the timeout pan is interrupted (SIGINT), and then prints what it
+    searched so far, as at any other stop."""
+    p = subprocess.Popen(cmd, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                         universal_newlines=True)
+    try:
+        return p.communicate(timeout=timeout)[0], False
+    except subprocess.TimeoutExpired:
+        p.send_signal(signal.SIGINT)
+        try:
+            out = p.communicate(timeout=30)[0]
+        except subprocess.TimeoutExpired:
+            p.kill()
+            out = p.communicate()[0]
+        return out + "\nSearch not completed\n", True
+
+
 def run_one(name, defs, expect, work_root, maxdepth, memlim=4096, timeout=900, cache=None):
     work = os.path.join(work_root, re.sub(r"[^A-Za-z0-9]+", "_", name))
     shutil.rmtree(work, ignore_errors=True)
@@ -332,13 +365,11 @@ def run_one(name, defs, expect, work_root, maxdepth, memlim=4096, timeout=900, c
         # look for the documented kind alone (env.pml: SEEK), so that another violation
         # found first cannot hide it
         defs = dict(defs, SEEK="K_" + expect.split(":", 1)[1])
+    is_bounded = expect == "holds" and bounded(name)
     build(work, defs, sp["cc"] + ["-DMEMLIM=%d" % memlim], cache)
-    try:
-        rc, out = sh(["./pan"] + sp["pan"] + ["-m%d" % maxdepth, "-w24"], work, timeout=timeout)
-    except subprocess.TimeoutExpired:
-        out = "Search not completed\nerrors: 0\ntimed out"
+    out, timed_out = run_pan(["./pan"] + sp["pan"] + ["-m%d" % maxdepth, "-w24"], work, timeout)
     st = stats(out)
-    if "timed out" in out:
+    if timed_out and not st["errors"]:
         st["incomplete"] = "no result within %d s (--timeout)" % timeout
     kind = kind_of(out) if st["errors"] else None
     if kind and kind != "progress" and search == "liveness":
@@ -347,7 +378,10 @@ def run_one(name, defs, expect, work_root, maxdepth, memlim=4096, timeout=900, c
         sh(["./pan", "-m%d" % maxdepth, "-w24"], work, timeout=timeout)
     trace = readable_trace(work, defs) if kind else []
     secs = time.time() - t0
-    if expect == "holds":
+    if is_bounded and st["errors"] == 0 and st["incomplete"] and st["stored"]:
+        ok = True
+        verdict = "bounded: no violation in the first %d states (not a proof)" % st["stored"]
+    elif expect == "holds":
         ok = st["errors"] == 0 and not st["incomplete"]
         verdict = ("INCOMPLETE (%s)" % st["incomplete"]) if (st["incomplete"] and not kind) else \
             ("holds" if ok else "VIOLATED " + (kind or "?"))
@@ -423,7 +457,8 @@ def main(argv):
            and not any(x in n for x in a.x)]
     if a.list:
         for name, defs, expect, what in sel:
-            print("%-36s %-24s %-9s %s" % (name, expect, search_for(expect), what))
+            search = search_for(expect) + (" bounded" if expect == "holds" and bounded(name) else "")
+            print("%-36s %-24s %-16s %s" % (name, expect, search, what))
         return 0
     if not sel:
         print("model/run.py: error: no configuration matches -k %r" % a.k, file=sys.stderr)
@@ -462,6 +497,7 @@ def main(argv):
                     f.write("\n".join(r["trace"]) + "\n")
     results = [results[c[0]] for c in sel]   # the report in the matrix's order
     npass = sum(r["ok"] for r in results)
+    nbounded = sum(r["verdict"].startswith("bounded") for r in results)
     nfail = len(results) - npass
     if a.junit:
         os.makedirs(os.path.dirname(os.path.abspath(a.junit)), exist_ok=True)
@@ -479,6 +515,9 @@ def main(argv):
         shutil.rmtree(work_root, ignore_errors=True)
     print("model: %d configurations in %.0f s wall with %d jobs (%.0f s of searching)"
           % (len(results), time.time() - t_start, a.j, sum(r["secs"] for r in results)))
+    if nbounded:
+        print("model: %d of the passed are bounded searches, not proofs (model/run.py BOUNDED)"
+              % nbounded)
     print("model: %d passed, %d failed" % (npass, nfail))
     return 0 if nfail == 0 else 1
 
