@@ -71,17 +71,12 @@ def parse_args(argv):
         p.error("--per-transfer must be 0..65534")
     if a.per_transfer == 0 and a.records > 65534:
         p.error("more than 65534 records: give --per-transfer")
-    a.baud = 0
-    if a.link != "tcp":
-        kind, _, baud = a.link.partition(":")
-        if kind != "rtu" or not baud.isdigit() or int(baud) not in RTU_BAUDS:
-            p.error(f"--link must be tcp or rtu:BAUD with BAUD one of "
-                    f"{', '.join(map(str, RTU_BAUDS))}, got {a.link!r}")
-        a.baud = int(baud)
+    try:
+        a.baud = L.parse_link(a.link)
+    except ValueError as e:
+        p.error(str(e))
     return a
 
-
-RTU_BAUDS = (1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200)
 
 
 def free_port():

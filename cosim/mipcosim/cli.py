@@ -76,19 +76,14 @@ def parse(argv):
         p.error("--tick-ms must be in 1..1000")
     if not 0 <= a.loss < 1:
         p.error("--loss must be in 0..1 (exclusive)")
-    a.baud = 0
-    if a.link != "tcp":
-        kind, _, baud = a.link.partition(":")
-        if kind != "rtu" or not baud.isdigit() or int(baud) not in RTU_BAUDS:
-            p.error(f"--link must be tcp or rtu:BAUD with BAUD one of "
-                    f"{', '.join(map(str, RTU_BAUDS))}, got {a.link!r}")
-        if a.transport != "inproc":
-            p.error("--link rtu:BAUD needs --transport inproc")
-        a.baud = int(baud)
+    try:
+        a.baud = L.parse_link(a.link)
+    except ValueError as e:
+        p.error(str(e))
+    if a.baud and a.transport != "inproc":
+        p.error("--link rtu:BAUD needs --transport inproc")
     return a
 
-
-RTU_BAUDS = (1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200)
 
 
 def link_timeout_ms(baud):

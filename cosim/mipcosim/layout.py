@@ -309,3 +309,18 @@ error = %IX1.3
 status = %IW21
 length = %QW1
 """)
+
+
+# the PLC-to-modem link of the demo and mip-cosim: "tcp" or "rtu:BAUD" (docs/serial.md)
+RTU_BAUDS = (1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200)
+
+
+def parse_link(text):
+    """0 for "tcp", the baud rate for "rtu:BAUD"; ValueError with the one line to show."""
+    if text == "tcp":
+        return 0
+    kind, _, baud = text.partition(":")
+    if kind != "rtu" or not baud.isdigit() or int(baud) not in RTU_BAUDS:
+        raise ValueError(f"--link must be tcp or rtu:BAUD with BAUD one of "
+                         f"{', '.join(map(str, RTU_BAUDS))}, got {text!r}")
+    return int(baud)
