@@ -122,6 +122,14 @@ def cmd_summary(a):
     return 1 if bad else 0
 
 
+def dry_run():
+    """make -n (or -t, -q) runs the recipe lines that call make, and so this script: it must
+    then change nothing (no log truncated, no result removed) and only say what it would do."""
+    words = os.environ.get("MAKEFLAGS", "").split()
+    return bool(words) and not words[0].startswith("-") and "=" not in words[0] \
+        and any(f in words[0] for f in "ntq")
+
+
 def main(argv):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -140,6 +148,9 @@ def main(argv):
             a.command = a.command[1:]
         if not a.command:
             ap.error("run: give the command after --")
+    if dry_run():
+        print("suite.py %s %s" % (a.cmd, " ".join(getattr(a, "command", []) or [])))
+        return 0
     return {"start": cmd_start, "run": cmd_run, "summary": cmd_summary}[a.cmd](a)
 
 

@@ -69,6 +69,13 @@ ONE_WORKER = (
 )
 
 
+def pytest_configure(config):
+    # tests that run make or the demo behave the same under `make test` as from a shell: the
+    # outer make's flags (-k, -j, PYTEST_MARK=..., its "Entering directory" lines) stay out
+    for k in ("MAKEFLAGS", "MFLAGS", "MAKELEVEL", "MAKEOVERRIDES"):
+        os.environ.pop(k, None)
+
+
 @pytest.hookimpl(tryfirst=True)   # before -m / -k deselect: every collected test is seen
 def pytest_collection_modifyitems(config, items):
     seen = {}
