@@ -33,7 +33,7 @@ docs: docs-blocks docs-traces docs-diagrams docs-plot docs-plcopen
 
 docs-blocks: | venv
 	cd $(DOCS_STLIB)/.. && $(PY) $(abspath $(DOCS_TOOLS))/blockref.py -o $(abspath docs/blocks.md) $(addprefix st_lib/,$(notdir $(DOCS_ST)))
-	$(PY) $(DOCS_TOOLS)/blockref.py --write-sampled st_lib/README.md --write-sampled st_lib/PROTOCOL.md $(DOCS_ST)
+	$(PY) $(DOCS_TOOLS)/blockref.py --write-sampled $(DOCS_STLIB)/README.md --write-sampled $(DOCS_STLIB)/PROTOCOL.md $(DOCS_ST)
 
 docs-traces: $(BUILD)/cosim/libmipcosim.so | venv
 	$(PY) $(DOCS_TOOLS)/gen_traces.py -o docs/traces
