@@ -55,7 +55,7 @@ def parse_args(argv):
     p.add_argument("--timeout", type=float, default=0,
                    help="give up after this many seconds (default: from the radio timing)")
     p.add_argument("--rundir", default=str(REPO / "build" / "plc" / "run"),
-                   help="configs, logs and the emulator trace go here (default build/plc/run)")
+                   help="the programs, configs, logs and the emulator trace go here (default build/plc/run)")
     a = p.parse_args(argv)
     if not 1 <= a.stations <= L.MAX_STATIONS:
         p.error(f"--stations must be 1..{L.MAX_STATIONS}")
@@ -209,9 +209,12 @@ def run(a):
     rundir = Path(a.rundir)
     rundir.mkdir(parents=True, exist_ok=True)
     for f in rundir.glob("*"):
-        f.unlink()
+        if not f.is_dir():
+            f.unlink()
     print(f"demo: building plc/outstation.st and plc/central.st ...", flush=True)
-    progs = build_programs(REPO / "build" / "plc")
+    # into the run's own directory: two demos at once (tests side by side) must not replace
+    # each other's programs while they run (the harness's cache makes a rebuild a copy)
+    progs = build_programs(rundir / "programs")
     emu = REPO / "build" / "emulator" / "mip-emulator"
     if not emu.is_file():
         raise DemoError(f"{emu} missing: run make")
