@@ -66,9 +66,12 @@
 
 /* BIDI: the sender's spontaneous repeat comes after a read (every scan of MIP_Link reads);
  * otherwise weak fairness alone lets a PLC repeat forever without ever reading, which hides
- * the out-of-step acknowledgement of P11 (a model artefact the uni configurations keep) */
+ * the out-of-step acknowledgement of P11 (a model artefact the uni configurations keep). And
+ * (PROTOCOL.md P3, bidirectional) only once a read saw the own modem confirm the block
+ * (conf): until then the modem sends the unconfirmed block again at every poll itself, and a
+ * repeat would only keep the confirmation P9 waits for from ever being seen */
 #if BIDI
-#define SCANREAD rd
+#define SCANREAD (rd && !pend[S] && conf)
 #else
 #define SCANREAD 1
 #endif
@@ -113,9 +116,29 @@
 #ifndef PIPE_CLOSE
 #define PIPE_CLOSE 1
 #endif
+/* PIPE_FRESH 1 = variant (bidirectional): the acknowledgement of the pipelined record counts
+ * only when it came with a telegram after that record's write. Window 2 in this layout is
+ * withdrawn (PROTOCOL.md P27: win2/bidi/...+rst-snd lose a record); this variant does not
+ * save it (the peer's writes carry its old session's number until it reads our record 1):
+ * model/run.py -k win2/bidi -D PIPE_FRESH=1 finds the same GAP */
+#ifndef PIPE_FRESH
+#define PIPE_FRESH 0
+#endif
 #if WIN == 2 && (POLLED || WRST_S)
 #error WIN 2: spontaneous drive, no warm restarts of the sender
 #endif
+
+/* W4 (bidirectional layout with warm restarts, PROTOCOL.md section 11): MIP_Link's one write
+ * carries both parts' state, so it goes out only when the last snapshot holds every part it
+ * carries. LINKGATE 1 = the rule: the other stream's writes wait while this side's checked
+ * part has a change no snapshot holds (a new record built, W1; a new acknowledgement, W2).
+ * LINKGATE 0 = variant for findings: the other part's write carries the unsaved state (one
+ * such write may come between the change and its snapshot, and a warm restart right after
+ * it), which the model must find unsafe. */
+#ifndef LINKGATE
+#define LINKGATE 1
+#endif
+#define W4_GATED (LINKGATE == 1 && DURABLE)
 
 #define A_RESET  5   /* P12: acknowledgement 0 after a counted record */
 #define A_OOS    6   /* P11: out of step for the whole bound */
@@ -135,6 +158,12 @@ bool sr_first = 1, sr_uoos, sr_sempty, sr_nolone;
 int  sr_compl;
 
 /* the sender's state differs from its last snapshot (a periodic save would change it) */
+/* the last snapshot holds the sender gone idle (W4: its image is record 0) */
+#define S_IDLE_HELD (WRST_S == 0 || !W4_GATED || ss_pc == PC_IDLE)
+
+/* the last snapshot holds the record the sender has built (W4) */
+#define S_HELD (WRST_S == 0 || !W4_GATED || (ss_t == t && ss_cur == cur))
+
 #define S_CHANGED (ss_t != t || ss_cur != cur || ss_conf != conf || ss_fresh != fresh || ss_oos != oos || ss_first != first)
 
 inline s_save(pc) {
@@ -145,6 +174,9 @@ inline s_save(pc) {
         printf("@ sender snapshot (pc %d, record %d of t%d)\n", pc, cur, t)
     }
 }
+
+/* the last snapshot holds the number the receiver acknowledges (W4) */
+#define R_HELD (WRST_R == 0 || !W4_GATED || (sr_L == L && sr_Lchk == Lchk))
 
 #define R_CHANGED (sr_L != L || sr_Lchk != Lchk || sr_first != first || sr_uoos != uoos || sr_sempty != sempty || sr_nolone != nolone || sr_oldchk != oldchk || sr_at != a_t || sr_ai != a_i)
 
@@ -202,7 +234,7 @@ SND_WAIT_REQUEST:
         };
         if :: act == A_SEND -> act = A_NONE; goto send :: else -> skip fi
 #if BIDI
-    :: nbw[S] > 0 -> mb_write_other(S, ctr, t, cur)   /* MIP_Link: the built record goes along */
+    :: nbw[S] > 0 && S_HELD -> mb_write_other(S, ctr, t, cur)   /* MIP_Link: the built record goes along (W4: once a snapshot holds it) */
 #endif
     :: rst_s > 0 -> goto restart
     :: WRST_S > 0 && S_CHANGED -> s_save(PC_REQ)     /* a periodic snapshot */
@@ -210,6 +242,16 @@ SND_WAIT_REQUEST:
     od;
 #endif
 send:
+#if BIDI
+    /* without W4 (LINKGATE 0): the other part's write carries the new record before its
+     * snapshot, and the PLC may die right after it */
+    if
+    :: WRST_S > 0 && DURABLE && LINKGATE == 0 && newrec && nbw[S] > 0 ->
+        mb_write_other(S, ctr, t, cur);
+        if :: wrst_s > 0 -> goto wrestart :: skip fi
+    :: skip
+    fi;
+#endif
     /* W1: the record's first write only after a snapshot that holds it (and the
      * acknowledgement of the one before) */
     if :: WRST_S > 0 && DURABLE && newrec -> s_save(PC_SEND) :: else -> skip fi;
@@ -243,7 +285,7 @@ SND_WAIT_ACK:
             if
 #if WIN == 2
 #if BIDI
-            :: sent2 && nc == CTR(cur + 1) && ((fresh2 && conf2) || PIPE_P9 == 0) ->
+            :: sent2 && nc == CTR(cur + 1) && ((fresh2 && conf2) || (PIPE_P9 == 0 && (fresh2 || PIPE_FRESH == 0))) ->
 #else
             :: sent2 && nc == CTR(cur + 1) && (nx == 0 || nx == CHK(t, cur + 1) || P8_MODE == 1) ->
 #endif
@@ -258,6 +300,12 @@ SND_WAIT_ACK:
                 :: cur + 1 == NREC -> act = A_DONE
                 :: else -> act = A_NEXT; cur = cur + 2; ctr = CTR(cur); newrec = 1
                 fi
+#if BIDI
+            :: sent2 && nc == CTR(cur + 1) && !((fresh2 && conf2) || (PIPE_P9 == 0 && (fresh2 || PIPE_FRESH == 0))) ->
+                /* the pipelined record's number, not counted yet (PIPE_FRESH: no telegram
+                 * since its write): in step, the sender waits */
+                oos = 0; otmr[S] = 0
+#endif
 #endif
 #if BIDI
             :: nc == ctr && fresh && (conf || P9_MODE == 1) ->
@@ -284,6 +332,16 @@ SND_WAIT_ACK:
                 :: cur == NREC -> act = A_DONE
                 :: else -> act = A_NEXT; cur++; ctr = CTR(cur); conf = 0; fresh = 0; newrec = 1   /* P25 */
                 fi
+#endif
+#if BIDI
+            :: nc == ctr && !(fresh && (conf || P9_MODE == 1)) ->
+                /* P9 not yet (no own-modem confirmation, or no telegram since the write): the
+                 * number is the record in flight, so it is in step (P11); the sender waits
+                 * (MIP_Sender: xAckMatch) and repeats on its timer once the confirmation was
+                 * seen (SCANREAD); polled: this request is not answered with a repeat (P3:
+                 * the modem sends the unconfirmed block again itself; with a telegram, P9
+                 * lacks only the confirmation here) */
+                oos = 0; otmr[S] = 0
 #endif
             :: cur > 1 && nc == 0 -> act = A_RESET                   /* P12 peer reset */
             :: (cur == 1 && (nc == 0 || nc == LAST)) || (cur > 1 && nc == prev) ->
@@ -337,7 +395,7 @@ SND_WAIT_ACK:
         mb_write_other(S, pc2, t, pi2);
         d_step { pc2 = 0; pi2 = 0 }
 #elif BIDI
-    :: nbw[S] > 0 -> mb_write_other(S, ctr, t, cur)   /* the other stream's write re-sends the record */
+    :: nbw[S] > 0 && S_HELD -> mb_write_other(S, ctr, t, cur)   /* the other stream's write re-sends the record */
 #endif
     :: rst_s > 0 -> goto restart
     :: WRST_S > 0 && S_CHANGED -> s_save(PC_ACK)     /* a periodic snapshot */
@@ -377,7 +435,11 @@ idle:
     do
     :: d_step { mb_read(S, nw, nc, nx, nt, ni); clr_read(nw, nc, nx, nt, ni); first = 0 }
 #if BIDI
-    :: nbw[S] > 0 -> mb_write_other(S, 0, 0, 0)      /* an idle MIP_Link sends record 0 */
+    /* an idle MIP_Link sends record 0 (W4: once a snapshot holds the idle sender; a rollback
+     * to its last record after the peer saw 0 and forgot the transfer would send 16#FFFF to a
+     * receiver that takes it for a one-record transfer) */
+    :: nbw[S] > 0 && S_IDLE_HELD -> mb_write_other(S, 0, 0, 0)
+    :: WRST_S > 0 && ss_pc != PC_IDLE -> s_save(PC_IDLE)   /* the snapshot it asks for */
 #endif
     :: wrst_s > 0 -> goto wrestart
     od
@@ -459,6 +521,16 @@ RCV_IN_TRANSFER:          /* also RCV_COMPLETE (L = 16#FFFF): one loop, L tells 
         if
         :: act == A_ACK ->
             act = A_NONE;
+#if BIDI
+            /* without W4 (LINKGATE 0): the other part's write carries the new acknowledgement
+             * before its snapshot, and the PLC may die right after it */
+            if
+            :: WRST_R > 0 && DURABLE && LINKGATE == 0 && nbw[R] > 0 && !(sr_L == L && sr_Lchk == Lchk) ->
+                mb_write_other(R, L, 0, 0);
+                if :: wrst_r > 0 -> goto rwarm :: skip fi
+            :: skip
+            fi;
+#endif
             /* W2: an acknowledgement only after a snapshot that holds what it confirms */
             if :: WRST_R > 0 && DURABLE -> r_save() :: else -> skip fi;
             mb_write(R, L, ECHO(L, Lchk), 0, 0)
@@ -466,7 +538,7 @@ RCV_IN_TRANSFER:          /* also RCV_COMPLETE (L = 16#FFFF): one loop, L tells 
         fi
     :: POLLED && !rnew[R] && tmr[R] >= TT -> mb_write(R, L, ECHO(L, Lchk), 0, 0)   /* P3 polled */
 #if BIDI
-    :: nbw[R] > 0 -> mb_write_other(R, L, 0, 0)      /* the other stream's write carries L */
+    :: nbw[R] > 0 && R_HELD -> mb_write_other(R, L, 0, 0)      /* the other stream's write carries L (W4: once a snapshot holds it) */
 #endif
     :: uoos && otmr[R] >= OT && !r_stuck ->
         /* P21 by time: the bound passed with only unexpected numbers and no telegram in step
@@ -478,17 +550,19 @@ RCV_IN_TRANSFER:          /* also RCV_COMPLETE (L = 16#FFFF): one loop, L tells 
         d_step { rst_r--; app_drop(1); first = 1; sempty = 0; nolone = 0; oldchk = 0 };
         goto RCV_WAIT_FIRST
     :: WRST_R > 0 && R_CHANGED -> r_save()     /* a periodic snapshot */
-    :: wrst_r > 0 ->
-        /* a warm restart: block and store back to the last snapshot (kill -9); no
-         * acknowledgement 0 (xEnable did not rise); the restored handshake may repeat the
-         * write of the acknowledgement */
-        printf("@ receiver PLC warm restart: back to the snapshot (L %d)\n", sr_L);
-        d_step {
-            wrst_r--;
-            L = sr_L; Lchk = sr_Lchk; oldchk = sr_oldchk; first = sr_first; sempty = sr_sempty;
-            nolone = sr_nolone; a_t = sr_at; a_i = sr_ai; compl = sr_compl; r_err = sr_rerr;
-            uoos = 0; otmr[R] = 0
-        };
-        if :: mb_write(R, L, ECHO(L, Lchk), 0, 0) :: skip fi
-    od
+    :: wrst_r > 0 -> goto rwarm
+    od;
+rwarm:
+    /* a warm restart: block and store back to the last snapshot (kill -9); no
+     * acknowledgement 0 (xEnable did not rise); the restored handshake may repeat the
+     * write of the acknowledgement */
+    printf("@ receiver PLC warm restart: back to the snapshot (L %d)\n", sr_L);
+    d_step {
+        wrst_r--;
+        L = sr_L; Lchk = sr_Lchk; oldchk = sr_oldchk; first = sr_first; sempty = sr_sempty;
+        nolone = sr_nolone; a_t = sr_at; a_i = sr_ai; compl = sr_compl; r_err = sr_rerr;
+        uoos = 0; otmr[R] = 0
+    };
+    if :: mb_write(R, L, ECHO(L, Lchk), 0, 0) :: skip fi;
+    goto RCV_IN_TRANSFER
 }

@@ -1,8 +1,11 @@
-"""MIP_Link with uWindow = 2: the pipelined sender (st_lib/PROTOCOL.md P27) in the
-bidirectional layout (note 2.2), where every write of a side carries its newest record and its
-acknowledgement of the other stream, and an acknowledgement counts only once the own modem
-confirmed the block it answers (P9). Checked in the model first (configurations win2/bidi/...,
-win2/bidi-noC3/...)."""
+"""MIP_Link with uWindow = 2: the bidirectional layout (note 2.2) runs stop and wait.
+
+The pipelined sender (st_lib/PROTOCOL.md P27) is withdrawn in this layout: the model found a
+record lost after a restart of the sending PLC (configurations win2/bidi/..., GAP): a stale
+acknowledgement of record 1 counts (the residual of P9), and the peer's writes, which carry
+its acknowledgement with every record of the other stream, can still carry the number of the
+old session when it equals the pipelined record. MIP_Link accepts uWindow = 2 and runs
+window 1; these tests show that it never pipelines and still delivers exactly."""
 import random
 from pathlib import Path
 
@@ -50,7 +53,7 @@ def numbers(sink):
     return [n for n, _ in sink.records]
 
 
-def test_both_streams_pipeline_and_deliver_exactly(wd):
+def test_window_2_runs_stop_and_wait_in_both_streams(wd):
     up, down = pattern(20 * 121, seed=950), pattern(20 * 121, seed=951)
     b1 = Bi(wd, up, down)
     r1, scans1 = run(b1, 1)
@@ -60,36 +63,21 @@ def test_both_streams_pipeline_and_deliver_exactly(wd):
     for b in (b1, b2):
         assert b.sink_c.transfers == [up] and b.sink_o.transfers == [down]
         assert numbers(b.sink_c) == numbers(b.sink_o) == list(range(1, 20)) + [FFFF]
-    assert pipelined(b1.radio, "up") == [] and pipelined(b1.radio, "down") == []
-    # from record 3 on (record 2 waits for the acknowledgement of record 1) records go up
-    # before the acknowledgement of the one before them, in both directions
-    assert len(pipelined(b2.radio, "up")) >= 10, pipelined(b2.radio, "up")
-    assert len(pipelined(b2.radio, "down")) >= 10, pipelined(b2.radio, "down")
-    assert min(pipelined(b2.radio, "up") + pipelined(b2.radio, "down")) >= 3
-    assert FFFF not in pipelined(b2.radio, "up") + pipelined(b2.radio, "down")
-    assert scans2 < 0.8 * scans1, (scans1, scans2)
-    for fb in (b2.lo, b2.lc):
-        assert fb["udiRecordsSent"] == 20 and fb["udiRetransmissions"] == 0
+        assert pipelined(b.radio, "up") == [] and pipelined(b.radio, "down") == []
+        for fb in (b.lo, b.lc):
+            assert fb["udiRecordsSent"] == 20 and fb["udiRetransmissions"] == 0
+    # the same run, scan for scan: uWindow = 2 changes nothing in this layout
+    assert scans2 == scans1, (scans1, scans2)
 
 
-def test_one_busy_stream_pipelines_every_record_from_3(wd):
-    """With the other stream idle the link's writes are the records alone: as in the
-    unidirectional layout every record from 3 to the one before 16#FFFF goes up before the
-    acknowledgement of the one before it, in about 3/5 of the polls of window 1 (both streams
-    busy gain less: every acknowledgement write of the other stream sends the newest record
-    again, and the next one waits for that copy's confirmation; PROTOCOL.md section 12)."""
+def test_one_busy_stream_does_not_pipeline(wd):
     up = pattern(20 * 121, seed=952)
-    polls = {}
-    for w in (1, 2):
-        b = Bi(wd, up, [])
-        b.lo["uWindow"] = w
-        b.lo["xExecute"] = True
-        assert b.bench.run_until(lambda: b.lo["xSendDone"], 20000)
-        assert b.sink_c.transfers == [up]
-        polls[w] = b.radio.stats()["polls"]
-        if w == 2:
-            assert pipelined(b.radio, "up") == list(range(3, 20))
-    assert polls[2] < 0.65 * polls[1], polls
+    b = Bi(wd, up, [])
+    b.lo["uWindow"] = 2
+    b.lo["xExecute"] = True
+    assert b.bench.run_until(lambda: b.lo["xSendDone"], 20000)
+    assert b.sink_c.transfers == [up]
+    assert pipelined(b.radio, "up") == []
 
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
@@ -104,11 +92,9 @@ def test_exact_under_loss_and_duplicates(wd, seed):
     assert numbers(b.sink_o) == list(range(1, 9)) + [FFFF]
 
 
-def test_goes_back_when_a_side_reads_too_slowly(wd):
+def test_exact_when_a_side_reads_too_slowly(wd):
     """The central reads every 12 scans, the radio polls every 5 (configuration rule C3
-    broken): a pipelined record overwrites the unread one before it; the central ignores the
-    unexpected number, the outstation's repeat goes back and closes the window. Nothing lost,
-    nothing twice, in either stream."""
+    broken): stop and wait still delivers everything once, in either stream."""
     up, down = pattern(16 * 121, seed=980), pattern(6 * 121, seed=981)
     b = Bi(wd, up, down)
     b.port_c.read_every = 12
@@ -116,9 +102,7 @@ def test_goes_back_when_a_side_reads_too_slowly(wd):
     assert res == ["done", "done"]
     assert b.sink_c.transfers == [up] and b.sink_o.transfers == [down]
     assert numbers(b.sink_c) == list(range(1, 16)) + [FFFF]
-    assert b.lc["udiUnexpected"] >= 1
-    assert b.lo["udiRetransmissions"] >= 1
-    assert pipelined(b.radio, "up")
+    assert pipelined(b.radio, "up") == []
 
 
 def test_polled_link_stays_stop_and_wait(wd):
@@ -128,22 +112,3 @@ def test_polled_link_stays_stop_and_wait(wd):
     assert res == ["done", "done"]
     assert b.sink_c.transfers == [up] and b.sink_o.transfers == [down]
     assert pipelined(b.radio, "up") == [] and pipelined(b.radio, "down") == []
-
-
-def test_link_window_is_latched_at_execute(wd):
-    """P26: uWindow is the sending side's, sampled at the rising edge of xExecute."""
-    up = pattern(8 * 121, seed=995)
-    b = Bi(wd, up, [])
-    b.lo["uWindow"] = 1
-    b.lo["xExecute"] = True
-    b.bench.step(5)
-    b.lo["uWindow"] = 2
-    assert b.bench.run_until(lambda: b.lo["xSendDone"], 20000)
-    assert pipelined(b.radio, "up") == []
-    b.lo["xExecute"] = False
-    b.bench.step(2)
-    first = len(b.radio.log)
-    b.lo["xExecute"] = True
-    assert b.bench.run_until(lambda: b.lo["xSendDone"], 20000)
-    assert b.sink_c.transfers == [up, up]
-    assert pipelined(b.radio, "up", first)
