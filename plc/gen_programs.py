@@ -287,7 +287,8 @@ def outstation(bidi):
             "     tTransferTimeout := tTransferTimeout,\n"
             "     xChunkValid := src.xChunkValid, aChunk := src.aChunk, uChunkLen := src.uChunkLen,\n"
             "     xChunkLast := src.xChunkLast, aRead := rd1, xReadValid := xRdValid1,\n"
-            "     xWriteDone := xWrDone1, xWriteError := wrErr1);")
+            "     xWriteDone := xWrDone1, xWriteError := wrErr1, xRetained := xRetain,\n"
+            "     wSnapshots := snapSaved);")
         code.append("store(xRecordValid := link.xRecordValid, aRecord := link.aRecord,\n"
                     "      uRecordLen := link.uRecordLen, wRecordNumber := link.wRecordNumber,\n"
                     "      udiFailed := link.udiFailedTransfers, eLastError := link.eRecvErrorId);")
@@ -295,7 +296,7 @@ def outstation(bidi):
         code.append("mR1Dup := UDINT_TO_WORD(link.udiDuplicates MOD 65536);")
         code.append("mR1Unexp := UDINT_TO_WORD(link.udiUnexpected MOD 65536);")
         code += source_out(1, "src", "link.udiRetransmissions")
-        code.append("snapReq := FALSE;   (* MIP_Link has no snapshot gate yet: no warm restarts *)")
+        code.append("snapReq := link.xSnapshotReq;")
     else:
         code.append(
             "snd(xExecute := src.xExecute, uChunkSize := uChunkSize, xPolled := xPolled,\n"
@@ -345,7 +346,8 @@ def central(bidi):
                 f"     xChunkValid := src{s}.xChunkValid, "
                 f"aChunk := src{s}.aChunk, uChunkLen := src{s}.uChunkLen,\n"
                 f"     xChunkLast := src{s}.xChunkLast, aRead := rd{s}, xReadValid := xRdValid{s},\n"
-                f"     xWriteDone := xWrDone{s}, xWriteError := wrErr{s});")
+                f"     xWriteDone := xWrDone{s}, xWriteError := wrErr{s}, xRetained := xRetain,\n"
+                f"     wSnapshots := snapSaved);")
             code.append(f"store{s}(xRecordValid := link{s}.xRecordValid, aRecord := link{s}.aRecord,\n"
                         f"      uRecordLen := link{s}.uRecordLen, wRecordNumber := link{s}.wRecordNumber,\n"
                         f"      udiFailed := link{s}.udiFailedTransfers, eLastError := link{s}.eRecvErrorId);")
@@ -367,10 +369,8 @@ def central(bidi):
             code.append(f"mR{s}Dup := UDINT_TO_WORD(rcv{s}.udiDuplicates MOD 65536);")
             code.append(f"mR{s}Unexp := UDINT_TO_WORD(rcv{s}.udiUnexpected MOD 65536);")
             code += io_after(s, f"rcv{s}")
-    if bidi:
-        code.append("snapReq := FALSE;   (* MIP_Link has no snapshot gate yet: no warm restarts *)")
-    else:
-        code.append("snapReq := " + " OR ".join(f"rcv{s}.xSnapshotReq" for s in range(1, MAX_STATIONS + 1)) + ";")
+    fb = "link" if bidi else "rcv"
+    code.append("snapReq := " + " OR ".join(f"{fb}{s}.xSnapshotReq" for s in range(1, MAX_STATIONS + 1)) + ";")
     doc = (f"    The central: one {'MIP_Link' if bidi else 'MIP_Receiver'} per outstation "
            f"(MDP-810 unit ids 1..{MAX_STATIONS}),\n    each with a PLC_RecordStore"
            + (" and a logger of its own sent down to the station." if bidi else "."))

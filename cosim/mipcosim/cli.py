@@ -33,7 +33,9 @@ def parse(argv):
     p.add_argument("--polled", action="store_true")
     p.add_argument("--realistic", action="store_true", help="9600 bit/s, 20 ms gaps")
     p.add_argument("--window", type=int, choices=[1, 2], default=1,
-                   help="the senders' uWindow (MIP_Sender, MIP_Link): 2 pipelines the records (st_lib/PROTOCOL.md P27)")
+                   help="the senders' uWindow (MIP_Sender, MIP_Link): 2 pipelines the records "
+                        "(st_lib/PROTOCOL.md P27); with --warm-restarts the retained senders run "
+                        "window 1 (the result line says which window they ran)")
     p.add_argument("--restart-every", type=float,
                    help="virtual seconds between PLC restarts, alternating outstation / central "
                         "(run: none, soak: 120)")
@@ -60,14 +62,9 @@ def parse(argv):
     a.loss = a.loss if a.loss is not None else (0.3 if soak else 0.1)
     a.restart_every = a.restart_every if a.restart_every is not None else (
         (60 if a.warm else 120) if soak else 0)
-    if a.warm and a.window == 2:
-        p.error("--window 2 with --warm-restarts: MIP_Sender runs window 1 with xRetained "
-                "(st_lib/PROTOCOL.md P27)")
     if a.window == 2 and (a.static or a.polled):
         p.error("--window 2: the pipelined sender is for dynamic mode and spontaneous drive "
                 "(st_lib/PROTOCOL.md P27)")
-    if a.warm and a.bidi:
-        p.error("--warm-restarts: MIP_Link (the bidirectional programs) has no snapshot gate yet")
     if a.per_transfer == 0 and a.records > 65534:
         p.error("more than 65534 records need --per-transfer")
     if not 1 <= a.stations <= L.MAX_STATIONS:
@@ -158,17 +155,24 @@ def main(argv=None):
             print(f"  retain: {rs['snapshots']} snapshots, {rs['warm_restarts']} warm restarts "
                   f"({rs['restored']} restored a snapshot, the others had nothing retained)")
             failed = tot.get('failed_reported', 0) + tot.get('cut_by_restart', 0)
+            # the window the senders ran, from their own state (a retained MIP_Sender runs
+            # window 1 whatever uWindow says, P27)
+            ran = sorted(ch.sender_windows())
+            window = ""
+            if a.window != 1 or ran != [1]:
+                window = (f" window {'/'.join(map(str, ran))}"
+                          + (f" (uWindow {a.window})" if ran != [a.window] else ""))
             if a.warm:
                 g = sum(1 for _, _, gr in ch.warm if gr)
                 line = (f"warm: records={tot.get('records', 0)} lost {tot.get('lost', 0)} "
                         f"duplicated {tot.get('duplicated', 0)} failed {failed} "
                         f"receiver_reported {tot.get('receiver_reports', 0)} restarts {k} "
                         f"(graceful {g}, kill -9 {len(ch.warm) - g}, cold {k - len(ch.warm)}) "
-                        f"snapshots {rs['snapshots']} seconds={wall:.0f}")
+                        f"snapshots {rs['snapshots']}{window} seconds={wall:.0f}")
             else:
                 line = (f"records={tot.get('records', 0)} lost={tot.get('lost', 0)} "
                         f"duplicated={tot.get('duplicated', 0)} failed_and_reported={failed} "
-                        f"restarts={k} seconds={wall:.0f}")
+                        f"restarts={k}{window} seconds={wall:.0f}")
             if not finished:
                 print(f"result: FAIL not finished within {limit:.0f} virtual seconds; {line}")
                 return 1

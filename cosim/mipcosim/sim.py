@@ -8,7 +8,7 @@ import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from plcharness import Plc
+from plcharness import Plc, PlcError
 from plcharness.build import build_program
 
 from . import layout as L
@@ -190,8 +190,8 @@ class Setup:
     # RETAIN snapshots, in memory, where plcrt would save them: every retain_period_ms of scan
     # time (0: only on request) and whenever a program sets [retain] request (L.RETAIN_REQUEST)
     retain_period_ms: int = 1000
-    # the blocks' xRetained (st_lib/PROTOCOL.md W1, W2: durable before visible), for warm
-    # restarts without loss or duplicate; unidirectional programs only (MIP_Link has no gate)
+    # the blocks' xRetained (st_lib/PROTOCOL.md W1, W2, W4: durable before visible), for warm
+    # restarts without loss or duplicate, in both layouts (MIP_Link: W4)
     retain: bool = False
     # MIP_Sender's uWindow (st_lib/PROTOCOL.md P27): 2 pipelines the records of a transfer
     window: int = 1
@@ -489,6 +489,21 @@ class Chain(_Kernel):
         were cold: no RETAIN variables, or no snapshot yet)}."""
         return {"snapshots": self._snapshots_before + sum(p.retain_saves for p in self.plcs.values()),
                 "warm_restarts": self.warm_restarts, "restored": len(self.warm)}
+
+    def sender_windows(self):
+        """{1, 2}: the windows the senders of the running PLCs run (MIP_Sender's xPipe: uWindow
+        2 applies only where P27 allows it, e.g. not with xRetained)."""
+        out = set()
+        for (role, _), plc in self.plcs.items():
+            names = (["OUT0.LINK.SND.XPIPE"] if self.s.bidi else ["OUT0.SND.XPIPE"]) if role == "out" \
+                else ([f"CEN0.LINK{st}.SND.XPIPE" for st in range(1, self.s.stations + 1)]
+                      if self.s.bidi else [])
+            for n in names:
+                try:
+                    out.add(2 if plc[n] else 1)
+                except PlcError:      # a test's own program (Setup.sources) without that sender
+                    pass
+        return out
 
     def mw(self, who, addr):
         return self.plcs[who][f"%MW{addr}"]

@@ -53,3 +53,19 @@ def test_chain_cli_tcp_transport_same_result_as_the_kernel(tmp_path):
         out[tr] = [l.split(" in ")[0] if l.startswith("  radio:") else
                    " ".join(w for w in l.split() if not w.startswith("seconds=")) for l in lines]
     assert out["tcp"] == out["inproc"] and out["tcp"][-1].startswith("result: ok records=8")
+
+
+def test_chain_cli_warm_bidi_soak_says_the_window_the_senders_ran(tmp_path):
+    """--warm-restarts with --bidi (MIP_Link's gate) and --window 2: accepted, run with
+    uWindow 2 as the programs would be configured; a retained sender runs window 1 (P27), and
+    the result line says so. Without --warm the same soak runs window 2."""
+    args = ("soak", "--bidi", "--window", "2", "--records", "400", "--per-transfer", "50",
+            "--restart-every", "7")
+    warm = cli(*args, "--warm-restarts", tmp_path=tmp_path / "warm")
+    assert warm.returncode == 0, warm.stdout + warm.stderr
+    last = warm.stdout.strip().splitlines()[-1]
+    assert last.startswith("result: ok warm: records=800 lost 0 duplicated 0 failed 0 "), last
+    assert " window 1 (uWindow 2) " in last
+    cold = cli(*args, tmp_path=tmp_path / "cold")
+    assert cold.returncode == 0, cold.stdout + cold.stderr
+    assert " window 2 seconds=" in cold.stdout.strip().splitlines()[-1]
