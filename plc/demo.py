@@ -256,12 +256,13 @@ def run(a):
                           polled=a.polled, log_period_ms=a.log_period_ms, timeout_ms=timeout_ms)
         # central first, so the outstations find it listening
         cen_conf = rundir / "central.conf"
-        # on a serial line the reads take the status word alone until it shows new data
-        # (status_first: measured best, docs/serial.md)
+        # on a serial line the reads take the status words (and one data register: an
+        # acknowledgement) until bit 0 shows a new block (status_first: measured best,
+        # docs/serial.md)
         cen_conf.write_text(L.central_config(
             mdp_port, a.stations,
             serial=L.serial_keys(serial["mdp"], a.baud) if a.baud else None,
-            status_first=bool(a.baud)))
+            status_first=L.RTU_STATUS_FIRST if a.baud else False))
         cen_port = free_port()
         procs.start("central soft-PLC", [str(progs["central"].executable), "-c", str(cen_conf),
                                          "-s", f"127.0.0.1:{cen_port}"], rundir / "central.log")
@@ -270,7 +271,7 @@ def run(a):
             conf = rundir / f"outstation{s}.conf"
             conf.write_text(L.outstation_config(
                 trm_ports[s - 1], serial=L.serial_keys(serial[s], a.baud) if a.baud else None,
-                status_first=bool(a.baud)))
+                status_first=L.RTU_STATUS_FIRST if a.baud else False))
             port = free_port()
             out_ports.append(port)
             procs.start(f"outstation {s} soft-PLC", [str(progs["outstation"].executable), "-c",

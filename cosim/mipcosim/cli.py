@@ -96,7 +96,7 @@ def main(argv=None):
                radio=Radio.realistic() if a.realistic else Radio(),
                timeout_ms=(3000 if a.realistic else 300) + link_timeout_ms(a.baud),
                transport=a.transport, tick_ms=a.tick_ms, retain=a.warm, window=a.window,
-               link_baud=a.baud, status_first=bool(a.baud))
+               link_baud=a.baud, status_first=L.RTU_STATUS_FIRST if a.baud else False)
     workdir = Path(a.workdir or tempfile.mkdtemp(prefix="mipcosim-"))
     limit = a.limit or (60 + a.records * a.stations * (8 if a.realistic else 0.5)
                         / (1 - a.loss) ** 2)

@@ -178,8 +178,10 @@ class Setup:
     # runtime's devices are serial, and in virtual time each exchange takes its time on the line
     # (runtime_shim: "serial line in virtual time"; docs/serial.md); with transport "inproc"
     link_baud: int = 0
-    # the read ranges read the MIP status word alone until it shows new data (status_first)
-    status_first: bool = False
+    # the read ranges read the MIP status word first (status_first): True the status and count
+    # alone until bit 0 shows new data; a number n: the first read takes n registers (3,
+    # L.RTU_STATUS_FIRST: an acknowledgement of one register comes with the status)
+    status_first: bool | int = False
     # a read and a write of a device pending together go as one FC23 (device option fc23)
     fc23: bool = False
     # "inproc": the runtime hands each request ADU to the emulator core (the kernel);

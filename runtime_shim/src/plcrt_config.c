@@ -308,7 +308,10 @@ static int finish_range(parser_t *p, range_keys_t *k, uint64_t default_poll)
     if (k->status_first && k->status_first_v) {
         if (bits || r->size < 3)
             return perr(p, k->status_first, "status_first: for register reads of 3 or more (status, count, data)");
-        r->status_first = 1;
+        if (k->status_first_v >= r->size)
+            return perr(p, k->status_first, "status_first: %d registers first is the whole range (size %d): use no",
+                        k->status_first_v, r->size);
+        r->status_first = k->status_first_v;
     }
     if (claim(p, k->image, area, bits ? 'X' : 'W', r->image, r->size, "image")) return -1;
     /* two ranges of one device on the same registers are a mistake */
@@ -621,9 +624,12 @@ static int parse_plcrt(parser_t *p, char *text)
                 if (sec == SEC_WRITE) { RKEY(length, v_length) }
                 if (sec == SEC_READ && !strcmp(key, "status_first")) {
                     slot = &rk.status_first;
-                    if (!strcmp(val, "yes") || !strcmp(val, "true")) rk.status_first_v = 1;
+                    char *end;
+                    long v = strtol(val, &end, 10);
+                    if (!strcmp(val, "yes") || !strcmp(val, "true")) rk.status_first_v = 2;
                     else if (!strcmp(val, "no") || !strcmp(val, "false")) rk.status_first_v = 0;
-                    else return perr(p, lineno, "status_first: '%s' is not yes or no", val);
+                    else if (end != val && !*end && v >= 2 && v <= 125) rk.status_first_v = (int)v;
+                    else return perr(p, lineno, "status_first: '%s' is not yes, no or a count of registers 2..125", val);
                     break;
                 }
                 if (!strcmp(key, "start")) {

@@ -433,35 +433,41 @@ bad:
     return STATUS_TRANSPORT(EPROTO);
 }
 
-/* A read of a MIP read area (status word, count word, data) with status_first: the status and
- * count alone; only when bit 0 (new read data) is set, a second read from the status word on,
- * of the count's registers (2 + count, at most the range), which clears the bit; when that
- * read's count is larger than the first one's (a newer, longer block arrived between them), a
- * third read of the whole range. Registers not read keep what the last read brought (the
- * program looks at the data only with bit 0 or a new count). The characters of the further
- * exchanges are kept for the line's time in virtual time. */
+/* A read of a MIP read area (status word, count word, data) with status_first: the first read
+ * takes q->status_first registers from the status word on (2: status and count alone; more: the
+ * first data registers too). Only when bit 0 (new read data) is set and the block is longer than
+ * what the first read took: a second read from the status word on, of the count's registers
+ * (2 + count, at most the range); when that read's count is larger than the one before (a newer,
+ * longer block arrived between them), a third read of the whole range. A read that touches the
+ * data clears bit 0 in the modem, so a later read of the same block shows it clear: the bit 0 the
+ * first read saw is kept in the status word given to the program (the block it announced is the
+ * one the later read returns, or a newer one, which sets the bit again). Registers not read keep
+ * what the last read brought (the program looks at the data only with bit 0 or a new count). The
+ * characters of the further exchanges are kept for the line's time in virtual time. */
 static int status_first_request(struct plcrt_master *m, plcrt_device_t *d, const plcrt_range_t *r,
                                 request_t *q, int *transport)
 {
     int size = q->count;
     q->extra_req = q->extra_rsp = 0;
     memcpy(q->data, r->in, sizeof q->data[0] * (size_t)size); /* what is not read stays */
-    q->count = 2;
+    q->count = q->status_first < size ? q->status_first : size;
     int status = do_request(m, d, q, transport);
-    if (status != 0 || !(q->data[0] & 1)) {
+    if (status != 0 || !(q->data[0] & 1) || 2 + q->data[1] <= q->count) {
         q->count = size;
         return status;
     }
+    uint16_t seen = q->data[0] & 1;
     for (int pass = 0; pass < 2; pass++) {
         int want = pass ? size : 2 + q->data[1];
         if (want > size) want = size;
-        int had = want;
         q->count = want;
         q->fc = 3; /* after an FC23 the write is done: plain reads */
         q->extra_req += 8;
         q->extra_rsp += 5 + 2 * want;
         status = do_request(m, d, q, transport);
-        if (status != 0 || had == size || 2 + q->data[1] <= had) break;
+        if (status != 0) break;
+        q->data[0] |= seen;
+        if (want == size || 2 + q->data[1] <= want) break;
     }
     q->count = size;
     return status;
@@ -597,7 +603,7 @@ static int rtu_req_chars(const request_t *q)
 static int rtu_rsp_chars(const request_t *q, int status)
 {
     if (status > 0 && status < 1000) return 5; /* exception */
-    if (q->status_first) return 5 + 2 * 2; /* the first exchange: status and count */
+    if (q->status_first) return 5 + 2 * (q->status_first < q->count ? q->status_first : q->count); /* the first exchange */
     if (q->fc == 3 || q->fc == 4 || q->fc == 23) return 5 + 2 * q->count;
     if (q->fc == 1 || q->fc == 2) return 5 + (q->count + 7) / 8;
     return 8;
@@ -777,6 +783,15 @@ static void step(plcrt_t *rt, struct plcrt_master *m, uint64_t now, int writes_o
         publish(m, r, q, status);
         if (pair >= 0) publish(m, &m->ranges[pair], q, status);
     }
+    /* nothing on a line and nothing pending: the real-time master thread goes to sleep, and
+     * its next pass starts at the first range again (config order), so the next round here
+     * does too (a write listed before its read then goes first, as in real time) */
+    int idle = !plcrt_threaded(rt); /* (line_rr is for virtual time only) */
+    for (int i = 0; i < m->n_devices && idle; i++)
+        idle = m->devices[i].line_range < 0;
+    for (int i = 0; i < m->n_ranges && idle; i++)
+        idle = !m->ranges[i].pending;
+    if (idle) m->line_rr = 0;
 }
 
 void plcrt_master_step(plcrt_t *rt, struct plcrt_master *m, uint64_t now) { step(rt, m, now, 0); }

@@ -25,7 +25,8 @@ typedef struct plcrt_range {
     int image;       /* first word index (%IW/%QW), or flat bit index a*8+b (%IX/%QX) */
     int trigger, done, error; /* flat bit indexes, -1 = none */
     int status, length;       /* word indexes, -1 = none */
-    int status_first;         /* reads: the MIP read area's status word first (plcrt_master.c) */
+    int status_first;         /* reads: registers of the MIP read area's first read (status, count,
+                               * maybe data; plcrt_master.c), 0 = the whole range every time */
     int dev;
     int line;
 
@@ -103,7 +104,7 @@ typedef struct plcrt_device {
 /* One request being built and done (step() in plcrt_master.c) */
 typedef struct request {
     int fc, addr, count;
-    int status_first;  /* read the status and count words alone first (range option) */
+    int status_first;  /* registers of the first read of a MIP read area (range option), 0 = off */
     int extra_req, extra_rsp; /* characters of the follow-up exchanges status_first made */
     int waddr, wcount;        /* FC23: the write part (fc 23; addr/count are the read part) */
     uint16_t wdata[128];

@@ -424,7 +424,11 @@ TEST(config_errors_name_file_and_line)
     expect_config_error(DEV "host = 127.0.0.2\n", "bad.cfg:3: error: key 'host' given twice (first on line 2)");
     expect_config_error("[device d]\nport = 5020\n", "bad.cfg:1: error: [device d]: missing key 'host'");
     expect_config_error(DEV "[read r]\ndevice = d\nstart = 0\nsize = 10\nimage = %IW100\nstatus_first = maybe\n",
-                        "bad.cfg:8: error: status_first: 'maybe' is not yes or no");
+                        "bad.cfg:8: error: status_first: 'maybe' is not yes, no or a count of registers 2..125");
+    expect_config_error(DEV "[read r]\ndevice = d\nstart = 0\nsize = 10\nimage = %IW100\nstatus_first = 1\n",
+                        "bad.cfg:8: error: status_first: '1' is not yes, no or a count of registers 2..125");
+    expect_config_error(DEV "[read r]\ndevice = d\nstart = 0\nsize = 10\nimage = %IW100\nstatus_first = 10\n",
+                        "bad.cfg:8: error: status_first: 10 registers first is the whole range (size 10): use no");
     expect_config_error(DEV "[read r]\ndevice = d\nstart = 0\nsize = 2\nimage = %IW100\nstatus_first = yes\n",
                         "bad.cfg:8: error: status_first: for register reads of 3 or more");
     expect_config_error(DEV "[write w]\ndevice = d\nstart = 0\nsize = 3\nimage = %QW100\nstatus_first = yes\n",
@@ -1265,6 +1269,156 @@ TEST(reconnect_lines_are_rate_limited_per_device)
     pthread_join(th, NULL);
     close(f.listen_fd);
     plcrt_free(rt);
+}
+
+/* ------------------------------------------------------------------ MIP read area on a serial line */
+
+/* An in-process modem behind a serial device (virtual time: the line's time is modelled): a MIP
+ * read area at 198 (status, count, data; bit 0 "new read data" is cleared by a read that touches
+ * the data, as the TRM-810 / MDP-810 do) and a write area at 10. It logs every request. */
+typedef struct mip_peer {
+    int n;
+    int fc[64], addr[64], count[64];
+    uint16_t area[125]; /* registers 198.. */
+} mip_peer_t;
+
+static void mip_peer_deliver(mip_peer_t *p, const uint16_t *blk, int len)
+{
+    p->area[0] |= 1;
+    p->area[1] = (uint16_t)len;
+    memcpy(p->area + 2, blk, sizeof blk[0] * (size_t)len);
+}
+
+static long mip_peer_transact(void *user, const uint8_t *req, size_t len, uint8_t *rsp, size_t cap)
+{
+    mip_peer_t *p = user;
+    (void)cap;
+    if (len < 12) return -1;
+    int fc = req[7], addr = (req[8] << 8) | req[9], count = (req[10] << 8) | req[11], n;
+    if (p->n < 64) {
+        p->fc[p->n] = fc;
+        p->addr[p->n] = addr;
+        p->count[p->n] = count;
+    }
+    p->n++;
+    memcpy(rsp, req, 7);
+    if (fc == 3) {
+        if (addr < 198 || addr + count > 198 + 125) return -1;
+        rsp[7] = 3;
+        rsp[8] = (uint8_t)(2 * count);
+        for (int i = 0; i < count; i++) {
+            rsp[9 + 2 * i] = (uint8_t)(p->area[addr - 198 + i] >> 8);
+            rsp[10 + 2 * i] = (uint8_t)p->area[addr - 198 + i];
+        }
+        n = 9 + 2 * count;
+        if (addr + count > 200) p->area[0] &= (uint16_t)~1u; /* after the answer was composed */
+    } else {
+        memcpy(rsp + 7, req + 7, 5); /* FC16: function, address, quantity */
+        n = 12;
+    }
+    rsp[4] = (uint8_t)((n - 6) >> 8);
+    rsp[5] = (uint8_t)(n - 6);
+    return n;
+}
+
+#define MIP_SERIAL "[device m]\nserial = /dev/ttyMIPTEST\nbaud = 19200\nparity = even\n"
+#define MIP_WRITE                                                                            \
+    "[write w]\ndevice = m\nstart = 10\nsize = 3\nimage = %QW200\npolicy = trigger\n"          \
+    "trigger = %QX10.1\ndone = %IX10.2\nerror = %IX10.3\n"
+#define MIP_READ(first)                                                                      \
+    "[read r]\ndevice = m\nstart = 198\nsize = 125\nstatus_first = " first "\nimage = %IW300\n" \
+    "policy = trigger\ntrigger = %QX10.0\ndone = %IX10.0\nerror = %IX10.1\nstatus = %IW60\n"
+
+static plcrt_t *mip_rt(const char *ranges, mip_peer_t *peer)
+{
+    plcrt_t *rt = new_rt();
+    char cfg[1024];
+    snprintf(cfg, sizeof cfg, "%s%s", MIP_SERIAL, ranges);
+    if (plcrt_load_config_text(rt, "mip.cfg", cfg) != 0) fprintf(stderr, "config: %s\n", plcrt_errmsg(rt));
+    if (plcrt_device_set_transport(rt, "m", mip_peer_transact, peer) != 0)
+        fprintf(stderr, "transport: %s\n", plcrt_errmsg(rt));
+    return rt;
+}
+
+/* one trigger handshake of the read (%QX10.0 / %IX10.0): 1 when it ended with done */
+static int mip_read(plcrt_t *rt)
+{
+    qx(rt)[80] = 1;
+    int done = 0;
+    for (int i = 0; i < 50 && !done && !ix(rt)[81]; i++) {
+        plcrt_scan(rt, 1);
+        done = ix(rt)[80];
+    }
+    qx(rt)[80] = 0;
+    plcrt_scan(rt, 1);
+    return done;
+}
+
+TEST(status_first_3_takes_a_one_register_block_in_the_status_read)
+{
+    mip_peer_t peer = {0};
+    plcrt_t *rt = mip_rt(MIP_READ("3"), &peer);
+    plcrt_image_t *img = plcrt_image(rt);
+    uint16_t ack[1] = {4242};
+    mip_peer_deliver(&peer, ack, 1);
+    CHECK(mip_read(rt));
+    /* status, count and the block's one register came in the one read */
+    CHECK_EQ(peer.n, 1);
+    CHECK_EQ(peer.fc[0], 3);
+    CHECK_EQ(peer.addr[0], 198);
+    CHECK_EQ(peer.count[0], 3);
+    CHECK_EQ(img->iw[300] & 1, 1);
+    CHECK_EQ(img->iw[301], 1);
+    CHECK_EQ(img->iw[302], 4242);
+    CHECK_EQ(img->iw[60], 0);
+    /* a longer block: the first read announces it and clears bit 0 in the modem; the second
+     * read (2 + count registers) shows bit 0 clear, the program still sees it set */
+    uint16_t rec[5] = {1, 2, 3, 4, 5};
+    mip_peer_deliver(&peer, rec, 5);
+    CHECK(mip_read(rt));
+    CHECK_EQ(peer.n, 3);
+    CHECK_EQ(peer.count[1], 3);
+    CHECK_EQ(peer.addr[2], 198);
+    CHECK_EQ(peer.count[2], 7);
+    CHECK_EQ(img->iw[300] & 1, 1);
+    CHECK_EQ(img->iw[301], 5);
+    CHECK_EQ(img->iw[302], 1);
+    CHECK_EQ(img->iw[306], 5);
+    /* nothing new: the status read alone, bit 0 clear, the data as the last read left them */
+    CHECK(mip_read(rt));
+    CHECK_EQ(peer.n, 4);
+    CHECK_EQ(peer.count[3], 3);
+    CHECK_EQ(img->iw[300] & 1, 0);
+    CHECK_EQ(img->iw[301], 5);
+    CHECK_EQ(img->iw[306], 5);
+    plcrt_free(rt);
+}
+
+TEST(serial_line_in_virtual_time_takes_requests_in_config_order_after_idle)
+{
+    /* A read and a write raised in the same scan go in config order: the write listed first
+     * reaches the modem before the read; listed after it, it waits for the read - also when
+     * the last exchange on the line was a read (the real-time master's next pass starts at
+     * the first range, and so does the model of the line in virtual time). */
+    for (int write_first = 0; write_first < 2; write_first++) {
+        mip_peer_t peer = {0};
+        char ranges[1024];
+        snprintf(ranges, sizeof ranges, "%s%s", write_first ? MIP_WRITE : MIP_READ("yes"),
+                 write_first ? MIP_READ("yes") : MIP_WRITE);
+        plcrt_t *rt = mip_rt(ranges, &peer);
+        CHECK(mip_read(rt));
+        plcrt_scan(rt, 5);
+        CHECK_EQ(peer.n, 1);
+        qx(rt)[80] = 1;
+        qx(rt)[81] = 1;
+        for (int i = 0; i < 50 && !(ix(rt)[80] && ix(rt)[82]); i++) plcrt_scan(rt, 1);
+        CHECK_EQ(ix(rt)[80], 1);
+        CHECK_EQ(ix(rt)[82], 1);
+        CHECK_EQ(peer.n, 3);
+        CHECK_EQ(peer.fc[1], write_first ? 16 : 3);
+        CHECK_EQ(peer.fc[2], write_first ? 3 : 16);
+        plcrt_free(rt);
+    }
 }
 
 /* ------------------------------------------------------------------ unit id from the image */
