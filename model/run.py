@@ -452,6 +452,7 @@ QUICK = [
     "bidi-noC3/ours-ours/polled/up+rst-snd",      # our link, must fail: P9 residual without C3
     "warm/ours-ours/polled/up+wrst-rcv",          # warm restart of our receiver
     "warm/periodic/ours-ours/spont/up+wrst-rcv",  # must fail: W0 (DONE)
+    "warm-nogate/bidi/ours-ours/spont/up+wrst-rcv",  # must fail: W4 (WARMFAIL), our link
     "win2/ours-ours/spont/up",                    # the pipelined sender
     "win2-pipelast/ours-ours/spont/up",           # must fail: P27 (GAP)
 ]

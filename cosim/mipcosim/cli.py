@@ -34,8 +34,8 @@ def parse(argv):
     p.add_argument("--realistic", action="store_true", help="9600 bit/s, 20 ms gaps")
     p.add_argument("--window", type=int, choices=[1, 2], default=1,
                    help="the senders' uWindow (MIP_Sender, MIP_Link): 2 pipelines the records "
-                        "(st_lib/PROTOCOL.md P27); with --warm-restarts the retained senders run "
-                        "window 1 (the result line says which window they ran)")
+                        "(st_lib/PROTOCOL.md P27); with --bidi (MIP_Link) or --warm-restarts the "
+                        "senders run window 1 (the result line says which window they ran)")
     p.add_argument("--restart-every", type=float,
                    help="virtual seconds between PLC restarts, alternating outstation / central "
                         "(run: none, soak: 120)")
