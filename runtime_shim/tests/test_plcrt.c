@@ -1282,6 +1282,29 @@ typedef struct mip_peer {
     uint16_t area[125]; /* registers 198.. */
 } mip_peer_t;
 
+/* The Modbus TCP answer of a fake server to req: FC3 with the count registers of vals, or
+ * (vals NULL) the FC16 echo of function, address and quantity. Returns its length. */
+static long fake_reply(const uint8_t *req, uint8_t *rsp, const uint16_t *vals, int count)
+{
+    long n;
+    memcpy(rsp, req, 7);
+    if (vals) {
+        rsp[7] = 3;
+        rsp[8] = (uint8_t)(2 * count);
+        for (int i = 0; i < count; i++) {
+            rsp[9 + 2 * i] = (uint8_t)(vals[i] >> 8);
+            rsp[10 + 2 * i] = (uint8_t)vals[i];
+        }
+        n = 9 + 2 * count;
+    } else {
+        memcpy(rsp + 7, req + 7, 5); /* FC16: function, address, quantity */
+        n = 12;
+    }
+    rsp[4] = (uint8_t)((n - 6) >> 8);
+    rsp[5] = (uint8_t)(n - 6);
+    return n;
+}
+
 static void mip_peer_deliver(mip_peer_t *p, const uint16_t *blk, int len)
 {
     p->area[0] |= 1;
@@ -1301,23 +1324,9 @@ static long mip_peer_transact(void *user, const uint8_t *req, size_t len, uint8_
         p->count[p->n] = count;
     }
     p->n++;
-    memcpy(rsp, req, 7);
-    if (fc == 3) {
-        if (addr < 198 || addr + count > 198 + 125) return -1;
-        rsp[7] = 3;
-        rsp[8] = (uint8_t)(2 * count);
-        for (int i = 0; i < count; i++) {
-            rsp[9 + 2 * i] = (uint8_t)(p->area[addr - 198 + i] >> 8);
-            rsp[10 + 2 * i] = (uint8_t)p->area[addr - 198 + i];
-        }
-        n = 9 + 2 * count;
-        if (addr + count > 200) p->area[0] &= (uint16_t)~1u; /* after the answer was composed */
-    } else {
-        memcpy(rsp + 7, req + 7, 5); /* FC16: function, address, quantity */
-        n = 12;
-    }
-    rsp[4] = (uint8_t)((n - 6) >> 8);
-    rsp[5] = (uint8_t)(n - 6);
+    if (fc == 3 && (addr < 198 || addr + count > 198 + 125)) return -1;
+    n = fake_reply(req, rsp, fc == 3 ? p->area + (addr - 198) : NULL, count);
+    if (fc == 3 && addr + count > 200) p->area[0] &= (uint16_t)~1u; /* after the answer was composed */
     return n;
 }
 
@@ -1442,24 +1451,12 @@ static long unit_peer_transact(void *user, const uint8_t *req, size_t len, uint8
     if (p->n < 32) p->unit[p->n] = req[6];
     p->n++;
     if (p->change_word) *p->change_word = p->change_to;
-    memcpy(rsp, req, 7);
+    int fc = req[7], count = (req[10] << 8) | req[11];
+    uint16_t vals[125];
+    if (count > 125) return -1;
+    for (int i = 0; i < count; i++) vals[i] = (uint16_t)(100 * req[6] + i);
+    long n = fake_reply(req, rsp, fc == 3 ? vals : NULL, count);
     rsp[6] = (uint8_t)(req[6] + p->reply_unit_delta);
-    int fc = req[7], count = (req[10] << 8) | req[11], n;
-    if (fc == 3) {
-        rsp[7] = 3;
-        rsp[8] = (uint8_t)(2 * count);
-        for (int i = 0; i < count; i++) {
-            int v = 100 * req[6] + i;
-            rsp[9 + 2 * i] = (uint8_t)(v >> 8);
-            rsp[10 + 2 * i] = (uint8_t)v;
-        }
-        n = 9 + 2 * count;
-    } else {
-        memcpy(rsp + 7, req + 7, 5); /* FC16: function, address, quantity */
-        n = 12;
-    }
-    rsp[4] = (uint8_t)((n - 6) >> 8);
-    rsp[5] = (uint8_t)(n - 6);
     return n;
 }
 
