@@ -1338,15 +1338,22 @@ static long mip_peer_transact(void *user, const uint8_t *req, size_t len, uint8_
     "[read r]\ndevice = m\nstart = 198\nsize = 125\nstatus_first = " first "\nimage = %IW300\n" \
     "policy = trigger\ntrigger = %QX10.0\ndone = %IX10.0\nerror = %IX10.1\nstatus = %IW60\n"
 
-static plcrt_t *mip_rt(const char *ranges, mip_peer_t *peer)
+/* a runtime with the config device + ranges whose device `name` talks to a fake server */
+static plcrt_t *fake_rt(const char *device, const char *ranges, const char *name,
+                        plcrt_transact_fn transact, void *peer)
 {
     plcrt_t *rt = new_rt();
     char cfg[1024];
-    snprintf(cfg, sizeof cfg, "%s%s", MIP_SERIAL, ranges);
-    if (plcrt_load_config_text(rt, "mip.cfg", cfg) != 0) fprintf(stderr, "config: %s\n", plcrt_errmsg(rt));
-    if (plcrt_device_set_transport(rt, "m", mip_peer_transact, peer) != 0)
+    snprintf(cfg, sizeof cfg, "%s%s", device, ranges);
+    if (plcrt_load_config_text(rt, "fake.cfg", cfg) != 0) fprintf(stderr, "config: %s\n", plcrt_errmsg(rt));
+    if (plcrt_device_set_transport(rt, name, transact, peer) != 0)
         fprintf(stderr, "transport: %s\n", plcrt_errmsg(rt));
     return rt;
+}
+
+static plcrt_t *mip_rt(const char *ranges, mip_peer_t *peer)
+{
+    return fake_rt(MIP_SERIAL, ranges, "m", mip_peer_transact, peer);
 }
 
 /* one trigger handshake of the read (%QX10.0 / %IX10.0): 1 when it ended with done */
@@ -1467,13 +1474,7 @@ static long unit_peer_transact(void *user, const uint8_t *req, size_t len, uint8
 
 static plcrt_t *unit_rt(const char *ranges, unit_peer_t *peer)
 {
-    plcrt_t *rt = new_rt();
-    char cfg[1024];
-    snprintf(cfg, sizeof cfg, "%s%s", UNIT_DEVICE, ranges);
-    if (plcrt_load_config_text(rt, "unit.cfg", cfg) != 0) fprintf(stderr, "config: %s\n", plcrt_errmsg(rt));
-    if (plcrt_device_set_transport(rt, "gw", unit_peer_transact, peer) != 0)
-        fprintf(stderr, "transport: %s\n", plcrt_errmsg(rt));
-    return rt;
+    return fake_rt(UNIT_DEVICE, ranges, "gw", unit_peer_transact, peer);
 }
 
 TEST(unit_id_from_qw_is_taken_per_trigger_request)
