@@ -134,13 +134,13 @@ def _matrix():
     # it was loses a record after a restart of our sender. 4 records per transfer: the
     # shortest case (record 3 pipelined, 16#FFFF after it); with 5 records the same needs a
     # longer run than a search finds in CI's time
-    for sn, sd in sides:
-        d = {"SND": "OURS", "RCV": "OURS", "BIDI": 1, "NBW": 1, "NT": 1, "WIN": 2, "NREC": 4,
-             "RST_S": 1}
-        d.update(sd)
-        name = "win2/bidi/ours-ours/spont/%s+rst-snd" % sn
-        exp, why = expectation(name)
-        out.append((name, d, exp, why))
+    # (the central sending, down, shows no violation of any kind in its 39 M states with 4
+    # records: one refutation is enough to withdraw the rule)
+    d = {"SND": "OURS", "RCV": "OURS", "BIDI": 1, "NBW": 1, "NT": 1, "WIN": 2, "NREC": 4,
+         "RST_S": 1}
+    name = "win2/bidi/ours-ours/spont/up+rst-snd"
+    exp, why = expectation(name)
+    out.append((name, d, exp, why))
     for vn, vd, fn, fd in (("pipefirst", {"PIPE_FIRST": 1}, "+rst-snd", {"RST_S": 1, "NT": 1}),
                            ("pipelast", {"PIPE_LAST": 1}, "", {}),
                            ("pipekeep", {"PIPE_KEEP": 1, "RCV": "NOTE"}, "", {})):
@@ -183,7 +183,7 @@ KNOWN = [
     (r"^warm/periodic/.*\+wrst-rcv$", "DONE",
      "W0: without W2 a receiver rolled back to an older snapshot has lost a transfer it "
      "acknowledged complete: the sender reported done, the data are gone"),
-    (r"^win2/bidi/ours-ours/spont/(up|down)\+rst-snd$", "GAP",
+    (r"^win2/bidi/ours-ours/spont/up\+rst-snd$", "GAP",
      "P27 withdrawn in the bidirectional layout: after a restart of our sender a stale "
      "acknowledgement of record 1 counts (the P9 residual), and the peer's writes still carry "
      "its number of the old session when it equals the pipelined record: counted for two "
