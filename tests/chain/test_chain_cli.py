@@ -57,8 +57,9 @@ def test_chain_cli_tcp_transport_same_result_as_the_kernel(tmp_path):
 
 def test_chain_cli_warm_bidi_soak_says_the_window_the_senders_ran(tmp_path):
     """--warm-restarts with --bidi (MIP_Link's gate) and --window 2: accepted, run with
-    uWindow 2 as the programs would be configured; a retained sender runs window 1 (P27), and
-    the result line says so. Without --warm the same soak runs window 2."""
+    uWindow 2 as the programs would be configured; a retained sender runs window 1, and so
+    does MIP_Link (P27), and the result line says so; the unidirectional soak without --warm
+    runs window 2."""
     args = ("soak", "--bidi", "--window", "2", "--records", "400", "--per-transfer", "50",
             "--restart-every", "7")
     warm = cli(*args, "--warm-restarts", tmp_path=tmp_path / "warm")
@@ -68,4 +69,7 @@ def test_chain_cli_warm_bidi_soak_says_the_window_the_senders_ran(tmp_path):
     assert " window 1 (uWindow 2) " in last
     cold = cli(*args, tmp_path=tmp_path / "cold")
     assert cold.returncode == 0, cold.stdout + cold.stderr
-    assert " window 2 seconds=" in cold.stdout.strip().splitlines()[-1]
+    assert " window 1 (uWindow 2) seconds=" in cold.stdout.strip().splitlines()[-1]
+    uni = cli(*[a for a in args if a != "--bidi"], tmp_path=tmp_path / "uni")
+    assert uni.returncode == 0, uni.stdout + uni.stderr
+    assert " window 2 seconds=" in uni.stdout.strip().splitlines()[-1]
