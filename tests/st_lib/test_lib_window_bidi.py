@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from stlib_sim import FFFF, Bi, pattern
+from stlib_sim import ERR, FFFF, Bi, pattern
 
 # register of each stream in a block, and which side writes its records
 STREAMS = {"up": (0, "O"), "down": (1, "C")}
@@ -112,3 +112,18 @@ def test_polled_link_stays_stop_and_wait(wd):
     assert res == ["done", "done"]
     assert b.sink_c.transfers == [up] and b.sink_o.transfers == [down]
     assert pipelined(b.radio, "up") == [] and pipelined(b.radio, "down") == []
+
+
+def test_link_without_confirmation_still_fails_after_max_retries(wd):
+    """P3 (bidirectional): while the own modem has not confirmed the record, the link writes
+    it no more (the modem repeats it at every poll itself), but each expired tTimeout still
+    counts for uMaxRetries (P14): a radio that delivers nothing ends in MIP_ERR_NO_ACK, not in
+    a silent wait."""
+    up = pattern(3 * 121, seed=996)
+    b = Bi(wd, up, [], fate=lambda src, block: "lost" if src == "O" else "ok")
+    b.lo["uMaxRetries"] = 2
+    b.lo["xExecute"] = True
+    assert b.bench.run_until(lambda: b.lo["xSendError"], 20000)
+    assert b.lo["eSendErrorId"] == ERR["MIP_ERR_NO_ACK"]
+    assert b.lo["udiRetransmissions"] == 0      # the modem repeated it, the link did not
+    assert b.sink_c.transfers == []
