@@ -246,6 +246,9 @@ def test_trace_file_lines(tmp_path):
     m = ModbusTcpClient("127.0.0.1", port=e.mdp_port, timeout=5, retries=0)
     assert m.connect()
     assert wait_until(lambda: m.read_holding_registers(199, count=1, device_id=2).registers == [3])
+    # the ack telegram that confirms the block (read-status bit 4 clears), which the trace
+    # must show too: the answer alone may be all there is when the machine is busy
+    assert wait_until(lambda: c.read_holding_registers(2198, count=1).registers[0] & 0x10 == 0)
     c.close()
     m.close()
     assert e.stop() == 0
