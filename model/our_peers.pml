@@ -139,6 +139,11 @@
 #define LINKGATE 1
 #endif
 #define W4_GATED (LINKGATE == 1 && DURABLE)
+/* IDLEGATE 0 = variant for findings: the idle link's record 0 waits for no snapshot (the part
+ * of W4 that acts only after the sender finished; tests/model shows the search still sees it) */
+#ifndef IDLEGATE
+#define IDLEGATE 1
+#endif
 
 #define A_RESET  5   /* P12: acknowledgement 0 after a counted record */
 #define A_OOS    6   /* P11: out of step for the whole bound */
@@ -159,7 +164,7 @@ int  sr_compl;
 
 /* the sender's state differs from its last snapshot (a periodic save would change it) */
 /* the last snapshot holds the sender gone idle (W4: its image is record 0) */
-#define S_IDLE_HELD (WRST_S == 0 || !W4_GATED || ss_pc == PC_IDLE)
+#define S_IDLE_HELD (WRST_S == 0 || !W4_GATED || !IDLEGATE || ss_pc == PC_IDLE)
 
 /* the last snapshot holds the record the sender has built (W4) */
 #define S_HELD (WRST_S == 0 || !W4_GATED || (ss_t == t && ss_cur == cur))

@@ -10,7 +10,8 @@ outcome ends the runner non-zero. A violation prints its counterexample as a sho
 Each configuration is checked with the cheapest search that proves what it must show:
 a configuration that must hold, or must show a hang ("known: progress"), by pan's
 acceptance-cycle search under weak fairness (`pan -a -f`: the progress property, with every
-assertion checked on the way); one that must show a safety violation by a breadth-first
+assertion checked on the way in every reachable state: env.pml's claim goes on after the
+sender finished); one that must show a safety violation by a breadth-first
 safety search (`-DSAFETY -DBFS`), which stops at the shortest counterexample and gives its
 trace in the same run. A search that ends without covering the whole state space (memory,
 depth or time) proves nothing: its verdict is INCOMPLETE and fails the run.
@@ -234,7 +235,7 @@ def kind_of(text):
     m = re.search(r"assertion violated (.*)", text)
     if not m:
         return None
-    for k in ("GAP", "MIX", "DUP_ORDER", "LOST", "SILENT", "DONE", "WARMFAIL"):
+    for k in ("GAP", "MIX", "DUP_ORDER", "LOST", "SILENT", "DONE", "WARMFAIL", "DEADLOCK"):
         if re.search(r"\b%s\b" % k, m.group(1)):
             return k
     return "assert " + m.group(1)
@@ -253,10 +254,13 @@ def sh(cmd, cwd, timeout=900):
     return p.returncode, p.stdout
 
 
-# How pan is compiled for each kind of search. -DCOLLAPSE stores a state in about half the
-# memory at little cost in time, so the same MEMLIM covers twice the states; -O2 makes the
-# search itself about a fifth faster than -O1.
-CC_BASE = ["-O2", "-w", "-DCOLLAPSE"]
+# How pan is compiled for each kind of search. -O1: the search runs as fast as with -O2 and
+# the compile, most of a small configuration's time, takes 1.0 s instead of 1.7. No
+# -DCOLLAPSE by default: it stores a state in about 0.7 of the memory but makes the search
+# about 1.5 times as long; the largest configuration (16 M states) needs 2.6 GB without it.
+# --collapse turns it on for variants whose state space would not fit --memlim otherwise.
+CC_BASE = ["-O1", "-w"]
+CC_COLLAPSE = ["-DCOLLAPSE"]
 SEARCHES = {
     # progress (the ltl claim) under weak fairness, assertions checked on the way
     "liveness": dict(cc=["-DNFAIR=3"], pan=["-a", "-f"]),
@@ -273,20 +277,20 @@ DEPTH_FIRST = [r"^win2/bidi/"]
 
 def search_for(expect, name=""):
     """The cheapest search that proves the expectation: a documented safety violation is
-    found by the safety search alone; a known hang by the progress search; "holds" needs
-    both (run_one runs the depth-first safety search before the progress search)."""
+    found by the safety search alone; a known hang, and "holds" (progress and every
+    assertion), by the progress search, whose claim (env.pml) leaves no state unvisited."""
     if expect.startswith("known:") and expect != "known:progress":
         return "safety-dfs" if any(re.search(rx, name) for rx in DEPTH_FIRST) else "safety"
     return "liveness"
 
 
-def build(work, defs, extra_cc=(), cache=None):
+def build(work, defs, extra_cc=(), cache=None, collapse=False):
     """spin -a and cc into work/pan; with cache, a pan built before from the same pan.c and
     flags is reused (the C compile is most of a small configuration's time)."""
     rc, out = sh(["spin", "-a"] + spin_defs(defs) + [MODEL], work)
     if rc != 0 or not os.path.exists(os.path.join(work, "pan.c")):
         raise RuntimeError("spin -a failed:\n" + out)
-    flags = CC_BASE + list(extra_cc)
+    flags = CC_BASE + (CC_COLLAPSE if collapse else []) + list(extra_cc)
     key = None
     if cache:
         h = hashlib.sha256(" ".join(flags).encode())
@@ -379,7 +383,8 @@ def run_pan(cmd, cwd, timeout):
         return out + "\nSearch not completed\n", True
 
 
-def run_one(name, defs, expect, work_root, maxdepth, memlim=4096, timeout=900, cache=None):
+def run_one(name, defs, expect, work_root, maxdepth, memlim=4096, timeout=900, cache=None,
+            collapse=False):
     work = os.path.join(work_root, re.sub(r"[^A-Za-z0-9]+", "_", name))
     shutil.rmtree(work, ignore_errors=True)
     os.makedirs(work)
@@ -391,23 +396,7 @@ def run_one(name, defs, expect, work_root, maxdepth, memlim=4096, timeout=900, c
         # found first cannot hide it
         defs = dict(defs, SEEK="K_" + expect.split(":", 1)[1])
     is_bounded = expect == "holds" and bounded(name)
-    if expect == "holds" and not is_bounded:
-        # every assertion over the whole state space first: the progress search below prunes
-        # every state after its claim is satisfied (s_fin or r_stuck), so a violation after
-        # the sender finished (a rollback, an idle link's record 0) would go unseen there
-        build(work, defs, SEARCHES["safety-dfs"]["cc"] + ["-DMEMLIM=%d" % memlim], cache)
-        out, timed_out = run_pan(["./pan", "-m%d" % maxdepth, "-w24"], work, timeout)
-        st = stats(out)
-        if timed_out and not st["errors"]:
-            st["incomplete"] = "no result within %d s (--timeout)" % timeout
-        if st["errors"] or st["incomplete"]:
-            kind = kind_of(out) if st["errors"] else None
-            trace = readable_trace(work, defs) if kind else []
-            verdict = ("VIOLATED " + (kind or "?")) if kind else "INCOMPLETE (%s)" % st["incomplete"]
-            return dict(name=name, stored=st["stored"], depth=st["depth"], secs=time.time() - t0,
-                        ok=False, verdict=verdict, kind=kind, trace=trace, raw=out,
-                        search="safety-dfs")
-    build(work, defs, sp["cc"] + ["-DMEMLIM=%d" % memlim], cache)
+    build(work, defs, sp["cc"] + ["-DMEMLIM=%d" % memlim], cache, collapse)
     out, timed_out = run_pan(["./pan"] + sp["pan"] + ["-m%d" % maxdepth, "-w24"], work, timeout)
     st = stats(out)
     if timed_out and not st["errors"]:
@@ -415,7 +404,7 @@ def run_one(name, defs, expect, work_root, maxdepth, memlim=4096, timeout=900, c
     kind = kind_of(out) if st["errors"] else None
     if kind and kind != "progress" and search == "liveness":
         # a safety violation where everything must hold: the shortest counterexample reads best
-        build(work, defs, SEARCHES["safety"]["cc"] + ["-DMEMLIM=%d" % memlim], cache)
+        build(work, defs, SEARCHES["safety"]["cc"] + ["-DMEMLIM=%d" % memlim], cache, collapse)
         sh(["./pan", "-m%d" % maxdepth, "-w24"], work, timeout=timeout)
     trace = readable_trace(work, defs) if kind else []
     secs = time.time() - t0
@@ -487,6 +476,9 @@ def main(argv):
     ap.add_argument("--memlim", type=int, default=int(os.environ.get("MODEL_MEMLIM", "4096")),
                     help="MB one search may use before it counts as INCOMPLETE (default 4096, "
                          "or MODEL_MEMLIM)")
+    ap.add_argument("--collapse", action="store_true",
+                    help="compile pan with -DCOLLAPSE: about 0.7 of the memory per state, about "
+                         "1.5 times the search time (for variants larger than --memlim holds)")
     ap.add_argument("--pan-cache", help="keep compiled pan binaries here and reuse them "
                                         "(default: WORK/pan-cache when --work is given)")
     a = ap.parse_args(argv)
@@ -515,7 +507,8 @@ def main(argv):
     def one(c):
         name, defs, expect, what = c
         try:
-            return run_one(name, defs, expect, work_root, a.max_depth, a.memlim, a.timeout, cache)
+            return run_one(name, defs, expect, work_root, a.max_depth, a.memlim, a.timeout, cache,
+                           a.collapse)
         except (RuntimeError, subprocess.TimeoutExpired) as e:
             return dict(name=name, stored=None, depth=None, secs=0.0, ok=False, search="-",
                         verdict="ERROR " + " | ".join(str(e).splitlines()[:2]), kind=None, trace=[], raw=str(e))
