@@ -10,23 +10,26 @@
 #define RCV NOTE
 #endif
 
+/* The chosen peers are active processes; there is no init process. pan's weak fairness (-f)
+ * counts every process, an ended init too: with one the progress search took about 1.6 times
+ * as long (bidi/ours-ours/spont/up+rst-rcv: 32 s against 19 s, the same verdict). */
+#if SND == NOTE
+#define ACTIVE_NoteSender active
+#define ACTIVE_OurSender
+#else
+#define ACTIVE_NoteSender
+#define ACTIVE_OurSender active
+#endif
+#if RCV == NOTE
+#define ACTIVE_NoteReceiver active
+#define ACTIVE_OurReceiver
+#else
+#define ACTIVE_NoteReceiver
+#define ACTIVE_OurReceiver active
+#endif
+
 #include "env.pml"
 #include "note_peers.pml"
 #if SND == OURS || RCV == OURS
 #include "our_peers.pml"
 #endif
-
-init {
-    atomic {
-#if SND == NOTE
-        run NoteSender();
-#else
-        run OurSender();
-#endif
-#if RCV == NOTE
-        run NoteReceiver()
-#else
-        run OurReceiver()
-#endif
-    }
-}

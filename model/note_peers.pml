@@ -30,7 +30,7 @@
 #define A_DONE   3   /* last record acknowledged */
 #define A_ACK    4   /* write the acknowledgement */
 
-proctype NoteSender() {
+ACTIVE_NoteSender proctype NoteSender() {
     byte cur, t, ctr, nc, nx, nt, ni, act;
     bool nw;
 newt:
@@ -75,7 +75,7 @@ idle:
     od
 }
 
-proctype NoteReceiver() {
+ACTIVE_NoteReceiver proctype NoteReceiver() {
     byte last, nc, nx, nt, ni, act;
     bool nw;
     mb_write(R, 0, 0, 0, 0);      /* the request with acknowledgement 0 */

@@ -194,7 +194,7 @@ inline r_save() {
     }
 }
 
-proctype OurSender() {
+ACTIVE_OurSender proctype OurSender() {
     byte cur, t, ctr, prev, nc, nx, nt, ni, act;
     bool nw, first = 1, oos;
     bool conf, fresh;        /* BIDI P9: own modem confirmed / a new telegram since the write */
@@ -450,7 +450,7 @@ idle:
     od
 }
 
-proctype OurReceiver() {
+ACTIVE_OurReceiver proctype OurReceiver() {
     byte L, Lchk, c, nc, nx, nt, ni, act;
     byte oldchk;             /* P19: check value of an old 16#FFFF found as the first block */
     bool nw, first = 1, uoos;
