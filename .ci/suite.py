@@ -6,7 +6,7 @@
                                                    one line when it starts and one when it ends
                                                    (on failure also the end of its log)
   suite.py summary --results DIR --title T NAME... the table (suite, tests, passed, failed,
-                                                   skipped, seconds) on stdout and in
+                                                   skipped, seconds, CPU seconds) on stdout and in
                                                    DIR/timing.txt; exit 1 if a suite failed or
                                                    did not report
 
@@ -16,6 +16,7 @@ import argparse
 import glob
 import json
 import os
+import resource
 import subprocess
 import sys
 import time
@@ -60,16 +61,22 @@ def cmd_run(a):
         os.remove(f) if os.path.exists(f) else None   # no counts of an earlier run
     print("suite %-22s started" % a.name, flush=True)
     t0 = time.time()
+    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     with open(log, "w") as out:
         # close_fds=False: a make inside keeps the jobserver of the make that runs the suites
         rc = subprocess.call(a.command, stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                              close_fds=False)
     secs = time.time() - t0
+    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    # the CPU time of every process the suite ran and waited for: what it costs on a busy
+    # machine, where the wall time depends on what runs beside it
+    cpu = (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
     tests, failed, skipped = counts(a.results, a.name)
     if rc != 0 and failed == 0:
         failed = 1   # it failed without a JUnit failure: a build or a crash
     with open(os.path.join(a.results, "suites", a.name + ".json"), "w") as f:
-        json.dump(dict(name=a.name, rc=rc, secs=secs, tests=tests, failed=failed, skipped=skipped), f)
+        json.dump(dict(name=a.name, rc=rc, secs=secs, cpu=cpu, tests=tests, failed=failed,
+                       skipped=skipped), f)
     if rc == 0:
         print("suite %-22s ok      %6.0f s  %5d tests, %d skipped" % (a.name, secs, tests, skipped), flush=True)
     else:
@@ -95,22 +102,25 @@ def cmd_summary(a):
             with open(os.path.join(d, name + ".json")) as f:
                 rows.append(json.load(f))
         except (OSError, ValueError):
-            rows.append(dict(name=name, rc=None, secs=0.0, tests=0, failed=1, skipped=0))
+            rows.append(dict(name=name, rc=None, secs=0.0, cpu=0.0, tests=0, failed=1, skipped=0))
     lines = ["%s: the suites" % a.title,
-             "%-24s %7s %7s %7s %7s %8s" % ("suite", "tests", "passed", "failed", "skipped", "seconds")]
+             "%-24s %7s %7s %7s %7s %8s %8s" % ("suite", "tests", "passed", "failed", "skipped", "seconds",
+                                               "cpu s")]
     for r in rows:
         passed = r["tests"] - r["failed"] - r["skipped"]
         note = "" if r["rc"] == 0 else ("  (did not run)" if r["rc"] is None else "  (exit %d)" % r["rc"])
         if r["rc"] != 0:
             bad.append(r["name"])
-        lines.append("%-24s %7d %7d %7d %7d %8.0f%s" % (r["name"], r["tests"], max(passed, 0), r["failed"],
-                                                     r["skipped"], r["secs"], note))
+        lines.append("%-24s %7d %7d %7d %7d %8.0f %8.0f%s" % (r["name"], r["tests"], max(passed, 0), r["failed"],
+                                                           r["skipped"], r["secs"], r.get("cpu", 0.0), note))
     t = sum(r["tests"] for r in rows)
     fl = sum(r["failed"] for r in rows)
     sk = sum(r["skipped"] for r in rows)
-    lines.append("%-24s %7d %7d %7d %7d %8s" % ("all", t, t - fl - sk, fl, sk,
-                                                "%.0f" % wall if wall is not None else "?"))
-    lines.append("(seconds: each suite's own wall time; 'all': the wall time of the whole run, suites side by side)")
+    lines.append("%-24s %7d %7d %7d %7d %8s %8.0f" % ("all", t, t - fl - sk, fl, sk,
+                                                     "%.0f" % wall if wall is not None else "?",
+                                                     sum(r.get("cpu", 0.0) for r in rows)))
+    lines.append("(seconds: each suite's own wall time; 'all': the wall time of the whole run, suites side "
+                 "by side; cpu s: the CPU time of the suite's processes, which the cores share)")
     text = "\n".join(lines)
     print(text)
     with open(os.path.join(a.results, "timing.txt"), "w") as f:

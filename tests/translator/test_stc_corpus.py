@@ -36,7 +36,7 @@ def test_reject(path, tmp_path):
         text = f.read()
     want = H.expected_errors(text)
     assert want, f"{path}: no (* ERROR line:col: message *) lines"
-    r = H.run_stc(["-o", str(tmp_path / "out"), path])
+    r = H.translate(["-o", str(tmp_path / "out"), path])
     assert r.returncode == 1, f"accepted (rc={r.returncode}): {r.stderr}"
     assert "Traceback" not in r.stderr and "internal" not in r.stderr, r.stderr
     lines = r.stderr.splitlines()
