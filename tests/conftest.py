@@ -81,8 +81,8 @@ def pytest_configure(config):
 
 
 def pytest_itemcollected(item):
-    # here, not in pytest_collection_modifyitems: pytest-xdist's worker reads the group in its
-    # own modifyitems hook, which ran before ours (the module's tests went to both workers)
+    # as each test is collected, so the marker is there before any modifyitems hook: the
+    # pytest-xdist worker names the groups in its own (_GroupCheck sees that it did)
     module = item.nodeid.split("::", 1)[0]
     if module in ONE_WORKER:
         item.add_marker(pytest.mark.xdist_group(module))
