@@ -262,7 +262,7 @@ def sh(cmd, cwd, timeout=900):
 CC_BASE = ["-O1", "-w"]
 CC_COLLAPSE = ["-DCOLLAPSE"]
 SEARCHES = {
-    # progress (the ltl claim) under weak fairness, assertions checked on the way
+    # progress (env.pml's never claim) under weak fairness, every assertion checked on the way
     "liveness": dict(cc=["-DNFAIR=3"], pan=["-a", "-f"]),
     # assertions only, breadth-first: the first violation found is a shortest one
     "safety": dict(cc=["-DBFS", "-DSAFETY", "-DNOCLAIM"], pan=[]),
