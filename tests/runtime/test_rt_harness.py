@@ -205,3 +205,37 @@ def test_c_level_access_for_cosimulation(compiler, st_file, tmp_path):
     lib.plcrt_scan(plc.handle, 1)
     assert plc["MAIN.x"] == 42
     assert plc.address("%QW100") != plc.address("%IW100")
+
+
+@pytest.mark.parametrize("compiler", COMPILERS)
+def test_a_located_variable_outside_the_image_stops_the_load_in_one_line(st_file, tmp_path,
+                                                                       compiler):
+    """The glue binds every line of LOCATED_VARIABLES.h in order; the first one the image has no
+    room for is named, with its address and the limit (runtime_shim/README.md)."""
+    src = st_file(one_task("""
+PROGRAM MAIN
+VAR a AT %IW3 : WORD; b AT %QX1.2 : BOOL; c AT %MD5 : DINT; far AT %IW1500 : WORD; END_VAR
+a := a;
+END_PROGRAM
+"""))
+    with pytest.raises(PlcError) as e:
+        Plc.build([src], workdir=tmp_path, compiler=compiler)
+    assert str(e.value) == "located variable __IW1500: %IW1500: outside the image (n < 1024)"
+
+
+@pytest.mark.parametrize("compiler", COMPILERS)
+def test_located_variables_of_each_area_and_size_are_the_image(st_file, tmp_path, compiler):
+    """What the program writes to its located variables is in the image at their addresses,
+    and what is put into the image is what the program reads."""
+    plc = Plc.build([st_file(one_task("""
+PROGRAM MAIN
+VAR a AT %IW3 : WORD; b AT %QX1.2 : BOOL; c AT %MD5 : DINT; d AT %QW7 : WORD;
+    e AT %IX0.7 : BOOL; f AT %MW9 : WORD; END_VAR
+d := a; b := e; c := c + 1; f := a;
+END_PROGRAM
+"""))], workdir=tmp_path, compiler=compiler)
+    plc["%IW3"] = 0xBEEF
+    plc["%IX0.7"] = True
+    plc["%MD5"] = 41
+    plc.scan()
+    assert (plc["%QW7"], plc["%QX1.2"], plc["%MD5"], plc["%MW9"]) == (0xBEEF, True, 42, 0xBEEF)
