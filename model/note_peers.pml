@@ -42,8 +42,12 @@ newt:
 send:
     mb_write(S, ctr, 0, t, cur);
 wait:
+    /* the decision of a read (act) is the next step; a read that decides nothing leaves no
+     * step behind it (our_peers.pml, SND_WAIT_ACK) */
     do
-    :: !(!POLLED && !rnew[S] && tmr[S] >= TT) ->
+    :: act == A_DONE -> act = A_NONE; app_sent(t); goto newt
+    :: act == A_NEXT || act == A_SEND -> act = A_NONE; goto send
+    :: act == A_NONE && !(!POLLED && !rnew[S] && tmr[S] >= TT) ->
         d_step {
             mb_read(S, nw, nc, nx, nt, ni);
             if
@@ -54,17 +58,12 @@ wait:
             :: else -> act = A_NONE
             fi;
             clr_read(nw, nc, nx, nt, ni)
-        };
-        if
-        :: act == A_DONE -> act = A_NONE; app_sent(t); goto newt
-        :: act == A_NEXT || act == A_SEND -> act = A_NONE; goto send
-        :: else -> skip
-        fi
-    :: !POLLED && !rnew[S] && tmr[S] >= TT -> goto send
+        }
+    :: act == A_NONE && !POLLED && !rnew[S] && tmr[S] >= TT -> goto send
 #if BIDI
-    :: nbw[S] > 0 -> mb_write_other(S, ctr, t, cur)   /* note 2.2: its other stream's write */
+    :: act == A_NONE && nbw[S] > 0 -> mb_write_other(S, ctr, t, cur)   /* note 2.2: its other stream's write */
 #endif
-    :: rst_s > 0 -> printf("@ sender PLC restarts\n"); rst_s--; sabort = sabort | (1 << t); goto newt
+    :: act == A_NONE && rst_s > 0 -> printf("@ sender PLC restarts\n"); rst_s--; sabort = sabort | (1 << t); goto newt
     od;
 idle:
     do
@@ -80,7 +79,8 @@ ACTIVE_NoteReceiver proctype NoteReceiver() {
     bool nw;
     mb_write(R, 0, 0, 0, 0);      /* the request with acknowledgement 0 */
     do
-    :: !(POLLED && !rnew[R] && tmr[R] >= TT) ->
+    :: act == A_ACK -> d_step { act = A_NONE; mb_write(R, last, 0, 0, 0) }
+    :: act == A_NONE && !(POLLED && !rnew[R] && tmr[R] >= TT) ->
         d_step {
             mb_read(R, nw, nc, nx, nt, ni);
             act = A_NONE;
@@ -97,15 +97,11 @@ ACTIVE_NoteReceiver proctype NoteReceiver() {
             :: else -> skip                             /* not expected: ignored */
             fi;
             clr_read(nw, nc, nx, nt, ni)
-        };
-        if
-        :: act == A_ACK -> act = A_NONE; mb_write(R, last, 0, 0, 0)
-        :: else -> skip
-        fi
-    :: POLLED && !rnew[R] && tmr[R] >= TT -> mb_write(R, last, 0, 0, 0)
+        }
+    :: act == A_NONE && POLLED && !rnew[R] && tmr[R] >= TT -> mb_write(R, last, 0, 0, 0)
 #if BIDI
-    :: nbw[R] > 0 -> mb_write_other(R, last, 0, 0)
+    :: act == A_NONE && nbw[R] > 0 -> mb_write_other(R, last, 0, 0)
 #endif
-    :: rst_r > 0 -> printf("@ receiver PLC restarts\n"); rst_r--; d_step { app_drop(1) }; last = 0; mb_write(R, 0, 0, 0, 0)
+    :: act == A_NONE && rst_r > 0 -> printf("@ receiver PLC restarts\n"); rst_r--; d_step { app_drop(1) }; last = 0; mb_write(R, 0, 0, 0, 0)
     od
 }

@@ -257,7 +257,7 @@ def sh(cmd, cwd, timeout=900):
 # How pan is compiled for each kind of search. -O1: the search runs as fast as with -O2 and
 # the compile, most of a small configuration's time, takes 1.0 s instead of 1.7. No
 # -DCOLLAPSE by default: it stores a state in about 0.7 of the memory but makes the search
-# about 1.5 times as long; the largest configuration (16 M states) needs 2.6 GB without it.
+# about 1.5 times as long; the largest configuration (10.3 M states) needs 2.0 GB without it.
 # --collapse turns it on for variants whose state space would not fit --memlim otherwise.
 CC_BASE = ["-O1", "-w"]
 CC_COLLAPSE = ["-DCOLLAPSE"]
