@@ -101,7 +101,7 @@ def _matrix():
     # gate carries only state a snapshot holds
     for pn, pd in peers[:5]:
         for dn, dd in drives:
-            for fn, fd in warm[:2]:   # +wrst-both: over 26 M states, more than CI's 4 GB hold
+            for fn, fd in warm[:2]:   # +wrst-both: 22 M states, 3.3 GB, 3 min each (docs/dev/model.md)
                 if ("WRST_S" in fd and pd["SND"] == "NOTE") or ("WRST_R" in fd and pd["RCV"] == "NOTE"):
                     continue
                 d = dict(pd); d.update(dd); d.update(fd); d.update({"BIDI": 1, "NBW": 1, "NT": 1})
