@@ -498,7 +498,8 @@ def _core_objects(cache, cc, cflags, mb_cflags, out: Path):
         h.update(f.read_bytes())
     root = cache / CORE_DIR
     d = root / h.hexdigest()[:24]
-    if all(o.is_file() for o in result(d)[0] + [result(d)[1]]):
+    core, main = result(d)
+    if all(o.is_file() for o in core + [main]):
         try:
             os.utime(d)  # recently used: pruned last
         except OSError:
