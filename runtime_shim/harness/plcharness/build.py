@@ -453,14 +453,15 @@ CORE_DIR = "core-objects"  # in the cache: the runtime's own objects, see _core_
 CORE_KEEP = 4              # sets of them (compiler and flags); the oldest go first
 
 
-def _prune_cache(cache: Path):
+def _prune_cache(cache: Path, keep=CACHE_KEEP):
+    """The entries of cache beyond the newest keep go (not CORE_DIR, not builds under way)."""
     try:
         entries = [e for e in cache.iterdir() if e.is_dir() and e.name != CORE_DIR
                    and not e.name.startswith("plcrt-build-")]
-        if len(entries) <= CACHE_KEEP:
+        if len(entries) <= keep:
             return
         entries.sort(key=lambda e: e.stat().st_mtime)
-        for e in entries[:len(entries) - CACHE_KEEP]:
+        for e in entries[:len(entries) - keep]:
             shutil.rmtree(e, ignore_errors=True)
     except OSError:
         pass  # another process pruned at the same time
@@ -504,7 +505,7 @@ def _core_objects(cache, cc, cflags, mb_cflags, out: Path):
             os.utime(d)  # recently used: pruned last
         except OSError:
             pass
-        return result(d)
+        return core, main
     root.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix="plcrt-build-", dir=root))
     try:
@@ -518,13 +519,11 @@ def _core_objects(cache, cc, cflags, mb_cflags, out: Path):
         if tmp is not None:
             shutil.rmtree(tmp, ignore_errors=True)
     try:
-        sets = sorted((e for e in root.iterdir() if e.is_dir() and e != d
-                       and not e.name.startswith("plcrt-build-")), key=lambda e: e.stat().st_mtime)
-        for e in sets[:max(0, len(sets) - (CORE_KEEP - 1))]:
-            shutil.rmtree(e, ignore_errors=True)
+        os.utime(d)  # this build's set stays, also when a concurrent build's rename won
     except OSError:
-        pass  # another process pruned at the same time
-    return result(d)
+        pass
+    _prune_cache(root, CORE_KEEP)
+    return core, main
 
 
 def _check_outdir(outdir: Path):
