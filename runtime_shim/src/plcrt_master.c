@@ -442,8 +442,15 @@ bad:
  * data clears bit 0 in the modem, so a later read of the same block shows it clear: the bit 0 the
  * first read saw is kept in the status word given to the program (the block it announced is the
  * one the later read returns, or a newer one, which sets the bit again). Registers not read keep
- * what the last read brought (the program looks at the data only with bit 0 or a new count). The
- * characters of the further exchanges are kept for the line's time in virtual time. */
+ * what the last read brought.
+ * The program must never see the first registers of one block with the data of another: the
+ * blocks take a new number without bit 0 as a new record (MIP_ReadDecoder). Bit 0 alone cannot
+ * promise that: a read whose answer never arrived (a PLC killed while it was on the line, a CRC
+ * error) has cleared it in the modem. So the further reads are made also when the image holds no
+ * read of this run yet (a restarted PLC) or when the registers the first read took (count, first
+ * data) differ from the image's; the image is then always one block, the latest or an older
+ * one (issue 38). The characters of the further exchanges are kept for the line's time in
+ * virtual time. */
 static int status_first_request(struct plcrt_master *m, plcrt_device_t *d, const plcrt_range_t *r,
                                 request_t *q, int *transport)
 {
@@ -452,7 +459,9 @@ static int status_first_request(struct plcrt_master *m, plcrt_device_t *d, const
     memcpy(q->data, r->in, sizeof q->data[0] * (size_t)size); /* what is not read stays */
     q->count = q->status_first < size ? q->status_first : size;
     int status = do_request(m, d, q, transport);
-    if (status != 0 || !(q->data[0] & 1) || 2 + q->data[1] <= q->count) {
+    int known = r->have_in &&
+                !memcmp(q->data + 1, r->in + 1, sizeof q->data[0] * (size_t)(q->count - 1));
+    if (status != 0 || (!(q->data[0] & 1) && known) || 2 + q->data[1] <= q->count) {
         q->count = size;
         return status;
     }
@@ -558,7 +567,10 @@ static void publish(struct plcrt_master *m, plcrt_range_t *r, const request_t *q
         r->pending = 0;
         r->status_value = status;
         r->result = status == 0 ? RESULT_OK : RESULT_ERROR;
-        if (status == 0 && !r->is_write) memcpy(r->in, q->data, sizeof q->data[0] * (size_t)r->size);
+        if (status == 0 && !r->is_write) {
+            memcpy(r->in, q->data, sizeof q->data[0] * (size_t)r->size);
+            r->have_in = 1;
+        }
     } else if (status == 0) {
         if (r->is_write) {
             memcpy(r->last, q->data, sizeof q->data[0] * (size_t)r->size);
@@ -566,6 +578,7 @@ static void publish(struct plcrt_master *m, plcrt_range_t *r, const request_t *q
         } else {
             memcpy(r->in, q->data, sizeof q->data[0] * (size_t)r->size);
             r->fresh = 1;
+            r->have_in = 1;
         }
     }
     munlock(m);

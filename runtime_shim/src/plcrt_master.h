@@ -38,6 +38,7 @@ typedef struct plcrt_range {
     int done_shown, error_shown;
     int have_last;
     int fresh;           /* in[] holds new data */
+    int have_in;         /* in[] holds a read of this run (status_first: a whole block) */
     int req_len;
     int req_unit;        /* unit id of the trigger request (sampled at the edge; may be > 255) */
     int out_len;         /* cycle/change: length word as of the last exchange (size without one) */

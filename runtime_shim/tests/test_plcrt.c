@@ -1410,6 +1410,46 @@ TEST(status_first_3_takes_a_one_register_block_in_the_status_read)
     plcrt_free(rt);
 }
 
+/* A read whose answer never reached the program (a PLC killed while the answer was on the
+ * line, a CRC error) has cleared bit 0 in the modem. The next status read then shows a block
+ * without bit 0: with a counter or a count the image does not hold, the rest of the block is
+ * read too, so that the program never sees one block's first registers with another block's
+ * data (issue 38: records lost over RTU with warm restarts). */
+TEST(status_first_reads_a_block_whose_bit_0_a_lost_answer_took)
+{
+    mip_peer_t peer = {0};
+    uint16_t rec[5] = {446, 11, 12, 13, 14};
+    mip_peer_deliver(&peer, rec, 5);
+    peer.area[0] &= (uint16_t)~1u; /* the killed predecessor's read took bit 0 */
+    /* a fresh runtime (restarted PLC): its image holds no block, so the block is read whole */
+    plcrt_t *rt = mip_rt(MIP_READ("3"), &peer);
+    plcrt_image_t *img = plcrt_image(rt);
+    CHECK(mip_read(rt));
+    CHECK_EQ(peer.n, 2);
+    CHECK_EQ(peer.count[1], 7);
+    CHECK_EQ(img->iw[301], 5);
+    CHECK_EQ(img->iw[302], 446);
+    CHECK_EQ(img->iw[303], 11);
+    CHECK_EQ(img->iw[306], 14);
+    /* the next record of the same length arrives and a lost answer takes its bit 0: the counter
+     * differs from the image's, so the block is read whole */
+    uint16_t next[5] = {447, 21, 22, 23, 24};
+    mip_peer_deliver(&peer, next, 5);
+    peer.area[0] &= (uint16_t)~1u;
+    CHECK(mip_read(rt));
+    CHECK_EQ(peer.n, 4);
+    CHECK_EQ(peer.count[3], 7);
+    CHECK_EQ(img->iw[302], 447);
+    CHECK_EQ(img->iw[303], 21);
+    CHECK_EQ(img->iw[306], 24);
+    /* the same block again, bit 0 clear: the status read alone, the image unchanged */
+    CHECK(mip_read(rt));
+    CHECK_EQ(peer.n, 5);
+    CHECK_EQ(img->iw[302], 447);
+    CHECK_EQ(img->iw[306], 24);
+    plcrt_free(rt);
+}
+
 TEST(serial_line_in_virtual_time_takes_requests_in_config_order_after_idle)
 {
     /* A read and a write raised in the same scan go in config order: the write listed first
