@@ -154,12 +154,36 @@ inline mb_write_other(wm, vc, vt, vi) {
     }
 }
 
+/* SPLITREAD (issue 38): the PLC's master reads the read area in parts (plcrt's status_first:
+ * status, count and the counter first, the rest of the block only when needed) and keeps what
+ * it did not read from its image of the last whole read (not retained: empty after a restart).
+ * 1: the rest only with bit 0 (plcrt before the fix). A read whose answer was lost (a PLC
+ * killed while the answer was on the line: here a warm restart after the read) took bit 0, so
+ * the restarted PLC sees the new counter with data of no read: must fail. 2: also when the
+ * image holds no block or its counter differs (the fix): must hold. 0: one FC3. */
+#ifndef SPLITREAD
+#define SPLITREAD 0
+#endif
+#if SPLITREAD
+byte imc[2], imx[2], imt[2], imi[2];   /* the PLC's image of the last whole read; imc 0: none */
+#define im_reset(side) imc[side] = 0; imx[side] = 0; imt[side] = 0; imi[side] = 0
+#else
+#define im_reset(side) skip
+#endif
+
 /* A Modbus read of status, count and read data in one FC3: returns the block and whether it
  * was new; clears bit 0 after the answer was composed. Used inside the caller's d_step, which
  * decides on the block and clears the values again (clr_read), so that old reads do not
  * multiply the states. */
 inline mb_read(rm, isnew, oc, ox, ot, oi) {
     isnew = rnew[rm]; oc = rc[rm]; ox = rx[rm]; ot = rt[rm]; oi = ri[rm];
+#if SPLITREAD
+    if
+    :: !isnew && oc != 0 && (SPLITREAD == 1 || imc[rm] == oc) ->
+        ox = imx[rm]; ot = imt[rm]; oi = imi[rm]       /* the rest from the image */
+    :: else -> imc[rm] = oc; imx[rm] = ox; imt[rm] = ot; imi[rm] = oi   /* read whole */
+    fi;
+#endif
     if :: isnew -> printf("@ M%d PLC reads new [%d,%d] (t%d#%d)\n", rm, oc, ox, ot, oi) :: else -> skip fi;
     rnew[rm] = 0
 }

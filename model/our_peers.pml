@@ -161,6 +161,12 @@ bool ss_oos, ss_conf, ss_fresh, ss_first = 1, ss_rd, ss_sfin;
 byte sr_L, sr_Lchk = CHK0, sr_oldchk, sr_at, sr_ai, sr_rerr;
 bool sr_first = 1, sr_uoos, sr_sempty, sr_nolone;
 int  sr_compl;
+#if SPLITREAD
+byte sr_dnum;                /* the receiver's MIP_ReadDecoder: the last number taken */
+#define DNUM_NEW(nc) (nc != dnum)
+#else
+#define DNUM_NEW(nc) 0
+#endif
 
 /* the sender's state differs from its last snapshot (a periodic save would change it) */
 /* the last snapshot holds the sender gone idle (W4: its image is record 0) */
@@ -190,6 +196,9 @@ inline r_save() {
         sr_L = L; sr_Lchk = Lchk; sr_oldchk = oldchk; sr_first = first; sr_uoos = uoos;
         sr_sempty = sempty; sr_nolone = nolone;
         sr_at = a_t; sr_ai = a_i; sr_compl = compl; sr_rerr = r_err;
+#if SPLITREAD
+        sr_dnum = dnum;
+#endif
         printf("@ receiver snapshot (L %d)\n", L)
     }
 }
@@ -417,7 +426,7 @@ SND_ERROR:
     goto SND_IDLE;
 restart:
     printf("@ sender PLC restarts\n");
-    d_step { rst_s--; sabort = sabort | (1 << t); first = 1; oos = 0; otmr[S] = 0 };
+    d_step { rst_s--; sabort = sabort | (1 << t); first = 1; oos = 0; otmr[S] = 0; im_reset(S) };
     goto SND_IDLE;
 wrestart:
     /* a warm restart: everything since the last snapshot is lost (kill -9); the timers start
@@ -427,7 +436,7 @@ wrestart:
         wrst_s--;
         cur = ss_cur; t = ss_t; ctr = ss_ctr; conf = ss_conf; fresh = ss_fresh; first = ss_first;
         rd = ss_rd; g_next = ss_gnext; s_done = ss_sdone; s_err = ss_serr; s_fin = ss_sfin;
-        oos = 0; otmr[S] = 0; newrec = 0
+        oos = 0; otmr[S] = 0; newrec = 0; im_reset(S)
     };
     if
     :: ss_pc == PC_IDLE -> goto SND_IDLE
@@ -456,6 +465,9 @@ ACTIVE_OurReceiver proctype OurReceiver() {
     byte L, Lchk, c, nc, nx, nt, ni, act;
     byte oldchk;             /* P19: check value of an old 16#FFFF found as the first block */
     bool nw, first = 1, uoos;
+#if SPLITREAD
+    byte dnum;               /* MIP_ReadDecoder: a changed number is a new telegram too (SPLITREAD only) */
+#endif
     bool sempty;             /* P19: a read since xEnable showed the area empty (count 0) */
     bool nolone;             /* P19: no lone 16#FFFF until a record 1 was accepted */
 RCV_WAIT_FIRST:
@@ -499,7 +511,7 @@ RCV_IN_TRANSFER:          /* also RCV_COMPLETE (L = 16#FFFF): one loop, L tells 
                 L = 0; Lchk = CHK0; uoos = 0; otmr[R] = 0; act = A_ACK
 #endif
             :: nc == 0 -> sempty = 1         /* an empty area (count 0), or record 0 with nothing open */
-            :: nc != 0 && !(nw || first) -> skip                  /* no telegram */
+            :: nc != 0 && !(nw || first || DNUM_NEW(nc)) -> skip   /* no telegram */
             :: RFIRST_MODE == 1 && nc != 0 && first && !nw -> first = 0   /* variant: the first read's old block never counts */
             :: else ->
                 if
@@ -541,6 +553,9 @@ RCV_IN_TRANSFER:          /* also RCV_COMPLETE (L = 16#FFFF): one loop, L tells 
                 fi
             fi;
             if :: nc != 0 -> first = 0 :: else -> skip fi;   /* the first block read has a count */
+#if SPLITREAD
+            if :: nc != 0 -> dnum = nc :: else -> skip fi;
+#endif
             c = 0;
             clr_read(nw, nc, nx, nt, ni)
         };
@@ -555,10 +570,19 @@ RCV_IN_TRANSFER:          /* also RCV_COMPLETE (L = 16#FFFF): one loop, L tells 
         r_stuck = 1; printf("@ receiver xError PEER_OUT_OF_STEP (bound)\n")
     :: act == A_NONE && rst_r > 0 ->
         printf("@ receiver PLC restarts\n");
-        d_step { rst_r--; app_drop(1); first = 1; sempty = 0; nolone = 0; oldchk = 0 };
+        d_step { rst_r--; app_drop(1); first = 1; sempty = 0; nolone = 0; oldchk = 0; im_reset(R) };
+#if SPLITREAD
+        dnum = 0;
+#endif
         goto RCV_WAIT_FIRST
     :: act == A_NONE && WRST_R > 0 && R_CHANGED -> r_save()     /* a periodic snapshot */
     :: act == A_NONE && wrst_r > 0 -> goto rwarm
+#if SPLITREAD
+    :: act == A_NONE && wrst_r > 0 ->
+        /* killed while a read's answer was on the line: that read took bit 0 */
+        d_step { rnew[R] = 0; printf("@ receiver PLC reads; killed before the answer arrives (bit 0 taken)\n") };
+        goto rwarm
+#endif
     od;
 rwarm:
     /* a warm restart: block and store back to the last snapshot (kill -9); no
@@ -569,8 +593,11 @@ rwarm:
         wrst_r--;
         L = sr_L; Lchk = sr_Lchk; oldchk = sr_oldchk; first = sr_first; sempty = sr_sempty;
         nolone = sr_nolone; a_t = sr_at; a_i = sr_ai; compl = sr_compl; r_err = sr_rerr;
-        uoos = 0; otmr[R] = 0
+        uoos = 0; otmr[R] = 0; im_reset(R)
     };
+#if SPLITREAD
+    dnum = sr_dnum;
+#endif
     if :: mb_write(R, L, ECHO(L, Lchk), 0, 0) :: skip fi;
     goto RCV_IN_TRANSFER
 }

@@ -116,6 +116,16 @@ def _matrix():
         name = "warm-nogate/bidi/ours-ours/spont/up%s" % fn
         exp, why = expectation(name)
         out.append((name, d, exp, why))
+    # a master that reads the read area in parts (issue 38, plcrt's status_first; env.pml
+    # SPLITREAD): warm restarts of our pair. Data only with bit 0 (SPLITREAD=1) must fail, also
+    # when the image holds no block or its counter differs (2, the runtime's rule) must hold
+    for fn, fd in warm[:2]:
+        for vn, v in (("", 2), ("-bit0", 1)):
+            d = {"SND": "OURS", "RCV": "OURS", "SPLITREAD": v}
+            d.update(fd)
+            name = "warm-split%s/ours-ours/spont/up%s" % (vn, fn)
+            exp, why = expectation(name)
+            out.append((name, d, exp, why))
     # the pipelined sender (issue 15, PROTOCOL.md P27: window 2): our sender against our
     # receiver and the note receivers, spontaneous drive, 5 records per transfer (the window
     # opens from record 2 on and closes before 16#FFFF: records 3 and 4 go up before the
@@ -189,6 +199,10 @@ KNOWN = [
      "acknowledgement of record 1 counts (the P9 residual), and the peer's writes still carry "
      "its number of the old session when it equals the pipelined record: counted for two "
      "records, 16#FFFF overwrites the second in the own modem"),
+    (r"^warm-split-bit0/.*\+wrst-rcv$", "MIX",
+     "issue 38: a master that reads the rest of the block only with bit 0 gives a receiver "
+     "killed while a read's answer was on the line (bit 0 taken) the next counter with data "
+     "of no read: it accepts and acknowledges a record without its data"),
     (r"^warm-nogate/", "WARMFAIL",
      "W4: without the link's gate the other part's write carries a record or an "
      "acknowledgement no snapshot holds; after the rollback the two sides are out of step "
@@ -444,6 +458,7 @@ QUICK = [
     "warm-nogate/bidi/ours-ours/spont/up+wrst-rcv",  # must fail: W4 (WARMFAIL), our link
     "win2/ours-ours/spont/up",                    # the pipelined sender
     "win2-pipelast/ours-ours/spont/up",           # must fail: P27 (GAP)
+    "warm-split-bit0/ours-ours/spont/up+wrst-rcv",  # must fail: a read in parts with bit 0 alone (issue 38)
 ]
 
 
