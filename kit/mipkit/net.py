@@ -398,6 +398,8 @@ class Net:
         self.run_until_time(self.now + int(seconds * SEC))
 
     def run_until_time(self, t_ns):
+        from .report import observer
+        observer(self)          # the failure report's eyes: the blocks' diagnosis over time
         if self.lib.mipcosim_run(self.sim, t_ns) != 0:
             msg = self.lib.mipcosim_errmsg(self.sim).decode()
             for p in self.peers.values():
@@ -457,16 +459,21 @@ class Net:
                         last = int(m.group(1))
         return last
 
-    def diagram(self, out: Path, station=1, last_s=6.0, title=None):
+    def diagram(self, out: Path, station=1, last_s=6.0, title=None, window=None):
         """The sequence diagram (docs' seqdiag) of the `last_s` virtual seconds up to the last
-        record on the radio (1 s after its telegram), as SVG into out; None without a trace."""
+        record on the radio (1 s after its telegram), or of window = (from, to) in virtual ns
+        (the failure report's: centred on the fault), as SVG into out; None without a trace."""
         from . import _seqdiag_mod
         sd = _seqdiag_mod()
         if self.trace_path is None or not self.trace_path.is_file():
             return None
-        last = self._last_block_t()
-        t_end = min(self.now, last + SEC) if last is not None else self.now
-        t_from = max(0, t_end - int(last_s * SEC))
+        if window is not None:
+            t_from, t_end = window
+            last_s = (t_end - t_from) / SEC
+        else:
+            last = self._last_block_t()
+            t_end = min(self.now, last + SEC) if last is not None else self.now
+            t_from = max(0, t_end - int(last_s * SEC))
         events = []
         with open(self.trace_path, encoding="utf-8") as f:
             for n, line in enumerate(f, 1):
@@ -474,6 +481,8 @@ class Net:
                 m = re.match(r'\{"t":(\d+)', line)
                 if m and int(m.group(1)) < t_from:
                     continue
+                if m and int(m.group(1)) > t_end:
+                    break
                 try:
                     d = json.loads(line)
                 except json.JSONDecodeError:

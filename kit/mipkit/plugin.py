@@ -6,9 +6,12 @@ Fixtures:
   mip_st_lib    the ST files of the MIP library, in the order to pass them before your own
   mip_compiler  "stc" or "matiec": --mip-compiler (stc; auto: matiec when iec2c is on PATH)
 
-On a failing test the report gets, per network the test made, the last lines of the emulator
-trace and the sequence diagram (SVG, the docs' generator) of the last virtual seconds; the
-diagram's path is also a property in JUnit XML (mip_diagram). A KitError (a program that does
+On a failing test the report starts with the fault (the first record that went wrong, in the
+test's record numbers), the diagnosis of every MIP block in the PLCs at the fault and at the
+end; sections follow with the radio and Modbus traffic around the fault, and the sequence
+diagram (SVG, the docs' generator) centred on it and the trace around it (gzip) land in
+--mip-results (default results/mip-kit); their paths are properties in JUnit XML
+(mip_fault, mip_diagram, mip_trace). A KitError (a program that does
 not compile, a config mapping an address the program does not declare, an unknown station)
 fails the test with its one line instead of a traceback.
 """
@@ -27,9 +30,15 @@ def pytest_addoption(parser):
                 help="ST compiler for mip_network PLCs: stc (default), matiec, or auto "
                      "(matiec when iec2c is on PATH): the same tests with the reference compiler")
     g.addoption("--mip-diagram-seconds", type=float, default=6.0,
-                help="virtual seconds before the end that a failure's sequence diagram shows")
-    g.addoption("--mip-trace-lines", type=int, default=30,
-                help="emulator trace lines in a failure's report")
+                help="virtual seconds a failure's sequence diagram shows, centred on the fault "
+                     "(default 6)")
+    g.addoption("--mip-trace-lines", type=int, default=40,
+                help="lines of the readable trace around the fault in a failure's report "
+                     "(default 40)")
+    g.addoption("--mip-results", default="results/mip-kit",
+                help="where a failed test's sequence diagram and trace go, one folder per test "
+                     "(default results/mip-kit, relative to the rootdir: the CI templates' "
+                     "results/ artifact)")
 
 
 @pytest.fixture
@@ -69,27 +78,40 @@ def pytest_runtest_makereport(item, call):
     report = outcome.get_result()
     if call.excinfo is not None and call.excinfo.errisinstance(KitError):
         report.longrepr = str(call.excinfo.value)     # one line, no traceback
-    if not report.failed or call.when not in ("call", "setup"):
         return
     nets = getattr(item, _KEY, [])
+    if call.when != "call" or not nets:
+        return
+    import re
+    import shutil
+    from pathlib import Path
+    from .report import failure_report
     cfg = item.config
+    results = Path(cfg.getoption("--mip-results"))
+    if not results.is_absolute():
+        results = Path(cfg.rootpath) / results
+    outdir = results / re.sub(r"[^\w.-]+", "_", item.nodeid).strip("_")
+    if outdir.exists():
+        shutil.rmtree(outdir, ignore_errors=True)      # an earlier run's artifacts
+    if not report.failed:
+        return
+    message = str(call.excinfo.value) if call.excinfo is not None else ""
+    heads = []
     for k, net in enumerate(nets, 1):
-        if net.trace_path is None:
+        if net._handle is None:
             continue
         try:
-            net.flush_trace()
-            tail = net.trace_tail(cfg.getoption("--mip-trace-lines"))
-            svg = net.diagram(net.workdir / "sequence-diagram.svg",
-                              last_s=cfg.getoption("--mip-diagram-seconds"),
-                              title=f"{item.name}: the last records")
+            head, sections, props = failure_report(
+                net, message, outdir / f"net{k}", cfg.getoption("--mip-diagram-seconds"),
+                title=item.name, trace_lines=cfg.getoption("--mip-trace-lines"))
         except Exception as e:  # noqa: BLE001 - the report must not hide the test's failure
-            report.sections.append((f"mip-kit network {k}", f"no diagram: {e}"))
+            report.sections.append((f"mip-kit network {k}", f"no report: {type(e).__name__}: {e}"))
             continue
-        report.sections.append((f"mip-kit network {k}: emulator trace (last {len(tail)} lines)",
-                                "\n".join(tail)))
-        if svg is not None:
-            report.sections.append((f"mip-kit network {k}: sequence diagram",
-                                    f"{svg}\n(full trace: {net.trace_path})"))
-            for prop in (("mip_diagram", str(svg)), ("mip_trace", str(net.trace_path))):
-                report.user_properties.append(prop)
-                item.user_properties.append(prop)     # JUnit XML takes them from the teardown
+        heads += head if len(nets) == 1 else [f"mip-kit: network {k}:"] + head
+        for title, text in sections:
+            report.sections.append((f"mip-kit network {k}: {title}", text))
+        for prop in props:
+            report.user_properties.append(prop)
+            item.user_properties.append(prop)     # JUnit XML takes them from the teardown
+    if heads:
+        report.longrepr = "\n".join(heads) + "\n\n" + str(report.longrepr)

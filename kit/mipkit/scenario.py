@@ -21,7 +21,8 @@ from .net import SEC, KitError, Net
 KEYS = {
     "": {"name", "network", "plc", "peer", "fault", "judge", "expect"},
     "network": {"stations", "radio", "bitrate", "slot_gap_ms", "overhead_bytes", "loss_down",
-                "loss_up", "burst", "seed", "mode", "static_registers", "compiler", "trace"},
+                "loss_up", "burst", "seed", "seeds", "mode", "static_registers", "compiler",
+                "trace"},
     "plc": {"name", "sources", "config", "station", "set", "retain_period_ms", "compiler"},
     "peer": {"name", "station", "unit", "lenient", "layout", "drive", "period_ms",
              "retransmit_s", "request_s", "static_registers"},
@@ -29,7 +30,7 @@ KEYS = {
     "fault.lose": {"station", "direction", "record", "times"},
     "judge": {"logged", "delivered", "records"},
     "expect": {"complete_within_s", "run_s", "no_xerror", "values", "numbered_records", "step_s"},
-    "expect.values": {"at", "equals", "at_least", "at_most"},
+    "expect.values": {"name", "at", "equals", "at_least", "at_most"},
 }
 
 
@@ -79,9 +80,16 @@ def load(path: Path):
 class Run:
     """One scenario on one Net; results are (name, message or None) pairs."""
 
-    def __init__(self, doc, base: Path, workdir: Path, compiler=None):
+    def __init__(self, doc, base: Path, workdir: Path, compiler=None, seed=None):
         self.doc, self.base, self.workdir = doc, base, workdir
         n = dict(doc.get("network", {}))
+        n.pop("seeds", None)
+        if seed is not None:
+            n["seed"] = seed
+        self.when = {}          # expectation -> virtual ns of its failure (the fault's moment)
+        self.done_at = None     # virtual ns when delivered = logged
+        self.delivered = None
+        self.scripted = []      # [description, fired?]
         mode = n.pop("mode", "dynamic")
         if mode not in ("dynamic", "static"):
             raise ScenarioError(f"network.mode {mode!r}: dynamic or static")
@@ -146,12 +154,23 @@ class Run:
                 lo = f["lose"]
                 self.net.lose(lo.get("station", 1), lo.get("direction", "up"), lo.get("record"),
                               lo.get("times", 1))
+                rule, times = self.net._losses[-1], lo.get("times", 1)
+                rec = "" if lo.get("record") is None else f" record {lo['record']}"
+                self.scripted.append(
+                    (lambda rule=rule, times=times, rec=rec, lo=lo:
+                     f"lose {lo.get('direction', 'up')}{rec} at station {lo.get('station', 1)} "
+                     f"fired {times - rule[3]} of {times}"))
             elif "restart" not in f:
                 raise ScenarioError("a [[fault]] needs restart = \"plc\" or lose = {...}")
             elif "at_s" not in f:
                 raise ScenarioError(f"[[fault]] restart {f['restart']}: at_s missing")
             else:
-                self.net[f["restart"]]
+                kp = self.net[f["restart"]]
+                mode, at = f.get("mode", "cold"), f["at_s"]
+                self.scripted.append(
+                    (lambda kp=kp, mode=mode, at=at:
+                     f"{mode} restart of {kp.name} at {at:g} s "
+                     f"{'fired' if any(m == mode and t >= at * SEC for t, m, _ in kp.restarts) else 'did not fire'}"))
 
     def run(self):
         exp = self.doc.get("expect", {})
@@ -171,6 +190,8 @@ class Run:
             n = logged()
             return n > 0 and delivered() == n and (want_records is None or n >= want_records)
 
+        self.delivered = delivered
+
         end = int((within if within is not None else exp.get("run_s", 60)) * SEC)
         done = False
         while self.net.now < end:
@@ -186,6 +207,7 @@ class Run:
                     seen_error[ref] = self.net.now
             if within is not None and complete() and not faults:
                 done = True
+                self.done_at = self.net.now
                 break
         if within is not None:
             msg = None if done else (f"not complete within {within} s: judge logged "
@@ -195,6 +217,8 @@ class Run:
             t = seen_error.get(ref)
             self.results.append((f"no xError: {ref}", None if t is None else
                                  f"{ref} was TRUE at {t / SEC:.3f} s"))
+            if t is not None:
+                self.when[f"no xError: {ref}"] = t
         for v in exp.get("values", []):
             get = self._ref(v.get("at"))
             got = get()
@@ -205,7 +229,7 @@ class Run:
                 msg = f"{v['at']} = {got}, want at least {v['at_least']}"
             if "at_most" in v and got > v["at_most"]:
                 msg = f"{v['at']} = {got}, want at most {v['at_most']}"
-            self.results.append((f"value {v['at']}", msg))
+            self.results.append((v.get("name") or f"value {v['at']}", msg))
         nr = exp.get("numbered_records")
         if nr:
             peer = self.net[nr]
@@ -219,7 +243,53 @@ class Run:
         return self.results
 
 
-def junit(path: Path, name, results, seconds, props):
+    def summary(self):
+        """One line: virtual time to completion, records, retransmissions, losses, whether the
+        scripted faults fired."""
+        from mipcosim import sim as S
+        from .report import fmt_t, observer
+        net = self.net
+        done = f"complete at {fmt_t(self.done_at)}" if self.done_at is not None else \
+            f"not complete at {fmt_t(net.now)}"
+        parts = [done]
+        if self.delivered is not None:
+            parts.append(f"{self.delivered()} records delivered")
+        retrans = 0
+        obs = observer(net)
+        for kp in net.plcs.values():
+            for path, typ, _, _ in obs.blocks(kp):
+                if typ != "MIP_Receiver":
+                    try:
+                        retrans += int(kp.plc[f"{path}.UDIRETRANSMISSIONS"])
+                    except Exception:  # noqa: BLE001 - a build without the member's symbol
+                        pass
+        parts.append(f"{retrans} records retransmitted by the blocks")
+        st = S.radio_stats(net.lib, net.sim, range(1, net.stations + 1))
+        parts.append(f"radio lost {st['lost_down']} of {st['tel_down']} telegrams down, "
+                     f"{st['lost_up']} of {st['tel_up']} up")
+        if self.scripted:
+            parts.append("scripted: " + ", ".join(f() for f in self.scripted))
+        return "; ".join(parts)
+
+
+def seeds_of(doc, path):
+    """[None] (the scenario's own seed), or the seeds of network.seeds: a list or "A..B"."""
+    n = doc.get("network", {})
+    if "seeds" not in n:
+        return [None]
+    if "seed" in n:
+        raise ScenarioError(f"{path}: network: give seed or seeds, not both")
+    v = n["seeds"]
+    if isinstance(v, list) and v and all(isinstance(x, int) and not isinstance(x, bool) for x in v):
+        return list(v)
+    m = re.fullmatch(r"\s*(\d+)\s*\.\.\s*(\d+)\s*", v) if isinstance(v, str) else None
+    if m and int(m.group(1)) <= int(m.group(2)):
+        return list(range(int(m.group(1)), int(m.group(2)) + 1))
+    raise ScenarioError(f"{path}: network.seeds = {v!r}: a list of seeds ([1, 2, 3]) or a "
+                        f"range (\"1..60\")")
+
+
+def junit(path: Path, name, results, seconds, props, details=None):
     suite = ET.Element("testsuite", name="mip-kit", tests=str(len(results)),
                        failures=str(sum(1 for _, m in results if m)), time=f"{seconds:.3f}")
     if props:
@@ -229,7 +299,9 @@ def junit(path: Path, name, results, seconds, props):
     for case, msg in results:
         tc = ET.SubElement(suite, "testcase", classname=name, name=case)
         if msg:
-            ET.SubElement(tc, "failure", message=msg).text = msg
+            ET.SubElement(tc, "failure", message=msg).text = "\n".join(
+                [msg] + list((details or {}).get(case, [])))
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
     ET.ElementTree(suite).write(path, encoding="utf-8", xml_declaration=True)
 
 
@@ -238,56 +310,127 @@ class _Parser(argparse.ArgumentParser):
         self.exit(1, f"{self.prog}: error: {message} (see --help)\n")
 
 
+def _clear(results: Path):
+    """An earlier run's report files in results (and its seed-N folders); nothing else."""
+    for d in [results] + (sorted(results.glob("seed-*")) if results.is_dir() else []):
+        for pattern in ("sequence-diagram.svg", "emulator-trace-*.jsonl.gz"):
+            for f in d.glob(pattern):
+                f.unlink()
+
+
 def main(argv=None):
-    ap = _Parser(prog="mip-kit", description=__doc__.splitlines()[0])
+    ap = _Parser(prog="mip-kit", description=__doc__.split("\n\n")[0],
+                 formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("scenario")
     ap.add_argument("--junit", help="write JUnit XML here")
-    ap.add_argument("--workdir", help="builds, trace and diagram (default: next to --junit, "
-                    "else ./mip-kit-work)")
+    ap.add_argument("--results", help="a failure's sequence diagram and trace (default: "
+                    "mip-kit-NAME next to --junit, else ./mip-kit-results)")
+    ap.add_argument("--workdir", help="builds and the whole trace, kept (default: a temporary "
+                    "directory, removed at the end)")
     ap.add_argument("--compiler", default=None, choices=["stc", "matiec", "auto"],
                     help="instead of the scenario's network.compiler (default stc); auto: "
                          "matiec when iec2c is on PATH")
+    ap.add_argument("--diagram-seconds", type=float, default=6.0,
+                    help="virtual seconds a failure's sequence diagram shows, centred on the "
+                         "fault (default 6)")
+    ap.add_argument("--trace-lines", type=int, default=40,
+                    help="lines of the readable trace around the fault (default 40)")
     a = ap.parse_args(argv)
     path = Path(a.scenario)
     name = path.stem
-    work = Path(a.workdir) if a.workdir else (Path(a.junit).parent / f"mip-kit-{name}" if a.junit
-                                               else Path("mip-kit-work"))
-    work = work.resolve()
+    results_dir = Path(a.results) if a.results else (
+        Path(a.junit).parent / f"mip-kit-{name}" if a.junit else Path("mip-kit-results"))
+    results_dir = results_dir.resolve()
+    tmp = None
+    if a.workdir:
+        work = Path(a.workdir).resolve()
+    else:
+        import tempfile
+        tmp = work = Path(tempfile.mkdtemp(prefix="mip-kit-"))
     t0 = time.perf_counter()
-    results, props, run, ran = [], [], None, False
+    results, props, details = [], [], {}
     try:
-        doc = load(path)
-        name = doc.get("name", name)
-        run = Run(doc, path.resolve().parent, work, a.compiler)
+        try:
+            doc = load(path)
+            name = doc.get("name", name)
+            seeds = seeds_of(doc, path)
+        except ScenarioError as e:
+            results.append(("scenario runs", str(e)))
+            print(f"FAIL scenario runs: {e}")
+            seeds = []
+        _clear(results_dir)
+        for seed in seeds:
+            sweep = len(seeds) > 1 or seed is not None
+            tag = f" [seed {seed}]" if sweep else ""
+            sub = f"seed-{seed}" if sweep else ""
+            out = _run_one(doc, path, work / sub if sub else work, results_dir / sub if sub
+                           else results_dir, a, name, seed, tag)
+            if out is None:
+                print("mip-kit: interrupted", file=sys.stderr)
+                return 1
+            res, pr, det = out
+            results += [(c + tag, m) for c, m in res]
+            props += pr
+            details.update({c + tag: v for c, v in det.items()})
+    finally:
+        if tmp is not None:
+            import shutil
+            shutil.rmtree(tmp, ignore_errors=True)
+    failed = [(c, m) for c, m in results if m]
+    secs = time.perf_counter() - t0
+    if a.junit:
+        junit(Path(a.junit), name, results, secs, props, details)
+    print(f"mip-kit: {name}: {'FAILED' if failed or not results else 'passed'} "
+          f"({len(results) - len(failed)}/{len(results)} expectations, {secs:.1f} s wall)")
+    return 1 if failed or not results else 0
+
+
+def _run_one(doc, path, work, results_dir, a, name, seed, tag):
+    """One run of the scenario (one seed): prints its lines; (results, properties, report
+    lines per failed expectation), or None when interrupted."""
+    from .report import failure_report
+    results, props, run, ran = [], [], None, False
+    head, sections = [], []
+    try:
+        run = Run(doc, path.resolve().parent, work, a.compiler, seed)
         run.setup()
         ran = True
         results = run.run()
     except (ScenarioError, KitError) as e:
         results.append(("scenario runs", str(e)))
     except KeyboardInterrupt:
-        print("mip-kit: interrupted", file=sys.stderr)
-        return 1
+        return None
     failed = [(c, m) for c, m in results if m]
-    if failed and ran and run.net.trace_path is not None:
+    if failed and ran:
+        case, msg = failed[0]
         try:
-            run.net.flush_trace()
-            svg = run.net.diagram(work / "sequence-diagram.svg", title=f"{name}: the last records")
-            if svg:
-                props += [("mip_diagram", svg), ("mip_trace", run.net.trace_path)]
+            head, sections, pr = failure_report(run.net, msg, results_dir, a.diagram_seconds,
+                                                t_hint=run.when.get(case),
+                                                title=f"{name}{tag}", trace_lines=a.trace_lines)
+            props += [(k + tag, v) for k, v in pr]
         except Exception as e:  # noqa: BLE001 - the failure itself is what matters
-            props.append(("mip_diagram", f"none: {e}"))
+            head = [f"mip-kit: no report: {type(e).__name__}: {e}"]
+    summary = None
+    if ran:
+        try:
+            summary = f"summary: {name}{tag}: {run.summary()}"
+        except Exception as e:  # noqa: BLE001
+            summary = f"summary: {name}{tag}: none ({type(e).__name__}: {e})"
     if run is not None:
         run.net.close()
-    secs = time.perf_counter() - t0
+    for c, m in failed:
+        print(f"FAIL {c}{tag}: {m}")
+    for line in head:
+        print(line)
     for c, m in results:
-        print(f"{'FAIL' if m else 'ok  '} {c}" + (f": {m}" if m else ""))
-    for k, v in props:
-        print(f"     {k}: {v}")
-    if a.junit:
-        junit(Path(a.junit), name, results, secs, props)
-    print(f"mip-kit: {name}: {'FAILED' if failed or not results else 'passed'} "
-          f"({len(results) - len(failed)}/{len(results)} expectations, {secs:.1f} s wall)")
-    return 1 if failed or not results else 0
+        if not m:
+            print(f"ok   {c}{tag}")
+    for title, text in sections:
+        print(f"---- {title}")
+        print(text)
+    if summary:
+        print(summary)
+    return results, props, {c: head for c, _ in failed}
 
 
 if __name__ == "__main__":

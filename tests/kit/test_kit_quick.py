@@ -64,16 +64,46 @@ def test_scenario_green_and_junit(example, tmp_path):
     assert (tests, fails) == (6, [])
 
 
+# the first lines of a failure's report: the fault in the integrator's record numbers, and the
+# diagnosis of the program's MIP_Sender (found by type) with st_lib's enum names
+FAULT_7 = (r"mip-kit: fault: record 7 \(transfer 1, record 7 on the radio\): central accepted it "
+           r"at (\d+\.\d{3}) s")
+SENDER = r"  outstation FIELDSTATION\.SND \(MIP_Sender\): eState=MIP_SND_\w+ eWaitReason=MIP_WAIT_\w+ " \
+         r"wWaitFor=\d+ eErrorId=MIP_ERR_\w+ \(since \d+\.\d{3} s\)"
+
+
+def report_head(lines, first):
+    """The report's lines from the one that matches `first` on (it must be there)."""
+    i = next((k for k, l in enumerate(lines) if re.fullmatch(first, l)), None)
+    assert i is not None, "\n".join(lines)
+    return lines[i:]
+
+
 def test_scenario_broken_variant_names_the_record_and_attaches_the_diagram(example, tmp_path):
     break_logger(example)
-    r = mipkit_cli([scenario(example), "--junit", tmp_path / "j.xml"], example)
+    r = mipkit_cli([scenario(example), "--junit", tmp_path / "results" / "j.xml"], example)
     assert r.returncode == 1, r.stdout + r.stderr
-    tests, fails, props = junit(tmp_path / "j.xml")
+    lines = r.stdout.splitlines()
+    assert lines[0] == "FAIL numbered records at central: record 7: its registers say record 17 " \
+                       "(first words [17, 0, 21, 28])", r.stdout
+    assert re.fullmatch(FAULT_7, lines[1]), r.stdout
+    assert re.fullmatch(r"mip-kit: the blocks at the fault \(\d+\.\d{3} s\):", lines[2]), r.stdout
+    assert re.fullmatch(SENDER, lines[3]), r.stdout
+    tests, fails, props = junit(tmp_path / "results" / "j.xml")
     assert fails == ["record 7: its registers say record 17 (first words [17, 0, 21, 28])"], fails
     svg = props.get("mip_diagram")
-    assert svg and svg.endswith(".svg")
+    # next to the JUnit file (the templates' results/), centred on the fault's moment
+    assert svg == str(tmp_path / "results" / "mip-kit-small" / "sequence-diagram.svg")
     text = open(svg).read()
-    assert text.startswith("<svg") and "FC16 write" in text
+    assert text.startswith("<svg") and "FC16 write" in text and "record 7" in text
+    t = float(re.fullmatch(FAULT_7, lines[1]).group(1))
+    m = re.search(r"(\d+\.\d{3}) s \.\. (\d+\.\d{3}) s of virtual time", text)
+    assert m and float(m.group(1)) <= t <= float(m.group(2)), m
+    # the readable trace marks the telegram that carried record 7, times in s, polls folded
+    around = r.stdout[r.stdout.index("---- radio and Modbus around the fault"):]
+    assert re.search(rf" {t:.3f} s  radio station 1 -> MDP: answer, block \[0\]=7 \(9 registers\)"
+                     r"   <- the fault", around), around
+    assert "empty polls/answers" in around and '"t":' not in around
 
 
 def test_scenario_judge_catches_a_lost_record(example, tmp_path):
@@ -166,10 +196,20 @@ def test_plugin_green_red_and_one_line_errors(example, tmp_path):
     out = r.stdout + r.stderr
     assert r.returncode == 1, out
     assert "AssertionError: record 7: got [17, 0, 21, 28, 35, 42, 49, 56], want [7, 0, 21, 28, 35, 42, 49, 56]" in out
-    assert "mip-kit network 1: sequence diagram" in out and "emulator trace" in out
+    # the report's first lines: the fault, the record, the blocks' diagnosis
+    head = out[out.index("_ test_readout _"):].splitlines()[1:5]
+    assert re.fullmatch(FAULT_7, head[0]), out
+    assert re.fullmatch(r"mip-kit: the blocks at the fault \(\d+\.\d{3} s\):", head[1]), out
+    assert re.fullmatch(SENDER, head[2]), out
+    assert re.fullmatch(r"mip-kit: the blocks at the end \(\d+\.\d{3} s\):", head[3]), out
+    assert "mip-kit network 1: radio and Modbus around the fault" in out
     _, fails, props = junit(tmp_path / "b.xml")
-    assert props["mip_diagram"].endswith("sequence-diagram.svg")
+    # under the project's results/ (the CI templates' artifact), one folder per test
+    res = example / "results" / "mip-kit" / "tests_test_plugin_user.py_test_readout" / "net1"
+    assert props["mip_diagram"] == str(res / "sequence-diagram.svg")
     assert open(props["mip_diagram"]).read().startswith("<svg")
+    assert props["mip_trace"].endswith(".jsonl.gz") and props["mip_fault"].startswith("record 7")
+    assert not list((example / "results").rglob("*.so"))
 
 
 def test_ci_templates_run_the_same_commands():
