@@ -418,10 +418,11 @@ def _run_one(doc, path, work, results_dir, a, name, seed, tag):
             summary = f"summary: {name}{tag}: none ({type(e).__name__}: {e})"
     if run is not None:
         run.net.close()
-    for c, m in failed:
+    for k, (c, m) in enumerate(failed):
         print(f"FAIL {c}{tag}: {m}")
-    for line in head:
-        print(line)
+        if k == 0:              # the fault and the blocks' diagnosis right under the first
+            for line in head:
+                print(line)
     for c, m in results:
         if not m:
             print(f"ok   {c}{tag}")

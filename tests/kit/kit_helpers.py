@@ -25,6 +25,16 @@ def break_logger(project: Path):
     f.write_text(text.replace(anchor, BUG + anchor))
 
 
+def forget_retain(project: Path):
+    """The broken variant of issue 39: the plcrt config without its [retain] section while the
+    program runs MIP_Sender with xRetained := TRUE (its snapshots are never counted)."""
+    f = project / "plcrt" / "outstation.conf"
+    text = f.read_text()
+    assert text.count("[retain]") == 1 and text.rstrip().endswith("saved = %IW8"), \
+        "outstation.conf changed: the broken variant needs a new anchor"
+    f.write_text(text[:text.index("[retain]")])
+
+
 def copy_example(dst: Path) -> Path:
     shutil.copytree(EXAMPLE, dst, ignore=shutil.ignore_patterns(".venv", "results", "__pycache__"))
     return dst

@@ -50,6 +50,10 @@ def test_example_project_installs_and_runs_outside_the_checkout(tmp_path_factory
     for cmd in gitlab:
         r = sh(cmd, project, env)
         assert r.returncode == 0, f"{cmd}:\n{r.stdout[-3000:]}\n{r.stderr[-3000:]}"
+    # what CI uploads (results/): the JUnit files, no build products, no trace of a passing run
+    files = [p for p in (project / "results").rglob("*") if p.is_file()]
+    assert sum(p.stat().st_size for p in files) < 1_000_000, files
+    assert sorted(p.name for p in files) == ["pytest.xml", "scenario.xml"], files
     scen = ET.parse(project / "results" / "scenario.xml").getroot()
     assert scen.get("failures") == "0" and scen.get("tests") == "5"
     suite = ET.parse(project / "results" / "pytest.xml").getroot().find("testsuite")
@@ -65,12 +69,15 @@ def test_example_project_installs_and_runs_outside_the_checkout(tmp_path_factory
     out = r.stdout + r.stderr
     assert r.returncode == 1, out
     assert "record 7: got [17, 0, 21, 28, 35, 42, 49, 56], want [7, 0, 21, 28, 35, 42, 49, 56]" in out
-    assert "mip-kit network 1: sequence diagram" in out
-    svg = re.search(r"^(\S+sequence-diagram\.svg)$", out, re.M)
+    assert re.search(r"^mip-kit: fault: record 7 \(transfer 1, record 7 on the radio\): central "
+                     r"accepted it at \d+\.\d{3} s$", out, re.M), out
+    svg = re.search(r"^mip-kit: sequence diagram .*: (\S+sequence-diagram\.svg)$", out, re.M)
     assert svg and open(svg.group(1)).read().startswith("<svg"), out
+    assert svg.group(1).startswith(str(project / "results" / "mip-kit")), out
     r = sh(".venv/bin/mip-kit scenarios/readout.toml --junit results/broken-scenario.xml", project, env)
     assert r.returncode == 1, r.stdout + r.stderr
     assert "FAIL numbered records at central: record 7: its registers say record 17" in r.stdout
+    assert "mip-kit: fault: record 7 (transfer 1, record 7 on the radio)" in r.stdout
     props = {p.get("name"): p.get("value")
              for p in ET.parse(project / "results" / "broken-scenario.xml").getroot().iter("property")}
     assert open(props["mip_diagram"]).read().startswith("<svg")

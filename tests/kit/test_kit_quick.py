@@ -5,7 +5,8 @@ import re
 import sys
 import xml.etree.ElementTree as ET
 
-from kit_helpers import EXAMPLE, REPO, break_logger, ci_commands, kit_env, mipkit_cli, run
+from kit_helpers import (EXAMPLE, REPO, break_logger, ci_commands, forget_retain, kit_env, mipkit_cli,
+                         run)
 
 REPO_PLC = REPO / "plc"
 
@@ -104,6 +105,47 @@ def test_scenario_broken_variant_names_the_record_and_attaches_the_diagram(examp
     assert re.search(rf" {t:.3f} s  radio station 1 -> MDP: answer, block \[0\]=7 \(9 registers\)"
                      r"   <- the fault", around), around
     assert "empty polls/answers" in around and '"t":' not in around
+
+
+# the broken variant without the [retain] section: the sender waits for a snapshot forever
+FAULT_1 = r"mip-kit: fault: record 1: never reached central \(it accepted 0 records\)"
+SNAPSHOT = r"  outstation FIELDSTATION\.SND \(MIP_Sender\): eState=MIP_SND_\w+ " \
+           r"eWaitReason=MIP_WAIT_SNAPSHOT wWaitFor=1 eErrorId=MIP_ERR_NONE \(since \d+\.\d{3} s\)"
+
+
+def test_scenario_forgotten_retain_section_names_the_wait_for_a_snapshot(example, tmp_path):
+    forget_retain(example)
+    r = mipkit_cli([scenario(example), "--junit", tmp_path / "results" / "j.xml"], example)
+    assert r.returncode == 1, r.stdout + r.stderr
+    lines = r.stdout.splitlines()
+    assert lines[0] == "FAIL complete within 300 s (delivered = logged): not complete within " \
+                       "300 s: judge logged 120, delivered 0", r.stdout
+    assert re.fullmatch(FAULT_1, lines[1]), r.stdout
+    assert re.fullmatch(r"mip-kit: the blocks at the fault \(\d+\.\d{3} s\):", lines[2]), r.stdout
+    assert re.fullmatch(SNAPSHOT, lines[3]), r.stdout
+    assert lines[4].startswith("    MIP_WAIT_SNAPSHOT: with xRetained := TRUE the block waits") and \
+        "[retain] section" in lines[4], r.stdout
+    # the JUnit failure carries the same lines
+    root = ET.parse(tmp_path / "results" / "j.xml").getroot()
+    text = next(f.text for f in root.iter("failure"))
+    assert "eWaitReason=MIP_WAIT_SNAPSHOT" in text and "record 1: never reached central" in text
+
+
+def test_plugin_forgotten_retain_section_names_the_wait_for_a_snapshot(example, tmp_path):
+    """The example's own tests (tests/test_outstation.py) on the broken variant."""
+    forget_retain(example)
+    r = run([sys.executable, "-m", "pytest", "-p", "mipkit.plugin", "-p", "no:cacheprovider", "-q",
+             "-k", "kill9", f"--basetemp={tmp_path / 'bt'}"], example, kit_env())
+    out = r.stdout + r.stderr
+    assert r.returncode == 1, out
+    head = out[out.index("_ test_kill9_and_lost_answers _"):].splitlines()[1:5]
+    assert re.fullmatch(FAULT_1, head[0]), out
+    assert re.fullmatch(r"mip-kit: the blocks at the fault \(\d+\.\d{3} s\):", head[1]), out
+    assert re.fullmatch(SNAPSHOT, head[2]), out
+    assert head[3].startswith("    MIP_WAIT_SNAPSHOT: "), out
+    svg = example / "results" / "mip-kit" / "tests_test_outstation.py_test_kill9_and_lost_answers" / \
+        "net1" / "sequence-diagram.svg"
+    assert svg.read_text().startswith("<svg")
 
 
 def test_scenario_judge_catches_a_lost_record(example, tmp_path):
@@ -210,6 +252,19 @@ def test_plugin_green_red_and_one_line_errors(example, tmp_path):
     assert open(props["mip_diagram"]).read().startswith("<svg")
     assert props["mip_trace"].endswith(".jsonl.gz") and props["mip_fault"].startswith("record 7")
     assert not list((example / "results").rglob("*.so"))
+
+
+def test_passing_run_leaves_only_the_junit_files_in_results(example):
+    """The templates' commands (the project's tests, a scenario) on a passing project: results/
+    (what CI uploads) holds the JUnit files and nothing else: no build products, no trace."""
+    r = run([sys.executable, "-m", "pytest", "-p", "mipkit.plugin", "-p", "no:cacheprovider", "-q",
+             "--junitxml=results/pytest.xml"], example, kit_env())
+    assert r.returncode == 0, r.stdout + r.stderr
+    r = mipkit_cli([scenario(example), "--junit", "results/scenario.xml"], example)
+    assert r.returncode == 0, r.stdout + r.stderr
+    files = [p for p in (example / "results").rglob("*") if p.is_file()]
+    assert sorted(p.name for p in files) == ["pytest.xml", "scenario.xml"], files
+    assert sum(p.stat().st_size for p in files) < 1_000_000
 
 
 def test_ci_templates_run_the_same_commands():
