@@ -148,6 +148,49 @@ def test_plugin_forgotten_retain_section_names_the_wait_for_a_snapshot(example, 
     assert svg.read_text().startswith("<svg")
 
 
+SUMMARY = (r"summary: small{tag}: complete at \d+\.\d{{3}} s; 120 records delivered; \d+ records "
+           r"retransmitted by the blocks; radio lost [1-9]\d* of \d+ telegrams down, [1-9]\d* of \d+ up; "
+           r"scripted: lose up record 3 at station 1 fired {fired}, kill9 restart of outstation at "
+           r"2 s fired")
+
+
+def test_scenario_summary_line(example):
+    r = mipkit_cli([scenario(example)], example)
+    assert r.returncode == 0, r.stdout + r.stderr
+    lines = [l for l in r.stdout.splitlines() if l.startswith("summary: ")]
+    assert len(lines) == 1 and re.fullmatch(SUMMARY.format(tag="", fired=r"2 of 2"), lines[0]), r.stdout
+    # a scripted loss that never matches says so
+    text = SMALL.replace("record = 3, times = 2", "record = 999, times = 2")
+    r = mipkit_cli([scenario(example, text)], example)
+    assert re.search(SUMMARY.format(tag="", fired="0 of 2").replace("record 3", "record 999"),
+                     r.stdout), r.stdout
+
+
+def test_scenario_seed_sweep_and_named_expectations(example, tmp_path):
+    text = SMALL.replace("seed = 4", "seeds = [4, 5]").replace(
+        '{ at = "outstation:%MW16", equals = 0 }',
+        '{ name = "no failed transfer", at = "outstation:%MW16", equals = 0 }')
+    r = mipkit_cli([scenario(example, text), "--junit", tmp_path / "j.xml"], example)
+    assert r.returncode == 0, r.stdout + r.stderr
+    for seed in (4, 5):
+        assert re.search("^" + SUMMARY.format(tag=rf" \[seed {seed}\]", fired="2 of 2") + "$",
+                         r.stdout, re.M), r.stdout
+    assert "passed (12/12 expectations" in r.stdout
+    root = ET.parse(tmp_path / "j.xml").getroot()
+    names = [tc.get("name") for tc in root.iter("testcase")]
+    assert "no failed transfer [seed 4]" in names and "no failed transfer [seed 5]" in names, names
+    # a range; and the seeds differ (the radio's losses)
+    r = mipkit_cli([scenario(example, SMALL.replace("seed = 4", 'seeds = "1..3"'))], example)
+    sums = re.findall(r"^summary: small \[seed (\d)\]: .*radio lost (\d+) of", r.stdout, re.M)
+    assert [s for s, _ in sums] == ["1", "2", "3"] and len({n for _, n in sums}) == 3, r.stdout
+
+
+def test_scenario_bad_seeds_is_one_line(example):
+    line = one_line_failure(mipkit_cli([scenario(example, SMALL.replace("seed = 4", 'seeds = "3-1"'))],
+                                       example))
+    assert line.endswith("""network.seeds = '3-1': a list of seeds ([1, 2, 3]) or a range ("1..60")"""), line
+
+
 def test_scenario_judge_catches_a_lost_record(example, tmp_path):
     """records delivered = records logged is really compared: a judge that counts one more
     than was logged (the high word taken as the low one) is red."""
