@@ -3,9 +3,9 @@
 Your own ST programs as soft-PLCs (plcrt, built with stc or matiec) on an emulated TRM-810 /
 MDP-810 radio network, with a note-following peer as the other side, in deterministic virtual
 time: a pytest plugin (fixture ``mip_network``) and a scenario command (``mip-kit``)."""
-from .net import KitError, Net, assert_records
+from .net import KitError, KitWarning, Net, assert_records
 
-__all__ = ["KitError", "Net", "assert_records"]
+__all__ = ["KitError", "KitWarning", "Net", "assert_records"]
 
 
 def _seqdiag_mod():

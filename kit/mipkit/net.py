@@ -29,6 +29,51 @@ class KitError(Exception):
     """A mistake in what the test or scenario asks for; str() is one line."""
 
 
+class KitWarning(UserWarning):
+    """Something the kit does not stop for but says, in one line: stc's portability warnings
+    (once per build), a config key the kit does not follow."""
+
+
+def _warn(line):
+    import warnings
+    warnings.warn(KitWarning(line), stacklevel=3)
+
+
+def _duration_ns(v):
+    """A plcrt config duration (100ms, 2s, 500us, 10ns; a bare number is ms), or None."""
+    m = re.fullmatch(r"\s*(\d+(?:\.\d*)?)\s*(ms|s|us|ns)?\s*", v)
+    if not m:
+        return None
+    return int(float(m.group(1)) * {"ms": MS, "s": SEC, "us": 1000, "ns": 1, None: MS}[m.group(2)])
+
+
+def _retain_period(path: Path):
+    """(line, value, ns) of a plcrt config's [retain] period, or None."""
+    section = None
+    for n, raw in enumerate(path.read_text().splitlines(), 1):
+        line = raw.split("#", 1)[0].strip()
+        if line.startswith("["):
+            section = line.strip("[] ").lower()
+        elif section == "retain" and "=" in line:
+            key, val = (p.strip() for p in line.split("=", 1))
+            if key == "period":
+                return n, val, _duration_ns(val)
+    return None
+
+
+def _mapped(config: Path) -> set:
+    """Every located address a plcrt config maps (a range's whole image)."""
+    out = set()
+    for _, _, addr, count in _config_addresses(config):
+        m = _LOCATED.fullmatch(addr)
+        area, size, a = m.group(1).upper(), m.group(2).upper(), int(m.group(3))
+        if size == "X" or count == 1:
+            out.add(addr.upper())
+        else:
+            out.update(f"%{area}{size}{a + i}" for i in range(count))
+    return out
+
+
 _LOCATED = re.compile(r"%([IQM])([XBWDL])(\d+)(?:\.(\d+))?", re.I)
 _RANGE_KEYS = {"image"}
 _SIZE_KEY = "size"
@@ -95,22 +140,49 @@ def check_config(build, config: Path):
             raise KitError(f"{config}:{line}: error: {key} = {addr}: the program does not declare {addr}")
 
 
-def build(sources, workdir: Path, compiler="stc", tick_ms=None):
+SEMANTICS = ("matiec", "openplc", "iec")
+
+
+def build(sources, workdir: Path, compiler="stc", tick_ms=None, semantics=None):
     """The user's ST sources built into a soft-PLC (one line per error: file:line:col).
-    compiler: "stc" (the default), "matiec" or "auto" (matiec when iec2c is on PATH)."""
+    compiler: "stc" (the default), "matiec" or "auto" (matiec when iec2c is on PATH);
+    semantics: stc's values where IEC 61131-3 leaves them open (None: PLCRT_SEMANTICS, else
+    matiec's; "openplc": those of OpenPLC's matiec fork; "iec"). stc's warnings are shown
+    once per build (KitWarning)."""
+    import os
     from plcharness.build import matiec_available
     if compiler == "auto":
         compiler = "matiec" if matiec_available() else "stc"
+    semantics = semantics or os.environ.get("PLCRT_SEMANTICS") or None
+    if semantics is not None and semantics not in SEMANTICS:
+        raise KitError(f"semantics {semantics!r}: use matiec, openplc or iec")
     srcs = [Path(s) for s in sources]
     for s in srcs:
         if not s.is_file():
             raise KitError(f"{s}: error: no such ST source")
+    if srcs and not any(re.search(r"\bCONFIGURATION\b", re.sub(r"\(\*.*?\*\)", " ", s.read_text(
+            errors="replace"), flags=re.S), re.I) for s in srcs):
+        raise KitError(f"{srcs[-1]}: error: no CONFIGURATION: the kit runs a program from a "
+                       "CONFIGURATION whose TASK has an INTERVAL (CONFIGURATION Config0 RESOURCE "
+                       "Res0 ON PLC TASK tMain(INTERVAL := T#10ms, PRIORITY := 0); PROGRAM p WITH "
+                       "tMain : YourProgram; ...), the last source")
     # the output directory is named by the sources' paths: another program (or the same names
     # elsewhere) gets its own, so a PLC restarted later reloads its own program
     digest = hashlib.sha1("\n".join(str(p.resolve()) for p in srcs).encode()).hexdigest()[:10]
-    key = "-".join(p.stem for p in srcs[-2:])[:40] + "-" + digest
+    key = "-".join(p.stem for p in srcs[-2:])[:40] + "-" + digest + (f"-{semantics}" if semantics else "")
     try:
-        return build_program(srcs, Path(workdir) / f"build-{key}-{compiler}", compiler=compiler)
+        result = build_program(srcs, Path(workdir) / f"build-{key}-{compiler}", compiler=compiler,
+                               semantics=semantics)
+        w = Path(result.outdir) / "gen" / "STC_WARNINGS.txt"
+        if w.is_file():
+            # a cached build's warnings name the sources it was built from: name these
+            by_name = {p.name: os.path.normpath(p) for p in srcs}
+            for line in w.read_text().splitlines():
+                m = re.match(r"(.+?):(\d+:\d+: .*)", line)
+                if m and Path(m.group(1)).name in by_name:
+                    line = f"{by_name[Path(m.group(1)).name]}:{m.group(2)}"
+                _warn(line)
+        return result
     except BuildError as e:
         lines = [l for l in str(e).splitlines() if l.strip()]
         located = [l for l in lines if re.match(r".+:\d+:\d+: ", l)]
@@ -119,13 +191,38 @@ def build(sources, workdir: Path, compiler="stc", tick_ms=None):
         raise KitError(first or f"{srcs[-1]}: error: the program does not build") from None
 
 
+def _ranges(addrs):
+    """['%MW0', '%MW1', '%MW3'] as '%MW0..%MW1, %MW3'."""
+    out, run = [], []
+    for a in addrs:
+        if run and int(a[3:]) == int(run[-1][3:]) + 1:
+            run.append(a)
+            continue
+        if run:
+            out.append(run[0] if len(run) == 1 else f"{run[0]}..{run[-1]}")
+        run = [a]
+    if run:
+        out.append(run[0] if len(run) == 1 else f"{run[0]}..{run[-1]}")
+    return ", ".join(out)
+
+
 class KitPlc:
     """A user's program on the network: read and write variables and located addresses by
     name (plcharness's names: "MAIN.x", "%QW100"); survives restarts (always the live instance)."""
 
     def __init__(self, net, name, result, config, at, retain_period_ms):
         self.net, self.name, self.result, self.config, self.at = net, name, result, config, at
-        self.retain_period_ns = retain_period_ms * MS
+        # the snapshot period: the test's, else the config's [retain] period (what plcrt does
+        # with it), else 1 s; a test's that differs from the config's is said in one line
+        conf = _retain_period(config) if config.suffix != ".cfg" else None
+        if retain_period_ms is None:
+            self.retain_period_ns = conf[2] if conf and conf[2] else 1000 * MS
+        else:
+            self.retain_period_ns = int(retain_period_ms * MS)
+            if conf and conf[2] is not None and conf[2] != self.retain_period_ns:
+                _warn(f"{config}:{conf[0]}: [retain] period = {conf[1]} is not what the kit uses "
+                      f"for {name}: it takes snapshots every retain_period_ms = {retain_period_ms:g}")
+        self._addresses = None
         self.plc = None
         self.pid = None
         self.restarts = []      # (virtual ns, mode, RETAIN restored)
@@ -152,13 +249,37 @@ class KitPlc:
             dev = plc.library.plcrt_device_name(plc.handle, i)
             net._check(lib.mipcosim_connect_inproc(sim, self.pid, setter, dev, ep))
 
+    def _check_located(self, name):
+        """A located address the program does not declare (nor the config map) reads 0 and
+        writes nowhere: a one-line KitError instead."""
+        if not isinstance(name, str) or not name.lstrip().startswith("%"):
+            return
+        if self._addresses is None:
+            declared = _declared(self.result)
+            openplc = self.config.suffix == ".cfg"
+            self._addresses = (declared, set() if openplc else _mapped(self.config), openplc)
+        declared, mapped, openplc = self._addresses
+        addr = name.strip().upper()
+        if addr in declared or addr in mapped or (openplc and not addr.startswith("%M")):
+            return
+        m = _LOCATED.fullmatch(addr)
+        if m is None:
+            return               # the harness says what is wrong with it
+        same = sorted((a for a in declared if a[:3] == addr[:3] and "." not in a),
+                      key=lambda a: int(a[3:]))
+        have = f" (it declares {_ranges(same)})" if same else ""
+        raise KitError(f"{self.name}: {name}: the program does not declare {addr}{have}: "
+                       "reading it gives 0, writing it reaches nothing")
+
     def __getitem__(self, name):
+        self._check_located(name)
         try:
             return self.plc[name]
         except Exception as e:  # noqa: BLE001 - the harness's own one-line message
             raise KitError(f"{self.name}: {name}: {e}") from None
 
     def __setitem__(self, name, value):
+        self._check_located(name)
         try:
             self.plc[name] = value
         except Exception as e:  # noqa: BLE001
@@ -252,7 +373,8 @@ class Net:
 
     def __init__(self, workdir, stations=1, *, radio="fast", bitrate=None, slot_gap_ms=None,
                  overhead_bytes=None, loss_down=0.0, loss_up=0.0, burst=0.0, seed=1,
-                 static=False, static_registers=123, compiler="stc", trace=True):
+                 static=False, static_registers=123, compiler="stc", trace=True,
+                 semantics=None):
         self.workdir = Path(workdir)
         self.workdir.mkdir(parents=True, exist_ok=True)
         base = {"fast": FAST, "realistic": REALISTIC}.get(radio)
@@ -267,6 +389,7 @@ class Net:
             if not 0.0 <= v < 1.0:
                 raise KitError(f"{n} {v}: a probability in 0..1 (1 excluded)")
         self.stations, self.compiler, self.seed = stations, compiler, seed
+        self.semantics = semantics
         self.lib = S.kernel_lib()
         lib = self.lib
         lib.mipcosim_request.restype = ctypes.c_long
@@ -318,20 +441,25 @@ class Net:
             raise KitError(f"{name}: already on the network")
         return name
 
-    def plc(self, name, sources, config, at, retain_period_ms=1000, compiler=None):
+    def plc(self, name, sources, config, at, retain_period_ms=None, compiler=None):
         """The user's program (ST sources, the CONFIGURATION last) with its plcrt config,
         attached to station `at` (1..N: that station's TRM-810) or "mdp" (the MDP-810): every
-        device of the config talks to that modem."""
+        device of the config talks to that modem. RETAIN snapshots every retain_period_ms
+        (default: the config's [retain] period, else 1000)."""
         name, at = self._name(name), self._where(at)
         config = Path(config)
         if not config.is_file():
             raise KitError(f"{config}: error: no such config")
-        result = build(sources, self.workdir, compiler or self.compiler)
+        result = build(sources, self.workdir, compiler or self.compiler, semantics=self.semantics)
         check_config(result, config)
         p = KitPlc(self, name, result, config, at, retain_period_ms)
         try:
             p._start()
         except Exception as e:  # noqa: BLE001 - plcharness / plcrt: one line
+            if "common_ticktime__" in str(e):
+                raise KitError(f"{name}: the program's CONFIGURATION has no TASK with an INTERVAL: "
+                               "give one, e.g. TASK tMain(INTERVAL := T#10ms, PRIORITY := 0); "
+                               "PROGRAM p WITH tMain : YourProgram;") from None
             raise KitError(f"{name}: {e}") from None
         self.plcs[name] = p
         return p

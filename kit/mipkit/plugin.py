@@ -29,6 +29,9 @@ def pytest_addoption(parser):
     g.addoption("--mip-compiler", default="stc", choices=["stc", "matiec", "auto"],
                 help="ST compiler for mip_network PLCs: stc (default), matiec, or auto "
                      "(matiec when iec2c is on PATH): the same tests with the reference compiler")
+    g.addoption("--mip-semantics", default=None, choices=["matiec", "openplc", "iec"],
+                help="stc's values where IEC 61131-3 leaves them open: matiec (the default), "
+                     "openplc (OpenPLC's matiec fork), iec; default PLCRT_SEMANTICS")
     g.addoption("--mip-diagram-seconds", type=float, default=6.0,
                 help="virtual seconds a failure's sequence diagram shows, centred on the fault "
                      "(default 6)")
@@ -63,6 +66,7 @@ def mip_network(request, tmp_path, mip_compiler):
 
     def make(stations=1, **kw):
         kw.setdefault("compiler", mip_compiler)
+        kw.setdefault("semantics", request.config.getoption("--mip-semantics"))
         net = Net(tmp_path / f"net{len(nets) + 1}", stations, **kw)
         nets.append(net)
         return net

@@ -15,14 +15,14 @@ import tomllib
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
-from .net import SEC, KitError, Net
+from .net import SEC, KitError, KitWarning, Net
 
 # the keys a scenario may have, per table (anything else is a one-line error)
 KEYS = {
     "": {"name", "network", "plc", "peer", "fault", "judge", "expect"},
     "network": {"stations", "radio", "bitrate", "slot_gap_ms", "overhead_bytes", "loss_down",
                 "loss_up", "burst", "seed", "seeds", "mode", "static_registers", "compiler",
-                "trace"},
+                "semantics", "trace"},
     "plc": {"name", "sources", "config", "station", "set", "retain_period_ms", "compiler"},
     "peer": {"name", "station", "unit", "lenient", "layout", "drive", "period_ms",
              "retransmit_s", "request_s", "static_registers"},
@@ -80,7 +80,7 @@ def load(path: Path):
 class Run:
     """One scenario on one Net; results are (name, message or None) pairs."""
 
-    def __init__(self, doc, base: Path, workdir: Path, compiler=None, seed=None):
+    def __init__(self, doc, base: Path, workdir: Path, compiler=None, seed=None, semantics=None):
         self.doc, self.base, self.workdir = doc, base, workdir
         n = dict(doc.get("network", {}))
         n.pop("seeds", None)
@@ -95,24 +95,36 @@ class Run:
             raise ScenarioError(f"network.mode {mode!r}: dynamic or static")
         if compiler:
             n["compiler"] = compiler
+        if semantics:
+            n["semantics"] = semantics
         stations = n.pop("stations", 1)
         self.net = Net(workdir, stations, static=mode == "static", **n)
         self.results = []
 
-    def _ref(self, ref):
+    FORMS = ("'NAME:%MW20' (a word of PLC NAME), 'NAME:%MW20,%MW21' (two words, low and "
+             "high), 'NAME:%MW20..%MW23' (a list), 'NAME:PROG.var', or a peer's name")
+
+    def _named(self, name, ref, where):
+        try:
+            return self.net[name]
+        except KitError:
+            have = ", ".join(list(self.net.plcs) + list(self.net.peers)) or "none"
+            raise ScenarioError(f"{where} = {ref!r}: no PLC or peer named {name!r} (have: {have}); "
+                                f"a reference is {self.FORMS}") from None
+
+    def _ref(self, ref, where="a reference"):
         """'name:ADDR', 'name:LO,HI' (two words: LO + 65536 HI) or 'name:%QW100..%QW103' (a
         located range, a list) of a PLC, or 'name' of a peer (records it accepted); returns a
         function giving the value now."""
         if not isinstance(ref, str) or not ref:
-            raise ScenarioError(f"{ref!r}: a reference is 'plc:%MW10', 'plc:%MW10,%MW11', "
-                                "'plc:PROG.var' or a peer's name")
+            raise ScenarioError(f"{where} = {ref!r}: a reference is {self.FORMS}")
         if ":" not in ref:
-            peer = self.net[ref]
+            peer = self._named(ref, ref, where)
             if not hasattr(peer, "records"):
-                raise ScenarioError(f"{ref}: a PLC needs an address: '{ref}:%MW10'")
+                raise ScenarioError(f"{where} = {ref!r}: a PLC needs an address: '{ref}:%MW10'")
             return lambda: len(peer.records)
         name, addr = ref.split(":", 1)
-        plc = self.net[name]
+        plc = self._named(name, ref, where)
         m = re.fullmatch(r"\s*%([IQM])([BWDL])(\d+)\s*\.\.\s*%\1\2(\d+)\s*", addr, re.I)
         if m:                          # a located range: its values as a list
             area, size, lo, hi = m.group(1).upper(), m.group(2).upper(), int(m.group(3)), int(m.group(4))
@@ -142,7 +154,7 @@ class Run:
                 else:
                     srcs.append(str(self.base / s))
             plc = self.net.plc(p["name"], srcs, self.base / p["config"], p["station"],
-                               p.get("retain_period_ms", 1000), p.get("compiler"))
+                               p.get("retain_period_ms"), p.get("compiler"))
             for addr, value in p.get("set", {}).items():
                 plc[addr] = value
         for p in self.doc.get("peer", []):
@@ -175,10 +187,10 @@ class Run:
     def run(self):
         exp = self.doc.get("expect", {})
         judge = self.doc.get("judge", {})
-        logged = self._ref(judge["logged"]) if "logged" in judge else None
-        delivered = self._ref(judge["delivered"]) if "delivered" in judge else None
+        logged = self._ref(judge["logged"], "judge.logged") if "logged" in judge else None
+        delivered = self._ref(judge["delivered"], "judge.delivered") if "delivered" in judge else None
         want_records = judge.get("records")
-        xerrs = [(r, self._ref(r)) for r in exp.get("no_xerror", [])]
+        xerrs = [(r, self._ref(r, "expect.no_xerror")) for r in exp.get("no_xerror", [])]
         within = exp.get("complete_within_s")
         step = exp.get("step_s", 0.5)
         if within is not None and (logged is None or delivered is None):
@@ -220,7 +232,7 @@ class Run:
             if t is not None:
                 self.when[f"no xError: {ref}"] = t
         for v in exp.get("values", []):
-            get = self._ref(v.get("at"))
+            get = self._ref(v.get("at"), "expect.values at")
             got = get()
             msg = None
             if "equals" in v and got != v["equals"]:
@@ -330,6 +342,10 @@ def main(argv=None):
     ap.add_argument("--compiler", default=None, choices=["stc", "matiec", "auto"],
                     help="instead of the scenario's network.compiler (default stc); auto: "
                          "matiec when iec2c is on PATH")
+    ap.add_argument("--semantics", default=None, choices=["matiec", "openplc", "iec"],
+                    help="stc's values where IEC 61131-3 leaves them open: matiec (the "
+                         "default), openplc (OpenPLC's matiec fork), iec; default "
+                         "PLCRT_SEMANTICS, else the scenario's network.semantics")
     ap.add_argument("--diagram-seconds", type=float, default=6.0,
                     help="virtual seconds a failure's sequence diagram shows, centred on the "
                          "fault (default 6)")
@@ -349,6 +365,21 @@ def main(argv=None):
         tmp = work = Path(tempfile.mkdtemp(prefix="mip-kit-"))
     t0 = time.perf_counter()
     results, props, details = [], [], {}
+    import warnings
+    catcher = warnings.catch_warnings(record=True)
+    seen = catcher.__enter__()
+    warnings.simplefilter("always", KitWarning)
+    printed = set()
+
+    def say_warnings():
+        # stc's portability warnings and the kit's notes: each once per mip-kit run
+        for w in seen:
+            text = str(w.message)
+            if isinstance(w.message, KitWarning) and text not in printed:
+                printed.add(text)
+                print(f"mip-kit: {text}")
+        seen.clear()
+
     try:
         try:
             doc = load(path)
@@ -364,7 +395,7 @@ def main(argv=None):
             tag = f" [seed {seed}]" if sweep else ""
             sub = f"seed-{seed}" if sweep else ""
             out = _run_one(doc, path, work / sub if sub else work, results_dir / sub if sub
-                           else results_dir, a, name, seed, tag)
+                           else results_dir, a, name, seed, tag, say_warnings)
             if out is None:
                 print("mip-kit: interrupted", file=sys.stderr)
                 return 1
@@ -373,6 +404,7 @@ def main(argv=None):
             props += pr
             details.update({c + tag: v for c, v in det.items()})
     finally:
+        catcher.__exit__(None, None, None)
         if tmp is not None:
             import shutil
             shutil.rmtree(tmp, ignore_errors=True)
@@ -385,14 +417,14 @@ def main(argv=None):
     return 1 if failed or not results else 0
 
 
-def _run_one(doc, path, work, results_dir, a, name, seed, tag):
+def _run_one(doc, path, work, results_dir, a, name, seed, tag, say_warnings=lambda: None):
     """One run of the scenario (one seed): prints its lines; (results, properties, report
     lines per failed expectation), or None when interrupted."""
     from .report import failure_report
     results, props, run, ran = [], [], None, False
     head, sections = [], []
     try:
-        run = Run(doc, path.resolve().parent, work, a.compiler, seed)
+        run = Run(doc, path.resolve().parent, work, a.compiler, seed, a.semantics)
         run.setup()
         ran = True
         results = run.run()
@@ -429,6 +461,7 @@ def _run_one(doc, path, work, results_dir, a, name, seed, tag):
     for title, text in sections:
         print(f"---- {title}")
         print(text)
+    say_warnings()              # after the report: the fault stays in the first lines
     if summary:
         print(summary)
     return results, props, {c: head for c, _ in failed}

@@ -125,6 +125,11 @@ def test_scenario_forgotten_retain_section_names_the_wait_for_a_snapshot(example
     assert re.fullmatch(SNAPSHOT, lines[3]), r.stdout
     assert lines[4].startswith("    MIP_WAIT_SNAPSHOT: with xRetained := TRUE the block waits") and \
         "[retain] section" in lines[4], r.stdout
+    # docs/test-kit.md shows these lines ("When a test fails")
+    doc = (REPO / "docs" / "test-kit.md").read_text()
+    shown = re.search(r"## When a test fails\n.*?```text\n(.*?)```", doc, re.S).group(1).splitlines()
+    assert shown[:7] == lines[:7], "\n".join(lines[:8])
+    assert re.sub(r": \S+/results/", ": results/", lines[7]) == shown[7], lines[7]
     # the JUnit failure carries the same lines
     root = ET.parse(tmp_path / "results" / "j.xml").getroot()
     text = next(f.text for f in root.iter("failure"))

@@ -137,6 +137,11 @@ def _translate_stc(sources, gen, semantics=None):
         # stc's own diagnostics are FILE:LINE:COL: error: ... lines: pass them on as they are
         msg = (proc.stderr.strip() + "\n" + proc.stdout.strip()).strip()
         raise BuildError(msg or f"stc failed with exit status {proc.returncode}")
+    # its warnings (portability) stay with the build, cached or not, for whoever shows them
+    # (the test kit does, once per build)
+    warnings = [l for l in proc.stderr.splitlines() if ": warning: " in l]
+    if warnings:
+        (Path(gen) / "STC_WARNINGS.txt").write_text("\n".join(warnings) + "\n")
 
 
 def _translate_matiec(sources, gen, workdir):
