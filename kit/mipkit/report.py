@@ -248,6 +248,16 @@ def _carried(net, station, radio, t_seen):
     return best
 
 
+def _raw_position(peer, records, i):
+    """The position (1-based) in the peer's receiver of records[i - 1]."""
+    r = peer.peer.receiver
+    raw = [p for t in r.transfers for p in t] + list(r.current)
+    if len(raw) == len(records):
+        return i
+    target = records[i - 1]
+    return next((j for j, p in enumerate(raw, 1) if p is target), i)
+
+
 def find_fault(net, message, t_hint=None):
     """The first record that went wrong and its moment, from the failure's message and what
     the observer saw."""
@@ -263,10 +273,14 @@ def find_fault(net, message, t_hint=None):
         text = f"record {named}: see the failure below" if named else "the failure below"
         return Fault(named, t, text, station)
     acc = obs.accepted.get(peer.name, [])
-    got = acc[-1][1] if acc else 0
+    # the test's numbers are those of peer.records; the observer counts what the peer's
+    # receiver holds (the same records, and any a records view leaves out)
+    records = peer.records
+    got = len(records)
     if named is not None and named <= got:
-        t = next(t for t, n in acc if n >= named)
-        where = _transfer_of(peer, named)
+        j = _raw_position(peer, records, named)
+        t = next((t for t, n in acc if n >= j), net.now)
+        where = _transfer_of(peer, j)
         if where and net.trace_path is not None:
             t = _carried(net, station, where[1], t) or t
         radio = f" (transfer {where[0]}, record {where[1]} on the radio)" if where else ""

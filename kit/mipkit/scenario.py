@@ -1,7 +1,13 @@
 """mip-kit: run one scenario file (TOML) of the test kit; exit 0 when every expectation holds,
 1 otherwise (a scenario that cannot run counts as failed, with one line saying why).
 
-    mip-kit SCENARIO.toml [--junit OUT.xml] [--workdir DIR] [--compiler stc|matiec|auto]
+    mip-kit SCENARIO.toml [--junit OUT.xml] [--results DIR] [--workdir DIR]
+            [--compiler stc|matiec|auto] [--semantics matiec|openplc|iec]
+            [--diagram-seconds S] [--trace-lines N]
+
+A failure's report starts with the fault (the first record that went wrong) and the MIP
+blocks' diagnosis; its sequence diagram and trace go to --results. One summary line per run
+(per seed of network.seeds).
 
 The file format is in docs/test-kit.md; paths in it are relative to the file.
 """
@@ -343,9 +349,9 @@ def main(argv=None):
                     help="instead of the scenario's network.compiler (default stc); auto: "
                          "matiec when iec2c is on PATH")
     ap.add_argument("--semantics", default=None, choices=["matiec", "openplc", "iec"],
-                    help="stc's values where IEC 61131-3 leaves them open: matiec (the "
-                         "default), openplc (OpenPLC's matiec fork), iec; default "
-                         "PLCRT_SEMANTICS, else the scenario's network.semantics")
+                    help="stc's values where IEC 61131-3 leaves them open: matiec, openplc "
+                         "(OpenPLC's matiec fork), iec (default: the scenario's "
+                         "network.semantics, else PLCRT_SEMANTICS, else matiec)")
     ap.add_argument("--diagram-seconds", type=float, default=6.0,
                     help="virtual seconds a failure's sequence diagram shows, centred on the "
                          "fault (default 6)")
