@@ -28,6 +28,8 @@ BLOCK_TYPES = ("MIP_Sender", "MIP_Receiver", "MIP_Link", "MIP_BufferSender")
 _DIAG = re.compile(r"e\w*State|e\w*WaitReason|w\w*WaitFor|e\w*ErrorId", re.I)
 _ORDER = ("STATE", "WAITREASON", "WAITFOR", "ERRORID")
 OBSERVE_MS = 100
+# the output that counts the records a receiving block delivered to its program
+RECORDS_DELIVERED = {"MIP_Receiver": "UDIRECORDS", "MIP_Link": "UDIRECORDSRECEIVED"}
 TRACE_KEEP_S = 60.0        # virtual seconds of the trace kept each side of the fault
 _SCAN = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_uint64)
 
@@ -123,12 +125,13 @@ def describe(values, diag):
 
 class Observer:
     """A process in the network's virtual time (every OBSERVE_MS) that notes each block's
-    diagnosis when it changes, and each peer's count of accepted records when it grows."""
+    diagnosis when it changes, and the records each peer accepted and each MIP_Receiver /
+    MIP_Link of the PLCs delivered (an integrator's own central), when the count changes."""
 
     def __init__(self, net, period_ms=OBSERVE_MS):
         self.net = net
         self.history = {}       # (plc name, instance path) -> [(t, values)]
-        self.accepted = {}      # peer name -> [(t, records accepted)]
+        self.accepted = {}      # peer name or "plc PATH" -> [(t, records accepted)]
         self._vars = {}         # plc name -> (plc object, [(path, type, diag, [_Var])])
         self.failed = None
         self._fn = _SCAN(self._tick)
@@ -154,7 +157,12 @@ class Observer:
                     vs = [kp.plc._lookup(f"{path}.{n}") for n, _ in diag]
                 except Exception:  # noqa: BLE001 - a member the harness cannot read
                     continue
-                blocks.append((path, typ, diag, vs))
+                count = RECORDS_DELIVERED.get(typ)
+                try:
+                    count = kp.plc._lookup(f"{path}.{count}") if count else None
+                except Exception:  # noqa: BLE001
+                    count = None
+                blocks.append((path, typ, diag, vs, count))
             cached = (kp.plc, blocks)
             self._vars[kp.name] = cached
         return cached[1]
@@ -164,11 +172,16 @@ class Observer:
         for name, kp in self.net.plcs.items():
             if kp.plc is None:
                 continue
-            for path, _, _, vs in self.blocks(kp):
+            for path, _, _, vs, count in self.blocks(kp):
                 vals = tuple(v.read() for v in vs)
                 h = self.history.setdefault((name, path), [])
                 if not h or h[-1][1] != vals:
                     h.append((now, vals))
+                if count is not None:
+                    n = count.read()
+                    a = self.accepted.setdefault(f"{name} {display_path(path, kp.result.programs)}", [])
+                    if (a[-1][1] if a else 0) != n:
+                        a.append((now, n))
         for name, p in self.net.peers.items():
             r = p.peer.receiver
             n = (sum(len(t) for t in r.transfers) + len(r.current)) if r is not None else 0
@@ -182,7 +195,7 @@ class Observer:
         for name, kp in self.net.plcs.items():
             if kp.plc is None:
                 continue
-            for path, typ, diag, _ in self.blocks(kp):
+            for path, typ, diag, _, _ in self.blocks(kp):
                 h = self.history.get((name, path), [])
                 i = len(h) - 1 if t is None else max((k for k, (ht, _) in enumerate(h) if ht <= t),
                                                       default=-1)
@@ -248,6 +261,21 @@ def _carried(net, station, radio, t_seen):
     return best
 
 
+def _plc_fault(obs, sink, named, t_hint, station, net):
+    """The fault at a PLC's receiving block (sink: "plc PATH"), in the records it delivered."""
+    acc = obs.accepted[sink]
+    got = acc[-1][1] if acc else 0
+    if named is not None and named <= got:
+        t = next((t for t, n in acc if n >= named), net.now)
+        return Fault(named, t, f"record {named}: {sink} delivered it by {fmt_t(t)} (sampled "
+                               f"every {OBSERVE_MS} ms)", station)
+    n = named if named is not None else got + 1
+    t = t_hint if t_hint is not None else (acc[-1][0] if acc else (obs.stuck_since() or 0))
+    last = f", the last at {fmt_t(acc[-1][0])}" if acc else ""
+    return Fault(n, t, f"record {n}: never delivered by {sink} (it delivered {got} "
+                       f"record{'s' if got != 1 else ''}{last})", station)
+
+
 def _raw_position(peer, records, i):
     """The position (1-based) in the peer's receiver of records[i - 1]."""
     r = peer.peer.receiver
@@ -265,10 +293,16 @@ def find_fault(net, message, t_hint=None):
     obs.sample()
     m = re.search(r"\brecord (\d+)\b", message or "")
     named = int(m.group(1)) if m else None
-    peers = list(net.peers.values())
+    peers = [p for p in net.peers.values() if p.peer.receiver is not None]   # receiving ones
     peer = max(peers, key=lambda p: (obs.accepted.get(p.name) or [(0, 0)])[-1][1]) if peers else None
-    station = next((p.at for p in list(net.plcs.values()) + peers if isinstance(p.at, int)), 1)
+    station = next((p.at for p in list(net.plcs.values()) + list(net.peers.values())
+                    if isinstance(p.at, int)), 1)
     if peer is None:
+        # an integrator's own central: the records its MIP_Receiver (MIP_Link) delivered
+        sinks = [k for k in obs.accepted if k not in net.peers]
+        if sinks:
+            return _plc_fault(obs, max(sinks, key=lambda k: obs.accepted[k][-1][1]
+                                       if obs.accepted[k] else 0), named, t_hint, station, net)
         t = t_hint if t_hint is not None else (obs.stuck_since() or net.now)
         text = f"record {named}: see the failure below" if named else "the failure below"
         return Fault(named, t, text, station)

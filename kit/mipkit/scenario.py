@@ -275,7 +275,7 @@ class Run:
         retrans = 0
         obs = observer(net)
         for kp in net.plcs.values():
-            for path, typ, _, _ in obs.blocks(kp):
+            for path, typ, _, _, _ in obs.blocks(kp):
                 if typ != "MIP_Receiver":
                     try:
                         retrans += int(kp.plc[f"{path}.UDIRETRANSMISSIONS"])

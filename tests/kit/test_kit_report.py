@@ -1,6 +1,7 @@
 """The failure report's parts (kit/mipkit/report.py): the MIP blocks found in a program by
 type, their diagnosis with st_lib's enum names, the readable trace."""
 import json
+import re
 
 from kit_helpers import EXAMPLE
 
@@ -89,3 +90,30 @@ def test_trace_summary_folds_empty_polls_and_marks_the_fault():
         "    0.032 s  radio station 1 -> MDP: answer, block [0]=7 (9 registers)   <- the fault",
         "    1.500 s  radio MDP -> station 1: poll, block [0]=7 (1 register): LOST",
     ]
+
+
+def test_the_fault_at_an_integrators_own_central(tmp_path):
+    """No peer receives: the records are those the central PLC's MIP_Receiver delivered."""
+    from mipcosim import layout as L
+    from mipkit import Net
+    from mipkit.report import failure_report
+    conf = tmp_path / "central.conf"
+    conf.write_text(L.central_config(502, 2))
+    records = [[n, 100 + n, 200 + n] for n in range(1, 8)]
+    with Net(tmp_path / "net", 2, radio="fast", seed=9) as net:
+        cen = net.plc("central", L.program_sources("central", False), conf, at="mdp")
+        peer = net.peer("outstation", at=2, records=records)
+        for i, w in enumerate(L.Params(records=7, payload=3, station=0).words()):
+            cen[f"%MW{i}"] = w
+        assert net.run_until(lambda: peer.done, within_s=120)
+        head, _, _ = failure_report(net, "record 3: got [3, 0], want [3, 1]", tmp_path / "r")
+        assert re.fullmatch(r"mip-kit: fault: record 3: central CENTRAL\.RCV2 delivered it by "
+                            r"\d+\.\d{3} s \(sampled every 100 ms\)", head[0]), head[0]
+        assert head[1].startswith("mip-kit: the blocks at the fault (")
+        rcv2 = next(l for l in head[2:] if l.startswith("  central CENTRAL.RCV2 (MIP_Receiver): "))
+        assert "eWaitReason=MIP_WAIT_RECORD" in rcv2
+        blocks = [l.split(" (MIP_Receiver)")[0] for l in head if l.startswith("  central ")]
+        assert blocks[:4] == [f"  central CENTRAL.RCV{i}" for i in range(1, 5)]
+        head, _, _ = failure_report(net, "not complete", tmp_path / "r2")
+        assert head[0].startswith("mip-kit: fault: record 8: never delivered by central "
+                                  "CENTRAL.RCV2 (it delivered 7 records, the last at "), head[0]
