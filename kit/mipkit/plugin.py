@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import pytest
 
-from .net import KitError, Net
+from .net import KitError, KitWarning, Net
 
 _KEY = "_mipkit_nets"
 
@@ -80,8 +80,9 @@ def mip_network(request, tmp_path, mip_compiler):
 def pytest_runtest_makereport(item, call):
     outcome = yield
     report = outcome.get_result()
-    if call.excinfo is not None and call.excinfo.errisinstance(KitError):
-        report.longrepr = str(call.excinfo.value)     # one line, no traceback
+    if call.excinfo is not None and call.excinfo.errisinstance((KitError, KitWarning)):
+        # one line, no traceback (a KitWarning raises under -W error::mipkit.KitWarning)
+        report.longrepr = str(call.excinfo.value)
         return
     nets = getattr(item, _KEY, [])
     if call.when != "call" or not nets:

@@ -173,3 +173,16 @@ def test_semantics_option_of_mip_kit_and_the_plugin(example):
     assert r.returncode == 1 and "argument --semantics: invalid choice: 'isc'" in r.stdout + r.stderr
     r = run([sys.executable, "-m", "pytest", "-p", "mipkit.plugin", "--help"], example, kit_env())
     assert "--mip-semantics" in r.stdout and "--mip-results" in r.stdout
+
+
+def test_warnings_as_errors_are_one_line_too(example, tmp_path):
+    """A project that makes the kit's warnings errors (-W error::mipkit.KitWarning) gets stc's
+    portability warning as the test's one-line failure."""
+    r = run([sys.executable, "-m", "pytest", "-p", "mipkit.plugin", "-p", "no:cacheprovider", "-q",
+             "-k", "kill9", "-W", "error::mipkit.KitWarning", f"--basetemp={tmp_path / 'bt'}"],
+            example, kit_env())
+    out = r.stdout + r.stderr
+    assert r.returncode == 1, out
+    m = re.search(r"_+ test_kill9_and_lost_answers _+\n(.*?)\n(?:-|=)", out, re.S)
+    assert m and re.fullmatch(r"\S+" + WARNING + r".*", m.group(1).strip()), out
+    assert "Traceback" not in out
