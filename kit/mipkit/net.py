@@ -587,7 +587,7 @@ class Net:
                         last = int(m.group(1))
         return last
 
-    def diagram(self, out: Path, station=1, last_s=6.0, title=None, window=None):
+    def diagram(self, out: Path, station=1, last_s=6.0, title=None, window=None, marks=()):
         """The sequence diagram (docs' seqdiag) of the `last_s` virtual seconds up to the last
         record on the radio (1 s after its telegram), or of window = (from, to) in virtual ns
         (the failure report's: centred on the fault), as SVG into out; None without a trace."""
@@ -619,6 +619,10 @@ class Net:
                     d["_line"] = n
                     events.append(d)
         rows = sd.rows_from(events, station, t_from, t_end)
+        # notes of the failure report (the fault, the blocks' diagnosis): (t, side, text)
+        for t, side, text in marks:
+            at = next((i for i, r in enumerate(rows) if r[0] > t), len(rows))
+            rows.insert(at, (t, "note", {"side": side, "what": "error", "text": text}))
         svg = sd.render(rows, title or f"station {station}, last {last_s:g} s",
                         f"From {self.trace_path.name}, {t_from / SEC:.3f} s .. {t_end / SEC:.3f} s "
                         "of virtual time; empty polls/answers omitted.")

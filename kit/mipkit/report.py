@@ -474,8 +474,16 @@ def failure_report(net, message, outdir: Path, window_s=6.0, t_hint=None, title=
     half = int(window_s * SEC / 2)
     t_from = max(0, fault.t - half)
     t_to = min(net.now, t_from + 2 * half)
+    marks = [(fault.t, "radio", f"fault: record {fault.record}" if fault.record else "fault")]
+    for plc, path, _, diag, vals, _ in observer(net).at(fault.t):
+        kp = net.plcs.get(plc)
+        side = "central" if kp is not None and kp.at == "mdp" else "outstation"
+        waits = [(n, t) for n, t in diag if "WAIT" in n.upper()]
+        text = ", ".join(f"{enum_name(t, v) if t.upper().startswith('E_') else f'{n}={v}'}"
+                         for (n, t), v in zip(diag, vals) if (n, t) in waits)
+        marks.append((fault.t, side, f"{path.rsplit('.', 1)[-1]}: {text}"))
     svg = net.diagram(outdir / "sequence-diagram.svg", station=fault.station,
-                      window=(t_from, t_to),
+                      window=(t_from, t_to), marks=marks,
                       title=f"{title}: {fault.text}"[:150])
     keep = int(max(TRACE_KEEP_S, window_s) * SEC)
     k_from, k_to = max(0, fault.t - keep), fault.t + keep

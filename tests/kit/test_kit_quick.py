@@ -96,7 +96,9 @@ def test_scenario_broken_variant_names_the_record_and_attaches_the_diagram(examp
     # next to the JUnit file (the templates' results/), centred on the fault's moment
     assert svg == str(tmp_path / "results" / "mip-kit-small" / "sequence-diagram.svg")
     text = open(svg).read()
-    assert text.startswith("<svg") and "FC16 write" in text and "record 7" in text
+    assert text.startswith("<svg") and "FC16 write" in text
+    # the fault and the sender's wait drawn at its moment
+    assert ">fault: record 7<" in text and re.search(r">SND: MIP_WAIT_\w+, wWaitFor=\d+<", text)
     t = float(re.fullmatch(FAULT_7, lines[1]).group(1))
     m = re.search(r"(\d+\.\d{3}) s \.\. (\d+\.\d{3}) s of virtual time", text)
     assert m and float(m.group(1)) <= t <= float(m.group(2)), m
@@ -130,6 +132,8 @@ def test_scenario_forgotten_retain_section_names_the_wait_for_a_snapshot(example
     shown = re.search(r"## When a test fails\n.*?```text\n(.*?)```", doc, re.S).group(1).splitlines()
     assert shown[:7] == lines[:7], "\n".join(lines[:8])
     assert re.sub(r": \S+/results/", ": results/", lines[7]) == shown[7], lines[7]
+    svg = (tmp_path / "results" / "mip-kit-small" / "sequence-diagram.svg").read_text()
+    assert ">fault: record 1<" in svg and ">SND: MIP_WAIT_SNAPSHOT, wWaitFor=1<" in svg
     # the JUnit failure carries the same lines
     root = ET.parse(tmp_path / "results" / "j.xml").getroot()
     text = next(f.text for f in root.iter("failure"))
