@@ -291,6 +291,7 @@ def outstation(bidi):
             "     wSnapshots := snapSaved);")
         code.append("store(xRecordValid := link.xRecordValid, aRecord := link.aRecord,\n"
                     "      uRecordLen := link.uRecordLen, wRecordNumber := link.wRecordNumber,\n"
+                    "      xTransferEnd := link.xRecvTransferEnd,\n"
                     "      udiFailed := link.udiFailedTransfers, eLastError := link.eRecvErrorId);")
         code += store_out(1, "store")
         code.append("mR1Dup := UDINT_TO_WORD(link.udiDuplicates MOD 65536);")
@@ -350,6 +351,7 @@ def central(bidi):
                 f"     wSnapshots := snapSaved);")
             code.append(f"store{s}(xRecordValid := link{s}.xRecordValid, aRecord := link{s}.aRecord,\n"
                         f"      uRecordLen := link{s}.uRecordLen, wRecordNumber := link{s}.wRecordNumber,\n"
+                        f"      xTransferEnd := link{s}.xRecvTransferEnd,\n"
                         f"      udiFailed := link{s}.udiFailedTransfers, eLastError := link{s}.eRecvErrorId);")
             code += store_out(s, f"store{s}")
             code.append(f"mR{s}Dup := UDINT_TO_WORD(link{s}.udiDuplicates MOD 65536);")
@@ -364,6 +366,7 @@ def central(bidi):
                 f"     wSnapshots := snapSaved);")
             code.append(f"store{s}(xRecordValid := rcv{s}.xRecordValid, aRecord := rcv{s}.aRecord,\n"
                         f"      uRecordLen := rcv{s}.uRecordLen, wRecordNumber := rcv{s}.wRecordNumber,\n"
+                        f"      xTransferEnd := rcv{s}.xTransferEnd,\n"
                         f"      udiFailed := rcv{s}.udiFailedTransfers, eLastError := rcv{s}.eLastErrorId);")
             code += store_out(s, f"store{s}")
             code.append(f"mR{s}Dup := UDINT_TO_WORD(rcv{s}.udiDuplicates MOD 65536);")
@@ -491,12 +494,13 @@ END_IF;
                  "ELSE",
                  f"  rcv{s}({common},\n       xReadValid := FALSE);",
                  "END_IF;",
-                 f"IF rcv{s}.xRecordValid OR rcv{s}.xError THEN",
+                 f"IF rcv{s}.xRecordValid OR rcv{s}.xTransferEnd OR rcv{s}.xError THEN",
                  f"  store{s}(xRecordValid := rcv{s}.xRecordValid, aRecord := rcv{s}.aRecord,\n"
                  f"         uRecordLen := rcv{s}.uRecordLen, wRecordNumber := rcv{s}.wRecordNumber,\n"
+                 f"         xTransferEnd := rcv{s}.xTransferEnd,\n"
                  f"         udiFailed := rcv{s}.udiFailedTransfers, eLastError := rcv{s}.eLastErrorId);",
                  f"  IF rcv{s}.xRecordValid THEN udiRecords := udiRecords + 1; END_IF;",
-                 f"  IF rcv{s}.xRecordValid AND rcv{s}.xRecordLast THEN uTransfers := uTransfers + 1; END_IF;",
+                 f"  IF rcv{s}.xTransferEnd THEN uTransfers := uTransfers + 1; END_IF;",
                  f"  IF (store{s}.wFlags AND 2) <> 0 THEN uFailed := uFailed + 1; mErrStation := WORD#{s}; END_IF;",
                  "END_IF;",
                  f"axWrReq[{s}] := rcv{s}.xWriteReq;"]

@@ -231,11 +231,14 @@ class KitPeer:
 
     @property
     def records(self):
-        """Payloads of every record the peer accepted, in order (all transfers)."""
+        """Payloads of every record with data the peer accepted, in order (all transfers). An
+        empty record (the 16#FFFF a sender writes after a last chunk that came without
+        xChunkLast) ends its transfer but is no record: as MIP_Receiver, which does not deliver
+        it (st_lib/PROTOCOL.md P15)."""
         r = self.peer.receiver
         if r is None:
             return []
-        return [p for t in r.transfers for p in t] + list(r.current)
+        return [p for t in r.transfers for p in t if p] + [p for p in r.current if p]
 
     @property
     def transfers(self):

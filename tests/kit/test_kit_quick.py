@@ -328,3 +328,23 @@ def test_wheel_carries_what_the_kit_needs_and_the_checkout_stays_clean(tmp_path)
     ep = next(n for n in names if n.endswith("entry_points.txt"))
     text = zipfile.ZipFile(whl).read(ep).decode()
     assert "[pytest11]\nmipkit = mipkit.plugin" in text and "mip-kit = mipkit.scenario:main" in text
+
+
+def test_one_record_at_a_time_passes_assert_records_against_the_note_peer(tmp_path):
+    """Issue 39: records logged one every 2 s leave each transfer one record, which MIP_Sender
+    sends as record 1 and an empty 16#FFFF (P5). peer.records held an empty payload for every
+    such 16#FFFF and assert_records failed ("record 2: got [], want [...]"); an empty record
+    ends a transfer but is no record, for the note peer as for MIP_Receiver."""
+    from mipkit import Net, assert_records
+    from mipcosim import layout as L
+    lib = [str(L.ST_LIB / f) for f in L.LIB_FILES]
+    src = [EXAMPLE / "st" / "FieldLogger.st", EXAMPLE / "st" / "Outstation.st"]
+    with Net(tmp_path, radio="fast", seed=3) as net:
+        out = net.plc("outstation", lib + src, EXAMPLE / "plcrt" / "outstation.conf", at=1)
+        central = net.peer("central")
+        out["%MW1"], out["%MW3"], out["%MW0"] = 5, 2000, 1
+        assert net.run_until(lambda: out["%MW12"] == 5, within_s=60)
+        net.run_for(1)
+        assert central.transfers == 5
+        assert assert_records(central.records, lambda n: [n % 65536, n // 65536]
+                              + [(n * k) % 65536 for k in range(3, 9)]) == 5

@@ -22,7 +22,7 @@ from pathlib import Path
 
 from mipcosim.layout import enum_values  # noqa: F401 (the tests import it from here)
 from mipcosim.sim import FATE_FN as _FATE_FN, Stats as _Stats, kernel_lib
-from plcharness import Plc
+from plcharness import Plc, PlcError
 
 # the numbers of st_lib's enumerations, read from st_lib/MIP_Types.st (never copied by hand)
 ERR = enum_values("E_MIP_Error")
@@ -114,6 +114,13 @@ class Fb:
 
     def __setitem__(self, member, value):
         self.plc[f"MAIN.{self.n}.{member}"] = value
+
+    def has(self, member):
+        try:
+            self[member]
+            return True
+        except PlcError:
+            return False
 
     def write_block(self, length=None):
         if length is None:
@@ -407,6 +414,7 @@ class RecordSink:
         self.transfers = []      # complete transfers (payload lists)
         self.current = []
         self.failed = 0
+        self._end = "xRecvTransferEnd" if fb.has("xRecvTransferEnd") else "xTransferEnd"
 
     def after_scan(self):
         fb = self.fb
@@ -421,9 +429,11 @@ class RecordSink:
             assert fb["udiRecordOffset"] == len(self.current), "offset does not match delivered data"
             self.records.append((num, payload))
             self.current += payload
-            if num == FFFF:
-                self.transfers.append(self.current)
-                self.current = []
+        # the end of a transfer: MIP_Receiver's xTransferEnd (MIP_Link: xRecvTransferEnd), one
+        # scan; its 16#FFFF was delivered above if it had data (an empty one is not)
+        if fb[self._end]:
+            self.transfers.append(self.current)
+            self.current = []
 
 
 class Bench:

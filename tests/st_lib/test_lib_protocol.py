@@ -184,13 +184,17 @@ def test_error_id_visible_while_execute_high(wd):
     assert not u.snd["xError"] and u.snd["eErrorId"] == E_NONE
 
 
-def test_single_chunk_transfer_ends_with_empty_last_record(wd):
+def test_single_chunk_transfer_ends_with_an_empty_last_record_that_is_not_delivered(wd):
+    """P5: one chunk goes as record 1 and an empty 16#FFFF. The receiver delivers record 1
+    only: the empty 16#FFFF ends the transfer (xTransferEnd) without an xRecordValid, so a
+    store or a kit's records see no empty record (issue 39)."""
     data = pattern(40, seed=9)
     u = Uni(wd, data)
     u.bench.step(3)
     assert u.send() == "done"
-    assert [(n, len(p)) for n, p in u.sink.records] == [(1, 40), (FFFF, 0)]
+    assert [(n, len(p)) for n, p in u.sink.records] == [(1, 40)]
     assert u.sink.transfers == [data]
+    assert (u.rcv["udiRecords"], u.rcv["udiTransfers"], u.rcv["wAck"]) == (1, 1, FFFF)
 
 
 def test_consecutive_transfers_restart_at_one(wd):
