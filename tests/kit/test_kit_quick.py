@@ -5,6 +5,8 @@ import re
 import sys
 import xml.etree.ElementTree as ET
 
+import pytest
+
 from kit_helpers import EXAMPLE, REPO, break_logger, ci_commands, kit_env, mipkit_cli, run
 
 REPO_PLC = REPO / "plc"
@@ -348,3 +350,33 @@ def test_one_record_at_a_time_passes_assert_records_against_the_note_peer(tmp_pa
         assert central.transfers == 5
         assert assert_records(central.records, lambda n: [n % 65536, n // 65536]
                               + [(n * k) % 65536 for k in range(3, 9)]) == 5
+
+
+def test_delivered_taps_the_integrators_own_central(tmp_path):
+    """Issue 39: what the integrator's own central (here this repository's, with four
+    MIP_Receiver instances) delivered, record by record, without glue in the program: found by
+    type, read after every scan. The outstation logs one record every 2 s, so every transfer
+    ends with an empty 16#FFFF, which is not delivered; a kill -9 of the central rolls its
+    receivers back, and what they delivered after the snapshot comes again, once."""
+    from mipcosim import layout as L
+    from mipkit import KitError, Net, assert_records
+    conf = tmp_path / "central.conf"
+    conf.write_text(L.central_config(502, 1, retain=L.retain_section(tmp_path / "c.retain", 1000)))
+    lib = [str(L.ST_LIB / f) for f in L.LIB_FILES]
+    src = [EXAMPLE / "st" / "FieldLogger.st", EXAMPLE / "st" / "Outstation.st"]
+    want = lambda n: [n % 65536, n // 65536] + [(n * k) % 65536 for k in range(3, 9)]  # noqa: E731
+    with Net(tmp_path / "net", 1, radio="fast", loss_up=0.2, seed=4) as net:
+        cen = net.plc("central", L.program_sources("central", False), conf, at="mdp")
+        out = net.plc("outstation", lib + src, EXAMPLE / "plcrt" / "outstation.conf", at=1)
+        for i, w in enumerate(L.Params(records=0, station=0, retain=True).words()):
+            cen[f"%MW{i}"] = w
+        out["%MW1"], out["%MW3"], out["%MW0"] = 8, 1500, 1
+        assert [r.split(".")[-1] for r in cen.receivers] == ["RCV1", "RCV2", "RCV3", "RCV4"]
+        with pytest.raises(KitError, match="has 4 MIP_Receiver instances .*name one"):
+            cen.delivered()
+        assert net.run_until(lambda: len(cen.delivered("RCV1")) >= 3, within_s=60)
+        cen.restart("kill9")
+        assert net.run_until(lambda: out["%MW12"] == 8, within_s=120)
+        net.run_for(2)
+        assert assert_records(cen.delivered("rcv1"), want) == 8
+        assert cen.transfers_received("RCV1") == 8 and cen.delivered("RCV2") == []
