@@ -7,6 +7,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/inotify.h>
 #include <termios.h>
 #include <unistd.h>
 
@@ -41,7 +42,7 @@ static int fail(char *err, size_t n, const char *fmt, const char *a, const char 
 int rtu_parse(rtu_bus *b, const char *spec, int stations, char *err, size_t errn)
 {
     memset(b, 0, sizeof *b);
-    b->fd = b->keep_fd = -1;
+    b->fd = b->keep_fd = b->watch_fd = -1;
     b->baud = 19200;
     b->data_bits = 8;
     b->parity = 'N';
@@ -174,6 +175,14 @@ int rtu_open(rtu_bus *b, char *err, size_t errn)
         }
         b->fd = fd;
         b->keep_fd = keep;
+        rtu_pty_rearm(b);
+        /* a client closing the slave side: re-armed after it (rtu_pty_rearm; not at an open, which
+         * would race with the client's own setup) */
+        b->watch_fd = inotify_init1(IN_NONBLOCK | IN_CLOEXEC);
+        if (b->watch_fd >= 0 && inotify_add_watch(b->watch_fd, b->path, IN_CLOSE) < 0) {
+            close(b->watch_fd);
+            b->watch_fd = -1;
+        }
         if (b->link[0]) {
             unlink(b->link); /* a stale link of an earlier run */
             if (symlink(b->path, b->link) < 0) {
@@ -210,7 +219,43 @@ void rtu_close(rtu_bus *b)
     if (b->link[0]) unlink(b->link);
     if (b->fd >= 0) close(b->fd);
     if (b->keep_fd >= 0) close(b->keep_fd);
-    b->fd = b->keep_fd = -1;
+    if (b->watch_fd >= 0) close(b->watch_fd);
+    b->fd = b->keep_fd = b->watch_fd = -1;
+}
+
+/* A pty carries no parity: Linux's pty driver clears PARENB (and sets CS8) on every tcsetattr
+ * of the slave side, and glibc's tcsetattr (Debian 12's 2.36) reads the settings back and fails
+ * with EINVAL when none of the flags changed but PARENB is not as asked. A client asking for
+ * 8E1 thus fails whenever the pty already has the rest of its settings: on its second open (the
+ * slave side, which the server keeps open, keeps the last client's settings). IGNBRK means
+ * nothing on a pty (no break condition crosses it) and every raw setup clears it (cfmakeraw,
+ * pyserial, libmodbus): set again after every client, it makes each client's first setup a
+ * change. */
+void rtu_pty_rearm(rtu_bus *b)
+{
+    struct termios t;
+    if (!b->is_pty || b->keep_fd < 0 || tcgetattr(b->keep_fd, &t) < 0 || (t.c_iflag & IGNBRK)) return;
+    t.c_iflag |= IGNBRK;
+    tcsetattr(b->keep_fd, TCSANOW, &t);
+}
+
+void rtu_on_watch(rtu_bus *b)
+{
+    char buf[1024];
+    while (b->watch_fd >= 0 && read(b->watch_fd, buf, sizeof buf) > 0) {
+    }
+    rtu_pty_rearm(b);
+}
+
+int rtu_parity_note(const rtu_bus *b, char *out, size_t n)
+{
+    if (!b->is_pty) return 0;
+    const char *what = b->parity == 'E' ? " (even parity)" : b->parity == 'O' ? " (odd parity)" : "";
+    snprintf(out, n, "%s is a pty: it carries no parity bit, so parity is not checked and a client's "
+             "parity setting does not matter there; characters are timed as %d%c%d%s, %d bits",
+             b->path, b->data_bits, b->parity, b->stop_bits, what,
+             1 + b->data_bits + (b->parity != 'N') + b->stop_bits);
+    return 1;
 }
 
 void rtu_on_readable(rtu_bus *b, uint64_t now)
@@ -220,6 +265,7 @@ void rtu_on_readable(rtu_bus *b, uint64_t now)
         ssize_t n = read(b->fd, buf, sizeof buf);
         if (n <= 0) {
             if (n < 0 && errno == EINTR) continue;
+            rtu_pty_rearm(b); /* a client is there: its setup is done */
             return;
         }
         if (b->rx_len == 0 && !b->rx_overflow) b->rx_first_ns = now;

@@ -32,6 +32,7 @@ typedef struct rtu_bus {
     /* line */
     int fd;                 /* pty master or the tty */
     int keep_fd;            /* pty: the server's own handle on the slave side (no EIO/HUP) */
+    int watch_fd;           /* pty: inotify on the closes of the slave side (or -1) */
     /* receive */
     uint8_t rx[RTU_ADU_MAX * 2];
     size_t rx_len;
@@ -56,6 +57,14 @@ int rtu_parse(rtu_bus *b, const char *spec, int stations, char *err, size_t errn
 /* Opens the line (creates the pty and its link); 0 or -1 with a message. */
 int rtu_open(rtu_bus *b, char *err, size_t errn);
 void rtu_close(rtu_bus *b);
+
+/* pty: keeps a client's parity setup from failing (see rtu.c): re-arms the slave side's
+ * settings; rtu_on_watch when watch_fd is readable (a client closed the pty). */
+void rtu_pty_rearm(rtu_bus *b);
+void rtu_on_watch(rtu_bus *b);
+
+/* pty: the line saying that a pty carries no parity (1), or nothing for a tty (0) */
+int rtu_parity_note(const rtu_bus *b, char *out, size_t n);
 
 /* Time on the wire of one character (start + data + parity + stop bits) and of the silent
  * interval that ends a frame (3.5 characters, at least 1.75 ms above 19200 baud, as the Modbus

@@ -77,7 +77,7 @@ __attribute__((noreturn)) static void die_sys(const char *what)
 
 /* ---- connections ---- */
 
-enum { T_LISTEN, T_CONN, T_RTU };
+enum { T_LISTEN, T_CONN, T_RTU, T_RTU_WATCH };
 
 #define MAX_BUSES 8
 typedef struct bus_slot {
@@ -86,6 +86,11 @@ typedef struct bus_slot {
 } bus_slot_t;
 static bus_slot_t g_buses[MAX_BUSES];
 static int g_nbus;
+typedef struct watch_slot {
+    int type; /* T_RTU_WATCH: a pty's opens and closes (rtu_on_watch) */
+    rtu_bus *bus;
+} watch_slot_t;
+static watch_slot_t g_watches[MAX_BUSES];
 
 typedef struct conn {
     int type;
@@ -483,7 +488,18 @@ int main(int argc, char **argv)
         struct epoll_event e = { .events = EPOLLIN, .data.ptr = &g_buses[i] };
         if (epoll_ctl(g_epfd, EPOLL_CTL_ADD, g_buses[i].bus.fd, &e) < 0)
             die_sys("epoll_ctl");
+        if (g_buses[i].bus.watch_fd >= 0) {
+            g_watches[i] = (watch_slot_t){ T_RTU_WATCH, &g_buses[i].bus };
+            struct epoll_event w = { .events = EPOLLIN, .data.ptr = &g_watches[i] };
+            if (epoll_ctl(g_epfd, EPOLL_CTL_ADD, g_buses[i].bus.watch_fd, &w) < 0)
+                die_sys("epoll_ctl");
+        }
         g_nbus++;
+    }
+    for (int i = 0; i < n_rtu; i++) {
+        char note[512];
+        if (rtu_parity_note(&g_buses[i].bus, note, sizeof note))
+            fprintf(stderr, PROG ": note: %s\n", note);
     }
     if (no_tcp) {
         printf(PROG ": listening mdp=none trm=none");
@@ -521,6 +537,10 @@ int main(int argc, char **argv)
         advance_now();
         for (int i = 0; i < n; i++) {
             conn_t *c = evs[i].data.ptr;
+            if (c->type == T_RTU_WATCH) {
+                rtu_on_watch(((watch_slot_t *)evs[i].data.ptr)->bus);
+                continue;
+            }
             if (c->type == T_RTU) {
                 rtu_on_readable(&((bus_slot_t *)evs[i].data.ptr)->bus, mono_ns());
                 continue;
