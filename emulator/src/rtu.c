@@ -27,10 +27,21 @@ uint64_t rtu_char_ns(const rtu_bus *b)
     return (uint64_t)bits * 1000000000ull / (uint64_t)b->baud;
 }
 
+/* MODBUS over Serial Line Specification and Implementation Guide V1.02 (Modbus-IDA, 2006),
+ * section 2.5.1.1 "MODBUS Message RTU Framing": frames are separated by a silent interval of at
+ * least 3.5 character times (t3.5); a silent interval of more than 1.5 character times (t1.5)
+ * between two characters makes the frame incomplete, to be discarded; above 19,200 baud the
+ * recommended fixed values are t1.5 = 750 us and t3.5 = 1.750 ms. */
 uint64_t rtu_gap_ns(const rtu_bus *b)
 {
     if (b->baud > 19200) return 1750000ull;
     return rtu_char_ns(b) * 7 / 2;
+}
+
+uint64_t rtu_t15_ns(const rtu_bus *b)
+{
+    if (b->baud > 19200) return 750000ull;
+    return rtu_char_ns(b) * 3 / 2;
 }
 
 static int fail(char *err, size_t n, const char *fmt, const char *a, const char *b2)
@@ -258,7 +269,30 @@ int rtu_parity_note(const rtu_bus *b, char *out, size_t n)
     return 1;
 }
 
-void rtu_on_readable(rtu_bus *b, uint64_t now)
+/* The receiver's framing is a function of the bytes and of the times they arrived, and of
+ * nothing else (no clock here): the server passes the monotonic clock, the tests explicit
+ * times. A pty delivers what a client wrote at once, so the line is modelled: the characters a
+ * client wrote at t go on the wire at t, or when the ones before them have crossed it, one
+ * character time each. The silence before them is the time from the end of the last character
+ * to t; over t1.5 it breaks the frame, and a frame ends t3.5 after its last character. */
+void rtu_feed(rtu_bus *b, const uint8_t *p, size_t n, uint64_t now, rtu_handle_fn handle, void *user)
+{
+    if (!n) return;
+    rtu_on_time(b, now, handle, user); /* a frame whose t3.5 has passed ends before these bytes */
+    uint64_t start = now;
+    if (b->rx_len || b->rx_overflow) {
+        if (now > b->rx_end_ns && now - b->rx_end_ns > rtu_t15_ns(b)) b->rx_broken = 1;
+        if (b->rx_end_ns > start) start = b->rx_end_ns;
+    }
+    b->rx_end_ns = start + (uint64_t)n * rtu_char_ns(b);
+    size_t room = sizeof b->rx - b->rx_len;
+    size_t k = n < room ? n : room;
+    memcpy(b->rx + b->rx_len, p, k);
+    b->rx_len += k;
+    if (n > k || b->rx_len > RTU_ADU_MAX) b->rx_overflow = 1;
+}
+
+void rtu_on_readable(rtu_bus *b, uint64_t now, rtu_handle_fn handle, void *user)
 {
     uint8_t buf[512];
     for (;;) {
@@ -268,23 +302,14 @@ void rtu_on_readable(rtu_bus *b, uint64_t now)
             rtu_pty_rearm(b); /* a client is there: its setup is done */
             return;
         }
-        if (b->rx_len == 0 && !b->rx_overflow) b->rx_first_ns = now;
-        b->rx_last_ns = now;
-        size_t room = sizeof b->rx - b->rx_len;
-        size_t k = (size_t)n < room ? (size_t)n : room;
-        memcpy(b->rx + b->rx_len, buf, k);
-        b->rx_len += k;
-        if ((size_t)n > k || b->rx_len > RTU_ADU_MAX) b->rx_overflow = 1;
+        rtu_feed(b, buf, (size_t)n, now, handle, user);
     }
 }
 
-/* when the frame in rx ends: the gap after its last byte, and not before it could have
- * crossed the wire at the line's speed */
+/* when the frame in rx ends: t3.5 after its last character crossed the wire */
 static uint64_t frame_close_ns(const rtu_bus *b)
 {
-    uint64_t by_gap = b->rx_last_ns + rtu_gap_ns(b);
-    uint64_t by_wire = b->rx_first_ns + (uint64_t)b->rx_len * rtu_char_ns(b) + rtu_gap_ns(b);
-    return by_gap > by_wire ? by_gap : by_wire;
+    return b->rx_end_ns + rtu_gap_ns(b);
 }
 
 uint64_t rtu_next_deadline(const rtu_bus *b)
@@ -344,27 +369,45 @@ static void handle_frame(rtu_bus *b, uint64_t at, rtu_handle_fn handle, void *us
     b->answered++;
 }
 
+static void close_frame(rtu_bus *b, rtu_handle_fn handle, void *user)
+{
+    if (b->rx_overflow) {
+        b->frames++;
+        b->crc_errors++;
+    } else if (b->rx_broken) {
+        b->frames++;
+        b->broken++; /* a silence over t1.5 inside: incomplete, discarded */
+    } else {
+        handle_frame(b, b->rx_end_ns, handle, user); /* at the end of the request on the wire */
+    }
+    b->rx_len = 0;
+    b->rx_overflow = 0;
+    b->rx_broken = 0;
+}
+
+static void send_answer(rtu_bus *b)
+{
+    size_t off = 0;
+    while (off < b->tx_len) {
+        ssize_t k = write(b->fd, b->tx + off, b->tx_len - off);
+        if (k < 0 && errno == EINTR) continue;
+        if (k <= 0) break; /* nobody reads the line: the answer is lost, as on a wire */
+        off += (size_t)k;
+    }
+    b->tx_len = 0;
+}
+
 void rtu_on_time(rtu_bus *b, uint64_t now, rtu_handle_fn handle, void *user)
 {
-    if ((b->rx_len || b->rx_overflow) && now >= frame_close_ns(b)) {
-        uint64_t at = frame_close_ns(b) - rtu_gap_ns(b); /* end of the request on the wire */
-        if (b->rx_overflow) {
-            b->frames++;
-            b->crc_errors++;
-        } else {
-            handle_frame(b, at, handle, user);
-        }
-        b->rx_len = 0;
-        b->rx_overflow = 0;
-    }
-    if (b->tx_len && now >= b->tx_at_ns) {
-        size_t off = 0;
-        while (off < b->tx_len) {
-            ssize_t k = write(b->fd, b->tx + off, b->tx_len - off);
-            if (k < 0 && errno == EINTR) continue;
-            if (k <= 0) break; /* nobody reads the line: the answer is lost, as on a wire */
-            off += (size_t)k;
-        }
-        b->tx_len = 0;
+    /* what is due, in the order of its time */
+    for (;;) {
+        uint64_t close_at = (b->rx_len || b->rx_overflow) ? frame_close_ns(b) : UINT64_MAX;
+        uint64_t send_at = b->tx_len ? b->tx_at_ns : UINT64_MAX;
+        if (send_at <= now && send_at <= close_at)
+            send_answer(b);
+        else if (close_at <= now)
+            close_frame(b, handle, user);
+        else
+            return;
     }
 }
