@@ -510,11 +510,6 @@ int main(int argc, char **argv)
         }
         g_nbus++;
     }
-    for (int i = 0; i < n_rtu; i++) {
-        char note[512];
-        if (rtu_parity_note(&g_buses[i].bus, note, sizeof note))
-            fprintf(stderr, PROG ": note: %s\n", note);
-    }
     if (no_tcp) {
         printf(PROG ": listening mdp=none trm=none");
     } else {
@@ -526,6 +521,11 @@ int main(int argc, char **argv)
         printf("%s%s", i ? "," : " rtu=", g_buses[i].bus.path);
     printf("\n");
     fflush(stdout);
+    for (int i = 0; i < n_rtu; i++) {
+        char note[512];
+        if (rtu_parity_note(&g_buses[i].bus, note, sizeof note))
+            fprintf(stderr, PROG ": note: %s\n", note);
+    }
 
     g_t0 = mono_ns();
     struct epoll_event evs[256];
