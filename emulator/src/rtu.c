@@ -156,7 +156,10 @@ static void set_line(struct termios *t, const rtu_bus *b)
     cfsetospeed(t, sp);
     t->c_cflag &= (tcflag_t)~(CSIZE | PARENB | PARODD | CSTOPB);
     t->c_cflag |= (b->data_bits == 7 ? CS7 : CS8) | CLOCAL | CREAD;
-    if (b->parity != 'N') t->c_cflag |= PARENB;
+    /* with parity, the UART checks it: a character with a parity error is read as \0 (INPCK
+     * without IGNPAR or PARMRK, termios(3)), so its frame fails the CRC and is discarded */
+    t->c_iflag &= (tcflag_t)~(INPCK | IGNPAR | PARMRK);
+    if (b->parity != 'N') t->c_cflag |= PARENB, t->c_iflag |= INPCK;
     if (b->parity == 'O') t->c_cflag |= PARODD;
     if (b->stop_bits == 2) t->c_cflag |= CSTOPB;
     t->c_cc[VMIN] = 0;

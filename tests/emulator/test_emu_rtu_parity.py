@@ -96,3 +96,27 @@ def test_the_emulator_says_once_at_start_that_a_pty_carries_no_parity(frame_fmt,
     assert "no parity" in notes[0] and "not checked" in notes[0]
     if says:
         assert f"{frame_fmt} ({says} parity)" in notes[0]
+
+
+@pytest.mark.parametrize("frame_fmt,inpck", [("8E1", True), ("8O1", True), ("8N2", False)])
+def test_on_a_tty_the_emulator_checks_the_parity_it_is_given(frame_fmt, inpck):
+    """A tty path (here a pty the test made, which keeps the input flags): with parity the
+    emulator turns input parity checking on (INPCK, neither IGNPAR nor PARMRK: a character with
+    a parity error reads as \\0 and its frame fails the CRC); without, off. The stop bits stay."""
+    import os
+    import termios
+    master, slave = os.openpty()
+    path = os.ttyname(slave)
+    try:
+        emu = RtuOnly(f"{path}:19200:{frame_fmt}=trm1@1")
+        try:
+            iflag, _, cflag, *_ = termios.tcgetattr(slave)
+            assert bool(iflag & termios.INPCK) == inpck
+            assert not iflag & (termios.IGNPAR | termios.PARMRK)
+            assert bool(cflag & termios.CSTOPB) == (frame_fmt[2] == "2")
+        finally:
+            err = emu.stop()
+        assert "parity" not in err        # a tty: no note about ptys
+    finally:
+        os.close(slave)
+        os.close(master)
