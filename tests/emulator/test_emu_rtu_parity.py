@@ -120,3 +120,37 @@ def test_on_a_tty_the_emulator_checks_the_parity_it_is_given(frame_fmt, inpck):
     finally:
         os.close(slave)
         os.close(master)
+
+
+def test_a_libmodbus_client_killed_with_sigkill_is_followed_by_one_that_opens():
+    """libmodbus (plcrt, mbpoll) puts the line's old settings back when it closes it; a client
+    killed with SIGKILL cannot, and left the pty raw with 8E1 asked for: the next libmodbus
+    client's setup then changed nothing but the parity and failed, 'Invalid argument' (issue
+    38, item 1, as seen from the emulator). The emulator re-arms the pty when the killed
+    client's descriptor is closed."""
+    import shutil
+    mbpoll = shutil.which("mbpoll")
+    if mbpoll is None:
+        pytest.skip("mbpoll is not installed (Debian package mbpoll)")
+    emu = RtuOnly("pty:19200:8E1=trm1@1")
+    cmd = [mbpoll, "-m", "rtu", "-b", "19200", "-P", "even", "-a", "1", "-r", "2000", "-0",
+           "-t", "4", emu.path]
+    try:
+        for attempt in range(3):
+            poller = subprocess.Popen(["stdbuf", "-oL"] + cmd + ["-l", "20"], stdout=subprocess.PIPE,
+                                      stderr=subprocess.STDOUT, text=True)
+            try:
+                for line in poller.stdout:            # polling: the line is set up and in use
+                    if line.startswith("[2000]"):
+                        break
+                else:
+                    pytest.fail(f"mbpoll {attempt + 1} did not poll")
+            finally:
+                poller.kill()                         # SIGKILL: no chance to restore the line
+                poller.wait()
+                poller.stdout.close()
+            time.sleep(0.1)
+            r = subprocess.run(cmd + ["-1"], capture_output=True, text=True, timeout=20)
+            assert r.returncode == 0 and "[2000]:" in r.stdout, (attempt + 1, r.stdout, r.stderr)
+    finally:
+        emu.stop()
