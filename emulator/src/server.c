@@ -87,7 +87,7 @@ typedef struct bus_slot {
 static bus_slot_t g_buses[MAX_BUSES];
 static int g_nbus;
 typedef struct watch_slot {
-    int type; /* T_RTU_WATCH: a pty's opens and closes (rtu_on_watch) */
+    int type; /* T_RTU_WATCH: a client closed a pty (rtu_on_watch) */
     rtu_bus *bus;
 } watch_slot_t;
 static watch_slot_t g_watches[MAX_BUSES];
