@@ -164,6 +164,10 @@ static char parity_of(const char *v)
     return 0;
 }
 
+/* RTU's character: 1 start, 8 data bits, parity, stop bits (MODBUS over Serial Line Specification
+ * and Implementation Guide V1.02, section 2.5.1) */
+#define RTU_8_BITS "Modbus RTU has 8 data bits (MODBUS over Serial Line V1.02, section 2.5.1)"
+
 static int valid_baud(long b)
 {
     static const long ok[] = {300, 600, 1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200,
@@ -356,6 +360,9 @@ static int finish_device(parser_t *p, plcrt_device_t *dev, const device_keys_t *
     } else if (dk->port) {
         return perr(p, dk->port, "port is a key of TCP devices (this one has serial)");
     }
+    /* "the use of no parity requires 2 stop bits" (MODBUS over Serial Line V1.02, section 2.5.1):
+     * the default without parity; stop_bits = 1 when given is taken (many devices run 8N1) */
+    if (dev->rtu && !dk->stop_bits && dev->parity == 'N') dev->stop_bits = 2;
     if (dev->rtu && dev->unit_word < 0 && dev->unit_id > 247)
         return perr(p, dk->unit_id, "unit_id: %d is not a Modbus RTU address (0..247)", dev->unit_id);
     assign_bus(p->m, dev);
@@ -554,7 +561,8 @@ static int parse_plcrt(parser_t *p, char *text)
                 if (!(dev->parity = parity_of(val))) return perr(p, lineno, "parity: '%s' is not none, even or odd", val);
             } else if (!strcmp(key, "data_bits")) {
                 slot = &dk.data_bits;
-                if (parse_int(p, lineno, key, val, 7, 8, &x)) return -1;
+                if (parse_int(p, lineno, key, val, 5, 8, &x)) return -1;
+                if (x != 8) return perr(p, lineno, "data_bits: %ld: " RTU_8_BITS, x);
                 dev->data_bits = (int)x;
             } else if (!strcmp(key, "stop_bits")) {
                 slot = &dk.stop_bits;
@@ -826,6 +834,7 @@ static int parse_mbconfig(parser_t *p, char *text)
                 static const long lo[5] = {1, 0, 7, 1, 0}, hi[5] = {4000000, 0, 8, 2, 3600000};
                 if (parse_int(p, ln, key, v, lo[f], hi[f], &x)) return -1;
                 if (f == 0 && !valid_baud(x)) return perr(p, ln, "%s: %ld is not a standard rate (300 .. 921600)", key, x);
+                if (f == 2 && x != 8) return perr(p, ln, "%s: %ld: " RTU_8_BITS, key, x);
                 if (f == 0) dev->baud = (int)x;
                 else if (f == 2) dev->data_bits = (int)x;
                 else if (f == 3) dev->stop_bits = (int)x;
