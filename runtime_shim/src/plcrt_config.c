@@ -246,7 +246,8 @@ static int finish_range(parser_t *p, range_keys_t *k, uint64_t default_poll)
     r->dev = find_device(m, k->v_device);
     if (r->dev < 0)
         return perr(p, k->device, "device: no [device %s] above this range", k->v_device);
-    r->out_unit = m->devices[r->dev].unit_word >= 0 ? -1 : m->devices[r->dev].unit_id;
+    /* -1: no poll before the first exchange (a write has no outputs of the program before it) */
+    r->out_unit = m->devices[r->dev].unit_word >= 0 || r->is_write ? -1 : m->devices[r->dev].unit_id;
     /* table */
     r->table = 'h';
     if (k->table) {
@@ -862,7 +863,7 @@ static int parse_mbconfig(parser_t *p, char *text)
             r->policy = POLICY_CYCLE;
             r->trigger = r->done = r->error = r->status = r->length = -1;
             r->dev = m->n_devices - 1;
-            r->out_unit = dev->unit_id;
+            r->out_unit = r->is_write ? -1 : dev->unit_id; /* a write: not before the first exchange */
             int limit = range_limit(r);
             if (r->size > limit)
                 return perr(p, line, "%s_Size: %d in one request (at most %d)", mb_block[b], r->size, limit);
