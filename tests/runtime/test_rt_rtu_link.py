@@ -1,0 +1,215 @@
+"""plcrt on a serial line as a field engineer meets it (issue 38, items 1, 4, 5): a plcrt killed
+with SIGKILL and started again on an emulator pty at 8E1 talks again (before: `Invalid argument`,
+then `Transport endpoint is not connected` for ever); a line that went away (the modem side
+restarted) is reopened and reconfigured without a restart of the PLC, and said so once; a pty's
+missing parity is stated once at start; line settings RTU cannot have are refused in one line
+(file:line); parity none defaults to 2 stop bits (MODBUS over Serial Line Specification and
+Implementation Guide V1.02, section 2.5.1: "the use of no parity requires 2 stop bits")."""
+import os
+import re
+import signal
+import subprocess
+import sys
+import termios
+import time
+
+import pytest
+
+from plcharness import Plc, build_program
+from rt_helpers import COUNTER, REPO, TINY, compiler_param
+
+sys.path.insert(0, str(REPO / "tests" / "emulator"))
+from emu_support import Emulator  # noqa: E402
+from test_rt_rtu import CONF, TRIGGER, handshake, tcp_read  # noqa: E402
+
+
+def emulator(tmp_path, link, frame="8E1"):
+    return Emulator("--stations", "1", "--bitrate", "1000000", "--slot-gap-ms", "1",
+                    "--rtu", f"pty:{link}:19200:{frame}=trm1@5")
+
+
+CYCLE_CONF = """
+[master]
+reconnect_min = 50ms
+reconnect_max = 200ms
+
+[device trm]
+serial = {tty}
+baud = 19200
+parity = even
+unit_id = 5
+timeout = 300ms
+polling_period = 20ms
+
+[write count]
+device = trm
+start = 2001
+size = 1
+image = %QW100
+"""
+
+
+def test_plcrt_killed_with_sigkill_talks_again_on_a_pty_at_8e1(tmp_path):
+    """The killed plcrt leaves the pty as it set it (raw, 8N1: the pty dropped PARENB); the next
+    one asks for the same with parity even, which the pty refuses (EINVAL, nothing it can
+    change): it must take the line as the pty has it, say so once, and talk."""
+    link = tmp_path / "ttyMIP"
+    emu = emulator(tmp_path, link)
+    try:
+        exe = build_program([_write(tmp_path / "counter.st", COUNTER)], tmp_path / "out").executable
+        cfg = tmp_path / "plc.conf"
+        cfg.write_text(CYCLE_CONF.format(tty=link))
+        first = subprocess.Popen([str(exe), "-c", str(cfg), "-m", "real"],
+                                 stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        try:
+            deadline = time.monotonic() + 20
+            while tcp_read(emu.trm_port(1), 2001, 1)[0] < 20:
+                assert time.monotonic() < deadline, "the first plcrt did not write"
+                time.sleep(0.05)
+        finally:
+            first.send_signal(signal.SIGKILL)
+            first.wait(timeout=10)
+            first.stderr.close()
+        assert tcp_read(emu.trm_port(1), 2001, 1)[0] >= 20
+        second = subprocess.run([str(exe), "-c", str(cfg), "-m", "real", "-n", "7"],
+                                capture_output=True, text=True, timeout=60)
+        assert second.returncode == 0, second.stderr
+        # the last scan's output (the program's count, 7) reached the modem over the line
+        assert tcp_read(emu.trm_port(1), 2001, 1) == [7], second.stderr
+        assert "failed" not in second.stderr, second.stderr
+        notes = [ln for ln in second.stderr.splitlines() if "parity" in ln]
+        assert len(notes) == 1, second.stderr
+        assert re.search(r"device trm: .*/dev/pts/\d+.* pseudo-terminal.* no parity", notes[0]), notes
+    finally:
+        assert emu.stop() == 0
+
+
+@pytest.mark.parametrize("compiler", [compiler_param("stc")])
+def test_a_serial_line_that_went_away_is_reopened_without_a_restart(compiler, tmp_path, capfd):
+    """The modem side of the line restarts (the emulator stopped and started again on the same
+    link: the open pty is dead, the link names a new one): the requests fail with a named
+    status, the runtime reopens the line, says so once, and the next requests succeed."""
+    link = tmp_path / "ttyMIP"
+    emu = emulator(tmp_path, link)
+    cfg = tmp_path / "rtu.conf"
+    cfg.write_text("[master]\nreconnect_min = 50ms\nreconnect_max = 100ms\n" + CONF.format(tty=link, unit=5))
+    plc = Plc.build([_write(tmp_path / "prog.st", TRIGGER)], workdir=tmp_path, compiler=compiler, config=cfg)
+    try:
+        plc.force("%QW41", 4242)
+        assert handshake(plc, "%QX1.1", "%IX1.2", "%IX1.3") == (True, False)
+        assert emu.stop() == 0
+        emu = emulator(tmp_path, link)
+        statuses = []
+        for _ in range(20):
+            res = handshake(plc, "%QX1.0", "%IX1.0", "%IX1.1")
+            if res == (True, False):
+                break
+            statuses.append(plc["%IW11"])
+            time.sleep(0.05)
+        else:
+            pytest.fail(f"no read succeeded after the line came back: statuses {statuses}")
+        assert all(s > 1000 for s in statuses), statuses       # failures are named, never 0
+        plc.force("%QW41", 4343)
+        assert handshake(plc, "%QX1.1", "%IX1.2", "%IX1.3") == (True, False)
+        assert handshake(plc, "%QX1.0", "%IX1.0", "%IX1.1") == (True, False)
+        assert plc["%IW100"] == 4343
+    finally:
+        plc.close()
+        emu.stop()
+    err = capfd.readouterr().err
+    reopened = [ln for ln in err.splitlines() if "reopen" in ln]
+    assert len(reopened) == 1, err
+
+
+def _write(path, text):
+    path.write_text(text)
+    return path
+
+
+SERIAL_DEVICE = """[device trm]
+serial = /dev/ttyS0
+{keys}
+[write w]
+device = trm
+start = 2001
+size = {size}
+image = %QW100
+"""
+
+MBCONFIG_RTU = """Num_Devices = "1"
+device0.name = "trm"
+device0.slave_id = "1"
+device0.protocol = "RTU"
+device0.address = "/dev/ttyS0"
+device0.RTU_Baud_Rate = "19200"
+device0.RTU_Parity = "Even"
+device0.RTU_Data_Bits = "{bits}"
+device0.RTU_Stop_Bits = "1"
+device0.Holding_Registers_Start = "2001"
+device0.Holding_Registers_Size = "1"
+"""
+
+
+@pytest.fixture(scope="module")
+def check_exe(tmp_path_factory):
+    d = tmp_path_factory.mktemp("check")
+    return build_program([_write(d / "tiny.st", TINY)], d / "out").executable
+
+
+@pytest.mark.parametrize("name,text,line,msg", [
+    ("7e1.conf", SERIAL_DEVICE.format(keys="parity = even\ndata_bits = 7", size=1), 4,
+     "data_bits: 7: Modbus RTU has 8 data bits"),
+    ("12345.conf", SERIAL_DEVICE.format(keys="baud = 12345", size=1), 3,
+     "baud: 12345 is not a standard rate"),
+    ("big.conf", SERIAL_DEVICE.format(keys="", size=124), 7,
+     "size: 124 registers in one holding write request (1..123"),
+    ("mbconfig.cfg", MBCONFIG_RTU.format(bits=7), 8,
+     "device0.RTU_Data_Bits: 7: Modbus RTU has 8 data bits"),
+], ids=["7E1", "baud-12345", "fc16-124-registers", "mbconfig-7-bits"])
+def test_line_settings_rtu_cannot_have_are_refused_in_one_line(check_exe, tmp_path, name, text, line, msg):
+    cfg = tmp_path / name
+    cfg.write_text(text)
+    p = subprocess.run([str(check_exe), "--check", "-c", str(cfg)], capture_output=True, text=True,
+                       timeout=30)
+    assert p.returncode == 2, p.stderr
+    assert p.stderr.count("\n") == 1, p.stderr
+    assert p.stderr.startswith(f"{cfg}:{line}: error: {msg}"), p.stderr
+
+
+READ_RANGE = """[read rd]
+device = trm
+start = 2001
+size = 1
+image = %IW100
+policy = trigger
+trigger = %QX1.0
+done = %IX1.0
+error = %IX1.1
+status = %IW11
+"""
+
+
+@pytest.mark.parametrize("keys,cstopb", [
+    ("parity = none", True),                      # the spec's 8N2
+    ("parity = none\nstop_bits = 1", False),      # 8N1 when asked for (many devices run it)
+    ("parity = even", False),
+], ids=["8N", "8N1", "8E"])
+@pytest.mark.parametrize("compiler", [compiler_param("stc")])
+def test_no_parity_means_two_stop_bits_unless_told(compiler, tmp_path, keys, cstopb):
+    """What plcrt sets on the line: a pty keeps CSTOPB (it drops only parity and data bits)."""
+    master, slave = os.openpty()
+    try:
+        path = os.ttyname(slave)
+        cfg = tmp_path / "rtu.conf"
+        cfg.write_text(f"[device trm]\nserial = {path}\n{keys}\nunit_id = 5\ntimeout = 50ms\n" +
+                       READ_RANGE)
+        plc = Plc.build([_write(tmp_path / "prog.st", TRIGGER)], workdir=tmp_path, compiler=compiler,
+                        config=cfg)
+        try:
+            assert handshake(plc, "%QX1.0", "%IX1.0", "%IX1.1") == (False, True)  # nobody answers
+            assert bool(termios.tcgetattr(slave)[2] & termios.CSTOPB) == cstopb
+        finally:
+            plc.close()
+    finally:
+        os.close(master)
+        os.close(slave)
