@@ -300,8 +300,16 @@ static int finish_range(parser_t *p, range_keys_t *k, uint64_t default_poll)
                 return -1;
         }
     } else {
-        int bad = k->trigger ? k->trigger : k->done ? k->done : k->error ? k->error : k->status;
-        if (bad) return perr(p, bad, "trigger, done, error and status need policy = trigger");
+        /* cycle / change: error and status show the last request's result (a poll that keeps
+         * failing is seen by the program); trigger and done are the handshake's */
+        int bad = k->trigger ? k->trigger : k->done;
+        if (bad) return perr(p, bad, "trigger and done need policy = trigger");
+        if (k->error && (parse_location(p, k->error, "error", k->v_error, 'I', 'X', &r->error) ||
+                         claim(p, k->error, 'I', 'X', r->error, 1, "error")))
+            return -1;
+        if (k->status && (parse_location(p, k->status, "status", k->v_status, 'I', 'W', &r->status) ||
+                          claim(p, k->status, 'I', 'W', r->status, 1, "status")))
+            return -1;
     }
     if (k->length) {
         if (!k->is_write) return perr(p, k->length, "length is a key of write ranges");

@@ -137,6 +137,9 @@ void plcrt_master_exchange_in(plcrt_t *rt, struct plcrt_master *m)
             r->result = RESULT_NONE;
             continue;
         }
+        /* cycle / change: the last request's result, held until the next one ends */
+        if (r->error >= 0) ix_bits(rt)[r->error] = r->status_value != 0;
+        if (r->status >= 0) rt->img.iw[r->status] = (uint16_t)r->status_value;
         if (!r->is_write && r->fresh) {
             for (int j = 0; j < r->size; j++) {
                 if (bits) ix_bits(rt)[r->image + j] = (uint8_t)(r->in[j] != 0);
@@ -671,7 +674,7 @@ static void publish(struct plcrt_master *m, plcrt_range_t *r, const request_t *q
         r->status_value = status;
         r->result = status == 0 ? RESULT_OK : RESULT_ERROR;
         if (status == 0 && !r->is_write) memcpy(r->in, q->data, sizeof q->data[0] * (size_t)r->size);
-    } else if (status == 0) {
+    } else if ((r->status_value = status) == 0) {
         if (r->is_write) {
             memcpy(r->last, q->data, sizeof q->data[0] * (size_t)r->size);
             r->have_last = 1;

@@ -139,6 +139,71 @@ def test_a_trigger_in_the_reconnect_wait_names_why_the_line_did_not_open(compile
         plc.close()
 
 
+POLLED = """
+[master]
+reconnect_min = 50ms
+reconnect_max = 100ms
+
+[device trm]
+{where}
+unit_id = 5
+timeout = 200ms
+polling_period = 50ms
+
+[read poll]
+device = trm
+start = 2001
+size = 1
+image = %IW100
+error = %IX2.0
+status = %IW12
+"""
+
+
+@pytest.mark.parametrize("compiler", [compiler_param("stc")])
+def test_a_polled_read_that_keeps_failing_is_an_error_the_program_sees(compiler, tmp_path):
+    """A cycle read range with error / status: before, a poll that failed left the data as they
+    were and told the program nothing (only the device's error counter moved). The line stopped
+    (the modem side frozen): error TRUE with status 1110 within the timeout and a polling period;
+    back: FALSE and 0, and the data move again."""
+    link = tmp_path / "ttyMIP"
+    emu = emulator(tmp_path, link)
+    cfg = tmp_path / "poll.conf"
+    cfg.write_text(POLLED.format(where=f"serial = {link}\nbaud = 19200\nparity = even"))
+    plc = Plc.build([_write(tmp_path / "prog.st", TRIGGER)], workdir=tmp_path, compiler=compiler, config=cfg)
+    try:
+        plc.scan(20)
+        assert (plc["%IX2.0"], plc["%IW12"]) == (False, 0)
+        os.kill(emu.proc.pid, signal.SIGSTOP)
+        try:
+            plc.scan(30)                      # 300 ms of virtual time: a timeout and a poll
+            assert (plc["%IX2.0"], plc["%IW12"]) == (True, 1110)
+        finally:
+            os.kill(emu.proc.pid, signal.SIGCONT)
+        for _ in range(100):
+            plc.scan(5)
+            if not plc["%IX2.0"]:
+                break
+        assert (plc["%IX2.0"], plc["%IW12"]) == (False, 0)
+    finally:
+        plc.close()
+        assert emu.stop() == 0
+
+
+@pytest.mark.parametrize("compiler", [compiler_param("stc")])
+def test_a_polled_read_of_a_tcp_device_that_is_not_there_is_an_error(compiler, tmp_path):
+    """The same over TCP: nothing listens on the port, the program sees 1111 (refused)."""
+    from rt_helpers import free_port
+    cfg = tmp_path / "poll.conf"
+    cfg.write_text(POLLED.format(where=f"host = 127.0.0.1\nport = {free_port()}"))
+    plc = Plc.build([_write(tmp_path / "prog.st", TRIGGER)], workdir=tmp_path, compiler=compiler, config=cfg)
+    try:
+        plc.scan(30)
+        assert (plc["%IX2.0"], plc["%IW12"]) == (True, 1111)
+    finally:
+        plc.close()
+
+
 def _write(path, text):
     path.write_text(text)
     return path
@@ -183,7 +248,9 @@ def check_exe(tmp_path_factory):
      "size: 124 registers in one holding write request (1..123"),
     ("mbconfig.cfg", MBCONFIG_RTU.format(bits=7), 8,
      "device0.RTU_Data_Bits: 7: Modbus RTU has 8 data bits"),
-], ids=["7E1", "baud-12345", "fc16-124-registers", "mbconfig-7-bits"])
+    ("done.conf", SERIAL_DEVICE.format(keys="", size=1) + "done = %IX1.0\n", 9,
+     "trigger and done need policy = trigger"),
+], ids=["7E1", "baud-12345", "fc16-124-registers", "mbconfig-7-bits", "done-of-a-cycle-range"])
 def test_line_settings_rtu_cannot_have_are_refused_in_one_line(check_exe, tmp_path, name, text, line, msg):
     cfg = tmp_path / name
     cfg.write_text(text)
