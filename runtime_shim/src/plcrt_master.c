@@ -631,8 +631,10 @@ static int range_request(plcrt_t *rt, struct plcrt_master *m, plcrt_range_t *r, 
          * next request */
         plcrt_device_t *o = &m->devices[d->bus];
         int e = status - 1000;
-        if (transport && exchanged && o->connected &&
-            ((e != ETIMEDOUT && e != EPROTO) || ++o->line_fail_run >= PLCRT_SERIAL_REOPEN_AFTER)) {
+        if (!transport) {
+            o->line_fail_run = 0; /* an exception answer: the line works */
+        } else if (exchanged && o->connected &&
+                   ((e != ETIMEDOUT && e != EPROTO) || ++o->line_fail_run >= PLCRT_SERIAL_REOPEN_AFTER)) {
             snprintf(o->reopen_why, sizeof o->reopen_why, "%s", why);
             mlock(m);
             device_close(o);

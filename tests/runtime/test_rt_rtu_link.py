@@ -123,6 +123,43 @@ def test_a_serial_line_that_went_away_is_reopened_without_a_restart(compiler, tm
 
 
 @pytest.mark.parametrize("compiler", [compiler_param("stc")])
+def test_a_tty_set_otherwise_beneath_the_runtime_is_configured_again(compiler, tmp_path, capfd):
+    """Another program puts the open line into canonical mode (answers are held back until a
+    newline that never comes): requests time out (1110); after 3 in a row the runtime closes the
+    line and opens and configures it again, says so once, and the next requests succeed."""
+    link = tmp_path / "ttyMIP"
+    emu = emulator(tmp_path, link)
+    cfg = tmp_path / "rtu.conf"
+    cfg.write_text(CONF.format(tty=link, unit=5))
+    plc = Plc.build([_write(tmp_path / "prog.st", TRIGGER)], workdir=tmp_path, compiler=compiler, config=cfg)
+    try:
+        plc.force("%QW41", 5151)
+        assert handshake(plc, "%QX1.1", "%IX1.2", "%IX1.3") == (True, False)
+        fd = os.open(str(link), os.O_RDWR | os.O_NOCTTY)
+        try:
+            attrs = termios.tcgetattr(fd)
+            attrs[3] |= termios.ICANON
+            termios.tcsetattr(fd, termios.TCSANOW, attrs)
+        finally:
+            os.close(fd)
+        statuses = []
+        for _ in range(8):
+            if handshake(plc, "%QX1.0", "%IX1.0", "%IX1.1") == (True, False):
+                break
+            statuses.append(plc["%IW11"])
+        else:
+            pytest.fail(f"no read succeeded: statuses {statuses}")
+        assert statuses == [1110] * 3, statuses
+        assert plc["%IW100"] == 5151
+    finally:
+        plc.close()
+        assert emu.stop() == 0
+    err = capfd.readouterr().err
+    reopened = [ln for ln in err.splitlines() if "reopened" in ln]
+    assert len(reopened) == 1 and "closed after: Connection timed out" in reopened[0], err
+
+
+@pytest.mark.parametrize("compiler", [compiler_param("stc")])
 def test_a_trigger_in_the_reconnect_wait_names_why_the_line_did_not_open(compiler, tmp_path):
     """No such tty: the first request fails with 1002 (ENOENT), and so does the next one while the
     runtime waits to try again (before: 1107, 'not connected', which hid the reason)."""
