@@ -236,26 +236,39 @@ static int is_pty(const char *path, char *real, size_t n)
 
 static const char *parity_name(char p) { return p == 'E' ? "even" : p == 'O' ? "odd" : "none"; }
 
-/* Serial line owner d, before it is opened: the parity to open it with. A line that carries no
- * parity (a pty; a tty that dropped PARENB or refused it before) is opened without, and that is
- * said once: asking a pty for parity again, with nothing else to change, makes tcsetattr fail
- * with EINVAL (Linux), which is how a plcrt started after a killed one never talked again. The
- * configured parity still counts in the line's timing (virtual time). The context is made anew
- * when the parity to open with changes. */
+/* Serial line owner d with parity: is its line a pty? Then it is opened without parity, and that
+ * is said once (at start, or at the first open when the line was not there at start): asking a
+ * pty for parity again, with nothing else to change, makes tcsetattr fail with EINVAL (Linux),
+ * which is how a plcrt started after a killed one never talked again. The configured parity
+ * still counts in the line's timing (virtual time). */
+static int rtu_pty_without_parity(plcrt_t *rt, plcrt_device_t *d)
+{
+    char real[PATH_MAX];
+    if (d->parity == 'N' || d->line_no_parity || !is_pty(d->host, real, sizeof real)) return 0;
+    if (!d->line_noted)
+        plcrt_log(rt, "device %s: %s%s%s is a pseudo-terminal, which carries no parity: opened "
+                  "without parity (parity %s is the line's setting for its timing only)", d->name,
+                  d->host, strcmp(real, d->host) ? " -> " : "", strcmp(real, d->host) ? real : "",
+                  parity_name(d->parity));
+    d->line_noted = 1;
+    return 1;
+}
+
+void plcrt_master_note_lines(plcrt_t *rt, struct plcrt_master *m)
+{
+    for (int i = 0; m && i < m->n_devices; i++) {
+        plcrt_device_t *d = &m->devices[i];
+        if (d->rtu && d->bus == i && d->ext_fd < 0 && !d->transact) rtu_pty_without_parity(rt, d);
+    }
+}
+
+/* Serial line owner d, before it is opened: the parity to open it with, none on a line that
+ * carries none (a pty; a tty that dropped PARENB or refused it before); the context is made anew
+ * when that changes. */
 static int rtu_line_setup(plcrt_t *rt, plcrt_device_t *d)
 {
-    char want = d->parity, real[PATH_MAX];
-    if (d->parity != 'N' && !d->line_no_parity && is_pty(d->host, real, sizeof real)) {
-        want = 'N';
-        if (!d->line_noted)
-            plcrt_log(rt, "device %s: %s%s%s is a pseudo-terminal, which carries no parity: opened "
-                      "without parity (parity %s is the line's setting for its timing only)", d->name,
-                      d->host, strcmp(real, d->host) ? " -> " : "", strcmp(real, d->host) ? real : "",
-                      parity_name(d->parity));
-        d->line_noted = 1;
-    } else if (d->line_no_parity) {
-        want = 'N';
-    }
+    char want = d->parity;
+    if (d->line_no_parity || rtu_pty_without_parity(rt, d)) want = 'N';
     if (d->ctx && want == d->line_parity) return 0;
     if (d->ctx) {
         modbus_free(d->ctx); /* closed: only called while not connected */
@@ -948,6 +961,7 @@ int plcrt_master_start_thread(plcrt_t *rt, struct plcrt_master *m)
     for (int i = 0; i < m->n_ranges; i++) m->ranges[i].next_due = now;
     for (int i = 0; i < m->n_devices; i++) m->devices[i].next_connect_ns = 0;
     m->stop = 0;
+    plcrt_master_note_lines(rt, m);
     if (pthread_create(&m->thread, NULL, master_thread, m) != 0) {
         plcrt_seterr(rt, "cannot start the Modbus master thread");
         return -1;

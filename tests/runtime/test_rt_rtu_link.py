@@ -85,6 +85,28 @@ def test_plcrt_killed_with_sigkill_talks_again_on_a_pty_at_8e1(tmp_path):
         assert emu.stop() == 0
 
 
+@pytest.mark.parametrize("mode", ["real", "virtual"])
+def test_a_ptys_missing_parity_is_stated_once_at_start(tmp_path, mode):
+    """No request is made (the program raises no trigger): the line's missing parity is said at
+    start all the same, once, and nothing fails."""
+    link = tmp_path / "ttyMIP"
+    emu = emulator(tmp_path, link)
+    try:
+        exe = build_program([_write(tmp_path / "prog.st", TRIGGER)], tmp_path / "out").executable
+        cfg = tmp_path / "rtu.conf"
+        cfg.write_text(CONF.format(tty=link, unit=5))
+        p = subprocess.run([str(exe), "-c", str(cfg), "-m", mode, "-n", "5"], capture_output=True,
+                           text=True, timeout=60)
+        assert p.returncode == 0, p.stderr
+        lines = [ln for ln in p.stderr.splitlines() if not re.match(r"plcrt: (real-time|virtual): ", ln)]
+        assert len(lines) == 1, p.stderr
+        assert re.fullmatch(rf"plcrt: device trm: {re.escape(str(link))} -> /dev/pts/\d+ is a "
+                            r"pseudo-terminal, which carries no parity: opened without parity "
+                            r"\(parity even is the line's setting for its timing only\)", lines[0]), lines
+    finally:
+        assert emu.stop() == 0
+
+
 @pytest.mark.parametrize("compiler", [compiler_param("stc")])
 def test_a_serial_line_that_went_away_is_reopened_without_a_restart(compiler, tmp_path, capfd):
     """The modem side of the line restarts (the emulator stopped and started again on the same
