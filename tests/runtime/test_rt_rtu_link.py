@@ -16,7 +16,7 @@ import time
 import pytest
 
 from plcharness import Plc, build_program
-from rt_helpers import COUNTER, REPO, TINY, compiler_param
+from rt_helpers import COUNTER, REPO, TINY, compiler_param, one_task
 
 sys.path.insert(0, str(REPO / "tests" / "emulator"))
 from emu_support import Emulator  # noqa: E402
@@ -259,6 +259,91 @@ def test_a_polled_read_of_a_tcp_device_that_is_not_there_is_an_error(compiler, t
     try:
         plc.scan(30)
         assert (plc["%IX2.0"], plc["%IW12"]) == (True, 1111)
+    finally:
+        plc.close()
+
+
+STATUS_PROG = one_task("""
+PROGRAM MAIN
+VAR
+  rdTrig AT %QX1.0 : BOOL; rdDone AT %IX1.0 : BOOL; rdErr AT %IX1.1 : BOOL;
+  rdStatus AT %IW11 : WORD;
+  r0 AT %IW100 : WORD; r1 AT %IW101 : WORD;
+END_VAR
+VAR
+  rd : MIP_T_ReadBlock;
+  st : MIP_Status;
+END_VAR
+rdTrig := NOT (rdDone OR rdErr);          (* a new read as soon as the last one ended *)
+IF rdDone THEN rd[0] := r0; rd[1] := r1; END_IF;
+st(aRead := rd, xReadValid := rdDone, xReadError := rdErr, wReadStatus := rdStatus);
+END_PROGRAM
+""")
+
+STATUS_CONF = """
+[master]
+reconnect_min = 50ms
+reconnect_max = 100ms
+
+[device trm]
+serial = {tty}
+baud = 19200
+parity = even
+unit_id = 1
+timeout = 200ms
+
+[read trm_read]
+device = trm
+start = 2198
+size = 2
+image = %IW100
+policy = trigger
+trigger = %QX1.0
+done = %IX1.0
+error = %IX1.1
+status = %IW11
+"""
+
+
+@pytest.mark.parametrize("compiler", [compiler_param("stc")])
+def test_mip_status_shows_a_dead_serial_line_with_the_runtimes_reason(compiler, tmp_path):
+    """The whole path: a program reads the TRM's status with a trigger range and feeds the
+    handshake to MIP_Status. The line frozen (the modem side stopped): xLinkError with 1110 within
+    a timeout; back: cleared. The line gone (no such tty): xLinkError with 1002."""
+    lib = subprocess.run([sys.executable, str(REPO / "dist" / "mkdist.py"), "--import-order"],
+                         capture_output=True, text=True, cwd=REPO, check=True).stdout.split()
+    link = tmp_path / "ttyMIP"
+    emu = Emulator("--stations", "1", "--bitrate", "1000000", "--slot-gap-ms", "1",
+                   "--rtu", f"pty:{link}:19200:8E1=trm1@1")
+    cfg = tmp_path / "st.conf"
+    cfg.write_text(STATUS_CONF.format(tty=link))
+    plc = Plc.build([str(REPO / p) for p in lib] + [str(_write(tmp_path / "prog.st", STATUS_PROG))],
+                    workdir=tmp_path, compiler=compiler, config=cfg)
+    try:
+        plc.scan(20)
+        assert plc["MAIN.st.xValid"] and not plc["MAIN.st.xLinkError"]
+        os.kill(emu.proc.pid, signal.SIGSTOP)
+        try:
+            plc.scan(30)                           # 300 ms: one timeout of 200 ms
+            assert plc["MAIN.st.xLinkError"] and plc["MAIN.st.wLinkError"] == 1110
+        finally:
+            os.kill(emu.proc.pid, signal.SIGCONT)
+        for _ in range(50):
+            plc.scan(5)
+            if not plc["MAIN.st.xLinkError"]:
+                break
+        assert not plc["MAIN.st.xLinkError"] and plc["MAIN.st.wLinkError"] == 1110
+    finally:
+        plc.close()
+        assert emu.stop() == 0
+    (tmp_path / "gone").mkdir()
+    cfg.write_text(STATUS_CONF.format(tty=tmp_path / "no-such-tty"))
+    plc = Plc.build([str(REPO / p) for p in lib] + [str(tmp_path / "prog.st")],
+                    workdir=tmp_path / "gone", compiler=compiler, config=cfg)
+    try:
+        plc.scan(30)                               # (virtual time: a failed request costs the timeout)
+        assert plc["MAIN.st.xLinkError"] and plc["MAIN.st.wLinkError"] == 1002
+        assert plc["MAIN.st.udiReadErrors"] >= 1
     finally:
         plc.close()
 
