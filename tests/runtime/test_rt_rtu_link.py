@@ -23,9 +23,9 @@ from emu_support import Emulator  # noqa: E402
 from test_rt_rtu import CONF, TRIGGER, handshake, tcp_read  # noqa: E402
 
 
-def emulator(tmp_path, link, frame="8E1"):
+def emulator(link):
     return Emulator("--stations", "1", "--bitrate", "1000000", "--slot-gap-ms", "1",
-                    "--rtu", f"pty:{link}:19200:{frame}=trm1@5")
+                    "--rtu", f"pty:{link}:19200:8E1=trm1@5")
 
 
 CYCLE_CONF = """
@@ -54,7 +54,7 @@ def test_plcrt_killed_with_sigkill_talks_again_on_a_pty_at_8e1(tmp_path):
     one asks for the same with parity even, which the pty refuses (EINVAL, nothing it can
     change): it must take the line as the pty has it, say so once, and talk."""
     link = tmp_path / "ttyMIP"
-    emu = emulator(tmp_path, link)
+    emu = emulator(link)
     try:
         exe = build_program([_write(tmp_path / "counter.st", COUNTER)], tmp_path / "out").executable
         cfg = tmp_path / "plc.conf"
@@ -90,7 +90,7 @@ def test_a_ptys_missing_parity_is_stated_once_at_start(tmp_path, mode):
     """No request is made (the program raises no trigger): the line's missing parity is said at
     start all the same, once, and nothing fails."""
     link = tmp_path / "ttyMIP"
-    emu = emulator(tmp_path, link)
+    emu = emulator(link)
     try:
         exe = build_program([_write(tmp_path / "prog.st", TRIGGER)], tmp_path / "out").executable
         cfg = tmp_path / "rtu.conf"
@@ -113,7 +113,7 @@ def test_a_serial_line_that_went_away_is_reopened_without_a_restart(compiler, tm
     link: the open pty is dead, the link names a new one): the requests fail with a named
     status, the runtime reopens the line, says so once, and the next requests succeed."""
     link = tmp_path / "ttyMIP"
-    emu = emulator(tmp_path, link)
+    emu = emulator(link)
     cfg = tmp_path / "rtu.conf"
     cfg.write_text("[master]\nreconnect_min = 50ms\nreconnect_max = 100ms\n" + CONF.format(tty=link, unit=5))
     plc = Plc.build([_write(tmp_path / "prog.st", TRIGGER)], workdir=tmp_path, compiler=compiler, config=cfg)
@@ -121,7 +121,7 @@ def test_a_serial_line_that_went_away_is_reopened_without_a_restart(compiler, tm
         plc.force("%QW41", 4242)
         assert handshake(plc, "%QX1.1", "%IX1.2", "%IX1.3") == (True, False)
         assert emu.stop() == 0
-        emu = emulator(tmp_path, link)
+        emu = emulator(link)
         statuses = []
         for _ in range(20):
             res = handshake(plc, "%QX1.0", "%IX1.0", "%IX1.1")
@@ -150,7 +150,7 @@ def test_a_tty_set_otherwise_beneath_the_runtime_is_configured_again(compiler, t
     newline that never comes): requests time out (1110); after 3 in a row the runtime closes the
     line and opens and configures it again, says so once, and the next requests succeed."""
     link = tmp_path / "ttyMIP"
-    emu = emulator(tmp_path, link)
+    emu = emulator(link)
     cfg = tmp_path / "rtu.conf"
     cfg.write_text(CONF.format(tty=link, unit=5))
     plc = Plc.build([_write(tmp_path / "prog.st", TRIGGER)], workdir=tmp_path, compiler=compiler, config=cfg)
@@ -226,7 +226,7 @@ def test_a_polled_read_that_keeps_failing_is_an_error_the_program_sees(compiler,
     (the modem side frozen): error TRUE with status 1110 within the timeout and a polling period;
     back: FALSE and 0, and the data move again."""
     link = tmp_path / "ttyMIP"
-    emu = emulator(tmp_path, link)
+    emu = emulator(link)
     cfg = tmp_path / "poll.conf"
     cfg.write_text(POLLED.format(where=f"serial = {link}\nbaud = 19200\nparity = even"))
     plc = Plc.build([_write(tmp_path / "prog.st", TRIGGER)], workdir=tmp_path, compiler=compiler, config=cfg)
