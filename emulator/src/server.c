@@ -52,12 +52,14 @@ static const char USAGE[] =
     "  --fail-polls N         unanswered polls before a station counts as not reachable (default 3)\n"
     "  --allow-127            accept up to 127 registers per request, as the device does\n"
     "                         (default: the Modbus limits 125 read / 123 FC16 / 121 FC23 write)\n"
+    "                         (not with --rtu: an RTU frame holds at most 256 bytes)\n"
     "  --lose-record N        lose the first uplink block whose register 0 is N, once per\n"
     "                         station (the note's example: --lose-record 2); default off\n"
     "  --rtu PORT[:BAUD[:FRAME]]=DEVICES\n"
     "                         also serve endpoints as Modbus RTU slaves on a serial line: PORT is\n"
     "                         'pty' (a new pty), 'pty:LINK' (and a symlink LINK to it) or a tty;\n"
-    "                         BAUD default 19200, FRAME default 8N1 (8E1, 8O1, 8N2, 7E1, ...);\n"
+    "                         BAUD a tty rate (300 .. 4000000), default 19200; FRAME 8 data bits,\n"
+    "                         parity N/E/O, stop bits 1/2, default 8N1 (8E1, 8O1, 8N2, ...);\n"
     "                         DEVICES: 'mdp' (unit id = station) and/or 'trmS@UNIT' (the TRM-810\n"
     "                         of station S at unit id UNIT), comma-separated; may be repeated\n"
     "  --no-tcp               serve no TCP ports (RTU only)\n"
@@ -444,9 +446,12 @@ int main(int argc, char **argv)
 
     if (no_tcp && n_rtu == 0)
         cli_usage_error("--no-tcp needs at least one --rtu line");
+    cli_rtu_allow_127_check(&cfg, n_rtu);
     for (int i = 0; i < n_rtu; i++) {
         if (rtu_parse(&g_buses[i].bus, rtu_specs[i], cfg.stations, err, sizeof err) < 0)
             cli_usage_error("%s", err);
+        cli_rtu_line_check(rtu_specs[i], g_buses[i].bus.baud, g_buses[i].bus.data_bits,
+                           g_buses[i].bus.parity, g_buses[i].bus.stop_bits);
         g_buses[i].type = T_RTU;
         for (int j = 0; j < i; j++)
             if (g_buses[j].bus.link[0] && !strcmp(g_buses[j].bus.link, g_buses[i].bus.link))
