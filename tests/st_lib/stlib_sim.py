@@ -340,6 +340,7 @@ class Port:
         self.fb, self.modem = fb, modem
         self.read_every, self.read_mode = read_every, read_mode
         self.write_fail = 0               # fail the next n writes
+        self.read_fail = 0                # <> 0: every read fails with this status (a dead link)
         self.fail_rate = 0.0              # and each write with this probability
         self.rng = random.Random(0)
         self.writes: list[list] = []
@@ -349,6 +350,14 @@ class Port:
     def before_scan(self):
         self._k += 1
         fb = self.fb
+        if self.read_fail:
+            # the runtime's read handshake ends in error (plcrt: error bit and status word)
+            fail = self._k % self.read_every == 0 or self.read_mode == "cyclic"
+            fb["xReadValid"] = False
+            fb["xReadError"] = fail
+            fb["wReadStatus"] = self.read_fail if fail else 0
+            return
+        fb["xReadError"] = False
         if self.read_mode == "cyclic":
             if self._k % self.read_every == 0 or self._k == 1:
                 fb.set_read(self.modem.read125())
