@@ -177,8 +177,8 @@ class KitPlc:
             snap = self.plc.retain_last()
         net = self.net
         net._check(net.lib.mipcosim_plc_replace(net.sim, self.pid, None, None, 0))
-        # (when, mode, whether RETAIN was restored: not without RETAIN variables, which matiec
-        # builds do not have for the runtime, nor before the first snapshot; then it is cold)
+        # (when, mode, whether RETAIN was restored: not without RETAIN variables, nor before
+        # the first snapshot; then it is cold)
         self.restarts.append((net.now, mode, snap is not None))
         net.run_for(down_s)
         self._start(snap)

@@ -5,6 +5,8 @@ import re
 import sys
 import xml.etree.ElementTree as ET
 
+import pytest
+
 from kit_helpers import EXAMPLE, REPO, break_logger, ci_commands, kit_env, mipkit_cli, run
 
 REPO_PLC = REPO / "plc"
@@ -283,13 +285,23 @@ def test_kit_pins_agree_with_requirements():
     assert {"setuptools", "wheel", "lark", "pymodbus"} <= named
 
 
-def test_restarts_say_whether_retain_was_restored(tmp_path):
+def _needs_iec2c():
+    from plcharness.build import matiec_available
+    return pytest.mark.skipif(not matiec_available(),
+                              reason="matiec (iec2c) is not on PATH; it is in no package registry")
+
+
+@pytest.mark.parametrize("compiler", ["stc", pytest.param("matiec", marks=_needs_iec2c())])
+def test_restarts_say_whether_retain_was_restored(tmp_path, compiler):
+    """A matiec build keeps its RETAIN variables as an stc build does (the variables matiec
+    marks retained, and the arrays it cannot mark)."""
     from mipcosim import layout as L
     from mipkit import Net
     lib = [str(L.ST_LIB / f) for f in L.LIB_FILES]
-    with Net(tmp_path / "net", radio="fast") as net:
+    with Net(tmp_path / "net", radio="fast", compiler=compiler) as net:
         out = net.plc("outstation", lib + [EXAMPLE / "st" / "FieldLogger.st", EXAMPLE / "st" / "Outstation.st"],
                       EXAMPLE / "plcrt" / "outstation.conf", at=1, retain_period_ms=200)
+        assert out.result.compiler == compiler
         net.peer("central")
         out["%MW1"], out["%MW0"] = 30, 1
         out.restart("kill9", down_s=0.1)   # before the first periodic snapshot: cold
