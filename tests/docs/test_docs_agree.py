@@ -41,3 +41,66 @@ def test_a_whole_program_shown_in_the_docs_translates(page, line, src, tmp_path)
     r = subprocess.run([str(STC), "-I", str(REPO / "st_lib"), "-o", str(tmp_path / "gen"),
                         str(f)], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, f"{page.relative_to(REPO)}:{line}: {r.stderr}"
+
+
+def test_the_readme_shows_no_test_counts_that_go_stale():
+    """6. README.md's sample of `make test`'s table showed 1099 / 733 / 366 tests where a run
+    gave 1354 / 960 / 394: the counts are N, as in the line under the table."""
+    text = (REPO / "README.md").read_text()
+    m = re.search(r"```text\nmake test: the suites\n(.*?)```", text, re.S)
+    assert m, "README.md shows make test's table"
+    for row in m.group(1).splitlines()[1:]:
+        if row.startswith(("...", "test:")):
+            assert not re.search(r"\b[1-9]\d* (passed|skipped)", row), row
+            continue
+        counts = row.split()[1:5]
+        assert all(c in ("N", "0", "...") for c in counts), f"a count that goes stale: {row}"
+
+
+MBPOLL = re.compile(r"\bmbpoll\s+(?:-[^\s]+\s+)*")
+
+
+def _mbpoll_commands(page):
+    out = []
+    for n, line in enumerate(page.read_text().splitlines(), 1):
+        for m in re.finditer(r"mbpoll -m [^`;|\n]*", line):
+            out.append((n, m.group(0)))
+    return out
+
+
+def test_every_mbpoll_command_uses_0_based_addresses():
+    """10. commissioning and wiring used `-0` (0-based, as the note's tables), exercises.md and
+    troubleshooting.md 1-based addresses: on site one register off. One convention, -0."""
+    pages = PAGES + [REPO / "plc" / "README.md"]
+    bad = [f"{p.relative_to(REPO)}:{n}: {cmd}" for p in pages for n, cmd in _mbpoll_commands(p)
+           if not re.search(r"(^|\s)-0(\s|$)", cmd)]
+    assert not bad, "mbpoll without -0:\n" + "\n".join(bad)
+    assert any(_mbpoll_commands(REPO / "docs" / f) for f in ("exercises.md", "troubleshooting.md"))
+    stated = [p.relative_to(REPO) for p in pages
+              if re.search(r"without it mbpoll counts registers from 1", p.read_text())]
+    assert [str(p) for p in stated] == ["docs/commissioning.md"], stated
+
+
+def test_pages_that_show_the_demo_say_the_modem_repeats_a_lost_record():
+    """11. After "record 2 lost once" the demo shows retransmissions=0; why (the modems repeat
+    on the radio, the counter is the PLC's) was only in exercises.md's solutions."""
+    shown = [p for p in PAGES + [REPO / "plc" / "README.md"]
+             if "retransmissions=" in p.read_text() and "result: ok records=" in p.read_text()]
+    assert {str(p.relative_to(REPO)) for p in shown} >= {"README.md", "docs/README.md",
+                                                          "plc/README.md"}
+    for p in shown:
+        text = re.sub(r"\s+", " ", p.read_text())
+        assert "`retransmissions=0` all the same" in text and \
+            "the modems repeat a lost telegram on the radio themselves" in text, p
+
+
+def test_the_readme_says_how_to_get_iec2c():
+    """12. 394 tests and --mip-compiler matiec need iec2c; the README said only that it is in
+    no package registry. Now: matiec's own build steps, and OpenPLC / Beremiz, which ship it."""
+    text = (REPO / "README.md").read_text()
+    i = text.index("Tests that need the reference compiler matiec")
+    para = text[i:i + 2000]
+    assert "github.com/beremiz/matiec" in para
+    assert "autoreconf -i; ./configure; make" in para
+    assert "OpenPLC" in para and "Beremiz" in para and "MATIEC_LIB" in para
+    assert "--mip-compiler\nmatiec" in para or "--mip-compiler matiec" in para
