@@ -1119,7 +1119,7 @@ FIGURES = ["goodput", "goodput_pipelined", "goodput_rtu", "fc23_gain", "scan_cos
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=" ".join(__doc__.split("\n\n")[0].split()))
     ap.add_argument("--quick", action="store_true", default=os.environ.get("BENCH_QUICK") == "1")
     ap.add_argument("--only", default=",".join(FIGURES))
     a = ap.parse_args(argv)

@@ -181,6 +181,17 @@ def test_ci_templates_run_the_same_commands():
     assert any(c.startswith(".venv/bin/mip-kit scenarios/readout.toml") for c in gitlab)
 
 
+def test_ci_templates_fetch_the_submodule_the_kit_comes_from():
+    """MIP_KIT points into a git submodule of the project: GitLab fetches submodules only with
+    GIT_SUBMODULE_STRATEGY (the template lacked it: pip found no kit), GitHub's checkout only
+    with submodules: true."""
+    gl = (EXAMPLE / ".gitlab-ci.yml").read_text()
+    gh = (EXAMPLE / ".github" / "workflows" / "sim-tests.yml").read_text()
+    assert re.search(r'MIP_KIT: "\$CI_PROJECT_DIR/', gl) and "github.workspace }}/" in gh
+    assert re.search(r"^\s+GIT_SUBMODULE_STRATEGY: (normal|recursive)\b", gl, re.M), gl
+    assert re.search(r"uses: actions/checkout@v\d+\n\s+with:\n\s+submodules: (true|recursive)", gh)
+
+
 def test_plc_at_the_mdp_with_a_peer_outstation(tmp_path):
     """A soft-PLC attached to the MDP-810 (this repository's central program and config, as a
     user's would be) reads out a note-following peer at station 2 of a two-station network."""
