@@ -171,3 +171,25 @@ def test_no_command_cuts_its_description_after_a_line():
             if "\n" in doc.split("\n\n")[0].strip():
                 bad.append(str(f.relative_to(REPO)))
     assert not bad, f"--help cuts the description after its first line: {bad}"
+
+
+def test_a_page_that_starts_a_background_process_stops_it():
+    """9. wiring.md started the emulator with `&` and never stopped it: a reader's shell kept
+    it running (the tests' sandbox hid that: it ends every process of a page)."""
+    from docrun import blocks, not_run_reason
+    bad = []
+    for page in PAGES + [REPO / "plc" / "README.md"]:
+        started = None
+        for line, info, source in blocks(page):
+            lang = info.split()[0] if info else ""
+            if lang not in ("sh", "console") or not_run_reason(source):
+                continue
+            for cmd in source.splitlines():
+                cmd = cmd[2:] if cmd.startswith("$ ") else cmd
+                if re.search(r"&\s*$", cmd.split("#", 1)[0]) and started is None:
+                    started = line
+                if re.match(r"(.*;\s*)?kill\b", cmd):
+                    started = None
+        if started is not None:
+            bad.append(f"{page.relative_to(REPO)}:{started}")
+    assert not bad, f"a process started with & and not stopped on the page: {bad}"
