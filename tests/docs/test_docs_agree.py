@@ -193,3 +193,13 @@ def test_a_page_that_starts_a_background_process_stops_it():
         if started is not None:
             bad.append(f"{page.relative_to(REPO)}:{started}")
     assert not bad, f"a process started with & and not stopped on the page: {bad}"
+
+
+def test_test_kit_says_where_the_venv_keeps_st_lib():
+    """13. To run stc by hand an integrator needs st_lib's files, which the kit installs inside
+    the venv; the page did not say where (test_page_commands runs the block it shows)."""
+    from docrun import blocks, not_run_reason
+    page = REPO / "docs" / "test-kit.md"
+    run = [src for _, info, src in blocks(page) if info.startswith("sh") and not not_run_reason(src)]
+    assert any("layout.ST_LIB" in src and "stc -I \"$ST_LIB\"" in src for src in run), run
+    assert "_st_lib/" in page.read_text()
