@@ -217,8 +217,8 @@ class KitPlc:
         net = self.net
         net._drain()            # what the taps logged of the old instance
         net._check(net.lib.mipcosim_plc_replace(net.sim, self.pid, None, None, 0))
-        # (when, mode, whether RETAIN was restored: not without RETAIN variables, which matiec
-        # builds do not have for the runtime, nor before the first snapshot; then it is cold)
+        # (when, mode, whether RETAIN was restored: not without RETAIN variables, nor before
+        # the first snapshot; then it is cold)
         self.restarts.append((net.now, mode, snap is not None))
         net.run_for(down_s)
         self._start(snap)

@@ -239,7 +239,7 @@ class _Parser(argparse.ArgumentParser):
 
 
 def main(argv=None):
-    ap = _Parser(prog="mip-kit", description=__doc__.splitlines()[0])
+    ap = _Parser(prog="mip-kit", description=" ".join(__doc__.split("\n\n")[0].split()))
     ap.add_argument("scenario")
     ap.add_argument("--junit", help="write JUnit XML here")
     ap.add_argument("--workdir", help="builds, trace and diagram (default: next to --junit, "

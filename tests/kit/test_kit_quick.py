@@ -181,6 +181,17 @@ def test_ci_templates_run_the_same_commands():
     assert any(c.startswith(".venv/bin/mip-kit scenarios/readout.toml") for c in gitlab)
 
 
+def test_ci_templates_fetch_the_submodule_the_kit_comes_from():
+    """MIP_KIT points into a git submodule of the project: GitLab fetches submodules only with
+    GIT_SUBMODULE_STRATEGY (the template lacked it: pip found no kit), GitHub's checkout only
+    with submodules: true."""
+    gl = (EXAMPLE / ".gitlab-ci.yml").read_text()
+    gh = (EXAMPLE / ".github" / "workflows" / "sim-tests.yml").read_text()
+    assert re.search(r'MIP_KIT: "\$CI_PROJECT_DIR/', gl) and "github.workspace }}/" in gh
+    assert re.search(r"^\s+GIT_SUBMODULE_STRATEGY: (normal|recursive)\b", gl, re.M), gl
+    assert re.search(r"uses: actions/checkout@v\d+\n\s+with:\n\s+submodules: (true|recursive)", gh)
+
+
 def test_plc_at_the_mdp_with_a_peer_outstation(tmp_path):
     """A soft-PLC attached to the MDP-810 (this repository's central program and config, as a
     user's would be) reads out a note-following peer at station 2 of a two-station network."""
@@ -285,13 +296,23 @@ def test_kit_pins_agree_with_requirements():
     assert {"setuptools", "wheel", "lark", "pymodbus"} <= named
 
 
-def test_restarts_say_whether_retain_was_restored(tmp_path):
+def _needs_iec2c():
+    from plcharness.build import matiec_available
+    return pytest.mark.skipif(not matiec_available(),
+                              reason="matiec (iec2c) is not on PATH; it is in no package registry")
+
+
+@pytest.mark.parametrize("compiler", ["stc", pytest.param("matiec", marks=_needs_iec2c())])
+def test_restarts_say_whether_retain_was_restored(tmp_path, compiler):
+    """A matiec build keeps its RETAIN variables as an stc build does (the variables matiec
+    marks retained, and the arrays it cannot mark)."""
     from mipcosim import layout as L
     from mipkit import Net
     lib = [str(L.ST_LIB / f) for f in L.LIB_FILES]
-    with Net(tmp_path / "net", radio="fast") as net:
+    with Net(tmp_path / "net", radio="fast", compiler=compiler) as net:
         out = net.plc("outstation", lib + [EXAMPLE / "st" / "FieldLogger.st", EXAMPLE / "st" / "Outstation.st"],
                       EXAMPLE / "plcrt" / "outstation.conf", at=1, retain_period_ms=200)
+        assert out.result.compiler == compiler
         net.peer("central")
         out["%MW1"], out["%MW0"] = 30, 1
         out.restart("kill9", down_s=0.1)   # before the first periodic snapshot: cold
