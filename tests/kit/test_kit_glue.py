@@ -2,6 +2,7 @@
 the MIP blocks' arrays, as an integrator runs it; the kit example's and plc/'s copies are its
 output; bad input is one line."""
 import re
+import subprocess
 import sys
 
 import pytest
@@ -202,3 +203,26 @@ def test_help_is_usage_and_options():
                 "--read-array", "--write-array", "--read-prefix", "--write-prefix", "--runtime",
                 "--form", "--update", "--check"):
         assert f"\n  {opt}" in r.stdout, opt
+
+
+def test_installed_mip_glue_runs_outside_the_checkout(tmp_path):
+    """The kit's wheel installs the command `mip-glue`; it needs nothing of the checkout
+    (stock OpenPLC's limits come with it)."""
+    r = run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "--no-build-isolation",
+             "--no-index", "-w", tmp_path / "whl", KIT], tmp_path)
+    assert r.returncode == 0, r.stderr
+    (whl,) = (tmp_path / "whl").glob("mip_logger_kit-*.whl")
+    r = run([sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--no-index",
+             "--target", tmp_path / "site", whl], tmp_path)
+    assert r.returncode == 0, r.stderr
+    env = {"PATH": "/usr/bin:/bin", "PYTHONPATH": str(tmp_path / "site"), "LC_ALL": "C.UTF-8"}
+    cmd = tmp_path / "site" / "bin" / "mip-glue"
+    p = subprocess.run([cmd, "--read-count", "2", "--write-count", "1"], cwd=tmp_path, env=env,
+                       capture_output=True, text=True, timeout=60)
+    assert p.returncode == 0 and "r1 AT %IW101 : WORD;\n" in p.stdout, p.stderr
+    p = subprocess.run([cmd, "--read-base", "450"], cwd=tmp_path, env=env, capture_output=True,
+                       text=True, timeout=60)
+    assert p.returncode == 2 and "fills only %IW100..%IW499 (400 registers" in p.stderr, p.stderr
+    p = subprocess.run([sys.executable, "-c", "import mipkit.glue as g; print(g.__file__)"],
+                       cwd=tmp_path, env=env, capture_output=True, text=True, timeout=60)
+    assert str(tmp_path / "site") in p.stdout and str(REPO) not in p.stdout, p.stdout + p.stderr
