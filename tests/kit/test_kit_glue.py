@@ -2,12 +2,13 @@
 the MIP blocks' arrays, as an integrator runs it; the kit example's and plc/'s copies are its
 output; bad input is one line."""
 import re
+import shlex
 import subprocess
 import sys
 
 import pytest
 
-from kit_helpers import KIT, REPO, run
+from kit_helpers import EXAMPLE, KIT, REPO, run
 from mipcosim import layout as L
 from plcharness.build import matiec_available
 from plcharness.plc import Plc
@@ -170,6 +171,30 @@ def test_bad_file_is_one_line(edit, message, tmp_path):
     (tmp_path / "prog.st").write_text(edit(HAND))
     assert one_error_line(glue("--update", "prog.st", cwd=tmp_path)) == f"mip-glue: error: {message}"
     assert (tmp_path / "prog.st").read_text() == edit(HAND)      # nothing written
+
+
+def test_kit_example_glue_is_what_its_command_writes(example):
+    """st/Outstation.st names the command that wrote its copies: run in the example project it
+    changes nothing, --check (the recorded options) passes, and a drifted copy is caught."""
+    f = example / "st" / "Outstation.st"
+    text = f.read_text()
+    m = re.search(r"in this folder:\n\s+(mip-glue .*)\n", text)
+    assert m, "st/Outstation.st no longer names the mip-glue command"
+    words = shlex.split(m.group(1))
+    assert "--update" in words
+    r = glue(*words[1:], cwd=example)
+    assert r.returncode == 0 and r.stdout == "st/Outstation.st: up to date\n", r.stdout + r.stderr
+    assert f.read_text() == text
+    assert glue("--check", "st/Outstation.st", cwd=example).returncode == 0
+    # every located register variable of the program is generated (none left by hand)
+    regions = re.findall(r"\(\* BEGIN mip-glue (\w+)[^\n]*\n(.*?)\(\* END mip-glue \1 \*\)", text, re.S)
+    assert [k for k, _ in regions] == ["declarations", "read", "write"]
+    body = re.sub(r"\(\* BEGIN mip-glue.*?END mip-glue \w+ \*\)", "", text, flags=re.S)
+    assert not re.search(r"AT %[IQ]W1\d\d\b|aRd\[\d+\] :=|:= snd\.aWrite\[", body)
+    assert len(regions[0][1].splitlines()) == 2 + 125 + 123
+    f.write_text(text.replace("  aRd[7] := r7;\n", "  aRd[7] := r8;\n"))
+    r = glue("--check", "st/Outstation.st", cwd=example)
+    assert r.returncode == 1 and "the region mip-glue read differs" in r.stderr
 
 
 @pytest.mark.parametrize("program,args,indent", [
