@@ -180,8 +180,8 @@ def check(lay: Layout, runtime: str = "openplc") -> None:
 
 # ---- marked regions -------------------------------------------------------------------------
 
-BEGIN = re.compile(r"^([ \t]*)\(\* BEGIN mip-glue (declarations|read|write)(?: (\d+))?(?:: (.*?))? \*\)[ \t]*$")
-END = re.compile(r"^[ \t]*\(\* END mip-glue (declarations|read|write)(?: (\d+))? \*\)[ \t]*$")
+BEGIN = re.compile(r"^([ \t]*)\(\* BEGIN mip-glue (declarations|read|write)(?: (\d+))?(?:: (.*?))? \*\)[ \t\r]*$")
+END = re.compile(r"^[ \t]*\(\* END mip-glue (declarations|read|write)(?: (\d+))? \*\)[ \t\r]*$")
 ANY_MARK = re.compile(r"\(\* *(BEGIN|END) mip-glue\b")
 
 
@@ -260,13 +260,19 @@ def program(lay: Layout, command: str, name: str) -> str:
     return "\n".join(out) + "\n"
 
 
-def _strip_comments(line: str) -> str:
-    return re.sub(r"\(\*.*?\*\)", "", line)
+def _newline(text: str) -> str:
+    """The file's line end (a file saved on Windows keeps its CR LF)."""
+    return "\r\n" if "\r\n" in text else "\n"
+
+
+def _without_comments(text: str) -> str:
+    """text with every (* comment *) blanked, line numbers kept."""
+    return re.sub(r"\(\*.*?\*\)", lambda m: "\n" * m.group(0).count("\n"), text, flags=re.S)
 
 
 def find_regions(text: str, path: str):
     """[(key, first line index, last line index, indent, recorded command)] of FILE's regions."""
-    lines = text.split("\n")
+    lines = text.split(_newline(text))
     regions, open_ = [], None
     for n, line in enumerate(lines):
         b, e = BEGIN.match(line), END.match(line)
@@ -320,12 +326,13 @@ def regenerate(text: str, lay: Layout, command: str, path: str) -> tuple[str, li
         if key not in have:
             raise GlueError(f"{path}: no region (* BEGIN mip-glue {key} *) .. (* END mip-glue {key} *):"
                             f" paste the fragment ({PROG} without --update) into it first")
-    lines = text.split("\n")
+    nl = _newline(text)
+    lines = text.split(nl)
     taken = {}
     for key, first, last, indent, _ in regions:
         for n in range(first, last + 1):
             taken[n] = key
-    _check_collisions(lines, taken, lay, path)
+    _check_collisions(_without_comments(text).split(nl), taken, lay, path)
     out, changed, pos = [], [], 0
     for key, first, last, indent, _ in sorted(regions, key=lambda r: r[1]):
         out += lines[pos:first]
@@ -336,7 +343,7 @@ def regenerate(text: str, lay: Layout, command: str, path: str) -> tuple[str, li
         out += new
         pos = last + 1
     out += lines[pos:]
-    return "\n".join(out), changed
+    return nl.join(out), changed
 
 
 def _check_collisions(lines, taken, lay: Layout, path: str):
@@ -349,7 +356,7 @@ def _check_collisions(lines, taken, lay: Layout, path: str):
     for n, line in enumerate(lines):
         if n in taken:
             continue
-        for m in re.finditer(r"(\w+)\s+AT\s+%([IQ])W(\d+)\b", _strip_comments(line)):
+        for m in re.finditer(r"(\w+)\s+AT\s+%([IQ])W(\d+)\b", line):
             name, area, addr = m.group(1), m.group(2), int(m.group(3))
             for a, first, count, kind, s in spans:
                 if a == area and first <= addr < first + count:
@@ -438,14 +445,22 @@ def run(argv) -> tuple[int, str]:
     text = None
     if path:
         try:
-            text = Path(path).read_text(encoding="utf-8")
+            with open(path, encoding="utf-8", newline="") as f:     # its line ends as they are
+                text = f.read()
         except OSError as e:
             raise GlueError(f"{path}: {e.strerror}") from None
         except UnicodeDecodeError:
             raise GlueError(f"{path}: not UTF-8 text") from None
         given = {dest for opt, dest, _, _ in LAYOUT_OPTS if getattr(a, dest) is not None}
         if not given and a.runtime is None:          # the options recorded in FILE
-            a = ap.parse_args(recorded_args(text, path) + list(argv))
+            recorded = recorded_args(text, path)
+            try:
+                a = ap.parse_args(recorded + list(argv))
+                lay = Layout(**{d: getattr(a, d) for _, d, _, _ in LAYOUT_OPTS if getattr(a, d) is not None})
+                check(lay, a.runtime or "openplc")
+            except GlueError as e:
+                raise GlueError(f"{path}: the options in its declarations marker "
+                                f"({shlex.join(recorded)}): {e}") from None
     values = {dest: getattr(a, dest) for _, dest, _, _ in LAYOUT_OPTS if getattr(a, dest) is not None}
     lay = Layout(**values)
     runtime = a.runtime or "openplc"
@@ -462,7 +477,11 @@ def run(argv) -> tuple[int, str]:
                        f"writes (run it with --update {path})")
         return 0, f"{path}: up to date"
     if changed:
-        Path(path).write_text(new, encoding="utf-8")
+        try:
+            with open(path, "w", encoding="utf-8", newline="") as f:
+                f.write(new)
+        except OSError as e:
+            raise GlueError(f"{path}: {e.strerror}") from None
         return 0, f"{path}: updated {', '.join(k for _, k in changed)}"
     return 0, f"{path}: up to date"
 

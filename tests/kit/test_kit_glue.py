@@ -173,6 +173,50 @@ def test_bad_file_is_one_line(edit, message, tmp_path):
     assert (tmp_path / "prog.st").read_text() == edit(HAND)      # nothing written
 
 
+def test_update_keeps_a_windows_file_windows_and_reads_past_comments(tmp_path):
+    """A file with CR LF line ends gets CR LF lines; a located address named in a comment
+    (also one over several lines) is no variable and no collision."""
+    f = tmp_path / "prog.st"
+    hand = HAND.replace("END_PROGRAM", "(* the old glue:\n   rOld AT %IW100 : WORD; *)\nEND_PROGRAM")
+    f.write_bytes(hand.replace("\n", "\r\n").encode())
+    r = glue("--update", f)
+    assert r.returncode == 0, r.stderr
+    data = f.read_bytes()
+    assert b"\r\n    aRd[1] := r1;\r\n" in data and data.count(b"\n") == data.count(b"\r\n")
+    assert glue("--check", f).returncode == 0
+
+
+def test_bad_options_recorded_in_the_file_are_named_as_such(tmp_path):
+    f = tmp_path / "prog.st"
+    f.write_text(HAND.replace("mip-glue --read-count 2", "mip-glue --read-count 200"))
+    assert one_error_line(glue("--check", f)) == (
+        f"mip-glue: error: {f}: the options in its declarations marker (--read-count 200): "
+        f"--read-count 200: 1..125 registers (one Modbus read, MIP_T_ReadBlock)")
+
+
+def test_a_file_that_cannot_be_written_is_one_line(tmp_path, monkeypatch, capsys):
+    """(In process: the tests may run as root, who writes read-only files.)"""
+    import builtins
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("glue_under_test", GLUE)
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules["glue_under_test"] = mod
+    spec.loader.exec_module(mod)
+
+    def read_only(path, mode="r", *a, **k):
+        if "w" in mode:
+            raise PermissionError(13, "Permission denied", str(path))
+        return builtins.open(path, mode, *a, **k)
+    monkeypatch.setattr(mod, "open", read_only, raising=False)
+    f = tmp_path / "prog.st"
+    f.write_text(HAND)
+    assert mod.main(["--update", str(f)]) == 2
+    out = capsys.readouterr()
+    assert out.out == "" and out.err == f"mip-glue: error: {f}: Permission denied\n"
+    assert f.read_text() == HAND
+    sys.modules.pop("glue_under_test")
+
+
 def test_kit_example_glue_is_what_its_command_writes(example):
     """st/Outstation.st names the command that wrote its copies: run in the example project it
     changes nothing, --check (the recorded options) passes, and a drifted copy is caught."""
