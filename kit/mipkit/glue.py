@@ -138,9 +138,6 @@ def check(lay: Layout, runtime: str = "openplc") -> None:
         if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", p) or "__" in p + "0":
             raise GlueError(f"{opt} {p!r}: a name starts with a letter, has letters, digits and "
                             f"single underscores (matiec refuses '__' and a trailing '_')")
-    if lay.read_prefix == lay.write_prefix:
-        raise GlueError(f"--read-prefix and --write-prefix are both {lay.read_prefix!r}: "
-                        f"the read and write variables would have the same names")
     for kind in ("read", "write"):
         if kind == "write" and lay.write_count == 0:
             continue
@@ -153,12 +150,12 @@ def check(lay: Layout, runtime: str = "openplc") -> None:
         if not NAME.fullmatch(name) or "__" in name or name.endswith("_"):
             raise GlueError(f"--{kind}-array {tmpl}: not an ST name (a variable or "
                             f"instance.member; {{s}} for the station number)")
+    _check_names(lay)
     last = lay.stations
-    blocks = [("read", "I", lay.read_base, lay.read_count * last, "--read-base", "--read-count")]
+    blocks = [("read", "I", lay.read_base, lay.read_count * last, "--read-base")]
     if lay.write_count:
-        blocks.append(("write", "Q", lay.write_base, lay.write_count * last,
-                       "--write-base", "--write-count"))
-    for kind, area, first, n, obase, ocount in blocks:
+        blocks.append(("write", "Q", lay.write_base, lay.write_count * last, "--write-base"))
+    for kind, area, first, n, obase in blocks:
         span = _span(area, first, n)
         per = f" ({last} stations x {n // last})" if last > 1 else ""
         if first + n > IMAGE_SIZE:
@@ -176,6 +173,27 @@ def check(lay: Layout, runtime: str = "openplc") -> None:
                             f"stock OpenPLC v3's Modbus master fills only "
                             f"{_span(area, OPENPLC_FIRST, MAX_MB_IO)} ({MAX_MB_IO} registers, "
                             f"MAX_MB_IO): {what} (or --runtime plcrt: the whole image)")
+
+
+def _check_names(lay: Layout) -> None:
+    """Every generated variable and array has a name of its own (`--read-prefix w1` and
+    `--write-prefix w` would both give w10)."""
+    seen = {}
+    for s in range(1, lay.stations + 1):
+        for kind, count in (("read", lay.read_count), ("write", lay.write_count)):
+            for i in range(count):
+                name = lay.var(kind, s, i).upper()            # ST names ignore case
+                if name in seen:
+                    raise GlueError(f"--read-prefix {lay.read_prefix!r} and --write-prefix "
+                                    f"{lay.write_prefix!r} give two variables the name "
+                                    f"{lay.var(kind, s, i)}: pick prefixes that differ")
+                seen[name] = kind
+    for s in range(1, lay.stations + 1):
+        for kind in ("read", "write") if lay.write_count else ("read",):
+            base = lay.array(kind, s).split(".")[0]
+            if base.upper() in seen:
+                raise GlueError(f"--{kind}-array {lay.read_array if kind == 'read' else lay.write_array}:"
+                                f" {base} is also the name of a generated located variable")
 
 
 # ---- marked regions -------------------------------------------------------------------------

@@ -141,7 +141,9 @@ BAD = [
     (["--stations", "2"], "--read-array aRd: with --stations 2 every station needs its own array: "
      "put {s} (the station number) in the name, e.g. aRd{s}"),
     (["--read-prefix", "r__"], "--read-prefix 'r__': a name starts with a letter"),
-    (["--read-prefix", "w"], "--read-prefix and --write-prefix are both 'w'"),
+    (["--read-prefix", "w"], "--read-prefix 'w' and --write-prefix 'w' give two variables the name w0"),
+    (["--read-prefix", "W1"], "--read-prefix 'W1' and --write-prefix 'w' give two variables the name w10"),
+    (["--read-array", "r5"], "--read-array r5: r5 is also the name of a generated located variable"),
     (["--write-array", "snd.aWrite;x"], "--write-array snd.aWrite;x: not an ST name"),
     (["--read-count", "x"], "argument --read-count: invalid int value: 'x' (see mip-glue --help)"),
     (["--read-base", "%QW100"], "argument --read-base: '%QW100': a register number or %IWn"),
