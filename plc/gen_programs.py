@@ -3,8 +3,9 @@
 OpenPLC v3 Modbus configurations plc/openplc/{outstation,central}-mbconfig.cfg.
 
 Portable ST cannot index located variables, so the copies between the located Modbus image
-and the MIP blocks' arrays are one statement per register; this script writes them. Run it
-after changing the layout (plc/README.md, "Register layout"); the outputs are committed.
+and the MIP blocks' arrays are one statement per register; this script writes them with the
+test kit's glue generator (kit/mipkit/glue.py, the integrators' `mip-glue`: one implementation).
+Run it after changing the layout (plc/README.md, "Register layout"); the outputs are committed.
 
     .venv/bin/python plc/gen_programs.py [--openplc-stations N] [--many-stations N] [-o DIR]
 
@@ -23,6 +24,22 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 from openplc_limits import MAX_MB_IO, LimitError, check as check_openplc  # noqa: E402
 
+
+def _load_glue():
+    """kit/mipkit/glue.py by its path: the generator alone (stdlib only), not the kit package
+    with the co-simulation behind it."""
+    import importlib.util
+    name = "mipkit_glue_for_gen_programs"
+    if name not in sys.modules:
+        spec = importlib.util.spec_from_file_location(name, HERE.parent / "kit" / "mipkit" / "glue.py")
+        mod = importlib.util.module_from_spec(spec)
+        sys.modules[name] = mod            # dataclasses look the module up while it loads
+        spec.loader.exec_module(mod)
+    return sys.modules[name]
+
+
+glue = _load_glue()
+
 OPENPLC_STATIONS = 2      # devices in the committed plc/openplc/central-mbconfig.cfg
 MAX_STATIONS = 4          # receivers in the central programs (devices 1..4)
 READ_REGS = 125           # one FC3 at the read-status register: status, count, 123 data
@@ -30,12 +47,25 @@ WRITE_REGS = 123          # one FC16 at the first write register
 WINDOW = 160              # PLC_RecordStore.aWindow
 
 
+# the located image of the example programs: station s reads %IW100 + 125(s-1).. and writes
+# %QW100 + 123(s-1).. into/from rd<s> and <fb>.aWrite, through r<s>_<i> / w<s>_<i>
+GLUE = glue.Layout(read_base=100, read_count=READ_REGS, write_base=100, write_count=WRITE_REGS,
+                   stations=MAX_STATIONS, read_array="rd{s}", write_array="rcv{s}.aWrite",
+                   numbered=True)     # write_array: the central's; io_after() passes each block's
+glue.check(GLUE, "plcrt")          # 4 stations of 125 pass OpenPLC's 400: station 4 idles there
+# plc/central_many.st: ONE read and ONE write range for all stations, r_<i> / w_<i>
+GLUE_MANY = glue.Layout(read_base=100, read_count=READ_REGS, write_base=100, write_count=WRITE_REGS,
+                        read_array="rd", write_array="aWr", read_prefix="r_", write_prefix="w_",
+                        numbered=False)
+glue.check(GLUE_MANY, "openplc")
+
+
 def read_image(s):        # station s (1-based): %IW of its read block
-    return 100 + READ_REGS * (s - 1)
+    return GLUE.read_image(s)
 
 
 def write_image(s):
-    return 100 + WRITE_REGS * (s - 1)
+    return GLUE.write_image(s)
 
 
 def peer_base(s):         # %MW block of peer s: receiver 0..19, sender 20..39, window 40..199
@@ -153,8 +183,7 @@ def located_io(s, tag):
         f"  wrErr{s} AT %IX{s}.3 : BOOL;",
         f"  wrLen{s} AT %QW{s} : WORD;",
     ]
-    lines += [f"  r{s}_{i} AT %IW{read_image(s) + i} : WORD;" for i in range(READ_REGS)]
-    lines += [f"  w{s}_{i} AT %QW{write_image(s) + i} : WORD;" for i in range(WRITE_REGS)]
+    lines += glue.declarations(GLUE, s)
     lines += [f"  rd{s} : MIP_T_ReadBlock;", f"  xRdValid{s} : BOOL;", f"  xWrDone{s} : BOOL;",
               f"  tonWr{s} : TON;"]
     return lines
@@ -181,7 +210,7 @@ def io_before(s):
              f" copied when it is valid (the MIP blocks look at aRead only with xReadValid) *)",
              f"xRdValid{s} := rdDone{s} OR xCyclic;",
              f"IF xRdValid{s} THEN"]
-    lines += [f"  rd{s}[{i}] := r{s}_{i};" for i in range(READ_REGS)]
+    lines += glue.read_copies(GLUE, s)
     lines += [
         "END_IF;",
         f"rdTrig{s} := xRun AND NOT (rdDone{s} OR rdErr{s});",
@@ -197,7 +226,7 @@ def io_after(s, fb):
              f"wrTrig{s} := {fb}.xWriteReq;",
              f"IF wrTrig{s} OR xCyclic THEN",
              f"  wrLen{s} := UINT_TO_WORD({fb}.uWriteLen);"]
-    lines += [f"  w{s}_{i} := {fb}.aWrite[{i}];" for i in range(WRITE_REGS)]
+    lines += glue.write_copies(GLUE, s, array=f"{fb}.aWrite")
     lines += ["END_IF;"]
     return lines
 
@@ -451,8 +480,7 @@ def central_many(n):
   uTransfers : UINT;
   uFailed : UINT;
   uRounds : UINT;"""]
-    decl += [f"  r_{i} AT %IW{100 + i} : WORD;" for i in range(READ_REGS)]
-    decl += [f"  w_{i} AT %QW{100 + i} : WORD;" for i in range(WRITE_REGS)]
+    decl += glue.declarations(GLUE_MANY, 1)
     for s in range(1, n + 1):
         decl += [f"  rcv{s} : MIP_Receiver;", f"  store{s} : PLC_RecordStore;"]
     code = [PARAM_CODE, """\
@@ -466,7 +494,7 @@ xRdIdle := NOT rdTrig;
 xWrIdle := NOT wrTrig;
 IF rdTrig AND (rdDone OR rdErr) THEN
   IF rdDone THEN"""]
-    code += [f"    rd[{i}] := r_{i};" for i in range(READ_REGS)]
+    code += glue.read_copies(GLUE_MANY, 1, indent="    ")
     code += ["""\
     xRdOk := TRUE;
     uReads := uReads + 1;
@@ -524,7 +552,7 @@ IF xRun AND xWrIdle THEN
     CASE uK OF"""]
     code += [f"      {s}: aWr := rcv{s}.aWrite; uWrLen := rcv{s}.uWriteLen;" for s in range(1, n + 1)]
     code += ["    END_CASE;"]
-    code += [f"    w_{i} := aWr[{i}];" for i in range(WRITE_REGS)]
+    code += glue.write_copies(GLUE_MANY, 1, indent="    ")
     code += ["""\
     wrLen := UINT_TO_WORD(uWrLen);
     wrUnit := UINT_TO_WORD(uK);
