@@ -178,6 +178,7 @@ def located_io(s, tag):
         f"  rdTrig{s} AT %QX{s}.0 : BOOL;",
         f"  rdDone{s} AT %IX{s}.0 : BOOL;",
         f"  rdErr{s} AT %IX{s}.1 : BOOL;",
+        f"  rdSt{s} AT %IW{10 + s} : WORD;         (* the read's status: why it failed *)",
         f"  wrTrig{s} AT %QX{s}.1 : BOOL;",
         f"  wrDone{s} AT %IX{s}.2 : BOOL;",
         f"  wrErr{s} AT %IX{s}.3 : BOOL;",
@@ -316,6 +317,7 @@ def outstation(bidi):
             "     tTransferTimeout := tTransferTimeout,\n"
             "     xChunkValid := src.xChunkValid, aChunk := src.aChunk, uChunkLen := src.uChunkLen,\n"
             "     xChunkLast := src.xChunkLast, aRead := rd1, xReadValid := xRdValid1,\n"
+            "     xReadError := rdErr1, wReadStatus := rdSt1,\n"
             "     xWriteDone := xWrDone1, xWriteError := wrErr1, xRetained := xRetain,\n"
             "     wSnapshots := snapSaved);")
         code.append("store(xRecordValid := link.xRecordValid, aRecord := link.aRecord,\n"
@@ -334,7 +336,8 @@ def outstation(bidi):
             "    uWindow := uWindow,\n"
             "    xChunkValid := src.xChunkValid, aChunk := src.aChunk, uChunkLen := src.uChunkLen,\n"
             "    xChunkLast := src.xChunkLast, xWriteDone := xWrDone1, xWriteError := wrErr1,\n"
-            "    aRead := rd1, xReadValid := xRdValid1, xRetained := xRetain, wSnapshots := snapSaved);")
+            "    aRead := rd1, xReadValid := xRdValid1, xReadError := rdErr1, wReadStatus := rdSt1,\n"
+            "    xRetained := xRetain, wSnapshots := snapSaved);")
         code.append("snapReq := snd.xSnapshotReq;")
         code += source_out(1, "src", "snd.udiRetransmissions")
     code += io_after(1, fb)
@@ -376,6 +379,7 @@ def central(bidi):
                 f"     xChunkValid := src{s}.xChunkValid, "
                 f"aChunk := src{s}.aChunk, uChunkLen := src{s}.uChunkLen,\n"
                 f"     xChunkLast := src{s}.xChunkLast, aRead := rd{s}, xReadValid := xRdValid{s},\n"
+                f"     xReadError := rdErr{s}, wReadStatus := rdSt{s},\n"
                 f"     xWriteDone := xWrDone{s}, xWriteError := wrErr{s}, xRetained := xRetain,\n"
                 f"     wSnapshots := snapSaved);")
             code.append(f"store{s}(xRecordValid := link{s}.xRecordValid, aRecord := link{s}.aRecord,\n"
@@ -391,6 +395,7 @@ def central(bidi):
             code.append(
                 f"rcv{s}(xEnable := xRun, xPolled := xPolled, xStatic := xStatic, tTimeout := tTimeout,\n"
                 f"     tTransferTimeout := tTransferTimeout, aRead := rd{s}, xReadValid := xRdValid{s},\n"
+                f"     xReadError := rdErr{s}, wReadStatus := rdSt{s},\n"
                 f"     xWriteDone := xWrDone{s}, xWriteError := wrErr{s}, xRetained := xRetain,\n"
                 f"     wSnapshots := snapSaved);")
             code.append(f"store{s}(xRecordValid := rcv{s}.xRecordValid, aRecord := rcv{s}.aRecord,\n"

@@ -442,3 +442,27 @@ def test_no_parity_means_two_stop_bits_unless_told(compiler, tmp_path, keys, cst
     finally:
         os.close(master)
         os.close(slave)
+
+
+def test_example_outstation_on_a_missing_serial_line_names_the_link_error(tmp_path):
+    """Issue 38: the example outstation (plc/outstation.st) whose serial line does not exist.
+    Its MIP_Sender used to show error NONE and wait without a word; it now shows the link
+    error with the runtime's reason (1002: the line cannot be opened) and MIP_WAIT_LINK within
+    the device's timeout (1 s: in virtual time a failed exchange costs its timeout), and no
+    transfer is failed by it."""
+    from mipcosim import layout as L
+    cfg = tmp_path / "out.conf"
+    cfg.write_text(L.outstation_config(0, serial=L.serial_keys(tmp_path / "no-such-tty", 19200),
+                                       status_first=L.RTU_STATUS_FIRST))
+    plc = Plc.build(L.program_sources("outstation", False), workdir=tmp_path, config=cfg)
+    try:
+        for i, w in enumerate(L.Params(records=5, station=1).words()):
+            plc[f"%MW{i}"] = w
+        plc.scan(150)
+        snd = "OUTSTATION.SND"
+        wait = L.enum_values("E_MIP_WaitReason")
+        assert plc[f"{snd}.XLINKERROR"] and plc[f"{snd}.WLINKERROR"] == 1002
+        assert plc[f"{snd}.EWAITREASON"] == wait["MIP_WAIT_LINK"]
+        assert not plc[f"{snd}.XERROR"]
+    finally:
+        plc.close()
