@@ -511,17 +511,42 @@ def build_pair(compiler, env=None):
 FB_BODIES = ("MIP_SENDER_body__", "MIP_RECEIVER_body__")   # the same names from stc and matiec
 
 
+def inclusive_cost(callgrind_out: str, fns) -> int:
+    """Instructions executed inside fns, callees included, from a callgrind output file: the
+    inclusive costs of the calls into them (or into gcc's clones of them, fn.part.0,
+    fn.constprop.1 ...) from outside them. gcc splits matiec's FB bodies (partial inlining of
+    the EN test): the callers then call MIP_SENDER_body__.part.0 and never the function of
+    that name, so a count by name alone (callgrind's --toggle-collect) gives 0 for matiec."""
+    def ours(name):
+        return any(name == f or name.startswith(f + ".") for f in fns)
+    npos, total, fn, cfn, edge = 1, 0, None, None, False
+    for l in callgrind_out.splitlines():
+        if edge:                                  # the line after calls=: positions, costs
+            edge = False
+            if ours(cfn) and not ours(fn or ""):
+                total += int(l.split()[npos])
+        elif l.startswith("positions:"):
+            npos = len(l.split()) - 1
+        elif l.startswith("fn="):
+            fn = l[3:].strip()
+        elif l.startswith("cfn="):
+            cfn = l[4:].strip()
+        elif l.startswith("calls="):
+            edge = True
+    return total
+
+
 def callgrind_total(exe, scans, fns=("config_run__",)):
     """Instructions executed inside fns (config_run__: the generated code and what it calls)
     over `scans` virtual scans of the plc executable; deterministic."""
     with tempfile.TemporaryDirectory(dir=BUILD) as d:
         outf = Path(d) / "callgrind.out"
-        run(["valgrind", "--tool=callgrind", *[f"--toggle-collect={f}" for f in fns],
+        run(["valgrind", "--tool=callgrind", "--compress-strings=no", "--compress-pos=no",
              f"--callgrind-out-file={outf}", exe, "-m", "virtual", "-n", scans])
-        m = re.search(r"^(?:summary|totals):\s*(\d+)", outf.read_text(), re.M)
-        if not m:
-            raise BenchError("no totals in the callgrind output")
-        return int(m.group(1))
+        total = inclusive_cost(outf.read_text(), fns)
+        if not total:
+            raise BenchError(f"callgrind counted no instructions in {', '.join(fns)}")
+        return total
 
 
 WARM = 100      # scans before the measured window: start-up, the sender's quiet wait (200 ms)
@@ -551,6 +576,9 @@ def pair_records(compiler, scans, env=None):
                        env=env).strip())
 
 
+SCAN_COST_TARGET = 0.5   # stc's instructions per scan, as a share of matiec's (issue 39)
+
+
 def fig_scan_cost(quick):
     scans = 300 if quick else 3000
     name = "scan_cost"
@@ -575,7 +603,7 @@ def fig_scan_cost(quick):
         why = ("BENCH_MATIEC=off" if os.environ.get("BENCH_MATIEC") == "off" else
                "iec2c not on PATH and not in /opt/src/matiec (matiec is not installed here)")
         line(name, f"stc {stc:.0f} {what}, of which {stc_fb:.0f} in the two FB bodies; matiec "
-             f"figure skipped: {why}; target stc <= matiec",
+             f"figure skipped: {why}; target stc <= {SCAN_COST_TARGET:.2f} x matiec",
              "SKIPPED")
         return None
     try:
@@ -593,8 +621,8 @@ def fig_scan_cost(quick):
     r = stc / mat
     line(name, f"{r:.3f} of matiec (stc {stc:.0f}, matiec {mat:.0f} {what}; in the two FB "
          f"bodies alone stc {stc_fb:.0f}, matiec {mat_fb:.0f}: {stc_fb / mat_fb:.3f}; "
-         "target <= 1.00)",
-         "OK" if r <= 1.0 else "MISSED")
+         f"target <= {SCAN_COST_TARGET:.2f})",
+         "OK" if r <= SCAN_COST_TARGET else "MISSED")
 
 
 # ---------------------------------------------------------------- 3. emulator throughput
@@ -1091,7 +1119,7 @@ FIGURES = ["goodput", "goodput_pipelined", "goodput_rtu", "fc23_gain", "scan_cos
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=" ".join(__doc__.split("\n\n")[0].split()))
     ap.add_argument("--quick", action="store_true", default=os.environ.get("BENCH_QUICK") == "1")
     ap.add_argument("--only", default=",".join(FIGURES))
     a = ap.parse_args(argv)

@@ -32,15 +32,20 @@ $(EMU_BUILD)/mipemu-sim: $(EMU_DIR)/src/sim.c $(EMU_CLI) $(EMU_BUILD)/libmipemu.
 $(EMU_BUILD)/test_mipemu: $(EMU_DIR)/tests/test_mipemu.c $(EMU_BUILD)/libmipemu.a $(EMU_HDR)
 	$(CC) $(EMU_CFLAGS) -o $@ $< $(EMU_BUILD)/libmipemu.a -lm
 
+# the RTU framing (t1.5, t3.5) with explicit times
+$(EMU_BUILD)/test_rtu: $(EMU_DIR)/tests/test_rtu.c $(EMU_DIR)/src/rtu.c $(EMU_DIR)/src/rtu.h
+	$(CC) $(EMU_CFLAGS) -o $@ $< $(EMU_DIR)/src/rtu.c
+
 $(EMU_BUILD)/fuzz_mipemu: $(EMU_DIR)/fuzz/fuzz_mipemu.c $(EMU_CORE_SRC) $(EMU_HDR)
 	@mkdir -p $(@D)
 	$(FUZZ_CC) -std=c11 -g -O1 -I$(EMU_DIR)/include -fsanitize=fuzzer,address,undefined \
 	  -fno-sanitize-recover=undefined -o $@ $< $(EMU_CORE_SRC)
 
 .PHONY: emulator-unit emulator-fuzz
-emulator-unit: $(EMU_BUILD)/test_mipemu
+emulator-unit: $(EMU_BUILD)/test_mipemu $(EMU_BUILD)/test_rtu
 	@mkdir -p $(RESULTS)
 	$(EMU_BUILD)/test_mipemu --junit $(RESULTS)/emulator-unit.xml
+	$(EMU_BUILD)/test_rtu --junit $(RESULTS)/emulator-unit-rtu.xml
 
 # A short deterministic run (fixed seed and run count: make check 20000, make test 2000) over a
 # fresh copy of the seed corpus.

@@ -5,7 +5,8 @@ one model of each thing, nothing copied into kit/) plus what they find in a chec
 the runtime's C sources and headers (plcharness/_runtime: every user program is compiled
 against them), libmipcosim.so (mipcosim/_lib: the emulator core and the co-simulation kernel,
 compiled here with the C compiler of the machine), st_lib's ST sources (mipcosim/_st_lib) and
-the docs' sequence-diagram generator (mipkit/_seqdiag.py).
+the docs' sequence-diagram generator (mipkit/_seqdiag.py) and stock OpenPLC's limits
+(mipkit/_openplc_limits.py, for mip-glue).
 """
 import atexit
 import os
@@ -28,7 +29,7 @@ REPO = HERE.parent if (HERE.parent / "translator" / "stc").is_dir() else HERE / 
 NEEDED = ["translator/stc", "runtime_shim/harness/plcharness", "runtime_shim/src",
           "runtime_shim/include", "cosim/mipcosim", "cosim/src/mipcosim.c", "cosim/include",
           "emulator/src/mipemu.c", "emulator/include", "peers/mippeer", "st_lib",
-          "docs/tools/seqdiag.py", "LICENSE"]
+          "docs/tools/seqdiag.py", "plc/openplc_limits.py", "LICENSE"]
 PACKAGES = {"stc": "translator/stc", "plcharness": "runtime_shim/harness/plcharness",
             "mipcosim": "cosim/mipcosim", "mippeer": "peers/mippeer"}
 
@@ -67,6 +68,7 @@ class BuildKit(build_py):
         _tree(REPO / "runtime_shim" / "include", rt / "include")
         _tree(REPO / "st_lib", out / "mipcosim" / "_st_lib", ("*.st",))
         shutil.copyfile(REPO / "docs" / "tools" / "seqdiag.py", out / "mipkit" / "_seqdiag.py")
+        shutil.copyfile(REPO / "plc" / "openplc_limits.py", out / "mipkit" / "_openplc_limits.py")
         lib = out / "mipcosim" / "_lib"
         lib.mkdir(parents=True, exist_ok=True)
         tmp = Path(tempfile.mkdtemp(prefix="obj-", dir=_TMP))    # not in the wheel

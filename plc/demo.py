@@ -204,8 +204,21 @@ def bar(done, total, width=30):
     return "[" + "#" * k + "." * (width - k) + f"] {done}/{total}"
 
 
+def lost_record_clause(a):
+    """The banner's words on the scripted loss: the radio numbers a transfer's records 1, 2,
+    ... and 16#FFFF for the last, so record r exists only in a transfer of more than r."""
+    if not a.lose_record:
+        return ""
+    per = min(a.records, a.per_transfer) if a.per_transfer else a.records
+    if a.lose_record == 0xFFFF or a.lose_record < per:
+        return f", record {a.lose_record} lost once on its way up"
+    return (f", no record lost on purpose (a transfer of {per} record{'s' if per != 1 else ''} "
+            f"is numbered {', '.join(str(n) for n in range(1, min(per, 3)))}"
+            f"{', ...' if per > 3 else ''}{', ' if per > 1 else ''}16#FFFF on the radio: "
+            f"there is no record {a.lose_record})")
+
+
 def run(a):
-    t_start = time.monotonic()
     rundir = Path(a.rundir)
     rundir.mkdir(parents=True, exist_ok=True)
     for f in rundir.glob("*"):
@@ -215,6 +228,7 @@ def run(a):
     # into the run's own directory: two demos at once (tests side by side) must not replace
     # each other's programs while they run (the harness's cache makes a rebuild a copy)
     progs = build_programs(rundir / "programs")
+    t_start = time.monotonic()   # seconds= is the read-out's time, not the build's
     emu = REPO / "build" / "emulator" / "mip-emulator"
     if not emu.is_file():
         raise DemoError(f"{emu} missing: run make")
@@ -291,11 +305,12 @@ def run(a):
         for s, sl in enumerate(outs, 1):
             params.station = s
             sl.write(0, params.words())
-        print(f"demo: {a.stations} outstation(s) logging {a.records} records of {a.payload} "
+        print(f"demo: {a.stations} outstation(s) logging {a.records} "
+              f"record{'s' if a.records != 1 else ''} of {a.payload} "
               f"registers, read out over a {'realistic' if a.realistic else 'fast'} radio "
               f"with {a.loss:.0%} loss (seed {a.seed})"
               + (f", PLCs on Modbus RTU at {a.baud} baud" if a.baud else "")
-              + (f", record {a.lose_record} lost once on its way up" if a.lose_record else ""),
+              + lost_record_clause(a),
               flush=True)
         total = a.records * a.stations
         limit = a.timeout or (30 + a.records * a.stations * (6.0 if a.realistic else 0.5)

@@ -3,8 +3,9 @@
 OpenPLC v3 Modbus configurations plc/openplc/{outstation,central}-mbconfig.cfg.
 
 Portable ST cannot index located variables, so the copies between the located Modbus image
-and the MIP blocks' arrays are one statement per register; this script writes them. Run it
-after changing the layout (plc/README.md, "Register layout"); the outputs are committed.
+and the MIP blocks' arrays are one statement per register; this script writes them with the
+test kit's glue generator (kit/mipkit/glue.py, the integrators' `mip-glue`: one implementation).
+Run it after changing the layout (plc/README.md, "Register layout"); the outputs are committed.
 
     .venv/bin/python plc/gen_programs.py [--openplc-stations N] [--many-stations N] [-o DIR]
 
@@ -23,6 +24,22 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 from openplc_limits import MAX_MB_IO, LimitError, check as check_openplc  # noqa: E402
 
+
+def _load_glue():
+    """kit/mipkit/glue.py by its path: the generator alone (stdlib only), not the kit package
+    with the co-simulation behind it."""
+    import importlib.util
+    name = "mipkit_glue_for_gen_programs"
+    if name not in sys.modules:
+        spec = importlib.util.spec_from_file_location(name, HERE.parent / "kit" / "mipkit" / "glue.py")
+        mod = importlib.util.module_from_spec(spec)
+        sys.modules[name] = mod            # dataclasses look the module up while it loads
+        spec.loader.exec_module(mod)
+    return sys.modules[name]
+
+
+glue = _load_glue()
+
 OPENPLC_STATIONS = 2      # devices in the committed plc/openplc/central-mbconfig.cfg
 MAX_STATIONS = 4          # receivers in the central programs (devices 1..4)
 READ_REGS = 125           # one FC3 at the read-status register: status, count, 123 data
@@ -30,12 +47,25 @@ WRITE_REGS = 123          # one FC16 at the first write register
 WINDOW = 160              # PLC_RecordStore.aWindow
 
 
+# the located image of the example programs: station s reads %IW100 + 125(s-1).. and writes
+# %QW100 + 123(s-1).. into/from rd<s> and <fb>.aWrite, through r<s>_<i> / w<s>_<i>
+GLUE = glue.Layout(read_base=100, read_count=READ_REGS, write_base=100, write_count=WRITE_REGS,
+                   stations=MAX_STATIONS, read_array="rd{s}", write_array="rcv{s}.aWrite",
+                   numbered=True)     # write_array: the central's; io_after() passes each block's
+glue.check(GLUE, "plcrt")          # 4 stations of 125 pass OpenPLC's 400: station 4 idles there
+# plc/central_many.st: ONE read and ONE write range for all stations, r_<i> / w_<i>
+GLUE_MANY = glue.Layout(read_base=100, read_count=READ_REGS, write_base=100, write_count=WRITE_REGS,
+                        read_array="rd", write_array="aWr", read_prefix="r_", write_prefix="w_",
+                        numbered=False)
+glue.check(GLUE_MANY, "openplc")
+
+
 def read_image(s):        # station s (1-based): %IW of its read block
-    return 100 + READ_REGS * (s - 1)
+    return GLUE.read_image(s)
 
 
 def write_image(s):
-    return 100 + WRITE_REGS * (s - 1)
+    return GLUE.write_image(s)
 
 
 def peer_base(s):         # %MW block of peer s: receiver 0..19, sender 20..39, window 40..199
@@ -148,13 +178,13 @@ def located_io(s, tag):
         f"  rdTrig{s} AT %QX{s}.0 : BOOL;",
         f"  rdDone{s} AT %IX{s}.0 : BOOL;",
         f"  rdErr{s} AT %IX{s}.1 : BOOL;",
+        f"  rdSt{s} AT %IW{10 + s} : WORD;         (* the read's status: why it failed *)",
         f"  wrTrig{s} AT %QX{s}.1 : BOOL;",
         f"  wrDone{s} AT %IX{s}.2 : BOOL;",
         f"  wrErr{s} AT %IX{s}.3 : BOOL;",
         f"  wrLen{s} AT %QW{s} : WORD;",
     ]
-    lines += [f"  r{s}_{i} AT %IW{read_image(s) + i} : WORD;" for i in range(READ_REGS)]
-    lines += [f"  w{s}_{i} AT %QW{write_image(s) + i} : WORD;" for i in range(WRITE_REGS)]
+    lines += glue.declarations(GLUE, s)
     lines += [f"  rd{s} : MIP_T_ReadBlock;", f"  xRdValid{s} : BOOL;", f"  xWrDone{s} : BOOL;",
               f"  tonWr{s} : TON;"]
     return lines
@@ -181,7 +211,7 @@ def io_before(s):
              f" copied when it is valid (the MIP blocks look at aRead only with xReadValid) *)",
              f"xRdValid{s} := rdDone{s} OR xCyclic;",
              f"IF xRdValid{s} THEN"]
-    lines += [f"  rd{s}[{i}] := r{s}_{i};" for i in range(READ_REGS)]
+    lines += glue.read_copies(GLUE, s)
     lines += [
         "END_IF;",
         f"rdTrig{s} := xRun AND NOT (rdDone{s} OR rdErr{s});",
@@ -197,7 +227,7 @@ def io_after(s, fb):
              f"wrTrig{s} := {fb}.xWriteReq;",
              f"IF wrTrig{s} OR xCyclic THEN",
              f"  wrLen{s} := UINT_TO_WORD({fb}.uWriteLen);"]
-    lines += [f"  w{s}_{i} := {fb}.aWrite[{i}];" for i in range(WRITE_REGS)]
+    lines += glue.write_copies(GLUE, s, array=f"{fb}.aWrite")
     lines += ["END_IF;"]
     return lines
 
@@ -287,10 +317,12 @@ def outstation(bidi):
             "     tTransferTimeout := tTransferTimeout,\n"
             "     xChunkValid := src.xChunkValid, aChunk := src.aChunk, uChunkLen := src.uChunkLen,\n"
             "     xChunkLast := src.xChunkLast, aRead := rd1, xReadValid := xRdValid1,\n"
+            "     xReadError := rdErr1, wReadStatus := rdSt1,\n"
             "     xWriteDone := xWrDone1, xWriteError := wrErr1, xRetained := xRetain,\n"
             "     wSnapshots := snapSaved);")
         code.append("store(xRecordValid := link.xRecordValid, aRecord := link.aRecord,\n"
                     "      uRecordLen := link.uRecordLen, wRecordNumber := link.wRecordNumber,\n"
+                    "      xTransferEnd := link.xRecvTransferEnd,\n"
                     "      udiFailed := link.udiFailedTransfers, eLastError := link.eRecvErrorId);")
         code += store_out(1, "store")
         code.append("mR1Dup := UDINT_TO_WORD(link.udiDuplicates MOD 65536);")
@@ -304,7 +336,8 @@ def outstation(bidi):
             "    uWindow := uWindow,\n"
             "    xChunkValid := src.xChunkValid, aChunk := src.aChunk, uChunkLen := src.uChunkLen,\n"
             "    xChunkLast := src.xChunkLast, xWriteDone := xWrDone1, xWriteError := wrErr1,\n"
-            "    aRead := rd1, xReadValid := xRdValid1, xRetained := xRetain, wSnapshots := snapSaved);")
+            "    aRead := rd1, xReadValid := xRdValid1, xReadError := rdErr1, wReadStatus := rdSt1,\n"
+            "    xRetained := xRetain, wSnapshots := snapSaved);")
         code.append("snapReq := snd.xSnapshotReq;")
         code += source_out(1, "src", "snd.udiRetransmissions")
     code += io_after(1, fb)
@@ -346,10 +379,12 @@ def central(bidi):
                 f"     xChunkValid := src{s}.xChunkValid, "
                 f"aChunk := src{s}.aChunk, uChunkLen := src{s}.uChunkLen,\n"
                 f"     xChunkLast := src{s}.xChunkLast, aRead := rd{s}, xReadValid := xRdValid{s},\n"
+                f"     xReadError := rdErr{s}, wReadStatus := rdSt{s},\n"
                 f"     xWriteDone := xWrDone{s}, xWriteError := wrErr{s}, xRetained := xRetain,\n"
                 f"     wSnapshots := snapSaved);")
             code.append(f"store{s}(xRecordValid := link{s}.xRecordValid, aRecord := link{s}.aRecord,\n"
                         f"      uRecordLen := link{s}.uRecordLen, wRecordNumber := link{s}.wRecordNumber,\n"
+                        f"      xTransferEnd := link{s}.xRecvTransferEnd,\n"
                         f"      udiFailed := link{s}.udiFailedTransfers, eLastError := link{s}.eRecvErrorId);")
             code += store_out(s, f"store{s}")
             code.append(f"mR{s}Dup := UDINT_TO_WORD(link{s}.udiDuplicates MOD 65536);")
@@ -360,10 +395,12 @@ def central(bidi):
             code.append(
                 f"rcv{s}(xEnable := xRun, xPolled := xPolled, xStatic := xStatic, tTimeout := tTimeout,\n"
                 f"     tTransferTimeout := tTransferTimeout, aRead := rd{s}, xReadValid := xRdValid{s},\n"
+                f"     xReadError := rdErr{s}, wReadStatus := rdSt{s},\n"
                 f"     xWriteDone := xWrDone{s}, xWriteError := wrErr{s}, xRetained := xRetain,\n"
                 f"     wSnapshots := snapSaved);")
             code.append(f"store{s}(xRecordValid := rcv{s}.xRecordValid, aRecord := rcv{s}.aRecord,\n"
                         f"      uRecordLen := rcv{s}.uRecordLen, wRecordNumber := rcv{s}.wRecordNumber,\n"
+                        f"      xTransferEnd := rcv{s}.xTransferEnd,\n"
                         f"      udiFailed := rcv{s}.udiFailedTransfers, eLastError := rcv{s}.eLastErrorId);")
             code += store_out(s, f"store{s}")
             code.append(f"mR{s}Dup := UDINT_TO_WORD(rcv{s}.udiDuplicates MOD 65536);")
@@ -448,8 +485,7 @@ def central_many(n):
   uTransfers : UINT;
   uFailed : UINT;
   uRounds : UINT;"""]
-    decl += [f"  r_{i} AT %IW{100 + i} : WORD;" for i in range(READ_REGS)]
-    decl += [f"  w_{i} AT %QW{100 + i} : WORD;" for i in range(WRITE_REGS)]
+    decl += glue.declarations(GLUE_MANY, 1)
     for s in range(1, n + 1):
         decl += [f"  rcv{s} : MIP_Receiver;", f"  store{s} : PLC_RecordStore;"]
     code = [PARAM_CODE, """\
@@ -463,7 +499,7 @@ xRdIdle := NOT rdTrig;
 xWrIdle := NOT wrTrig;
 IF rdTrig AND (rdDone OR rdErr) THEN
   IF rdDone THEN"""]
-    code += [f"    rd[{i}] := r_{i};" for i in range(READ_REGS)]
+    code += glue.read_copies(GLUE_MANY, 1, indent="    ")
     code += ["""\
     xRdOk := TRUE;
     uReads := uReads + 1;
@@ -491,12 +527,13 @@ END_IF;
                  "ELSE",
                  f"  rcv{s}({common},\n       xReadValid := FALSE);",
                  "END_IF;",
-                 f"IF rcv{s}.xRecordValid OR rcv{s}.xError THEN",
+                 f"IF rcv{s}.xRecordValid OR rcv{s}.xTransferEnd OR rcv{s}.xError THEN",
                  f"  store{s}(xRecordValid := rcv{s}.xRecordValid, aRecord := rcv{s}.aRecord,\n"
                  f"         uRecordLen := rcv{s}.uRecordLen, wRecordNumber := rcv{s}.wRecordNumber,\n"
+                 f"         xTransferEnd := rcv{s}.xTransferEnd,\n"
                  f"         udiFailed := rcv{s}.udiFailedTransfers, eLastError := rcv{s}.eLastErrorId);",
                  f"  IF rcv{s}.xRecordValid THEN udiRecords := udiRecords + 1; END_IF;",
-                 f"  IF rcv{s}.xRecordValid AND rcv{s}.xRecordLast THEN uTransfers := uTransfers + 1; END_IF;",
+                 f"  IF rcv{s}.xTransferEnd THEN uTransfers := uTransfers + 1; END_IF;",
                  f"  IF (store{s}.wFlags AND 2) <> 0 THEN uFailed := uFailed + 1; mErrStation := WORD#{s}; END_IF;",
                  "END_IF;",
                  f"axWrReq[{s}] := rcv{s}.xWriteReq;"]
@@ -520,7 +557,7 @@ IF xRun AND xWrIdle THEN
     CASE uK OF"""]
     code += [f"      {s}: aWr := rcv{s}.aWrite; uWrLen := rcv{s}.uWriteLen;" for s in range(1, n + 1)]
     code += ["    END_CASE;"]
-    code += [f"    w_{i} := aWr[{i}];" for i in range(WRITE_REGS)]
+    code += glue.write_copies(GLUE_MANY, 1, indent="    ")
     code += ["""\
     wrLen := UINT_TO_WORD(uWrLen);
     wrUnit := UINT_TO_WORD(uK);

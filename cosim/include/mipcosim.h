@@ -86,6 +86,11 @@ long mipcosim_request(mipcosim *sim, int ep, const uint8_t *req, size_t req_len,
  * rebinds it (e.g. after a restart) and takes the current seq as seen. */
 int mipcosim_tap(mipcosim *sim, int tap, int id, const uint16_t *seq, const uint16_t *hdr,
                  int nhdr, int len_index, const uint16_t *data, int ndata_max);
+/* The same with the header's words taken one by one from fields[0..nfields-1] (at most 16):
+ * for a block instance whose outputs are not contiguous (the kit's delivery tap). */
+int mipcosim_tap_fields(mipcosim *sim, int tap, int id, const uint16_t *seq,
+                        const uint16_t *const *fields, int nfields, int len_index,
+                        const uint16_t *data, int ndata_max);
 void mipcosim_untap(mipcosim *sim, int tap);
 /* Moves logged entries into buf: per entry [tap, plc id, nwords, words...]; returns the number
  * of words written (whole entries only). */

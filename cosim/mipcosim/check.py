@@ -91,6 +91,22 @@ def _count(total, pointer, per_transfer):
     return min(left, per_transfer) if per_transfer else left
 
 
+def _record(rep, name, open_tr, last, number, data):
+    """One delivered record (PLC_RecordStore bit 0) of a stream: (open transfer, last number)."""
+    if number == 1:
+        if open_tr is not None:
+            rep.problems.append(f"{name}: record 1 while a transfer was open, no failure reported")
+        return [data] if any(data) else [], 1
+    if open_tr is None:
+        rep.problems.append(f"{name}: record {number} outside a transfer")
+        return None, last
+    if not (number == L.FFFF or number == last + 1):
+        rep.problems.append(f"{name}: record {number} after {last}")
+    if any(data):
+        open_tr.append(data)
+    return open_tr, number
+
+
 def check_stream(chain: Chain, name, sender, sender_tap, receiver, receiver_tap, station,
                  session_of, resumes):
     """session_of(sender session) -> the session word in the data. resumes: a restarted sender
@@ -125,23 +141,14 @@ def check_stream(chain: Chain, name, sender, sender_tap, receiver, receiver_tap,
         if flags & 2:
             rep.receiver_failures[L.error_name(err)] += 1
             open_tr = None
-        if not flags & 1:
-            continue
-        if number == 1:
-            if open_tr is not None:
-                rep.problems.append(f"{name}: record 1 while a transfer was open, no failure reported")
-            open_tr, last = [], 1
-        elif open_tr is None:
-            rep.problems.append(f"{name}: record {number} outside a transfer")
-            continue
-        elif not (number == L.FFFF or number == last + 1):
-            rep.problems.append(f"{name}: record {number} after {last}")
-        last = number
-        if any(data):
-            open_tr.append(data)
-        if number == L.FFFF:
-            complete.append(open_tr)
-            open_tr = None
+        if flags & 1:
+            open_tr, last = _record(rep, name, open_tr, last, number, data)
+        if flags & 4:
+            # the transfer completed (PLC_RecordStore bit 2, MIP_Receiver's xTransferEnd): its
+            # 16#FFFF was accepted, delivered above if it had data; a transfer whose records
+            # were all empty (an empty transfer) completes with none
+            complete.append(open_tr or [])
+            open_tr, last = None, L.FFFF
     if open_tr is not None:
         rep.problems.append(f"{name}: a transfer is still open at the receiver at the end")
     # content of every complete transfer

@@ -43,6 +43,7 @@ typedef struct tap {
     const uint16_t *seq, *hdr, *data;
     int nhdr, len_index, ndata_max;
     uint16_t last;
+    const uint16_t *fields[16]; /* mipcosim_tap_fields: the header's words one by one (hdr NULL) */
 } tap_t;
 
 struct mipcosim {
@@ -359,7 +360,25 @@ int mipcosim_tap(mipcosim *sim, int tap, int id, const uint16_t *seq, const uint
     if (!seq || (nhdr > 0 && !hdr) || nhdr < 0 || nhdr > 64 || ndata_max < 0 || ndata_max > 4096)
         return fail(sim, "tap: bad addresses or sizes");
     if (len_index >= nhdr) return fail(sim, "tap: len_index %d outside the header", len_index);
-    sim->taps[tap] = (tap_t){1, id, seq, hdr, data, nhdr, len_index, ndata_max, *seq};
+    sim->taps[tap] = (tap_t){1, id, seq, hdr, data, nhdr, len_index, ndata_max, *seq, {0}};
+    return 0;
+}
+
+int mipcosim_tap_fields(mipcosim *sim, int tap, int id, const uint16_t *seq,
+                        const uint16_t *const *fields, int nfields, int len_index,
+                        const uint16_t *data, int ndata_max)
+{
+    if (tap < 0 || tap >= MAX_TAPS) return fail(sim, "tap: slot %d outside 0..%d", tap, MAX_TAPS - 1);
+    if (id < 0 || id >= sim->nplcs) return fail(sim, "tap: no PLC %d", id);
+    if (!seq || nfields < 0 || nfields > 16 || (nfields > 0 && !fields) || ndata_max < 0 ||
+        ndata_max > 4096)
+        return fail(sim, "tap: bad addresses or sizes");
+    if (len_index >= nfields) return fail(sim, "tap: len_index %d outside the fields", len_index);
+    for (int i = 0; i < nfields; i++)
+        if (!fields[i]) return fail(sim, "tap: field %d has no address", i);
+    tap_t t = {1, id, seq, NULL, data, nfields, len_index, ndata_max, *seq, {0}};
+    for (int i = 0; i < nfields; i++) t.fields[i] = fields[i];
+    sim->taps[tap] = t;
     return 0;
 }
 
@@ -388,7 +407,7 @@ static int check_taps(mipcosim *sim, int id)
         t->last = *t->seq;
         int nd = 0;
         if (t->data && t->len_index >= 0) {
-            nd = t->hdr[t->len_index];
+            nd = t->hdr ? t->hdr[t->len_index] : *t->fields[t->len_index];
             if (nd > t->ndata_max) nd = t->ndata_max;
         }
         size_t n = 3 + (size_t)t->nhdr + (size_t)nd + 1;
@@ -397,7 +416,10 @@ static int check_taps(mipcosim *sim, int id)
         w[0] = (uint16_t)i;
         w[1] = (uint16_t)id;
         w[2] = (uint16_t)(t->nhdr + nd + 1);
-        memcpy(w + 3, t->hdr, (size_t)t->nhdr * 2);
+        if (t->hdr)
+            memcpy(w + 3, t->hdr, (size_t)t->nhdr * 2);
+        else
+            for (int k = 0; k < t->nhdr; k++) w[3 + k] = *t->fields[k];
         if (nd) memcpy(w + 3 + t->nhdr, t->data, (size_t)nd * 2);
         w[n - 1] = *t->seq;   /* last: the seq value, so a rolled-back PLC's undone entries can be told */
         sim->log_len += n;

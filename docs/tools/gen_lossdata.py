@@ -112,7 +112,8 @@ def run(p, drive, seed, records, source="cosim"):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(prog="gen_lossdata", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(prog="gen_lossdata",
+                                 description=" ".join(__doc__.split("\n\n")[0].split()))
     ap.add_argument("-o", "--output", default=str(REPO / "docs" / "data" / "throughput-vs-loss.json"))
     ap.add_argument("--records", type=int, default=20)
     ap.add_argument("--seeds", type=int, default=10)

@@ -255,7 +255,8 @@ SCENARIOS = ["note-2-1-1", "bidirectional", "restart", "static-openplc", "pipeli
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(prog="gen_traces", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(prog="gen_traces",
+                                 description=" ".join(__doc__.split("\n\n")[0].split()))
     ap.add_argument("-o", "--outdir", default=str(REPO / "docs" / "traces"))
     ap.add_argument("--only", choices=SCENARIOS)
     a = ap.parse_args(argv)

@@ -27,7 +27,8 @@ from gen_traces import WORK, logger_data  # noqa: E402
 
 
 def parse(argv):
-    ap = argparse.ArgumentParser(prog="mipsim", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(prog="mipsim",
+                                 description=" ".join(__doc__.split("\n\n")[0].split()))
     ap.add_argument("--records", type=int, default=5, help="full records in the transfer")
     ap.add_argument("--payload", type=int, default=None,
                     help="payload registers per record (default: the most, 122 or 121)")

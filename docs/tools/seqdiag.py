@@ -283,13 +283,23 @@ def fmt_gap(ns):
     return f"+{ms / 1000:.1f} s" if ms >= 10_000 else f"+{ms} ms"
 
 
+def time_margin(rows, breaks):
+    """Extra width left of the diagram for time labels longer than the time column (a run of
+    more than about 100 s: "1795111 ms"); 0 for the usual ones, so their SVG stays the same.
+    Width of a 10 px label: at most 0.65 em per character (DejaVu Sans: m 0.97, digits 0.64)."""
+    labels = [fmt_ms(t) for t, _, _ in rows] + [fmt_gap(g) for _, g in breaks]
+    need = max((0.65 * 10 * len(l) for l in labels), default=0)
+    return max(0, int(need - (X_TIME - 8)) + 4) if need > X_TIME - 8 else 0
+
+
 def render(rows, title, caption):
     top = HEAD_Y + 34
     ys, breaks, rows_h = layout(rows)
     h = top + rows_h + 36 + 13 * len(textwrap.wrap(caption, 150))
-    o = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{h}" '
-         f'viewBox="0 0 {W} {h}" font-family="{FONT}">',
-         f'<rect x="0" y="0" width="{W}" height="{h}" fill="#ffffff"/>',
+    left = time_margin(rows, breaks)
+    o = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{W + left}" height="{h}" '
+         f'viewBox="{-left} 0 {W + left} {h}" font-family="{FONT}">',
+         f'<rect x="{-left}" y="0" width="{W + left}" height="{h}" fill="#ffffff"/>',
          text_el(W // 2, 22, title, size=15, weight="bold")]
     heads = [("outstation", "outstation PLC"), ("trm", "TRM-810"), ("mdp", "MDP-810"),
              ("central", "central PLC")]

@@ -98,3 +98,30 @@ void cli_net_option_apply(mipemu_config *c, int index, const char *v)
     case N_LOSE_RECORD: c->lose_record = (int)cli_long(opt, v, 0, 65535); break;
     }
 }
+
+/* the rates the server's set_line (rtu.c) has a termios speed for: the POSIX and Linux B...
+ * constants from 300 baud up that it lists */
+static const long rtu_rates[] = {300, 600, 1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200,
+                                 230400, 460800, 921600, 1000000, 2000000, 4000000};
+
+void cli_rtu_line_check(const char *spec, long baud, int data_bits, char parity, int stop_bits)
+{
+    if (data_bits != 8)
+        cli_usage_error("--rtu '%s': frame '%d%c%d': Modbus RTU has 8 data bits (MODBUS over Serial Line "
+                        "V1.02, section 2.5.1); give 8E1, 8O1 or 8N2", spec, data_bits, parity, stop_bits);
+    for (size_t i = 0; i < sizeof rtu_rates / sizeof rtu_rates[0]; i++)
+        if (rtu_rates[i] == baud) return;
+    char list[200] = "";
+    for (size_t i = 0; i < sizeof rtu_rates / sizeof rtu_rates[0]; i++)
+        snprintf(list + strlen(list), sizeof list - strlen(list), "%s%ld", i ? ", " : "", rtu_rates[i]);
+    cli_usage_error("--rtu '%s': baud rate %ld is not one a serial line can be set to (%s)", spec, baud, list);
+}
+
+void cli_rtu_allow_127_check(const mipemu_config *c, int n_rtu)
+{
+    if (c->allow_127 && n_rtu > 0)
+        cli_usage_error("--allow-127 with --rtu: an FC16 of more than 123 registers (FC23: a write of "
+                        "more than 121, a read of more than 125) is longer than the 256 bytes of an "
+                        "RTU frame (MODBUS over Serial Line V1.02, section 2.5.1); use --allow-127 "
+                        "without --rtu");
+}

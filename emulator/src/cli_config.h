@@ -27,4 +27,15 @@ int cli_net_option_find(const char *name);
  * cli_usage_error. */
 void cli_net_option_apply(mipemu_config *c, int index, const char *value);
 
+/* The line settings of an --rtu line (spec as given, for the message) that Modbus RTU can have:
+ * 8 data bits (MODBUS over Serial Line Specification and Implementation Guide V1.02, section
+ * 2.5.1) and a rate a serial line can be set to (the termios B... constants the server sets; any
+ * other was silently taken as 19,200 by the tty while the timing used the rate given). Else a
+ * usage error naming the reason. */
+void cli_rtu_line_check(const char *spec, long baud, int data_bits, char parity, int stop_bits);
+
+/* --allow-127 together with an --rtu line: a usage error (an FC16 of 124..127 registers, an FC23
+ * write of 122..127 or a read answer of 126..127 is longer than an RTU frame may be). */
+void cli_rtu_allow_127_check(const mipemu_config *c, int n_rtu);
+
 #endif

@@ -7,6 +7,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/inotify.h>
 #include <termios.h>
 #include <unistd.h>
 
@@ -26,10 +27,21 @@ uint64_t rtu_char_ns(const rtu_bus *b)
     return (uint64_t)bits * 1000000000ull / (uint64_t)b->baud;
 }
 
+/* MODBUS over Serial Line Specification and Implementation Guide V1.02 (Modbus-IDA, 2006),
+ * section 2.5.1.1 "MODBUS Message RTU Framing": frames are separated by a silent interval of at
+ * least 3.5 character times (t3.5); a silent interval of more than 1.5 character times (t1.5)
+ * between two characters makes the frame incomplete, to be discarded; above 19,200 baud the
+ * recommended fixed values are t1.5 = 750 us and t3.5 = 1.750 ms. */
 uint64_t rtu_gap_ns(const rtu_bus *b)
 {
     if (b->baud > 19200) return 1750000ull;
     return rtu_char_ns(b) * 7 / 2;
+}
+
+uint64_t rtu_t15_ns(const rtu_bus *b)
+{
+    if (b->baud > 19200) return 750000ull;
+    return rtu_char_ns(b) * 3 / 2;
 }
 
 static int fail(char *err, size_t n, const char *fmt, const char *a, const char *b2)
@@ -41,7 +53,7 @@ static int fail(char *err, size_t n, const char *fmt, const char *a, const char 
 int rtu_parse(rtu_bus *b, const char *spec, int stations, char *err, size_t errn)
 {
     memset(b, 0, sizeof *b);
-    b->fd = b->keep_fd = -1;
+    b->fd = b->keep_fd = b->watch_fd = -1;
     b->baud = 19200;
     b->data_bits = 8;
     b->parity = 'N';
@@ -144,7 +156,10 @@ static void set_line(struct termios *t, const rtu_bus *b)
     cfsetospeed(t, sp);
     t->c_cflag &= (tcflag_t)~(CSIZE | PARENB | PARODD | CSTOPB);
     t->c_cflag |= (b->data_bits == 7 ? CS7 : CS8) | CLOCAL | CREAD;
-    if (b->parity != 'N') t->c_cflag |= PARENB;
+    /* with parity, the UART checks it: a character with a parity error is read as \0 (INPCK
+     * without IGNPAR or PARMRK, termios(3)), so its frame fails the CRC and is discarded */
+    t->c_iflag &= (tcflag_t)~(INPCK | IGNPAR | PARMRK);
+    if (b->parity != 'N') t->c_cflag |= PARENB, t->c_iflag |= INPCK;
     if (b->parity == 'O') t->c_cflag |= PARODD;
     if (b->stop_bits == 2) t->c_cflag |= CSTOPB;
     t->c_cc[VMIN] = 0;
@@ -174,6 +189,14 @@ int rtu_open(rtu_bus *b, char *err, size_t errn)
         }
         b->fd = fd;
         b->keep_fd = keep;
+        rtu_pty_rearm(b);
+        /* a client closing the slave side: re-armed after it (rtu_pty_rearm; not at an open, which
+         * would race with the client's own setup) */
+        b->watch_fd = inotify_init1(IN_NONBLOCK | IN_CLOEXEC);
+        if (b->watch_fd >= 0 && inotify_add_watch(b->watch_fd, b->path, IN_CLOSE) < 0) {
+            close(b->watch_fd);
+            b->watch_fd = -1;
+        }
         if (b->link[0]) {
             unlink(b->link); /* a stale link of an earlier run */
             if (symlink(b->path, b->link) < 0) {
@@ -210,35 +233,86 @@ void rtu_close(rtu_bus *b)
     if (b->link[0]) unlink(b->link);
     if (b->fd >= 0) close(b->fd);
     if (b->keep_fd >= 0) close(b->keep_fd);
-    b->fd = b->keep_fd = -1;
+    if (b->watch_fd >= 0) close(b->watch_fd);
+    b->fd = b->keep_fd = b->watch_fd = -1;
 }
 
-void rtu_on_readable(rtu_bus *b, uint64_t now)
+/* A pty carries no parity: Linux's pty driver clears PARENB (and sets CS8) on every tcsetattr
+ * of the slave side, and glibc's tcsetattr (Debian 12's 2.36) reads the settings back and fails
+ * with EINVAL when none of the flags changed but PARENB is not as asked. A client asking for
+ * 8E1 thus fails whenever the pty already has the rest of its settings: on its second open (the
+ * slave side, which the server keeps open, keeps the last client's settings). IGNBRK means
+ * nothing on a pty (no break condition crosses it) and every raw setup clears it (cfmakeraw,
+ * pyserial, libmodbus): set again after every client, it makes each client's first setup a
+ * change. */
+void rtu_pty_rearm(rtu_bus *b)
+{
+    struct termios t;
+    if (!b->is_pty || b->keep_fd < 0 || tcgetattr(b->keep_fd, &t) < 0 || (t.c_iflag & IGNBRK)) return;
+    t.c_iflag |= IGNBRK;
+    tcsetattr(b->keep_fd, TCSANOW, &t);
+}
+
+void rtu_on_watch(rtu_bus *b)
+{
+    char buf[1024];
+    while (b->watch_fd >= 0 && read(b->watch_fd, buf, sizeof buf) > 0) {
+    }
+    rtu_pty_rearm(b);
+}
+
+int rtu_parity_note(const rtu_bus *b, char *out, size_t n)
+{
+    if (!b->is_pty) return 0;
+    const char *what = b->parity == 'E' ? " (even parity)" : b->parity == 'O' ? " (odd parity)" : "";
+    snprintf(out, n, "%s is a pty: it carries no parity bit, so parity is not checked and a client's "
+             "parity setting does not matter there; characters are timed as %d%c%d%s, %d bits",
+             b->path, b->data_bits, b->parity, b->stop_bits, what,
+             1 + b->data_bits + (b->parity != 'N') + b->stop_bits);
+    return 1;
+}
+
+/* The receiver's framing is a function of the bytes and of the times they arrived, and of
+ * nothing else (no clock here): the server passes the monotonic clock, the tests explicit
+ * times. A pty delivers what a client wrote at once, so the line is modelled: the characters a
+ * client wrote at t go on the wire at t, or when the ones before them have crossed it, one
+ * character time each. The silence before them is the time from the end of the last character
+ * to t; over t1.5 it breaks the frame, and a frame ends t3.5 after its last character. */
+void rtu_feed(rtu_bus *b, const uint8_t *p, size_t n, uint64_t now, rtu_handle_fn handle, void *user)
+{
+    if (!n) return;
+    rtu_on_time(b, now, handle, user); /* a frame whose t3.5 has passed ends before these bytes */
+    uint64_t start = now;
+    if (b->rx_len || b->rx_overflow) {
+        if (now > b->rx_end_ns && now - b->rx_end_ns > rtu_t15_ns(b)) b->rx_broken = 1;
+        if (b->rx_end_ns > start) start = b->rx_end_ns;
+    }
+    b->rx_end_ns = start + (uint64_t)n * rtu_char_ns(b);
+    size_t room = sizeof b->rx - b->rx_len;
+    size_t k = n < room ? n : room;
+    memcpy(b->rx + b->rx_len, p, k);
+    b->rx_len += k;
+    if (n > k || b->rx_len > RTU_ADU_MAX) b->rx_overflow = 1;
+}
+
+void rtu_on_readable(rtu_bus *b, uint64_t now, rtu_handle_fn handle, void *user)
 {
     uint8_t buf[512];
     for (;;) {
         ssize_t n = read(b->fd, buf, sizeof buf);
         if (n <= 0) {
             if (n < 0 && errno == EINTR) continue;
+            rtu_pty_rearm(b); /* a client is there: its setup is done */
             return;
         }
-        if (b->rx_len == 0 && !b->rx_overflow) b->rx_first_ns = now;
-        b->rx_last_ns = now;
-        size_t room = sizeof b->rx - b->rx_len;
-        size_t k = (size_t)n < room ? (size_t)n : room;
-        memcpy(b->rx + b->rx_len, buf, k);
-        b->rx_len += k;
-        if ((size_t)n > k || b->rx_len > RTU_ADU_MAX) b->rx_overflow = 1;
+        rtu_feed(b, buf, (size_t)n, now, handle, user);
     }
 }
 
-/* when the frame in rx ends: the gap after its last byte, and not before it could have
- * crossed the wire at the line's speed */
+/* when the frame in rx ends: t3.5 after its last character crossed the wire */
 static uint64_t frame_close_ns(const rtu_bus *b)
 {
-    uint64_t by_gap = b->rx_last_ns + rtu_gap_ns(b);
-    uint64_t by_wire = b->rx_first_ns + (uint64_t)b->rx_len * rtu_char_ns(b) + rtu_gap_ns(b);
-    return by_gap > by_wire ? by_gap : by_wire;
+    return b->rx_end_ns + rtu_gap_ns(b);
 }
 
 uint64_t rtu_next_deadline(const rtu_bus *b)
@@ -298,27 +372,45 @@ static void handle_frame(rtu_bus *b, uint64_t at, rtu_handle_fn handle, void *us
     b->answered++;
 }
 
+static void close_frame(rtu_bus *b, rtu_handle_fn handle, void *user)
+{
+    if (b->rx_overflow) {
+        b->frames++;
+        b->crc_errors++;
+    } else if (b->rx_broken) {
+        b->frames++;
+        b->broken++; /* a silence over t1.5 inside: incomplete, discarded */
+    } else {
+        handle_frame(b, b->rx_end_ns, handle, user); /* at the end of the request on the wire */
+    }
+    b->rx_len = 0;
+    b->rx_overflow = 0;
+    b->rx_broken = 0;
+}
+
+static void send_answer(rtu_bus *b)
+{
+    size_t off = 0;
+    while (off < b->tx_len) {
+        ssize_t k = write(b->fd, b->tx + off, b->tx_len - off);
+        if (k < 0 && errno == EINTR) continue;
+        if (k <= 0) break; /* nobody reads the line: the answer is lost, as on a wire */
+        off += (size_t)k;
+    }
+    b->tx_len = 0;
+}
+
 void rtu_on_time(rtu_bus *b, uint64_t now, rtu_handle_fn handle, void *user)
 {
-    if ((b->rx_len || b->rx_overflow) && now >= frame_close_ns(b)) {
-        uint64_t at = frame_close_ns(b) - rtu_gap_ns(b); /* end of the request on the wire */
-        if (b->rx_overflow) {
-            b->frames++;
-            b->crc_errors++;
-        } else {
-            handle_frame(b, at, handle, user);
-        }
-        b->rx_len = 0;
-        b->rx_overflow = 0;
-    }
-    if (b->tx_len && now >= b->tx_at_ns) {
-        size_t off = 0;
-        while (off < b->tx_len) {
-            ssize_t k = write(b->fd, b->tx + off, b->tx_len - off);
-            if (k < 0 && errno == EINTR) continue;
-            if (k <= 0) break; /* nobody reads the line: the answer is lost, as on a wire */
-            off += (size_t)k;
-        }
-        b->tx_len = 0;
+    /* what is due, in the order of its time */
+    for (;;) {
+        uint64_t close_at = (b->rx_len || b->rx_overflow) ? frame_close_ns(b) : UINT64_MAX;
+        uint64_t send_at = b->tx_len ? b->tx_at_ns : UINT64_MAX;
+        if (send_at <= now && send_at <= close_at)
+            send_answer(b);
+        else if (close_at <= now)
+            close_frame(b, handle, user);
+        else
+            return;
     }
 }

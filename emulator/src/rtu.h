@@ -32,17 +32,19 @@ typedef struct rtu_bus {
     /* line */
     int fd;                 /* pty master or the tty */
     int keep_fd;            /* pty: the server's own handle on the slave side (no EIO/HUP) */
+    int watch_fd;           /* pty: inotify on the closes of the slave side (or -1) */
     /* receive */
     uint8_t rx[RTU_ADU_MAX * 2];
     size_t rx_len;
     int rx_overflow;        /* more than RTU_ADU_MAX bytes without a gap: not a frame */
-    uint64_t rx_first_ns, rx_last_ns;
+    int rx_broken;          /* a silence over t1.5 inside the frame: discarded at its end */
+    uint64_t rx_end_ns;     /* when the last character received has crossed the wire */
     /* the answer waiting for its time on the line */
     uint8_t tx[RTU_ADU_MAX];
     size_t tx_len;
     uint64_t tx_at_ns;
     /* counters */
-    unsigned long frames, crc_errors, foreign, broadcasts, answered;
+    unsigned long frames, crc_errors, broken, foreign, broadcasts, answered;
 } rtu_bus;
 
 /* CRC-16/MODBUS (poly 0xA001 reflected, init 0xFFFF); the frame carries it low byte first */
@@ -57,25 +59,42 @@ int rtu_parse(rtu_bus *b, const char *spec, int stations, char *err, size_t errn
 int rtu_open(rtu_bus *b, char *err, size_t errn);
 void rtu_close(rtu_bus *b);
 
-/* Time on the wire of one character (start + data + parity + stop bits) and of the silent
- * interval that ends a frame (3.5 characters, at least 1.75 ms above 19200 baud, as the Modbus
- * serial line specification fixes it). */
+/* pty: keeps a client's parity setup from failing (see rtu.c): re-arms the slave side's
+ * settings; rtu_on_watch when watch_fd is readable (a client closed the pty). */
+void rtu_pty_rearm(rtu_bus *b);
+void rtu_on_watch(rtu_bus *b);
+
+/* pty: the line saying that a pty carries no parity (1), or nothing for a tty (0) */
+int rtu_parity_note(const rtu_bus *b, char *out, size_t n);
+
+/* Time on the wire of one character (start + data + parity + stop bits), of the silent
+ * interval that ends a frame (t3.5: 3.5 characters, 1.75 ms above 19,200 baud) and of the
+ * longest silence allowed inside a frame (t1.5: 1.5 characters, 750 us above 19,200 baud), as
+ * the Modbus serial line specification V1.02, section 2.5.1.1, fixes them. */
 uint64_t rtu_char_ns(const rtu_bus *b);
 uint64_t rtu_gap_ns(const rtu_bus *b);
-
-/* The line is readable: takes the bytes (now = when they were read). */
-void rtu_on_readable(rtu_bus *b, uint64_t now);
-
-/* Earliest time something is due (a frame to close, an answer to send); UINT64_MAX = none. */
-uint64_t rtu_next_deadline(const rtu_bus *b);
+uint64_t rtu_t15_ns(const rtu_bus *b);
 
 /* Handles what is due at now: a frame closed by the gap is checked (CRC, unit id) and
  * handed to handle(user, ep, tcp_adu, len, resp, cap) at the time it would have ended on the
  * wire (the caller advances the core to that time, *at_ns); a due answer is written.
- * Bad CRC, unknown unit ids, broadcasts (unit 0, handed to every device) and requests the core
- * drops are answered with silence, as a real RTU slave does. */
+ * Bad CRC, unknown unit ids, broadcasts (unit 0, handed to every device), frames with a silence
+ * over t1.5 inside and requests the core drops are answered with silence, as a real RTU slave
+ * does. */
 typedef long (*rtu_handle_fn)(void *user, int ep, uint64_t at_ns, const uint8_t *req, size_t len,
                               uint8_t *resp, size_t cap);
 void rtu_on_time(rtu_bus *b, uint64_t now, rtu_handle_fn handle, void *user);
+
+/* The framing (t1.5, t3.5) as a function of bytes and times: n bytes a client wrote, arriving
+ * at now (ns, any clock that never goes back). A frame whose t3.5 has passed at now is handled
+ * first (rtu_on_time). The server calls it with what it reads and the monotonic clock; the
+ * tests with explicit times. */
+void rtu_feed(rtu_bus *b, const uint8_t *p, size_t n, uint64_t now, rtu_handle_fn handle, void *user);
+
+/* The line is readable: reads the bytes and feeds them (now = when they were read). */
+void rtu_on_readable(rtu_bus *b, uint64_t now, rtu_handle_fn handle, void *user);
+
+/* Earliest time something is due (a frame to close, an answer to send); UINT64_MAX = none. */
+uint64_t rtu_next_deadline(const rtu_bus *b);
 
 #endif

@@ -52,12 +52,14 @@ static const char USAGE[] =
     "  --fail-polls N         unanswered polls before a station counts as not reachable (default 3)\n"
     "  --allow-127            accept up to 127 registers per request, as the device does\n"
     "                         (default: the Modbus limits 125 read / 123 FC16 / 121 FC23 write)\n"
+    "                         (not with --rtu: an RTU frame holds at most 256 bytes)\n"
     "  --lose-record N        lose the first uplink block whose register 0 is N, once per\n"
     "                         station (the note's example: --lose-record 2); default off\n"
     "  --rtu PORT[:BAUD[:FRAME]]=DEVICES\n"
     "                         also serve endpoints as Modbus RTU slaves on a serial line: PORT is\n"
     "                         'pty' (a new pty), 'pty:LINK' (and a symlink LINK to it) or a tty;\n"
-    "                         BAUD default 19200, FRAME default 8N1 (8E1, 8O1, 8N2, 7E1, ...);\n"
+    "                         BAUD a tty rate (300 .. 4000000), default 19200; FRAME 8 data bits,\n"
+    "                         parity N/E/O, stop bits 1/2, default 8N1 (8E1, 8O1, 8N2, ...);\n"
     "                         DEVICES: 'mdp' (unit id = station) and/or 'trmS@UNIT' (the TRM-810\n"
     "                         of station S at unit id UNIT), comma-separated; may be repeated\n"
     "  --no-tcp               serve no TCP ports (RTU only)\n"
@@ -77,7 +79,7 @@ __attribute__((noreturn)) static void die_sys(const char *what)
 
 /* ---- connections ---- */
 
-enum { T_LISTEN, T_CONN, T_RTU };
+enum { T_LISTEN, T_CONN, T_RTU, T_RTU_WATCH };
 
 #define MAX_BUSES 8
 typedef struct bus_slot {
@@ -86,6 +88,11 @@ typedef struct bus_slot {
 } bus_slot_t;
 static bus_slot_t g_buses[MAX_BUSES];
 static int g_nbus;
+typedef struct watch_slot {
+    int type; /* T_RTU_WATCH: a client closed a pty (rtu_on_watch) */
+    rtu_bus *bus;
+} watch_slot_t;
+static watch_slot_t g_watches[MAX_BUSES];
 
 typedef struct conn {
     int type;
@@ -117,6 +124,20 @@ static uint64_t mono_ns(void)
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
     return (uint64_t)ts.tv_sec * 1000000000ULL + (uint64_t)ts.tv_nsec;
+}
+
+/* epoll_wait with a timeout in ns: epoll_pwait2 (Linux 5.11); before it, whole ms rounded up */
+static int epoll_wait_ns(int epfd, struct epoll_event *evs, int max, uint64_t ns)
+{
+    static int no_pwait2;
+    if (!no_pwait2) {
+        struct timespec ts = { .tv_sec = (time_t)(ns / 1000000000ull), .tv_nsec = (long)(ns % 1000000000ull) };
+        int n = epoll_pwait2(epfd, evs, max, &ts, NULL);
+        if (n >= 0 || errno != ENOSYS)
+            return n;
+        no_pwait2 = 1;
+    }
+    return epoll_wait(epfd, evs, max, (int)((ns + 999999) / 1000000));
 }
 
 static void advance_now(void) { mipemu_net_advance(g_net, mono_ns() - g_t0); }
@@ -425,9 +446,12 @@ int main(int argc, char **argv)
 
     if (no_tcp && n_rtu == 0)
         cli_usage_error("--no-tcp needs at least one --rtu line");
+    cli_rtu_allow_127_check(&cfg, n_rtu);
     for (int i = 0; i < n_rtu; i++) {
         if (rtu_parse(&g_buses[i].bus, rtu_specs[i], cfg.stations, err, sizeof err) < 0)
             cli_usage_error("%s", err);
+        cli_rtu_line_check(rtu_specs[i], g_buses[i].bus.baud, g_buses[i].bus.data_bits,
+                           g_buses[i].bus.parity, g_buses[i].bus.stop_bits);
         g_buses[i].type = T_RTU;
         for (int j = 0; j < i; j++)
             if (g_buses[j].bus.link[0] && !strcmp(g_buses[j].bus.link, g_buses[i].bus.link))
@@ -483,6 +507,12 @@ int main(int argc, char **argv)
         struct epoll_event e = { .events = EPOLLIN, .data.ptr = &g_buses[i] };
         if (epoll_ctl(g_epfd, EPOLL_CTL_ADD, g_buses[i].bus.fd, &e) < 0)
             die_sys("epoll_ctl");
+        if (g_buses[i].bus.watch_fd >= 0) {
+            g_watches[i] = (watch_slot_t){ T_RTU_WATCH, &g_buses[i].bus };
+            struct epoll_event w = { .events = EPOLLIN, .data.ptr = &g_watches[i] };
+            if (epoll_ctl(g_epfd, EPOLL_CTL_ADD, g_buses[i].bus.watch_fd, &w) < 0)
+                die_sys("epoll_ctl");
+        }
         g_nbus++;
     }
     if (no_tcp) {
@@ -496,6 +526,11 @@ int main(int argc, char **argv)
         printf("%s%s", i ? "," : " rtu=", g_buses[i].bus.path);
     printf("\n");
     fflush(stdout);
+    for (int i = 0; i < n_rtu; i++) {
+        char note[512];
+        if (rtu_parity_note(&g_buses[i].bus, note, sizeof note))
+            fprintf(stderr, PROG ": note: %s\n", note);
+    }
 
     g_t0 = mono_ns();
     struct epoll_event evs[256];
@@ -507,12 +542,12 @@ int main(int argc, char **argv)
             if (d != UINT64_MAX && d - g_t0 < next)
                 next = d - g_t0;
         }
-        int timeout = 0;
-        if (next > now) {
-            uint64_t ms = (next - now + 999999) / 1000000;
-            timeout = ms > 1000 ? 1000 : (int)ms;
-        }
-        int n = epoll_wait(g_epfd, evs, 256, timeout);
+        /* to the nanosecond (epoll_pwait2): a frame closes t3.5 after its last character, 1.75 ms
+         * above 19,200 baud; a timeout in whole milliseconds closed it up to 1 ms late */
+        uint64_t wait_ns = next > now ? next - now : 0;
+        if (wait_ns > 1000000000ull)
+            wait_ns = 1000000000ull;
+        int n = epoll_wait_ns(g_epfd, evs, 256, wait_ns);
         if (n < 0) {
             if (errno == EINTR)
                 continue;
@@ -521,8 +556,12 @@ int main(int argc, char **argv)
         advance_now();
         for (int i = 0; i < n; i++) {
             conn_t *c = evs[i].data.ptr;
+            if (c->type == T_RTU_WATCH) {
+                rtu_on_watch(((watch_slot_t *)evs[i].data.ptr)->bus);
+                continue;
+            }
             if (c->type == T_RTU) {
-                rtu_on_readable(&((bus_slot_t *)evs[i].data.ptr)->bus, mono_ns());
+                rtu_on_readable(&((bus_slot_t *)evs[i].data.ptr)->bus, mono_ns(), rtu_handle, NULL);
                 continue;
             }
             if (c->type == T_LISTEN) {

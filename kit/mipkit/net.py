@@ -14,6 +14,7 @@ import re
 from pathlib import Path
 
 from mipcosim import sim as S
+from . import delivery
 from plcharness import Plc
 from plcharness.build import BuildError, build_program
 
@@ -226,6 +227,7 @@ class KitPlc:
         self.plc = None
         self.pid = None
         self.restarts = []      # (virtual ns, mode, RETAIN restored)
+        self._taps = None       # the delivery taps of the program's receivers (delivery.py)
 
     def _start(self, snapshot=None):
         net = self.net
@@ -248,6 +250,43 @@ class KitPlc:
         for i in range(plc.library.plcrt_device_count(plc.handle)):
             dev = plc.library.plcrt_device_name(plc.handle, i)
             net._check(lib.mipcosim_connect_inproc(sim, self.pid, setter, dev, ep))
+        if self._taps is None:
+            self._taps = delivery.Taps(net, self.pid)
+        self._taps.bind(plc, restored=snapshot is not None)
+
+    def _receiver(self, receiver):
+        self.net._drain()
+        found = self._taps.by_path
+        if receiver is None:
+            if len(found) != 1:
+                raise KitError(f"{self.name}: the program has {len(found)} MIP_Receiver "
+                               f"instances ({', '.join(found) or 'none'}): name one")
+            return next(iter(found.values()))
+        want = receiver.strip().upper()
+        hits = [r for p, r in found.items() if p == want or p.endswith("." + want)]
+        if len(hits) != 1:
+            raise KitError(f"{self.name}: {receiver}: "
+                           f"{'no' if not hits else 'more than one'} MIP_Receiver of that name; "
+                           f"the program has {', '.join(found) or 'none'}")
+        return hits[0]
+
+    @property
+    def receivers(self):
+        """Paths of the program's MIP_Receiver instances (a MIP_Link's receiving side is its
+        inner RCV), found by their outputs."""
+        return list(self._taps.by_path)
+
+    def delivered(self, receiver=None):
+        """The payloads a MIP_Receiver of the program delivered (xRecordValid), in order, like
+        a peer's records: the tap for the integrator's own central, no glue in the program.
+        receiver: its path or the end of it ("RCV1"); not needed with one receiver. A record
+        without data (an empty 16#FFFF) is not delivered (st_lib/PROTOCOL.md P15); a warm
+        restart forgets what the rolled-back instance delivered after its snapshot."""
+        return list(self._receiver(receiver).records)
+
+    def transfers_received(self, receiver=None):
+        """Transfers that receiver completed (xTransferEnd)."""
+        return self._receiver(receiver).transfers
 
     def _check_located(self, name):
         """A located address the program does not declare (nor the config map) reads 0 and
@@ -297,9 +336,10 @@ class KitPlc:
         elif mode == "kill9":
             snap = self.plc.retain_last()
         net = self.net
+        net._drain()            # what the taps logged of the old instance
         net._check(net.lib.mipcosim_plc_replace(net.sim, self.pid, None, None, 0))
-        # (when, mode, whether RETAIN was restored: not without RETAIN variables, which matiec
-        # builds do not have for the runtime, nor before the first snapshot; then it is cold)
+        # (when, mode, whether RETAIN was restored: not without RETAIN variables, nor before
+        # the first snapshot; then it is cold)
         self.restarts.append((net.now, mode, snap is not None))
         net.run_for(down_s)
         self._start(snap)
@@ -352,11 +392,14 @@ class KitPeer:
 
     @property
     def records(self):
-        """Payloads of every record the peer accepted, in order (all transfers)."""
+        """Payloads of every record with data the peer accepted, in order (all transfers). An
+        empty record (the 16#FFFF a sender writes after a last chunk that came without
+        xChunkLast) ends its transfer but is no record: as MIP_Receiver, which does not deliver
+        it (st_lib/PROTOCOL.md P15)."""
         r = self.peer.receiver
         if r is None:
             return []
-        return [p for t in r.transfers for p in t] + list(r.current)
+        return [p for t in r.transfers for p in t if p] + [p for p in r.current if p]
 
     @property
     def transfers(self):
@@ -412,6 +455,7 @@ class Net:
         self._lost = []             # (virtual ns, station, "up"/"down", record)
         self._fate = None
         self._end = 0
+        self._free_slots = list(range(63, -1, -1))   # the kernel's tap slots (delivery taps)
 
     # ------------------------------------------------------------------ set-up
 
@@ -525,6 +569,29 @@ class Net:
     def run_for(self, seconds):
         self.run_until_time(self.now + int(seconds * SEC))
 
+    def _tap_slots(self, n):
+        if len(self._free_slots) < n:
+            raise KitError("more MIP_Receiver instances on the network than the kernel's 64 "
+                           "taps watch (two each)")
+        got, self._free_slots = self._free_slots[:n], self._free_slots[n:]
+        return got
+
+    def _drain(self):
+        """Hand what the kernel's taps logged to the PLCs' delivery taps."""
+        buf = (ctypes.c_uint16 * 65536)()
+        while True:
+            n = self.lib.mipcosim_tap_read(self.sim, buf, len(buf))
+            if n == 0:
+                return
+            i = 0
+            while i < n:
+                slot, k = buf[i], buf[i + 2]
+                words = list(buf[i + 3:i + 3 + k])
+                for p in self.plcs.values():
+                    if p._taps is not None and p._taps.take(slot, words):
+                        break
+                i += 3 + k
+
     def run_until_time(self, t_ns):
         from .report import observer
         observer(self)          # the failure report's eyes: the blocks' diagnosis over time
@@ -540,6 +607,7 @@ class Net:
                     why = p.plc.library.plcrt_errmsg(p.plc.handle) or b""
                     msg += f": {p.name}: {why.decode()}"
             raise KitError(msg)
+        self._drain()
 
     def run_until(self, condition, within_s, step_s=0.5):
         """Run until condition() is true (checked every step_s of virtual time) or within_s

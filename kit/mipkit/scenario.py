@@ -337,8 +337,7 @@ def _clear(results: Path):
 
 
 def main(argv=None):
-    ap = _Parser(prog="mip-kit", description=__doc__.split("\n\n")[0],
-                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = _Parser(prog="mip-kit", description=" ".join(__doc__.split("\n\n")[0].split()))
     ap.add_argument("scenario")
     ap.add_argument("--junit", help="write JUnit XML here")
     ap.add_argument("--results", help="a failure's sequence diagram and trace (default: "

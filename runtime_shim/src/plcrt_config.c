@@ -164,6 +164,10 @@ static char parity_of(const char *v)
     return 0;
 }
 
+/* RTU's character: 1 start, 8 data bits, parity, stop bits (MODBUS over Serial Line Specification
+ * and Implementation Guide V1.02, section 2.5.1) */
+#define RTU_8_BITS "Modbus RTU has 8 data bits (MODBUS over Serial Line V1.02, section 2.5.1)"
+
 static int valid_baud(long b)
 {
     static const long ok[] = {300, 600, 1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200,
@@ -242,7 +246,8 @@ static int finish_range(parser_t *p, range_keys_t *k, uint64_t default_poll)
     r->dev = find_device(m, k->v_device);
     if (r->dev < 0)
         return perr(p, k->device, "device: no [device %s] above this range", k->v_device);
-    r->out_unit = m->devices[r->dev].unit_word >= 0 ? -1 : m->devices[r->dev].unit_id;
+    /* -1: no poll before the first exchange (a write has no outputs of the program before it) */
+    r->out_unit = m->devices[r->dev].unit_word >= 0 || r->is_write ? -1 : m->devices[r->dev].unit_id;
     /* table */
     r->table = 'h';
     if (k->table) {
@@ -295,8 +300,16 @@ static int finish_range(parser_t *p, range_keys_t *k, uint64_t default_poll)
                 return -1;
         }
     } else {
-        int bad = k->trigger ? k->trigger : k->done ? k->done : k->error ? k->error : k->status;
-        if (bad) return perr(p, bad, "trigger, done, error and status need policy = trigger");
+        /* cycle / change: error and status show the last request's result (a poll that keeps
+         * failing is seen by the program); trigger and done are the handshake's */
+        int bad = k->trigger ? k->trigger : k->done;
+        if (bad) return perr(p, bad, "trigger and done need policy = trigger");
+        if (k->error && (parse_location(p, k->error, "error", k->v_error, 'I', 'X', &r->error) ||
+                         claim(p, k->error, 'I', 'X', r->error, 1, "error")))
+            return -1;
+        if (k->status && (parse_location(p, k->status, "status", k->v_status, 'I', 'W', &r->status) ||
+                          claim(p, k->status, 'I', 'W', r->status, 1, "status")))
+            return -1;
     }
     if (k->length) {
         if (!k->is_write) return perr(p, k->length, "length is a key of write ranges");
@@ -356,6 +369,9 @@ static int finish_device(parser_t *p, plcrt_device_t *dev, const device_keys_t *
     } else if (dk->port) {
         return perr(p, dk->port, "port is a key of TCP devices (this one has serial)");
     }
+    /* "the use of no parity requires 2 stop bits" (MODBUS over Serial Line V1.02, section 2.5.1):
+     * the default without parity; stop_bits = 1 when given is taken (many devices run 8N1) */
+    if (dev->rtu && !dk->stop_bits && dev->parity == 'N') dev->stop_bits = 2;
     if (dev->rtu && dev->unit_word < 0 && dev->unit_id > 247)
         return perr(p, dk->unit_id, "unit_id: %d is not a Modbus RTU address (0..247)", dev->unit_id);
     assign_bus(p->m, dev);
@@ -554,7 +570,8 @@ static int parse_plcrt(parser_t *p, char *text)
                 if (!(dev->parity = parity_of(val))) return perr(p, lineno, "parity: '%s' is not none, even or odd", val);
             } else if (!strcmp(key, "data_bits")) {
                 slot = &dk.data_bits;
-                if (parse_int(p, lineno, key, val, 7, 8, &x)) return -1;
+                if (parse_int(p, lineno, key, val, 5, 8, &x)) return -1;
+                if (x != 8) return perr(p, lineno, "data_bits: %ld: " RTU_8_BITS, x);
                 dev->data_bits = (int)x;
             } else if (!strcmp(key, "stop_bits")) {
                 slot = &dk.stop_bits;
@@ -826,6 +843,7 @@ static int parse_mbconfig(parser_t *p, char *text)
                 static const long lo[5] = {1, 0, 7, 1, 0}, hi[5] = {4000000, 0, 8, 2, 3600000};
                 if (parse_int(p, ln, key, v, lo[f], hi[f], &x)) return -1;
                 if (f == 0 && !valid_baud(x)) return perr(p, ln, "%s: %ld is not a standard rate (300 .. 921600)", key, x);
+                if (f == 2 && x != 8) return perr(p, ln, "%s: %ld: " RTU_8_BITS, key, x);
                 if (f == 0) dev->baud = (int)x;
                 else if (f == 2) dev->data_bits = (int)x;
                 else if (f == 3) dev->stop_bits = (int)x;
@@ -853,7 +871,7 @@ static int parse_mbconfig(parser_t *p, char *text)
             r->policy = POLICY_CYCLE;
             r->trigger = r->done = r->error = r->status = r->length = -1;
             r->dev = m->n_devices - 1;
-            r->out_unit = dev->unit_id;
+            r->out_unit = r->is_write ? -1 : dev->unit_id; /* a write: not before the first exchange */
             int limit = range_limit(r);
             if (r->size > limit)
                 return perr(p, line, "%s_Size: %d in one request (at most %d)", mb_block[b], r->size, limit);

@@ -170,6 +170,7 @@ int plcrt_scan(plcrt_t *rt, uint64_t n)
         plcrt_seterr(rt, "plcrt_scan: the runtime is in real-time mode");
         return -1;
     }
+    if (!rt->started && rt->master) plcrt_master_note_lines(rt, rt->master);
     rt->started = 1;
     for (uint64_t i = 0; i < n; i++) {
         if (rt->slave) plcrt_slave_poll(rt, 0);

@@ -91,6 +91,8 @@ void plcrt_master_exchange_in(plcrt_t *rt, struct plcrt_master *m);
 void plcrt_master_step(plcrt_t *rt, struct plcrt_master *m, uint64_t now_ns);
 /* writes the cycle/change ranges now (end of a real-time run) */
 void plcrt_master_flush(plcrt_t *rt, struct plcrt_master *m, uint64_t now_ns);
+/* at start: says once what the serial lines cannot carry (a pty's parity) */
+void plcrt_master_note_lines(plcrt_t *rt, struct plcrt_master *m);
 int plcrt_master_start_thread(plcrt_t *rt, struct plcrt_master *m);
 void plcrt_master_stop_thread(struct plcrt_master *m);
 int plcrt_master_is_empty(const struct plcrt_master *m);

@@ -95,7 +95,7 @@ int main(int argc, char **argv)
      * on it would show a peer what a restart then forgets */
     if (config && plcrt_retain_handshake(rt) && plcrt_retain_count(rt) == 0) {
         fprintf(stderr, "%s: error: [retain] request/saved: the program has no RETAIN variables "
-                        "(or was compiled by matiec, whose retained variables plcrt cannot save): "
+                        "(or was linked without their table, which plcrt-build generates): "
                         "no snapshot would hold its state\n", config);
         plcrt_free(rt);
         return 2;
@@ -111,8 +111,8 @@ int main(int argc, char **argv)
     }
     if (retain) {
         if (plcrt_retain_count(rt) == 0)
-            fprintf(stderr, "plcrt: retain: the program has no RETAIN variables (or was compiled "
-                            "by matiec: retain is not supported for matiec-compiled programs)\n");
+            fprintf(stderr, "plcrt: retain: the program has no RETAIN variables (or was linked "
+                            "without their table, which plcrt-build generates)\n");
         if (!warm) {
             fprintf(stderr, "plcrt: cold start (--cold)\n");
         } else if (plcrt_retain_load_file(rt, retain) == 1) {

@@ -11,7 +11,11 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+#include <sys/sysmacros.h>
+#include <termios.h>
 #include <time.h>
+#include <limits.h>
 
 #define STATUS_TRANSPORT(e) (1000 + ((e) > 0 && (e) < 64000 ? (e) : EPROTO))
 
@@ -133,6 +137,9 @@ void plcrt_master_exchange_in(plcrt_t *rt, struct plcrt_master *m)
             r->result = RESULT_NONE;
             continue;
         }
+        /* cycle / change: the last request's result, held until the next one ends */
+        if (r->error >= 0) ix_bits(rt)[r->error] = r->status_value != 0;
+        if (r->status >= 0) rt->img.iw[r->status] = (uint16_t)r->status_value;
         if (!r->is_write && r->fresh) {
             for (int j = 0; j < r->size; j++) {
                 if (bits) ix_bits(rt)[r->image + j] = (uint8_t)(r->in[j] != 0);
@@ -192,7 +199,8 @@ static int device_ensure_ctx(plcrt_t *rt, plcrt_device_t *d)
 {
     if (d->ctx) return 0;
     if (d->rtu)
-        d->ctx = modbus_new_rtu(d->host, d->baud, d->parity, d->data_bits, d->stop_bits);
+        d->ctx = modbus_new_rtu(d->host, d->baud, d->line_parity ? d->line_parity : d->parity,
+                                d->data_bits, d->stop_bits);
     else
         d->ctx = modbus_new_tcp(d->host[0] ? d->host : "127.0.0.1", d->port);
     if (!d->ctx) {
@@ -213,7 +221,79 @@ static int device_ensure_ctx(plcrt_t *rt, plcrt_device_t *d)
     return 0;
 }
 
-/* 0 when connected; otherwise -1 with the errno to report */
+/* Linux: is path (after symlinks) the slave side of a Unix98 pseudo-terminal (/dev/pts/N, majors
+ * 136..143, Documentation/admin-guide/devices.txt)? Its path into real. A pty keeps no parity:
+ * the kernel's pty driver clears PARENB (and sets CS8) on every tcsetattr. */
+static int is_pty(const char *path, char *real, size_t n)
+{
+    struct stat st;
+    if (stat(path, &st) != 0 || !S_ISCHR(st.st_mode)) return 0;
+    if (major(st.st_rdev) < 136 || major(st.st_rdev) > 143) return 0;
+    char buf[PATH_MAX];
+    snprintf(real, n, "%s", realpath(path, buf) ? buf : path);
+    return 1;
+}
+
+static const char *parity_name(char p) { return p == 'E' ? "even" : p == 'O' ? "odd" : "none"; }
+
+/* Serial line owner d with parity: is its line a pty? Then it is opened without parity, and that
+ * is said once (at start, or at the first open when the line was not there at start): asking a
+ * pty for parity again, with nothing else to change, makes tcsetattr fail with EINVAL (Linux),
+ * which is how a plcrt started after a killed one never talked again. The configured parity
+ * still counts in the line's timing (virtual time). */
+static int rtu_pty_without_parity(plcrt_t *rt, plcrt_device_t *d)
+{
+    char real[PATH_MAX];
+    if (d->parity == 'N' || d->line_no_parity || !is_pty(d->host, real, sizeof real)) return 0;
+    if (!d->line_noted)
+        plcrt_log(rt, "device %s: %s%s%s is a pseudo-terminal, which carries no parity: opened "
+                  "without parity (parity %s is the line's setting for its timing only)", d->name,
+                  d->host, strcmp(real, d->host) ? " -> " : "", strcmp(real, d->host) ? real : "",
+                  parity_name(d->parity));
+    d->line_noted = 1;
+    return 1;
+}
+
+void plcrt_master_note_lines(plcrt_t *rt, struct plcrt_master *m)
+{
+    for (int i = 0; m && i < m->n_devices; i++) {
+        plcrt_device_t *d = &m->devices[i];
+        if (d->rtu && d->bus == i && d->ext_fd < 0 && !d->transact) rtu_pty_without_parity(rt, d);
+    }
+}
+
+/* Serial line owner d, before it is opened: the parity to open it with, none on a line that
+ * carries none (a pty; a tty that dropped PARENB or refused it before); the context is made anew
+ * when that changes. */
+static int rtu_line_setup(plcrt_t *rt, plcrt_device_t *d)
+{
+    char want = d->parity;
+    if (d->line_no_parity || rtu_pty_without_parity(rt, d)) want = 'N';
+    if (d->ctx && want == d->line_parity) return 0;
+    if (d->ctx) {
+        modbus_free(d->ctx); /* closed: only called while not connected */
+        d->ctx = NULL;
+    }
+    d->line_parity = want;
+    return device_ensure_ctx(rt, d);
+}
+
+/* Serial line owner d, just opened with parity: did the tty keep it? (Some drivers clear PARENB
+ * instead of failing.) If not, the line carries none: said once, and opened without from now on. */
+static void rtu_line_check(plcrt_t *rt, plcrt_device_t *d)
+{
+    struct termios t;
+    if (d->line_parity == 'N' || tcgetattr(modbus_get_socket(d->ctx), &t) != 0 || (t.c_cflag & PARENB))
+        return;
+    d->line_no_parity = 1;
+    if (!d->line_noted)
+        plcrt_log(rt, "device %s: %s did not keep parity %s (the tty cleared it): the line carries no "
+                  "parity", d->name, d->host, parity_name(d->parity));
+    d->line_noted = 1;
+}
+
+/* 0 when connected; -1 with the errno to report; -2 while waiting for the reconnect backoff
+ * (*err: the error of the last attempt, or ENOTCONN after a failed request closed it) */
 static int device_connect(plcrt_t *rt, struct plcrt_master *m, plcrt_device_t *d, uint64_t now,
                           int *err)
 {
@@ -221,29 +301,59 @@ static int device_connect(plcrt_t *rt, struct plcrt_master *m, plcrt_device_t *d
     if (d->rtu && d->bus != (int)(d - m->devices)) {
         /* a further device on a serial line: the line is the first device's */
         plcrt_device_t *o = &m->devices[d->bus];
-        if (device_connect(rt, m, o, now, err) != 0) return -1;
+        int rc = device_connect(rt, m, o, now, err);
+        if (rc != 0) return rc;
         d->ctx = o->ctx;
         d->connected = 1;
         return 0;
     }
-    if (device_ensure_ctx(rt, d) != 0) { *err = ENOMEM; return -1; }
+    if (d->connected && d->ctx) return 0;
+    if (now < d->next_connect_ns) {
+        *err = d->connect_err ? d->connect_err : ENOTCONN;
+        return -2;
+    }
+    if ((d->rtu && d->ext_fd < 0 ? rtu_line_setup(rt, d) : device_ensure_ctx(rt, d)) != 0) {
+        *err = ENOMEM;
+        return -1;
+    }
     if (d->connected) return 0;
-    if (now < d->next_connect_ns) { *err = ENOTCONN; return -1; }
-    if (modbus_connect(d->ctx) == 0) {
+    int rc = modbus_connect(d->ctx);
+    if (rc != 0 && errno == EINVAL && d->rtu && d->line_parity != 'N') {
+        /* a tty that refuses the parity (a pty left as a killed client set it, with nothing else
+         * to change): open it without, and say so once */
+        d->line_no_parity = 1;
+        if (rtu_line_setup(rt, d) == 0 && (rc = modbus_connect(d->ctx)) == 0) {
+            if (!d->line_noted)
+                plcrt_log(rt, "device %s: %s refuses parity %s (Invalid argument): opened without parity",
+                          d->name, d->host, parity_name(d->parity));
+            d->line_noted = 1;
+        } else {
+            d->line_no_parity = 0;
+            errno = EINVAL;
+        }
+    }
+    if (rc == 0) {
         mlock(m);
         d->connected = 1;
         d->n_connects++;
         munlock(m);
         d->backoff_ns = 0;
-        if (d->n_connects > 1 || d->failing) {
+        d->connect_err = 0;
+        if (d->rtu) rtu_line_check(rt, d);
+        if (d->rtu && d->reopen_why[0])
+            log_limited(rt, d, LOG_CONNECTED, now, "device %s: reopened %s (closed after: %s)", d->name,
+                        d->host, d->reopen_why);
+        else if (d->n_connects > 1 || d->failing) {
             if (d->rtu)
                 log_limited(rt, d, LOG_CONNECTED, now, "device %s: opened %s", d->name, d->host);
             else
                 log_limited(rt, d, LOG_CONNECTED, now, "device %s: connected to %s:%d", d->name, d->host, d->port);
         }
+        d->reopen_why[0] = 0;
         return 0;
     }
     *err = errno;
+    d->connect_err = errno;
     d->backoff_ns = d->backoff_ns ? d->backoff_ns * 2 : m->reconnect_min_ns;
     if (d->backoff_ns > m->reconnect_max_ns) d->backoff_ns = m->reconnect_max_ns;
     d->next_connect_ns = now + d->backoff_ns;
@@ -495,8 +605,9 @@ static int range_request(plcrt_t *rt, struct plcrt_master *m, plcrt_range_t *r, 
 {
     plcrt_device_t *d = &m->devices[r->dev];
     int status, transport = 0, err;
-    if (device_connect(rt, m, d, now, &err) != 0) {
-        if (err == ENOTCONN && r->policy != POLICY_TRIGGER)
+    int exchanged = 0, rc = device_connect(rt, m, d, now, &err);
+    if (rc != 0) {
+        if (rc == -2 && r->policy != POLICY_TRIGGER)
             return -1; /* waiting for the reconnect backoff: no request, no error */
         status = STATUS_TRANSPORT(err);
         transport = 1;
@@ -505,11 +616,13 @@ static int range_request(plcrt_t *rt, struct plcrt_master *m, plcrt_range_t *r, 
     } else {
         status = do_request(m, d, q, &transport);
     }
+    exchanged = rc == 0;
     mlock(m); /* counters and state are read by the exchange */
     d->n_requests++;
     if (status != 0) d->n_errors++;
     munlock(m);
     if (status == 0) {
+        if (d->rtu) m->devices[d->bus].line_fail_run = 0;
         if (d->failing)
             log_limited(rt, d, LOG_RECOVERED, now, "device %s: requests succeed again (%llu errors so far)",
                         d->name, (unsigned long long)d->n_errors);
@@ -533,8 +646,25 @@ static int range_request(plcrt_t *rt, struct plcrt_master *m, plcrt_range_t *r, 
     d->failing = 1;
     if (d->transact) {
         /* in process nothing can be left in a stream */
-    } else if (d->rtu) {
-        /* a serial line stays open: the next request flushes what is left on it */
+    } else if (d->rtu && d->ext_fd < 0) {
+        /* a serial line stays open (the next request flushes what is left on it), unless the
+         * system failed on it (EIO: the tty went away, a pty whose other side closed) or its
+         * exchanges keep failing: then it is closed, and opened and configured again by the
+         * next request */
+        plcrt_device_t *o = &m->devices[d->bus];
+        int e = status - 1000;
+        if (!transport) {
+            o->line_fail_run = 0; /* an exception answer: the line works */
+        } else if (exchanged && o->connected &&
+                   ((e != ETIMEDOUT && e != EPROTO) || ++o->line_fail_run >= PLCRT_SERIAL_REOPEN_AFTER)) {
+            snprintf(o->reopen_why, sizeof o->reopen_why, "%s", why);
+            mlock(m);
+            device_close(o);
+            munlock(m);
+            o->line_fail_run = 0;
+            o->backoff_ns = 0;
+            o->next_connect_ns = now; /* at once: the next request opens it */
+        }
     } else if (transport && d->connected && d->ext_fd < 0) {
         /* the TCP stream may hold a late answer: start over on a new connection */
         mlock(m);
@@ -571,7 +701,7 @@ static void publish(struct plcrt_master *m, plcrt_range_t *r, const request_t *q
             memcpy(r->in, q->data, sizeof q->data[0] * (size_t)r->size);
             r->have_in = 1;
         }
-    } else if (status == 0) {
+    } else if ((r->status_value = status) == 0) {
         if (r->is_write) {
             memcpy(r->last, q->data, sizeof q->data[0] * (size_t)r->size);
             r->have_last = 1;
@@ -844,6 +974,7 @@ int plcrt_master_start_thread(plcrt_t *rt, struct plcrt_master *m)
     for (int i = 0; i < m->n_ranges; i++) m->ranges[i].next_due = now;
     for (int i = 0; i < m->n_devices; i++) m->devices[i].next_connect_ns = 0;
     m->stop = 0;
+    plcrt_master_note_lines(rt, m);
     if (pthread_create(&m->thread, NULL, master_thread, m) != 0) {
         plcrt_seterr(rt, "cannot start the Modbus master thread");
         return -1;

@@ -10,6 +10,11 @@
 #define PLCRT_NAME_MAX 64
 #define PLCRT_MAX_BITS 2000 /* FC1/FC2 limit; the largest range kind */
 #define PLCRT_LOG_INTERVAL_NS 60000000000ull /* at most one line per device and kind per 60 s */
+/* a serial line is closed and opened again (and so configured again) after an error of the
+ * operating system on it (EIO of a tty that went away, ...) at once, and after this many
+ * exchanges on it failed in a row (timeouts, bad answers): the settings of the tty may have been
+ * changed beneath us (our choice; no manual speaks of it) */
+#define PLCRT_SERIAL_REOPEN_AFTER 3
 
 enum { POLICY_CYCLE, POLICY_CHANGE, POLICY_TRIGGER };
 enum { RESULT_NONE, RESULT_OK, RESULT_ERROR };
@@ -86,6 +91,14 @@ typedef struct plcrt_device {
     int baud, data_bits, stop_bits;
     char parity;           /* 'N', 'E', 'O' */
     uint64_t pause_ns;     /* silence before each request on the line (OpenPLC's RTU_TX_Pause) */
+    char line_parity;      /* owner: the parity the line is opened with: parity, or 'N' on a line
+                            * that carries none (a pty; a tty that dropped PARENB), 0 = not decided */
+    int line_fail_run;     /* owner: exchanges on the line that failed in a row (reopen after
+                            * PLCRT_SERIAL_REOPEN_AFTER) */
+    int connect_err;       /* errno of the last failed attempt to connect / open, 0 after a success */
+    char reopen_why[160];  /* the failure that closed the line, for the "reopened" line; "" = none */
+    int line_no_parity;    /* owner: the tty dropped PARENB or refused it (EINVAL): open without */
+    int line_noted;        /* owner: the line's missing parity has been logged (once) */
     int bus;               /* index of the device that owns the line's context (itself or an earlier one) */
     uint64_t bus_free_ns;  /* owner: monotonic time the line's last exchange ended */
     /* virtual time (owner of the line): the exchange on the wire, modelled from the character

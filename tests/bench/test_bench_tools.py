@@ -78,3 +78,45 @@ def test_scan_cost_without_matiec_says_why():
     assert l.endswith("SKIPPED") and "matiec figure skipped: BENCH_MATIEC=off" in l, l
     import re
     assert int(re.search(r"stc (\d+) instructions", l).group(1)) > 0, l
+
+
+def _needs_iec2c():
+    from plcharness.build import matiec_available
+    return pytest.mark.skipif(not matiec_available(),
+                              reason="iec2c not on PATH (set PATH and MATIEC_LIB to run the matiec tests)")
+
+
+@_needs_iec2c()
+def test_scan_cost_against_matiec_counts_both_fb_bodies():
+    """With iec2c on PATH the line compares with matiec: gcc splits matiec's FB bodies, and
+    the callers call the clone (MIP_SENDER_body__.part.0), which a count by name alone
+    missed (0 instructions: a ZeroDivisionError)."""
+    p = subprocess.run([sys.executable, REPO / "bench" / "run_bench.py", "--quick", "--only",
+                        "scan_cost"], capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0 and "Traceback" not in p.stderr, p.stdout + p.stderr
+    l = next(l for l in p.stdout.splitlines() if l.startswith("scan_cost:"))
+    import re
+    m = re.search(r"([\d.]+) of matiec \(stc (\d+), matiec (\d+) instructions.*FB bodies alone "
+                  r"stc (\d+), matiec (\d+): ([\d.]+); target <= 0\.50\) (OK|MISSED)$", l)
+    assert m, l
+    ratio, stc, mat, stc_fb, mat_fb, fb_ratio, status = m.groups()
+    assert 0 < int(stc_fb) < int(stc) and 0 < int(mat_fb) < int(mat), l
+    assert float(ratio) == pytest.approx(int(stc) / int(mat), abs=0.001)
+    assert status == ("OK" if float(ratio) <= 0.5 else "MISSED")
+
+
+def test_inclusive_cost_takes_the_calls_into_gcc_clones_once():
+    """Calls into a body or its clones from outside count with their inclusive cost; a call
+    from the body into its own clone is inside it and is not counted twice."""
+    out = "\n".join([
+        "positions: line", "events: Ir",
+        "fn=BENCHPAIR_body__", "10 5",
+        "cfn=MIP_SENDER_body__.part.0", "calls=3 1", "11 300",
+        "cfn=MIP_SENDER_body__", "calls=1 1", "12 120",
+        "cfn=MIP_SENDERX_body__", "calls=1 1", "13 7",
+        "fn=MIP_SENDER_body__", "1 20",
+        "cfn=MIP_SENDER_body__.part.0", "calls=1 1", "2 100",
+        "fn=MIP_LINK_body__",
+        "cfn=MIP_RECEIVER_body__.constprop.0", "calls=2 1", "3 50",
+    ])
+    assert run_bench.inclusive_cost(out, run_bench.FB_BODIES) == 470

@@ -59,6 +59,35 @@ def test_chain_demo_defaults_end_ok(tmp_path):
     assert leftover(tmp_path / "run") == []
 
 
+def test_chain_demo_of_one_or_two_records_claims_no_lost_record_2_and_times_the_read_out(tmp_path):
+    """A transfer of 2 records is numbered 1, 16#FFFF on the radio, so the default scripted
+    loss of record 2 cannot fire: the banner says so (it said "record 2 lost once", then
+    "radio lost 0 telegrams"), in the singular for 1 record; and seconds= is the read-out,
+    not the build of the programs before it (a cold build here)."""
+    env = dict(os.environ, PLCRT_CACHE="off")
+    for n in (1, 2):
+        start = time.monotonic()
+        p = subprocess.Popen([sys.executable, str(REPO / "plc" / "demo.py"), "--rundir",
+                              str(tmp_path / f"run{n}"), "--records", str(n)],
+                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+        out, built = [], None
+        for line in p.stdout:
+            out.append(line)
+            if built is None and line.startswith("demo: mip-emulator: listening"):
+                built = time.monotonic()
+        assert p.wait(timeout=300) == 0, "".join(out)
+        end = time.monotonic()
+        text = "".join(out)
+        banner = next(l for l in out if "outstation(s) logging" in l)
+        assert f"logging {n} record{'s' if n > 1 else ''} of 122 registers" in banner, banner
+        assert "lost once" not in banner and "no record lost on purpose" in banner, banner
+        assert "there is no record 2" in banner, banner
+        assert "demo: radio lost 0 telegrams" in text
+        seconds = float(text.strip().splitlines()[-1].rsplit("seconds=", 1)[1])
+        assert built - start > 2, "the build was not cold: the check below cannot tell"
+        assert seconds <= end - built + 0.5, (seconds, built - start, end - built)
+
+
 def test_chain_demo_two_stations_lossy(tmp_path):
     p = run_demo(tmp_path, "--stations", "2", "--records", "12", "--loss", "0.3", "--seed",
                  "5", "--per-transfer", "5", "--log-period-ms", "20", "--payload", "16")

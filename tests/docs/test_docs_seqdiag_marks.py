@@ -110,3 +110,33 @@ def test_no_note_covers_an_arrow_label(diagrams, name):
             top, bottom = y - 0.8 * size, y + 0.2 * size
             overlaps = x - half < nx + nw and x + half > nx and top < ny + nh and bottom > ny
             assert not overlaps, f"note at y={ny} covers the label {s!r} at y={y}"
+
+
+# DejaVu Sans (the first font of the diagrams) advance widths in em, for the characters of the
+# time labels; the other fonts of the list are narrower
+_EM = {**{d: 0.636 for d in "0123456789"}, " ": 0.318, "m": 0.974, "s": 0.521, "+": 0.838,
+       ".": 0.318}
+
+
+def test_time_labels_of_a_long_run_are_not_clipped(tmp_path):
+    """Runs longer than about 100 s: "1795111 ms" was drawn as "795111 ms" (left of the
+    picture); the picture widens to the left for labels that long."""
+    trace = tmp_path / "t.jsonl"
+    lines = [{"t": 1_795_111_000_000, "ev": "modbus", "ep": "trm", "st": 1, "fc": 16, "w0": 1,
+              "wq": 3},
+             {"t": 1_795_131_000_000, "ev": "modbus", "ep": "trm", "st": 1, "fc": 16, "w0": 2,
+              "wq": 3},
+             {"t": 1_905_131_000_000, "ev": "modbus", "ep": "trm", "st": 1, "fc": 16, "w0": 3,
+              "wq": 3}]
+    trace.write_text("\n".join(json.dumps(d) for d in lines) + "\n")
+    r = tool("seqdiag", trace, "-o", tmp_path / "t.svg")
+    assert r.returncode == 0, r.stderr
+    root = etree.parse(str(tmp_path / "t.svg")).getroot()
+    left = float(root.get("viewBox").split()[0])
+    texts, _ = parse(tmp_path / "t.svg")
+    labels = [(s, x, size) for s, x, _, _, anchor, size in texts
+              if anchor == "end" and re.fullmatch(r"\+?[\d.]+ m?s", s)]
+    assert "1795111 ms" in [s for s, *_ in labels] and "+110.0 s" in [s for s, *_ in labels]
+    for s, x, size in labels:
+        width = size * sum(_EM[c] for c in s)
+        assert x - width >= left, f"{s!r} starts at {x - width:.1f}, the picture at {left}"

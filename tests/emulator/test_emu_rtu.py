@@ -216,3 +216,32 @@ def test_rtu_and_tcp_requests_give_the_same_trace_lines(tmp_path):
                      for e in emu.trace() if e["ev"] == "modbus"])
     assert len(runs[0]) == len(reqs)
     assert runs[0] == runs[1]
+
+
+@pytest.mark.parametrize("pause_chars,answered", [(0.5, True), (2.5, False)])
+def test_rtu_a_pause_inside_a_frame_over_1_5_characters_breaks_it(tmp_path, pause_chars, answered):
+    """t1.5 (Modbus over Serial Line V1.02, section 2.5.1.1) on a real pty: the request's first
+    4 characters, then, once they have crossed the line (the emulator times it), a pause, then
+    the rest. At 600 baud a character is 16.7 ms, so 0.5 and 2.5 characters are 8 ms from t1.5
+    (and 2.5 from t3.5): more than a pty and a loaded machine shift a write. The exact bounds
+    (1.4 / 1.6 / 3.4 / 3.6 characters) are tested on the framer with explicit times
+    (emulator/tests/test_rtu.c): a pty cannot show 0.2 characters."""
+    link = tmp_path / "tty"
+    emu = start(tmp_path, f"pty:{link}:600:8N1=trm1@1")
+    line = RtuLine(str(link))
+    try:
+        c = char_s(600, "8N1")
+        raw = frame(1, fc3(2000, 1))
+        t0 = time.monotonic()
+        line.send(raw[:4])
+        time.sleep(max(0.0, t0 + (4 + pause_chars) * c - time.monotonic()))
+        line.send(raw[4:])
+        rsp = line.receive(first_timeout=1.0)
+        if answered:
+            assert check_frame(rsp)[0] == 1
+        else:
+            assert rsp == b""
+            assert check_frame(line.transact(1, fc3(2000, 1))[0])[0] == 1   # the line still works
+    finally:
+        line.close()
+        assert emu.stop() == 0

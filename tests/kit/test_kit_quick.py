@@ -5,6 +5,8 @@ import re
 import sys
 import xml.etree.ElementTree as ET
 
+import pytest
+
 from kit_helpers import (EXAMPLE, REPO, break_logger, ci_commands, forget_retain, kit_env, mipkit_cli,
                          run)
 
@@ -326,6 +328,17 @@ def test_ci_templates_run_the_same_commands():
     assert any(c.startswith(".venv/bin/mip-kit scenarios/readout.toml") for c in gitlab)
 
 
+def test_ci_templates_fetch_the_submodule_the_kit_comes_from():
+    """MIP_KIT points into a git submodule of the project: GitLab fetches submodules only with
+    GIT_SUBMODULE_STRATEGY (the template lacked it: pip found no kit), GitHub's checkout only
+    with submodules: true."""
+    gl = (EXAMPLE / ".gitlab-ci.yml").read_text()
+    gh = (EXAMPLE / ".github" / "workflows" / "sim-tests.yml").read_text()
+    assert re.search(r'MIP_KIT: "\$CI_PROJECT_DIR/', gl) and "github.workspace }}/" in gh
+    assert re.search(r"^\s+GIT_SUBMODULE_STRATEGY: (normal|recursive)\b", gl, re.M), gl
+    assert re.search(r"uses: actions/checkout@v\d+\n\s+with:\n\s+submodules: (true|recursive)", gh)
+
+
 def test_plc_at_the_mdp_with_a_peer_outstation(tmp_path):
     """A soft-PLC attached to the MDP-810 (this repository's central program and config, as a
     user's would be) reads out a note-following peer at station 2 of a two-station network."""
@@ -430,13 +443,23 @@ def test_kit_pins_agree_with_requirements():
     assert {"setuptools", "wheel", "lark", "pymodbus"} <= named
 
 
-def test_restarts_say_whether_retain_was_restored(tmp_path):
+def _needs_iec2c():
+    from plcharness.build import matiec_available
+    return pytest.mark.skipif(not matiec_available(),
+                              reason="matiec (iec2c) is not on PATH; it is in no package registry")
+
+
+@pytest.mark.parametrize("compiler", ["stc", pytest.param("matiec", marks=_needs_iec2c())])
+def test_restarts_say_whether_retain_was_restored(tmp_path, compiler):
+    """A matiec build keeps its RETAIN variables as an stc build does (the variables matiec
+    marks retained, and the arrays it cannot mark)."""
     from mipcosim import layout as L
     from mipkit import Net
     lib = [str(L.ST_LIB / f) for f in L.LIB_FILES]
-    with Net(tmp_path / "net", radio="fast") as net:
+    with Net(tmp_path / "net", radio="fast", compiler=compiler) as net:
         out = net.plc("outstation", lib + [EXAMPLE / "st" / "FieldLogger.st", EXAMPLE / "st" / "Outstation.st"],
                       EXAMPLE / "plcrt" / "outstation.conf", at=1, retain_period_ms=200)
+        assert out.result.compiler == compiler
         net.peer("central")
         out["%MW1"], out["%MW0"] = 30, 1
         out.restart("kill9", down_s=0.1)   # before the first periodic snapshot: cold
@@ -475,3 +498,53 @@ def test_wheel_carries_what_the_kit_needs_and_the_checkout_stays_clean(tmp_path)
     ep = next(n for n in names if n.endswith("entry_points.txt"))
     text = zipfile.ZipFile(whl).read(ep).decode()
     assert "[pytest11]\nmipkit = mipkit.plugin" in text and "mip-kit = mipkit.scenario:main" in text
+
+
+def test_one_record_at_a_time_passes_assert_records_against_the_note_peer(tmp_path):
+    """Issue 39: records logged one every 2 s leave each transfer one record, which MIP_Sender
+    sends as record 1 and an empty 16#FFFF (P5). peer.records held an empty payload for every
+    such 16#FFFF and assert_records failed ("record 2: got [], want [...]"); an empty record
+    ends a transfer but is no record, for the note peer as for MIP_Receiver."""
+    from mipkit import Net, assert_records
+    from mipcosim import layout as L
+    lib = [str(L.ST_LIB / f) for f in L.LIB_FILES]
+    src = [EXAMPLE / "st" / "FieldLogger.st", EXAMPLE / "st" / "Outstation.st"]
+    with Net(tmp_path, radio="fast", seed=3) as net:
+        out = net.plc("outstation", lib + src, EXAMPLE / "plcrt" / "outstation.conf", at=1)
+        central = net.peer("central")
+        out["%MW1"], out["%MW3"], out["%MW0"] = 5, 2000, 1
+        assert net.run_until(lambda: out["%MW12"] == 5, within_s=60)
+        net.run_for(1)
+        assert central.transfers == 5
+        assert assert_records(central.records, lambda n: [n % 65536, n // 65536]
+                              + [(n * k) % 65536 for k in range(3, 9)]) == 5
+
+
+def test_delivered_taps_the_integrators_own_central(tmp_path):
+    """Issue 39: what the integrator's own central (here this repository's, with four
+    MIP_Receiver instances) delivered, record by record, without glue in the program: found by
+    type, read after every scan. The outstation logs one record every 2 s, so every transfer
+    ends with an empty 16#FFFF, which is not delivered; a kill -9 of the central rolls its
+    receivers back, and what they delivered after the snapshot comes again, once."""
+    from mipcosim import layout as L
+    from mipkit import KitError, Net, assert_records
+    conf = tmp_path / "central.conf"
+    conf.write_text(L.central_config(502, 1, retain=L.retain_section(tmp_path / "c.retain", 1000)))
+    lib = [str(L.ST_LIB / f) for f in L.LIB_FILES]
+    src = [EXAMPLE / "st" / "FieldLogger.st", EXAMPLE / "st" / "Outstation.st"]
+    want = lambda n: [n % 65536, n // 65536] + [(n * k) % 65536 for k in range(3, 9)]  # noqa: E731
+    with Net(tmp_path / "net", 1, radio="fast", loss_up=0.2, seed=4) as net:
+        cen = net.plc("central", L.program_sources("central", False), conf, at="mdp")
+        out = net.plc("outstation", lib + src, EXAMPLE / "plcrt" / "outstation.conf", at=1)
+        for i, w in enumerate(L.Params(records=0, station=0, retain=True).words()):
+            cen[f"%MW{i}"] = w
+        out["%MW1"], out["%MW3"], out["%MW0"] = 8, 1500, 1
+        assert [r.split(".")[-1] for r in cen.receivers] == ["RCV1", "RCV2", "RCV3", "RCV4"]
+        with pytest.raises(KitError, match="has 4 MIP_Receiver instances .*name one"):
+            cen.delivered()
+        assert net.run_until(lambda: len(cen.delivered("RCV1")) >= 3, within_s=60)
+        cen.restart("kill9")
+        assert net.run_until(lambda: out["%MW12"] == 8, within_s=120)
+        net.run_for(2)
+        assert assert_records(cen.delivered("rcv1"), want) == 8
+        assert cen.transfers_received("RCV1") == 8 and cen.delivered("RCV2") == []

@@ -65,3 +65,83 @@ def test_matiec_compile_error_names_the_file_and_line(st_file, tmp_path):
     with pytest.raises(Exception) as ei:
         Plc.build([src], workdir=tmp_path, compiler="matiec")
     assert f"{src}:3:" in str(ei.value)
+
+
+RETAINED = one_task("""
+TYPE T_Block : ARRAY[0..3] OF WORD; END_TYPE
+FUNCTION_BLOCK FB_Acc
+VAR_INPUT inc : UINT; END_VAR
+VAR_OUTPUT total : UINT; END_VAR
+VAR RETAIN own : UINT; END_VAR
+own := own + inc; total := own;
+END_FUNCTION_BLOCK
+PROGRAM MAIN
+VAR RETAIN n : UINT; hist : ARRAY[1..3] OF INT; blk : T_Block; kept : FB_Acc; END_VAR
+VAR lost : UINT; plain : FB_Acc; END_VAR
+n := n + 1; lost := lost + 1;
+hist[2] := hist[2] + 2; blk[3] := UINT_TO_WORD(WORD_TO_UINT(blk[3]) + 16);
+kept(inc := 1); plain(inc := 1);
+END_PROGRAM
+""")
+
+
+@needs_matiec
+def test_matiec_build_keeps_its_retain_variables_over_a_warm_restart(st_file, tmp_path):
+    """What matiec marks retained (VARIABLES.csv, __IEC_RETAIN_FLAG), the arrays it cannot
+    mark, and a RETAIN variable of an FB instance in a plain VAR section survive; the rest
+    starts from its initial value."""
+    plc = Plc.build([st_file(RETAINED)], workdir=tmp_path / "a", compiler="matiec")
+    assert plc.retain_count() > 0
+    plc.scan(7)
+    snapshot = plc.retain_save()
+    plc.close()
+    again = Plc.build([st_file(RETAINED)], workdir=tmp_path / "b", compiler="matiec")
+    again.retain_load(snapshot)
+    again.scan(1)
+    assert again["MAIN.n"] == 8 and again["MAIN.lost"] == 1
+    assert again["MAIN.hist"][1] == 16
+    assert again["MAIN.blk"][3] == 0x80
+    assert again["MAIN.kept.total"] == 8
+    assert again["MAIN.plain.own"] == 8 and again["MAIN.plain.total"] == 8
+
+
+MATIEC_ONLY = one_task("""
+PROGRAM MAIN
+VAR RETAIN n : UINT; tmr : TON; go : BOOL; END_VAR
+VAR lost : UINT; END_VAR
+VAR out AT %QW100 : WORD; END_VAR
+n := n + 1; lost := lost + 1;
+tmr(IN := go, PT := T#5s);
+out := UINT_TO_WORD(n);
+END_PROGRAM
+""")
+
+
+@needs_matiec
+def test_matiec_build_without_stc_keeps_what_matiec_marks_retained(st_file, tmp_path, monkeypatch):
+    """Where stc does not translate the sources (not installed, or a program only matiec
+    takes), the variables matiec marks retained are kept, except a standard timer's internal
+    state: its start time from before the restart would hold it for the previous uptime (the
+    scan clock starts at 0); it times its 5 s anew."""
+    from plcharness import build
+
+    def no_stc(*args, **kwargs):
+        raise build.BuildError("stc: cannot run stc: No such file or directory")
+    monkeypatch.setattr(build, "_translate_stc", no_stc)
+    monkeypatch.setenv("PLCRT_CACHE", "off")
+    src = st_file(MATIEC_ONLY)
+    plc = Plc.build([src], workdir=tmp_path / "a", compiler="matiec")
+    assert plc.retain_count() > 0
+    plc.scan(100)
+    plc["MAIN.go"] = True
+    plc.scan(300)                                   # the timer started at 1 s
+    assert plc["MAIN.tmr.ET"] == 2_990_000_000
+    snapshot = plc.retain_save()
+    warm = Plc(plc.build_result, tmp_path / "a")
+    warm.retain_load(snapshot)
+    warm.scan(1)
+    assert warm["MAIN.n"] == 401 and warm["MAIN.lost"] == 1 and warm["%QW100"] == 401
+    warm.scan(499)                                  # 0 .. 4.99 s: not yet
+    assert not warm["MAIN.tmr.Q"] and warm["MAIN.tmr.ET"] == 4_990_000_000
+    warm.scan(1)
+    assert warm["MAIN.tmr.Q"]

@@ -183,10 +183,18 @@ def test_sigterm_saves_on_a_clean_stop(plc, server):
 
 
 @pytest.mark.parametrize("compiler", [compiler_param("matiec")])
-def test_matiec_programs_say_retain_is_not_supported(plc, server, compiler):
-    proc = virtual(plc, plc(compiler=compiler, name="m"), 3)
-    assert proc.returncode == 0, proc.stderr
-    assert "retain is not supported for matiec-compiled programs" in proc.stderr
+def test_matiec_programs_keep_their_retained_variables_on_a_warm_start(plc, server, compiler):
+    exe = plc("hist : ARRAY[0..3] OF UINT;", compiler=compiler, name="m")
+    first = virtual(plc, exe, 20)
+    assert first.returncode == 0, first.stderr
+    assert "cold start: no retain file" in first.stderr
+    assert server.holding[0:3] == [20, 20, 20]
+    second = virtual(plc, exe, 5)
+    assert second.returncode == 0, second.stderr
+    # the same as an stc build keeps (cnt, kept's inc, total and n) and the array, which
+    # matiec cannot mark retained
+    assert "warm start: 5 retained variables restored" in second.stderr, second.stderr
+    assert server.holding[0:3] == [25, 25, 5]
 
 
 def test_an_unwritable_retain_path_is_reported_without_flooding_or_crashing(plc, server, tmp_path):

@@ -8,7 +8,7 @@ import time
 import pytest
 
 from plcharness import Plc, build_program
-from rt_helpers import one_task
+from rt_helpers import COMPILERS, one_task
 
 EVERY = 5   # the program requests a snapshot every EVERY scans (of its retained counter)
 
@@ -154,8 +154,7 @@ def test_handshake_config_errors_are_one_line_and_exit_2(prog, tmp_path, text, m
 
 
 def test_the_handshake_with_a_program_that_retains_nothing_is_refused(tmp_path, st_file):
-    """saved would count snapshots holding none of the program's state (also what a matiec
-    build would do: plcrt cannot save its retained variables)."""
+    """saved would count snapshots holding none of the program's state."""
     from rt_helpers import COUNTER
     exe = build_program([st_file(COUNTER, name="counter.st")], tmp_path / "counter").executable
     cfg = tmp_path / "plc.conf"
@@ -173,8 +172,9 @@ CLOCK_PROG = """
 PROGRAM MAIN
 VAR RETAIN
   tmr : TON;
+  go : BOOL;
 END_VAR
-tmr(IN := TRUE, PT := T#5s);
+tmr(IN := go, PT := T#5s);
 END_PROGRAM
 CONFIGURATION Config0
 RESOURCE Res0 ON PLC
@@ -185,16 +185,20 @@ END_CONFIGURATION
 """
 
 
-def test_a_warm_start_starts_a_retained_timer_again(tmp_path):
+@pytest.mark.parametrize("compiler", COMPILERS)
+def test_a_warm_start_starts_a_retained_timer_again(tmp_path, compiler):
     """st_lib/PROTOCOL.md W3, "the timers start again": stc keeps a standard timer's IN, PT, Q
     and ET, not its start time, and the scan clock starts at 0 on every start; so a TON 3 s
     into its 5 s when the snapshot was taken times its 5 s anew after the warm start (never
-    a start time in the future that would hold it for the previous uptime)."""
+    a start time in the future that would hold it for the previous uptime). A matiec build
+    keeps the same variables (matiec marks the timer's internal state retained too)."""
     from plcharness import Plc
     src = tmp_path / "clock.st"
     src.write_text(CLOCK_PROG)
-    plc = Plc.build([str(src)], workdir=tmp_path, compiler="stc")
-    plc.scan(300)                                # scans at 0 .. 2.99 s
+    plc = Plc.build([str(src)], workdir=tmp_path, compiler=compiler)
+    plc.scan(100)                                # scans at 0 .. 0.99 s
+    plc["MAIN.go"] = True
+    plc.scan(300)                                # the timer started at 1 s: 1 .. 3.99 s
     assert plc["MAIN.tmr.ET"] == 2_990_000_000 and not plc["MAIN.tmr.Q"]
     snap = plc.retain_save()
     warm = Plc(plc.build_result, tmp_path)       # a fresh copy of the program: a restart

@@ -22,7 +22,7 @@ from pathlib import Path
 
 from mipcosim.layout import enum_values  # noqa: F401 (the tests import it from here)
 from mipcosim.sim import FATE_FN as _FATE_FN, Stats as _Stats, kernel_lib
-from plcharness import Plc
+from plcharness import Plc, PlcError
 
 # the numbers of st_lib's enumerations, read from st_lib/MIP_Types.st (never copied by hand)
 ERR = enum_values("E_MIP_Error")
@@ -114,6 +114,13 @@ class Fb:
 
     def __setitem__(self, member, value):
         self.plc[f"MAIN.{self.n}.{member}"] = value
+
+    def has(self, member):
+        try:
+            self[member]
+            return True
+        except PlcError:
+            return False
 
     def write_block(self, length=None):
         if length is None:
@@ -333,6 +340,7 @@ class Port:
         self.fb, self.modem = fb, modem
         self.read_every, self.read_mode = read_every, read_mode
         self.write_fail = 0               # fail the next n writes
+        self.read_fail = 0                # <> 0: every read fails with this status (a dead link)
         self.fail_rate = 0.0              # and each write with this probability
         self.rng = random.Random(0)
         self.writes: list[list] = []
@@ -342,6 +350,14 @@ class Port:
     def before_scan(self):
         self._k += 1
         fb = self.fb
+        if self.read_fail:
+            # the runtime's read handshake ends in error (plcrt: error bit and status word)
+            fail = self._k % self.read_every == 0 or self.read_mode == "cyclic"
+            fb["xReadValid"] = False
+            fb["xReadError"] = fail
+            fb["wReadStatus"] = self.read_fail if fail else 0
+            return
+        fb["xReadError"] = False
         if self.read_mode == "cyclic":
             if self._k % self.read_every == 0 or self._k == 1:
                 fb.set_read(self.modem.read125())
@@ -407,6 +423,7 @@ class RecordSink:
         self.transfers = []      # complete transfers (payload lists)
         self.current = []
         self.failed = 0
+        self._end = "xRecvTransferEnd" if fb.has("xRecvTransferEnd") else "xTransferEnd"
 
     def after_scan(self):
         fb = self.fb
@@ -421,9 +438,11 @@ class RecordSink:
             assert fb["udiRecordOffset"] == len(self.current), "offset does not match delivered data"
             self.records.append((num, payload))
             self.current += payload
-            if num == FFFF:
-                self.transfers.append(self.current)
-                self.current = []
+        # the end of a transfer: MIP_Receiver's xTransferEnd (MIP_Link: xRecvTransferEnd), one
+        # scan; its 16#FFFF was delivered above if it had data (an empty one is not)
+        if fb[self._end]:
+            self.transfers.append(self.current)
+            self.current = []
 
 
 class Bench:

@@ -313,7 +313,7 @@ def test_restarted_receiver_with_cyclic_reads_does_not_redeliver_the_last_record
     u.port_c._k = 3 * (u.port_c._k // 3 + 1)     # the next refresh is 3 scans away
     u.restart_central()
     u.bench.step(100)
-    assert u.sink.transfers == [data] and len(u.sink.records) == 2
+    assert u.sink.transfers == [data] and [n for n, _ in u.sink.records] == [1]
     assert not u.rcv["xError"] and u.rcv["wAck"] == 0
 
 

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from stlib_sim import ERR, FFFF, MS, SND, Uni, pattern
+from stlib_sim import ERR, FFFF, MS, SND, WAIT, Uni, pattern
 
 E_NONE, E_CHUNK_SIZE, E_CHUNK_LEN, E_NO_ACK, E_PEER_RESET, E_TOO_MANY, E_ABORTED, \
     E_SENDER_RESET, E_TRANSFER_TIMEOUT, E_BUFFER_LEN = (
@@ -184,13 +184,17 @@ def test_error_id_visible_while_execute_high(wd):
     assert not u.snd["xError"] and u.snd["eErrorId"] == E_NONE
 
 
-def test_single_chunk_transfer_ends_with_empty_last_record(wd):
+def test_single_chunk_transfer_ends_with_an_empty_last_record_that_is_not_delivered(wd):
+    """P5: one chunk goes as record 1 and an empty 16#FFFF. The receiver delivers record 1
+    only: the empty 16#FFFF ends the transfer (xTransferEnd) without an xRecordValid, so a
+    store or a kit's records see no empty record (issue 39)."""
     data = pattern(40, seed=9)
     u = Uni(wd, data)
     u.bench.step(3)
     assert u.send() == "done"
-    assert [(n, len(p)) for n, p in u.sink.records] == [(1, 40), (FFFF, 0)]
+    assert [(n, len(p)) for n, p in u.sink.records] == [(1, 40)]
     assert u.sink.transfers == [data]
+    assert (u.rcv["udiRecords"], u.rcv["udiTransfers"], u.rcv["wAck"]) == (1, 1, FFFF)
 
 
 def test_consecutive_transfers_restart_at_one(wd):
@@ -465,3 +469,28 @@ def test_record_one_again_with_other_content_is_a_new_transfer(wd):
     assert r["udiUnexpected"] == 1 and r["wAck"] == 2
     sr.feed(FFFF, [24])
     assert u.sink.transfers == [[21, 22, 23, 24]]
+
+
+# ---------------------------------------------------------------- a dead link (issue 38)
+
+def test_a_dead_link_is_a_link_error_at_both_blocks_and_the_transfer_resumes(wd):
+    """Reads of the own modem that keep failing (a serial line that cannot be opened, no
+    answer) used to leave both blocks at error NONE, waiting without a word. They now show
+    xLinkError with the runtime's reason and eWaitReason MIP_WAIT_LINK from the first failed
+    read; the transfer is not failed by it and goes on when the reads succeed again."""
+    data = pattern(5 * 122, seed=38)
+    u = Uni(wd, data)
+    u.bench.step(3)
+    u.snd["xExecute"] = True
+    assert u.bench.run_until(lambda: u.snd["udiRecords"] >= 2, 3000)
+    u.port_o.read_fail = u.port_c.read_fail = 1110      # plcrt: no answer in time
+    u.bench.step(6)
+    for fb in (u.snd, u.rcv):
+        assert fb["xLinkError"] and fb["wLinkError"] == 1110
+        assert fb["eWaitReason"] == WAIT["MIP_WAIT_LINK"]
+        assert not fb["xError"] and fb["eErrorId"] == E_NONE
+    u.port_o.read_fail = u.port_c.read_fail = 0
+    assert u.bench.run_until(lambda: u.snd["xDone"], 20000)
+    assert u.sink.transfers == [data]
+    for fb in (u.snd, u.rcv):
+        assert not fb["xLinkError"] and fb["wLinkError"] == 1110   # the reason is kept

@@ -102,3 +102,41 @@ def test_field_strength_and_station_status(st):
     st["wFieldStrength"] = 0
     st.plc.scan()                      # no valid read: values held
     assert not st["xStationAnswered"] and st["iStationHearsMdp"] == -75
+
+
+def failed_read(fb, status):
+    """One failed read as the runtime's handshake shows it: error with its status, one scan."""
+    fb["xReadError"] = True
+    fb["wReadStatus"] = status
+    fb.plc.scan()
+    fb["xReadError"] = False
+
+
+def test_a_failed_read_is_a_link_error_with_the_runtimes_reason(st):
+    """Reads that keep failing (issue 38: a dead serial line, a refused connection) are never a
+    quiet block: xLinkError in the scan of the failure, wLinkError the runtime's status, until a
+    read succeeds; the status flags keep the last valid read."""
+    read(st, 0x10, 2)
+    assert not st["xLinkError"] and st["wLinkError"] == 0 and st["udiReadErrors"] == 0
+    failed_read(st, 1110)
+    assert st["xLinkError"] and st["wLinkError"] == 1110 and st["udiReadErrors"] == 1
+    st.plc.scan(5)                     # no read in between: the error holds
+    assert st["xLinkError"] and st["xWriteUnconfirmed"] and st["uReadCount"] == 2
+    failed_read(st, 1002)
+    assert st["wLinkError"] == 1002 and st["udiReadErrors"] == 2
+    read(st, 0x00)
+    assert not st["xLinkError"] and st["wLinkError"] == 1002   # the reason is kept
+    assert not st["xWriteUnconfirmed"]
+
+
+def test_a_read_error_held_for_many_scans_counts_once_and_wins_over_a_valid_flag(st):
+    """A polled range's error stays TRUE while its polls fail; a program whose xReadValid is
+    always TRUE (OpenPLC's cyclic I/O) still sees the error."""
+    st["xReadError"] = True
+    st["wReadStatus"] = 1111
+    st["xReadValid"] = True
+    st.plc.scan(10)
+    assert st["xLinkError"] and st["wLinkError"] == 1111 and st["udiReadErrors"] == 1
+    st["xReadError"] = False
+    st.plc.scan()
+    assert not st["xLinkError"]

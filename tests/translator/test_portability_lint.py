@@ -36,10 +36,6 @@ ALLOWED = [
      "three equal terms: as in MIP_Receiver, the sum is always normalised"),
     ("plc/*.st", "time-sum", "T#1s * (WORD_TO_DINT(",
      "whole seconds plus at most 999 ms: the nanosecond part stays below 1e9"),
-    ("plc/*.st", "warned", "T#1s * (WORD_TO_DINT(",
-     "TIME * number: whole seconds are exact and T#1ms * n with n <= 999 stays inside matiec's "
-     "32-bit nanoseconds; matiec's T#1ms is 999999 ns, so a timeout is up to 999 ns (far less "
-     "than a scan) shorter"),
     ("st_lib/MIP_Receiver.st", "timer-pt", "tonStep(",
      "PT is 3 * tTimeout (default T#10s): a step bound, never T#0s in a working set-up; at "
      "T#0s matiec's Q would come one scan later, a timing difference only"),

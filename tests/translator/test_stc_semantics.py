@@ -84,6 +84,23 @@ WARN_CASES = [
 ]
 
 
+def test_the_documented_time_form_is_not_warned_and_the_advice_is_that_form(tmp_path):
+    """docs/wiring-openplc.md builds a TIME from milliseconds as T#1s * (n / 1000) +
+    T#1ms * (n MOD 1000), exact in matiec, and says to avoid DINT_TO_TIME (matiec: seconds,
+    CODESYS: milliseconds): the warning neither fires on that form nor advises DINT_TO_TIME."""
+    src = tmp_path / "w.st"
+    src.write_text("PROGRAM Main\nVAR t : TIME; p : WORD; k : DINT; END_VAR\n"
+                   "t := T#1s * (WORD_TO_DINT(p) / 1000) + T#1ms * (WORD_TO_DINT(p) MOD 1000);\n"
+                   "t := T#1ms * k;\nEND_PROGRAM\n" + CONFIG)
+    r = H.run_stc(["-o", str(tmp_path / "o"), str(src)])
+    assert r.returncode == 0, r.stderr
+    assert f"{src}:3:" not in r.stderr, r.stderr
+    warned = [x for x in r.stderr.splitlines() if x.startswith(f"{src}:4:")]
+    assert len(warned) == 1 and "TIME * number" in warned[0], r.stderr
+    assert "DINT_TO_TIME" not in r.stderr
+    assert "T#1s * (n / 1000) + T#1ms * (n MOD 1000)" in warned[0]
+
+
 @pytest.mark.parametrize("stmt,needle", WARN_CASES, ids=[n for _, n in WARN_CASES])
 def test_portability_warning(tmp_path, stmt, needle):
     src = tmp_path / "w.st"

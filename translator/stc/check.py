@@ -1298,15 +1298,32 @@ class Checker:
             # a power of two up to 2**9 divides 10**9: matiec's double arithmetic is exact and
             # truncates toward zero like IEC, for every TIME
             return
+        if e.op == "*" and tv is not None and self._mod_bound_exact(tv, ke):
+            # T#1ms * (n MOD 1000): the factor is bounded, the product stays inside matiec's
+            # 32-bit nanoseconds (the form docs/wiring-openplc.md recommends)
+            return
         if e.op == "*":
             self.warn(e.pos, "portability: TIME * number differs between matiec and IEC: matiec "
                       "scales the sub-second part through a 32-bit int of nanoseconds "
-                      "(T#1ms * 2148 gives -2.147 s); multiply whole seconds (T#1s * n) or "
-                      "use DINT_TO_TIME")
+                      "(T#1ms * 2148 gives -2.147 s); build it from whole seconds and "
+                      "milliseconds: T#1s * (n / 1000) + T#1ms * (n MOD 1000)")
         else:
             self.warn(e.pos, "portability: TIME / number differs between matiec and IEC: "
                       "matiec divides seconds and nanoseconds in double, so the result can be "
                       "some ns off (more for long TIMEs)")
+
+    def _mod_bound_exact(self, tv, ke):
+        """ke is (x MOD c) with a constant c, and tv * k is exact in matiec for every
+        remainder k (-(c-1) .. c-1)."""
+        while isinstance(ke, S.Paren):
+            ke = ke.inner
+        if not (isinstance(ke, S.BinOp) and ke.op == "MOD"):
+            return False
+        c = self.const_value(ke.right)
+        if not isinstance(c, int) or not 1 <= abs(c) <= 100_000:
+            return False
+        return all(_matiec_time_mul(tv, k) == tv * k for k in (abs(c) - 1, 1 - abs(c))) and \
+            abs(tv) * (abs(c) - 1) < 2**31
 
     def _warn_narrow(self, e, t):
         if getattr(e, "fn_form", False):

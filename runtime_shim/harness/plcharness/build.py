@@ -31,7 +31,7 @@ if INSTALLED:
 CORE_SOURCES = ["plcrt_core.c", "plcrt_image.c", "plcrt_config.c", "plcrt_master.c", "plcrt_slave.c",
                 "plcrt_retain.c"]
 GCSE_LIMIT = 512 * 1024  # bytes of a generated C file compiled without -fgcse (see _build_into)
-BUILD_FORMAT = "3"  # bump when the generated files change, to invalidate the cache
+BUILD_FORMAT = "4"  # bump when the generated files change, to invalidate the cache
 
 ELEMENTARY = {
     "BOOL", "BYTE", "SINT", "USINT", "WORD", "INT", "UINT", "DWORD", "DINT", "UDINT",
@@ -219,7 +219,10 @@ def read_variables_csv(gen: Path):
         if section == "programs" and len(cols) >= 3:
             programs[cols[1].upper()] = cols[2].upper()
         elif section == "variables" and len(cols) >= 5:
-            rows.append((cols[1].upper(), cols[2].upper(), cols[4].upper()))
+            # the 7th column is matiec's RETAIN flag (1 for a variable of a RETAIN section,
+            # or of an FB instance declared in one)
+            rows.append((cols[1].upper(), cols[2].upper(), cols[4].upper(),
+                         len(cols) >= 7 and cols[6].strip() == "1"))
     enums = _matiec_enums(gen)
     symbols = []
     decls = ['#include "iec_std_lib.h"', '#include "POUS.h"']
@@ -232,8 +235,9 @@ def read_variables_csv(gen: Path):
             cname = f"{parts[1]}__{parts[2]}"
             decls.append(f"extern {ptype} {cname};")
             declared.add(cname)
-    fb_paths = {path for kind, path, typ in rows if kind == "FB"}
-    for kind, path, typ in rows:
+    fb_paths = {path: typ for kind, path, typ, _ in rows if kind == "FB"}  # path -> FB type
+    retained = []
+    for kind, path, typ, retain in rows:
         if kind == "FB":
             continue
         if typ in ELEMENTARY and typ != "STRING":
@@ -262,7 +266,118 @@ def read_variables_csv(gen: Path):
                 declared.add(base)
         c_ref = f"(*{lv})" if pointer else lv
         symbols.append(Symbol(path, sym_type, kind_names.get(kind, "VAR"), c_ref))
-    return symbols, decls, programs, fb_paths
+        if retain:
+            retained.append((path, typ))
+    return symbols, decls, programs, fb_paths, retained
+
+
+def _matiec_member_ref(path, programs, fb_paths):
+    """The C lvalue of a variable of a program instance in matiec's layout, up to the value
+    of the variable itself (X.value, S.value.member; arrays without .table), or None for a
+    path outside the program instances."""
+    parts = path.split(".")
+    inst = ".".join(parts[:3])
+    if inst not in programs or len(parts) < 4:
+        return None
+    ref = f"{parts[1]}__{parts[2]}"
+    prefix = inst
+    wrapped = False
+    for comp in parts[3:]:
+        prefix = f"{prefix}.{comp}"
+        if wrapped:
+            ref += f".{comp}"           # a member of a STRUCT value
+        elif prefix in fb_paths:
+            ref += f".{comp}"           # an FB instance: a plain struct
+        else:
+            ref += f".{comp}.value"     # a variable: {value, flags}
+            wrapped = True
+    return ref if wrapped else None
+
+
+def read_stc_retain(gen: Path):
+    """(path, type) of the retained variables in stc's RETAIN.c, in its order; None without
+    the file (stc did not translate the sources)."""
+    try:
+        text = (gen / "RETAIN.c").read_text()
+    except OSError:
+        return None
+
+    def table(name):
+        m = re.search(r"\b" + name + r"\[\]\s*=\s*\{(.*?)\n\s*0\s*\};", text, flags=re.S)
+        return re.findall(r'"((?:[^"\\]|\\.)*)"', m.group(1)) if m else []
+    names, types = table("plcrt_gen_retain_names"), table("plcrt_gen_retain_types")
+    if len(types) != len(names):
+        types = [""] * len(names)
+    return [(n.upper(), t) for n, t in zip(names, types)]
+
+
+# The interface of IEC 61131-3's standard function blocks: what stc retains of an instance
+# (not the internal state: the scan clock starts at 0 on every start, so a timer's start time
+# from before a restart would hold it for the previous uptime; docs/retain.md)
+STANDARD_FB_INTERFACE = {
+    "SR": {"S1", "R", "Q1"}, "RS": {"S", "R1", "Q1"},
+    "R_TRIG": {"CLK", "Q"}, "F_TRIG": {"CLK", "Q"},
+    "CTU": {"CU", "R", "PV", "Q", "CV"}, "CTD": {"CD", "LD", "PV", "Q", "CV"},
+    "CTUD": {"CU", "CD", "R", "LD", "PV", "QU", "QD", "CV"},
+    "TP": {"IN", "PT", "Q", "ET"}, "TON": {"IN", "PT", "Q", "ET"}, "TOF": {"IN", "PT", "Q", "ET"},
+}
+
+
+def _standard_fb_type(name):
+    """CTU_DINT, CTUD_ULINT, ... (matiec's typed counters) are CTU, CTUD, ..."""
+    name = name.upper()
+    return name if name in STANDARD_FB_INTERFACE else name.split("_")[0] \
+        if name.split("_")[0] in ("CTU", "CTD", "CTUD") else None
+
+
+def matiec_retained(stc_gen: Path, marked, symbols, programs, fb_types):
+    """The RETAIN variables of a matiec build, as (path, type, C lvalue): the same ones as an
+    stc build of the sources keeps (stc's RETAIN.c, which stc writes alongside the arrays and
+    structs of matiec_arrays_via_stc), in matiec's layout. matiec marks retained variables
+    (VARIABLES.csv's RETAIN column; its *_init__ sets __IEC_RETAIN_FLAG on the same ones) but
+    cannot mark arrays, and marks the internal state of a standard FB (a TON's start time);
+    when stc does not translate the sources, its marks are the table, without that state."""
+    refs = {s.path: s.c_ref for s in symbols}
+    stc_rows = read_stc_retain(stc_gen)
+    out = []
+    if stc_rows is not None:
+        for path, typ in stc_rows:
+            ref = refs.get(path) or _matiec_member_ref(path, programs, fb_types)
+            if ref is not None:  # (array and struct globals: see matiec_arrays_via_stc)
+                out.append((path, typ, ref))
+        return out
+    for path, typ in marked:
+        owner, _, name = path.rpartition(".")
+        std = _standard_fb_type(fb_types.get(owner, ""))
+        if std and name not in STANDARD_FB_INTERFACE[std]:
+            continue
+        if path in refs:
+            out.append((path, typ, refs[path]))
+    return out
+
+
+def _write_retain_c(path: Path, retained, decls):
+    """plcrt_retain_gen.c: the table of retained variables that stc writes as RETAIN.c, for a
+    matiec build (names, types, addresses and sizes; plcrt_retain.c saves and restores them).
+    A located variable's lvalue is (*pointer), set when the program is loaded: the addresses
+    are computed when asked for."""
+    out = ["/* generated by plcharness.build: the program's RETAIN variables (matiec build) */",
+           "#include <stddef.h>"]
+    out += decls
+    out.append("const char *const plcrt_gen_retain_names[] = {")
+    out += [f'  "{p}",' for p, *_ in retained]
+    out.append("  0 };")
+    out.append("const char *const plcrt_gen_retain_types[] = {")
+    out += [f'  "{t}",' for _, t, *_ in retained]
+    out.append("  0 };")
+    out.append(f"const size_t plcrt_gen_n_retain = {len(retained)};")
+    out.append("void *plcrt_gen_retain_addr(size_t i) {\n  switch (i) {")
+    out += [f"  case {i}: return (void *)&({lv});" for i, (_, _, lv) in enumerate(retained)]
+    out.append("  default: return 0;\n  }\n}")
+    out.append("size_t plcrt_gen_retain_size(size_t i) {\n  switch (i) {")
+    out += [f"  case {i}: return sizeof({lv});" for i, (_, _, lv) in enumerate(retained)]
+    out.append("  default: return 0;\n  }\n}")
+    path.write_text("\n".join(out) + "\n")
 
 
 def matiec_arrays_via_stc(sources, workdir: Path, known, fb_paths, programs):
@@ -618,6 +733,7 @@ def _build_into(sources, out: Path, compiler: str, cflags, semantics=None, cache
     gen = out / "gen"
     gen.mkdir(parents=True)
     include = [f"-I{gen}"]
+    retained = []   # matiec: the table of RETAIN variables (stc writes its own RETAIN.c)
     if compiler == "stc":
         _translate_stc(sources, gen, semantics)
         if not (gen / "SYMBOLS.tsv").is_file():
@@ -636,9 +752,10 @@ def _build_into(sources, out: Path, compiler: str, cflags, semantics=None, cache
     else:
         lib = _translate_matiec(sources, gen, out)
         include.append(f"-I{Path(lib) / 'C'}")
-        symbols, decls, programs, fb_paths = read_variables_csv(gen)
+        symbols, decls, programs, fb_paths, csv_retained = read_variables_csv(gen)
         extra_symbols = matiec_arrays_via_stc(sources, out, {s.path for s in symbols},
                                               fb_paths, programs)
+        retained = matiec_retained(out / "stc-types", csv_retained, symbols, programs, fb_paths)
         prog_c = [gen / "Config0.c"] + sorted(gen.glob("Res*.c"))
     for f in prog_c + [gen / "LOCATED_VARIABLES.h"]:
         if not f.is_file():
@@ -680,6 +797,13 @@ def _build_into(sources, out: Path, compiler: str, cflags, semantics=None, cache
         _write_symbols_c(out / "plcrt_symbols.c", symbols, decls)
         _compile(sym_cmd, "compiling the symbol table (c_ref of SYMBOLS.tsv)")
     objs.append(o)
+    if retained:
+        o = out / "plcrt_retain_gen.o"
+        ret_cmd = [cc, "-std=gnu99", "-w", *base, *include, "-c", str(out / "plcrt_retain_gen.c"),
+                   "-o", str(o)]
+        _write_retain_c(out / "plcrt_retain_gen.c", retained, decls)
+        _compile(ret_cmd, "compiling the table of RETAIN variables")
+        objs.append(o)
     o = out / "plcrt_glue.o"
     _compile([cc, "-std=gnu11", "-Wall", *base, core_inc, f"-I{gen}", "-c",
               str(src / "plcrt_glue.c"), "-o", str(o)], "compiling the located variables")

@@ -369,7 +369,8 @@ class Plc:
     # ------------------------------------------------------------ retain
 
     def retain_count(self) -> int:
-        """Number of retained variables (stc's RETAIN.c; 0 for matiec builds)."""
+        """Number of retained variables (stc's RETAIN.c; for matiec builds the table
+        plcrt-build generates: what matiec marks retained and the arrays it cannot mark)."""
         return self._lib.plcrt_retain_count(self._rt)
 
     def retain_save(self) -> bytes:
