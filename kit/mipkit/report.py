@@ -339,6 +339,8 @@ HINTS = {
                          "section whose request and saved are the program's?",
     "MIP_WAIT_WRITE": "the write handshake's done or error never came: the config's write range "
                       "(trigger, done, error) and the program's copies",
+    "MIP_WAIT_LINK": "the program's reads of its own modem fail (xReadError; xLinkError and "
+                     "wLinkError say why): the config's read range and device",
 }
 
 
