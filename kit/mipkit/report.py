@@ -320,7 +320,6 @@ def find_fault(net, message, t_hint=None):
         radio = f" (transfer {where[0]}, record {where[1]} on the radio)" if where else ""
         return Fault(named, t, f"record {named}{radio}: {peer.name} accepted it at {fmt_t(t)}",
                      station)
-    n = named if named is not None else got + 1
     if t_hint is not None:
         t = t_hint
     elif acc:
@@ -328,6 +327,14 @@ def find_fault(net, message, t_hint=None):
     else:
         t = obs.stuck_since() or 0
     last = f", the last at {fmt_t(acc[-1][0])}" if acc else ""
+    r = peer.peer.receiver
+    if named is None and r.transfers and not r.current:
+        # every transfer the peer began it completed: no record is missing there
+        k = len(r.transfers)
+        return Fault(None, t, f"no record missing: {peer.name} accepted {got} "
+                              f"record{'s' if got != 1 else ''} in {k} complete "
+                              f"transfer{'s' if k != 1 else ''}{last}", station)
+    n = named if named is not None else got + 1
     return Fault(n, t, f"record {n}: never reached {peer.name} (it accepted {got} "
                        f"record{'s' if got != 1 else ''}{last})", station)
 

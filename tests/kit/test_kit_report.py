@@ -117,3 +117,16 @@ def test_the_fault_at_an_integrators_own_central(tmp_path):
         head, _, _ = failure_report(net, "not complete", tmp_path / "r2")
         assert head[0].startswith("mip-kit: fault: record 8: never delivered by central "
                                   "CENTRAL.RCV2 (it delivered 7 records, the last at "), head[0]
+
+
+def test_a_failure_that_is_not_about_records_says_none_is_missing(example):
+    """Every record arrived, another expectation failed: the report does not invent a missing
+    record; it is centred on the end of the deliveries."""
+    from kit_helpers import mipkit_cli
+    from test_kit_quick import SMALL, scenario
+    text = SMALL.replace('{ at = "outstation:%MW16", equals = 0 }', '{ at = "outstation:%MW16", equals = 3 }')
+    r = mipkit_cli([scenario(example, text)], example)
+    lines = r.stdout.splitlines()
+    assert lines[0] == "FAIL value outstation:%MW16: outstation:%MW16 = 0, want 3", r.stdout
+    assert re.fullmatch(r"mip-kit: fault: no record missing: central accepted 120 records in 2 "
+                        r"complete transfers, the last at \d+\.\d{3} s", lines[1]), r.stdout
