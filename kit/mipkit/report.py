@@ -481,7 +481,8 @@ def failure_report(net, message, outdir: Path, window_s=6.0, t_hint=None, title=
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
     half = int(window_s * SEC / 2)
-    t_from = max(0, fault.t - half)
+    # centred on the fault; near the start or the end, the whole window on the run's side
+    t_from = max(0, min(fault.t - half, net.now - 2 * half))
     t_to = min(net.now, t_from + 2 * half)
     marks = [(fault.t, "radio", f"fault: record {fault.record}" if fault.record else "fault")]
     for plc, path, _, diag, vals, _ in observer(net).at(fault.t):
