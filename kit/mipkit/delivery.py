@@ -4,29 +4,27 @@ receiver after every scan: when its udiRecords changed it logs wRecordNumber, uR
 aRecord (the record just delivered, xRecordValid), when its udiTransfers changed a transfer
 ended (xTransferEnd). A MIP_Link's receiving side is its inner MIP_Receiver, found the same way.
 
-The receivers are found by their members, not by a list the integrator keeps: every instance
-that has MIP_Receiver's outputs below is one.
+The receivers are found by type, not by a list the integrator keeps: every instance that has
+MIP_Receiver's whole interface as st_lib declares it (report.signatures, the one reader) is
+one, also the inner one of a MIP_Link (report.find_blocks keeps the outermost only).
 """
 from __future__ import annotations
 
 import ctypes
 
-# the outputs that make an instance a MIP_Receiver (st_lib/MIP_Receiver.st)
-MEMBERS = ("XTRANSFEREND", "XRECORDVALID", "UDIRECORDS", "UDITRANSFERS", "URECORDLEN",
-           "WRECORDNUMBER", "ARECORD", "WACK")
+from .report import signatures
+
 PAYLOAD_MAX = 122      # MIP_T_Payload: 0..121
 
 
 def receivers(plc) -> list[str]:
     """Instance paths of the MIP_Receiver instances of a plcharness Plc, sorted."""
-    names = set(plc.variables())
-    out = []
-    for v in names:
-        if v.endswith(".XTRANSFEREND"):
-            inst = v[: -len(".XTRANSFEREND")]
-            if all(f"{inst}.{m}" in names for m in MEMBERS):
-                out.append(inst)
-    return sorted(out)
+    want = signatures()["MIP_Receiver"][0]
+    members = {}
+    for v in plc.variables():
+        parent, _, name = v.rpartition(".")
+        members.setdefault(parent, set()).add(name)
+    return sorted(p for p, names in members.items() if want <= names)
 
 
 class Receiver:
