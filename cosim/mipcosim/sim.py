@@ -99,6 +99,21 @@ _Stats = Stats
 _BUILDS = {}
 
 
+def read_taps(lib, sim):
+    """The entries the kernel's taps logged since the last call, oldest first: (tap slot, PLC
+    id, words) (mipcosim_tap_read's [tap, plc, n, words...])."""
+    buf = (ctypes.c_uint16 * 65536)()
+    while True:
+        n = lib.mipcosim_tap_read(sim, buf, len(buf))
+        if n == 0:
+            return
+        i = 0
+        while i < n:
+            k = buf[i + 2]
+            yield buf[i], buf[i + 1], list(buf[i + 3:i + 3 + k])
+            i += 3 + k
+
+
 def radio_stats(lib, sim, stations):
     """The emulator's radio counters summed over `stations`, and the kernel's scans and
     Modbus requests."""
@@ -433,17 +448,9 @@ class Chain(_Kernel):
         self.run_until(self.now + ns)
 
     def _drain(self):
-        buf = (ctypes.c_uint16 * 65536)()
         t = self.now
-        while True:
-            n = self.lib.mipcosim_tap_read(self.sim, buf, len(buf))
-            if n == 0:
-                return
-            i = 0
-            while i < n:
-                tap, plc, k = buf[i], buf[i + 1], buf[i + 2]
-                self.events.append(Event(t, tap, plc, list(buf[i + 3:i + 3 + k])))
-                i += 3 + k
+        for tap, plc, words in read_taps(self.lib, self.sim):
+            self.events.append(Event(t, tap, plc, words))
 
     def restart(self, who, down_ns=500 * MS, warm=False, graceful=False):
         """A PLC restart: off for down_ns (its modem keeps running), then a fresh instance of

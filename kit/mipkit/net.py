@@ -578,19 +578,10 @@ class Net:
 
     def _drain(self):
         """Hand what the kernel's taps logged to the PLCs' delivery taps."""
-        buf = (ctypes.c_uint16 * 65536)()
-        while True:
-            n = self.lib.mipcosim_tap_read(self.sim, buf, len(buf))
-            if n == 0:
-                return
-            i = 0
-            while i < n:
-                slot, k = buf[i], buf[i + 2]
-                words = list(buf[i + 3:i + 3 + k])
-                for p in self.plcs.values():
-                    if p._taps is not None and p._taps.take(slot, words):
-                        break
-                i += 3 + k
+        for slot, _plc, words in S.read_taps(self.lib, self.sim):
+            for p in self.plcs.values():
+                if p._taps is not None and p._taps.take(slot, words):
+                    break
 
     def run_until_time(self, t_ns):
         from .report import observer
