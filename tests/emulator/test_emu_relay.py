@@ -168,3 +168,23 @@ def test_bad_relay_options_one_line(spec, msg):
     assert p.returncode == 2
     lines = p.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("mip-emulator: error:") and msg in lines[0], p.stderr
+
+
+def test_blocks_read_stay_unchanged_while_new_events_arrive(tmp_path):
+    events = [(0.001, 1, 1, 1, 1), (0.6, 1, 1, 1, 2)]
+    s = RelayServer(f"script={write_script(tmp_path / 'e.txt', events)}")
+    m = Master(s.port)
+    try:
+        s.sleep_past(0.001, margin=0.1)
+        _, seq, blocks, first = m.read()
+        assert [b["value"] for b in blocks] == [1]
+        s.sleep_past(0.6)
+        entries, _, _, now = m.read()
+        assert entries == 2                       # the count shows the newcomer ...
+        assert now[1:] == first[1:]               # ... SOE_Control and the blocks do not
+        assert m.ack(seq, 1) == 0
+        _, seq2, blocks, _ = m.read()
+        assert seq2 == seq + 1 and [b["value"] for b in blocks] == [2]
+    finally:
+        m.close()
+        assert s.stop() == 0
