@@ -247,7 +247,7 @@ def load_script(path):
 
 def main(argv=None):
     import time
-    ap = argparse.ArgumentParser(prog="mip-peer-relay", description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(prog="mip-peer-relay", description=" ".join(__doc__.split("\n\n")[0].split()))
     ap.add_argument("--port", type=int, default=15030)
     ap.add_argument("--script", required=True)
     ap.add_argument("--origin", type=int, default=None, help="ms since 1970 of time 0 (default: now)")
