@@ -1,10 +1,12 @@
 """The real-time SIPROTEC event recorder (mip-emulator --relay) against a pymodbus master doing
 the SOE_Control handshake: what a master sees, as docs/chain.md "The relay" describes it."""
+import socket
+import struct
 import subprocess
 
 import pytest
 
-from emu_support import BINARY, wait_until
+from emu_support import BINARY, connect, wait_until
 from relay_support import BASE, ORIGIN_MS, Master, RelayServer, exc, write_script
 
 EVENTS = [(k / 1000, 0x0102, 100 + k, 0x0101, k) for k in range(1, 8)]  # 7 events at k ms
@@ -22,6 +24,7 @@ def relay(tmp_path, request):
         request.addfinalizer(m.close)
         # the scripted times are since the server's start: wait until all have happened
         s.sleep_past(max(e[0] for e in events))
+        assert wait_until(lambda: m.count() >= min(len(events), 5), timeout=10)
         return m
 
     yield start
@@ -188,3 +191,35 @@ def test_blocks_read_stay_unchanged_while_new_events_arrive(tmp_path):
     finally:
         m.close()
         assert s.stop() == 0
+
+
+def raw(sock, adu):
+    sock.sendall(adu)
+    head = sock.recv(7, socket.MSG_WAITALL)
+    if not head:
+        return None
+    n = struct.unpack(">H", head[4:6])[0]
+    return head + sock.recv(n - 1, socket.MSG_WAITALL)
+
+
+def test_hostile_frames_close_only_their_connection(relay):
+    m = relay()
+    before = m.read()[3]
+    port = m.c.comm_params.port
+    a, b = connect(port), connect(port)
+    try:
+        # a PDU too short for FC3 and an FC16 whose byte count lies: exception 03, connection stays
+        assert raw(a, struct.pack(">HHHB", 1, 0, 4, 1) + bytes([3, 2, 88])) == \
+            struct.pack(">HHHB", 1, 0, 3, 1) + bytes([0x83, 3])
+        assert raw(a, struct.pack(">HHHB", 2, 0, 10, 1) + bytes([16, 2, 89, 0, 1, 4, 1, 3, 0, 0])) == \
+            struct.pack(">HHHB", 2, 0, 3, 1) + bytes([0x90, 3])
+        # protocol id 1: not Modbus, the connection closes
+        a.sendall(struct.pack(">HHHB", 3, 1, 6, 1) + bytes([3, 2, 88, 0, 26]))
+        a.settimeout(10)
+        assert a.recv(100) == b""
+        # the other connection and the recorder are untouched
+        r = raw(b, struct.pack(">HHHB", 4, 0, 6, 7) + bytes([3, 2, 88, 0, 26]))
+        assert r[6] == 7 and list(struct.unpack(">26H", r[9:])) == before
+    finally:
+        a.close()
+        b.close()
