@@ -78,3 +78,41 @@ def test_emulator_and_independent_relay_answer_alike(tmp_path, opts):
     for a, b in zip(ours, theirs):
         assert a == b
     assert len(ours) == len(theirs)
+
+
+def test_both_relays_keep_read_blocks_while_events_arrive(tmp_path):
+    """In real time: two events, a read, three more events, then the handshake goes on. Both
+    relays must keep what the master read until it acknowledges, and agree on every answer."""
+    import time
+    events = [(0.001, 0x0101, 1, 0x0101, 1), (0.002, 0x0101, 2, 0x0101, 2)] + \
+             [(0.8, 0x0101, 3 + k, 0x0101, 3 + k) for k in range(3)]
+    script = write_script(tmp_path / "events.txt", events)
+
+    rec = EventRecorder(RelayConfig(origin_ms=ORIGIN_MS))
+    for t, w in load_script(script):
+        rec.add(t, w)
+    t0 = time.monotonic()
+    peer = PeerServer(rec, clock=lambda: time.monotonic() - t0).start()
+    emu = RelayServer(f"script={script}")
+    masters = [Master(emu.port), Master(peer.port)]
+    try:
+        emu.sleep_past(0.002, margin=0.1)
+        seen = [[] for _ in masters]
+        for m, out in zip(masters, seen):
+            out.append(m.read()[3])
+        emu.sleep_past(0.8)
+        for m, out in zip(masters, seen):
+            out.append(m.read()[3])
+            seq = out[-1][1] & 0xFF
+            out.append(m.ack(seq, 2))
+            out.append(m.read()[3])
+            out.append(m.ack(out[-1][1] & 0xFF, 3))
+            out.append(m.read()[3])
+        assert seen[0][0][1] == 1 | 2 << 8 and seen[0][1][0] == 5 and seen[0][1][1:] == seen[0][0][1:]
+        assert seen[0] == seen[1]
+    finally:
+        for m in masters:
+            m.close()
+        peer.shutdown()
+        peer.server_close()
+        assert emu.stop() == 0
