@@ -213,8 +213,12 @@ void siprotec_advance(siprotec_relay *r, uint64_t now_ns)
                 synth(r, t);
         }
     }
-    if (r->next_script == r->n_script)
-        r->next_script = r->n_script = 0;
+    /* drop the events that happened, so a caller scripting as it goes keeps a small array */
+    if (r->next_script > 0 && r->next_script >= r->n_script / 2) {
+        memmove(r->script, r->script + r->next_script, (r->n_script - r->next_script) * sizeof *r->script);
+        r->n_script -= r->next_script;
+        r->next_script = 0;
+    }
 }
 
 static uint16_t reg(const siprotec_relay *r, unsigned off)

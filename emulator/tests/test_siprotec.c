@@ -383,6 +383,35 @@ static void t_sources(void)
     siprotec_free(r);
 }
 
+/* events scripted out of order and while time runs come out in time order; one scripted for a
+ * time already past happens at the time reached (its time stamp says so) */
+static void t_script_order(void)
+{
+    siprotec_relay *r = mk(NULL);
+    uint16_t w[4] = { 1, 1, 1, 0 };
+    uint16_t v[26];
+    for (uint64_t k = 0; k < 40; k++) {  /* many rounds on one relay, across the dropping of consumed events */
+        uint64_t t = k * 10000000u;
+        w[3] = 5; siprotec_script(r, t + 5000000, w);
+        w[3] = 3; siprotec_script(r, t + 3000000, w);
+        siprotec_advance(r, t + 2000000);
+        w[3] = 4; siprotec_script(r, t + 4000000, w);
+        w[3] = 1; siprotec_script(r, t + 1000000, w); /* past: happens at t + 2 ms */
+        siprotec_advance(r, t + 9000000);
+        CHECK_EQ(rd(r, 3, B, 26, v), 0);
+        CHECK_EQ(v[0], 4);
+        CHECK_EQ(v[5], 1);
+        CHECK_EQ(v[9], (1767225600000ull + t / 1000000 + 2) & 0xFFFF);
+        CHECK_EQ(v[13], 3);
+        CHECK_EQ(v[21], 4);
+        CHECK_EQ(wr6(r, B + 1, v[1]), 0);
+        CHECK_EQ(rd(r, 3, B, 6, v), 0);
+        CHECK_EQ(v[5], 5);
+        CHECK_EQ(wr6(r, B + 1, v[1]), 0);
+    }
+    siprotec_free(r);
+}
+
 static void seq2(siprotec_config *c) { c->seq_bits = 2; }
 
 static void t_seq_wrap(void)
@@ -477,6 +506,7 @@ int main(int argc, char **argv)
     run("relay_base", t_base);
     run("relay_sources", t_sources);
     run("relay_seq_wrap", t_seq_wrap);
+    run("relay_script_order", t_script_order);
     run("relay_bad_config", t_bad_config);
     run("relay_hostile", t_hostile);
     printf("siprotec unit: %d passed, %d failed\n", g_pass, g_fail);
