@@ -3,8 +3,8 @@
 EMU_DIR    := emulator
 EMU_BUILD  := $(BUILD)/emulator
 EMU_CFLAGS := -std=c11 -D_POSIX_C_SOURCE=200809L -O2 -g -Wall -Wextra -Wshadow -I$(EMU_DIR)/include
-EMU_CORE_SRC := $(EMU_DIR)/src/mipemu.c
-EMU_HDR    := $(EMU_DIR)/include/mipemu.h
+EMU_CORE_SRC := $(EMU_DIR)/src/mipemu.c $(EMU_DIR)/src/siprotec.c
+EMU_HDR    := $(EMU_DIR)/include/mipemu.h $(EMU_DIR)/include/siprotec.h
 FUZZ_CC    ?= clang
 EMU_FUZZ_RUNS ?= 20000
 
@@ -14,11 +14,16 @@ QUICK_VARS    += EMU_FUZZ_RUNS=2000
 PYTEST_DEPS   += $(EMU_BUILD)/mip-emulator $(EMU_BUILD)/mipemu-sim
 
 # -fPIC: the co-simulation may link the core into a shared object
-$(EMU_BUILD)/mipemu.o: $(EMU_CORE_SRC) $(EMU_HDR)
+$(EMU_BUILD)/mipemu.o: $(EMU_DIR)/src/mipemu.c $(EMU_HDR)
 	@mkdir -p $(@D)
 	$(CC) $(EMU_CFLAGS) -fPIC -c -o $@ $<
 
-$(EMU_BUILD)/libmipemu.a: $(EMU_BUILD)/mipemu.o
+# the SIPROTEC event recorder (issue 35): a second device of the same core library
+$(EMU_BUILD)/siprotec.o: $(EMU_DIR)/src/siprotec.c $(EMU_HDR)
+	@mkdir -p $(@D)
+	$(CC) $(EMU_CFLAGS) -fPIC -c -o $@ $<
+
+$(EMU_BUILD)/libmipemu.a: $(EMU_BUILD)/mipemu.o $(EMU_BUILD)/siprotec.o
 	rm -f $@ && ar rcs $@ $^
 
 EMU_CLI := $(EMU_DIR)/src/cli_config.c $(EMU_DIR)/src/cli_config.h
@@ -32,6 +37,9 @@ $(EMU_BUILD)/mipemu-sim: $(EMU_DIR)/src/sim.c $(EMU_CLI) $(EMU_BUILD)/libmipemu.
 $(EMU_BUILD)/test_mipemu: $(EMU_DIR)/tests/test_mipemu.c $(EMU_BUILD)/libmipemu.a $(EMU_HDR)
 	$(CC) $(EMU_CFLAGS) -o $@ $< $(EMU_BUILD)/libmipemu.a -lm
 
+$(EMU_BUILD)/test_siprotec: $(EMU_DIR)/tests/test_siprotec.c $(EMU_BUILD)/libmipemu.a $(EMU_HDR)
+	$(CC) $(EMU_CFLAGS) -o $@ $< $(EMU_BUILD)/libmipemu.a
+
 # the RTU framing (t1.5, t3.5) with explicit times
 $(EMU_BUILD)/test_rtu: $(EMU_DIR)/tests/test_rtu.c $(EMU_DIR)/src/rtu.c $(EMU_DIR)/src/rtu.h
 	$(CC) $(EMU_CFLAGS) -o $@ $< $(EMU_DIR)/src/rtu.c
@@ -42,9 +50,10 @@ $(EMU_BUILD)/fuzz_mipemu: $(EMU_DIR)/fuzz/fuzz_mipemu.c $(EMU_CORE_SRC) $(EMU_HD
 	  -fno-sanitize-recover=undefined -o $@ $< $(EMU_CORE_SRC)
 
 .PHONY: emulator-unit emulator-fuzz
-emulator-unit: $(EMU_BUILD)/test_mipemu $(EMU_BUILD)/test_rtu
+emulator-unit: $(EMU_BUILD)/test_mipemu $(EMU_BUILD)/test_rtu $(EMU_BUILD)/test_siprotec
 	@mkdir -p $(RESULTS)
 	$(EMU_BUILD)/test_mipemu --junit $(RESULTS)/emulator-unit.xml
+	$(EMU_BUILD)/test_siprotec --junit $(RESULTS)/emulator-unit-siprotec.xml
 	$(EMU_BUILD)/test_rtu --junit $(RESULTS)/emulator-unit-rtu.xml
 
 # A short deterministic run (fixed seed and run count: make check 20000, make test 2000) over a

@@ -3,15 +3,17 @@
  * radio time advances in between. Responses and trace lines are checked for well-formedness.
  *
  * Input: byte 0 = configuration flags, byte 1 = static register count, then operations:
- *   op & 3 == 0 or 1: feed the next (next byte) bytes into the stream of endpoint (op >> 2)
+ *   op & 3 == 0 or 1: feed the next (next byte) bytes into the stream of endpoint
+ *                     (op >> 2) mod (stations + 2); the last one is the SIPROTEC relay
  *   op & 3 == 2:      advance virtual time by (next byte) * 7 ms
  *   op & 3 == 3:      advance to the next radio event */
 #include "mipemu.h"
+#include "siprotec.h"
 
 #include <stdlib.h>
 #include <string.h>
 
-#define MAX_EP (4 + 1)
+#define MAX_EP (4 + 2)
 
 typedef struct { uint8_t buf[2 * MIPEMU_FRAME_MAX]; size_t len; } stream_t;
 
@@ -67,6 +69,20 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     if (!net)
         abort();
     mipemu_net_set_trace(net, check_trace, NULL);
+    /* the relay: its configuration from byte 1 too */
+    siprotec_config rc;
+    siprotec_config_default(&rc);
+    rc.capacity = 3 + data[1] % 8;
+    rc.overflow = (data[1] >> 6) & 1;
+    rc.bad_ack = data[1] >> 7;
+    rc.seq_bits = 2 + (data[1] >> 3) % 7;
+    rc.rate = 50;
+    rc.burst_n = 4;
+    rc.burst_every_s = 0.3;
+    siprotec_relay *relay = siprotec_new(&rc, NULL, 0);
+    if (!relay)
+        abort();
+    int relay_ep = c.stations + 1;
     static stream_t st[MAX_EP];
     for (int i = 0; i < MAX_EP; i++)
         st[i].len = 0;
@@ -75,7 +91,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     while (i < size) {
         uint8_t op = data[i++];
         if ((op & 3) <= 1) {
-            int ep = (op >> 2) % (c.stations + 1);
+            int ep = (op >> 2) % (c.stations + 2);
             size_t n = i < size ? data[i++] : 0;
             if (n > size - i)
                 n = size - i;
@@ -88,6 +104,25 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             size_t off = 0;
             for (;;) {
                 long fl = mipemu_frame_length(s->buf + off, s->len - off);
+                if (ep == relay_ep) {
+                    if (fl == 0 || (fl > 0 && (size_t)fl > s->len - off))
+                        break;
+                    uint8_t out[SIPROTEC_RESPONSE_MAX];
+                    long rl = siprotec_handle(relay, s->buf + off, fl < 0 ? s->len - off : (size_t)fl, out, sizeof out);
+                    if (fl < 0 || rl < 0) {
+                        if (fl < 0 && rl != -1)
+                            abort();
+                        s->len = off = 0;
+                        break;
+                    }
+                    check_response(s->buf + off, out, rl);
+                    siprotec_stats rs;
+                    siprotec_get_stats(relay, &rs);
+                    if (rs.entries > rc.capacity || rs.offered > 3 || rs.offered > rs.entries)
+                        abort();
+                    off += (size_t)fl;
+                    continue;
+                }
                 if (fl < 0) {            /* malformed: the core traces it, the connection closes */
                     uint8_t out[MIPEMU_RESPONSE_MAX];
                     if (mipemu_handle(net, ep, s->buf + off, s->len - off, out, sizeof out) != -1)
@@ -114,14 +149,17 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             now += (uint64_t)(i < size ? data[i++] : 0) * 7000000ULL;
             if (mipemu_net_advance(net, now) != 0)
                 abort();
+            siprotec_advance(relay, now);
         } else {
             uint64_t t = mipemu_net_next_event(net);
             if (t < now)
                 abort();
             now = t;
             mipemu_net_advance(net, now);
+            siprotec_advance(relay, now);
         }
     }
+    siprotec_free(relay);
     mipemu_net_free(net);
     return 0;
 }

@@ -48,6 +48,15 @@ seeds = {
     "unknown_unit": b"\x00\x0a" + feed(0, frame(1, 9, rd(3, 0, 1))),
     "malformed_proto": b"\x00\x0a" + feed(0, frame(1, 1, rd(3, 2, 1), proto=5)) + feed(0, frame(2, 1, rd(3, 2, 1))),
     "pipelined": b"\x01\x0a" + feed(0, b"".join(frame(i, 1 + i % 2, rd(3, 2, 1)) for i in range(10))),
+    # the SIPROTEC relay (endpoint stations + 1 = 2 here): read, acknowledge, bad writes, reset
+    "relay_handshake": b"\x00\x0a" + adv(40) + feed(2, frame(1, 1, rd(3, 600, 26))
+                                                   + frame(2, 1, struct.pack(">BHH", 6, 601, 1 | 3 << 8))
+                                                   + frame(3, 1, rd(3, 600, 26))
+                                                   + frame(4, 1, fc16(601, [2 | 3 << 8]))
+                                                   + frame(5, 1, struct.pack(">BHH", 6, 600, 0))
+                                                   + frame(6, 1, fc16(600, [1, 2]))
+                                                   + frame(7, 1, struct.pack(">BHH", 6, 601, 0x8000))
+                                                   + frame(8, 1, rd(4, 600, 2))),
 }
 for name, data in seeds.items():
     (out / name).write_bytes(data)

@@ -5,6 +5,7 @@
 #include "cli_config.h"
 #include "mipemu.h"
 #include "rtu.h"
+#include "siprotec.h"
 
 #include <arpa/inet.h>
 #include <errno.h>
@@ -55,6 +56,11 @@ static const char USAGE[] =
     "                         (not with --rtu: an RTU frame holds at most 256 bytes)\n"
     "  --lose-record N        lose the first uplink block whose register 0 is N, once per\n"
     "                         station (the note's example: --lose-record 2); default off\n"
+    "  --relay PORT[:KEY=VALUE,...]\n"
+    "                         also a SIPROTEC event recorder (Modbus TCP) on PORT (0 = any);\n"
+    "                         keys: base, cap, overflow=drop-oldest|drop-new, seq-bits,\n"
+    "                         bad-ack=exc03|ignore, rate (events/s), burst=N/SECONDS,\n"
+    "                         origin (ms since 1970 of time 0; default: now), script=FILE\n"
     "  --rtu PORT[:BAUD[:FRAME]]=DEVICES\n"
     "                         also serve endpoints as Modbus RTU slaves on a serial line: PORT is\n"
     "                         'pty' (a new pty), 'pty:LINK' (and a symlink LINK to it) or a tty;\n"
@@ -67,7 +73,7 @@ static const char USAGE[] =
     "  --help                 this text\n"
     "\n"
     "When all ports are bound it prints one line:\n"
-    "  mip-emulator: listening mdp=HOST:PORT trm=PORT1,PORT2,... [rtu=TTY1,TTY2,...]\n"
+    "  mip-emulator: listening mdp=HOST:PORT trm=PORT1,PORT2,... [rtu=TTY1,TTY2,...] [relay=PORT]\n"
     "(with --no-tcp: mdp=none trm=none). Serial lines: docs/serial.md.\n"
     "Register maps, status bits, radio timing and trace format: emulator/README.md.\n";
 
@@ -118,6 +124,10 @@ static mipemu_net *g_net;
 static uint64_t g_t0;
 static FILE *g_trace;
 static long g_clients;
+
+/* --relay: one SIPROTEC event recorder on its own port (endpoint EP_RELAY) */
+#define EP_RELAY (-1)
+static siprotec_relay *g_relay;
 
 static uint64_t mono_ns(void)
 {
@@ -230,6 +240,19 @@ static int process_frames(conn_t *c)
     int advanced = 0;
     while (off < c->in_len) {
         long fl = mipemu_frame_length(c->in + off, c->in_len - off);
+        if (c->ep == EP_RELAY) {
+            if (fl < 0)
+                return -1;
+            if (fl == 0 || (size_t)fl > c->in_len - off)
+                break;
+            uint8_t resp[SIPROTEC_RESPONSE_MAX];
+            siprotec_advance(g_relay, mono_ns() - g_t0);
+            long rl = siprotec_handle(g_relay, c->in + off, (size_t)fl, resp, sizeof resp);
+            if (rl < 0 || append_out(c, resp, (size_t)rl) < 0)
+                return -1;
+            off += (size_t)fl;
+            continue;
+        }
         if (fl < 0) {
             /* let the core see (and trace) the bad frame; it answers "close" */
             uint8_t resp[MIPEMU_RESPONSE_MAX];
@@ -382,6 +405,113 @@ static int listen_on(const char *host, int port, int *bound_port)
     return fd;
 }
 
+/* Script file of --relay: one event a line, "SECONDS W0 W1 W2 W3" (time since start; register
+ * type / bit offset, address, cause / type, value; decimal or 0x..); '#' starts a comment. */
+static void relay_load_script(siprotec_relay *r, const char *path)
+{
+    FILE *f = fopen(path, "r");
+    if (!f)
+        cli_usage_error("--relay script=%s: %s", path, strerror(errno));
+    char line[512];
+    int ln = 0;
+    while (fgets(line, sizeof line, f)) {
+        ln++;
+        char *h = strchr(line, '#');
+        if (h)
+            *h = 0;
+        char *p = line, *e;
+        while (*p == ' ' || *p == '\t')
+            p++;
+        if (*p == '\n' || *p == 0)
+            continue;
+        double t = strtod(p, &e);
+        if (e == p || !(t >= 0 && t <= 1e9))
+            cli_usage_error("%s:%d: a time in seconds (0..1e9) first", path, ln);
+        uint16_t w[4];
+        for (int i = 0; i < 4; i++) {
+            p = e;
+            long v = strtol(p, &e, 0);
+            if (e == p || v < 0 || v > 65535)
+                cli_usage_error("%s:%d: four register values 0..65535 after the time", path, ln);
+            w[i] = (uint16_t)v;
+        }
+        while (*e == ' ' || *e == '\t' || *e == '\r')
+            e++;
+        if (*e != '\n' && *e != 0)
+            cli_usage_error("%s:%d: unexpected '%.20s'", path, ln, e);
+        if (siprotec_script(r, (uint64_t)(t * 1e9 + 0.5), w) < 0)
+            cli_usage_error("%s:%d: out of memory", path, ln);
+    }
+    fclose(f);
+}
+
+/* --relay PORT[:KEY=VALUE,...] */
+static siprotec_relay *relay_parse(const char *spec, int *port)
+{
+    siprotec_config c;
+    siprotec_config_default(&c);
+    struct timespec ts;
+    clock_gettime(CLOCK_REALTIME, &ts); /* the front may read the wall clock; the core never does */
+    c.time_origin_ms = (uint64_t)ts.tv_sec * 1000u + (uint64_t)ts.tv_nsec / 1000000u;
+    char buf[1024];
+    if (strlen(spec) >= sizeof buf)
+        cli_usage_error("--relay: too long");
+    strcpy(buf, spec);
+    char *opts = strchr(buf, ':');
+    if (opts)
+        *opts++ = 0;
+    *port = (int)cli_long("--relay", buf, 0, 65535);
+    const char *script = NULL;
+    for (char *kv = opts ? strtok(opts, ",") : NULL; kv; kv = strtok(NULL, ",")) {
+        char *v = strchr(kv, '=');
+        if (!v)
+            cli_usage_error("--relay: '%s' is not KEY=VALUE", kv);
+        *v++ = 0;
+        if (!strcmp(kv, "base"))
+            c.base = (uint16_t)cli_long("--relay base", v, 0, 65535 - SIPROTEC_MAP_REGS + 1);
+        else if (!strcmp(kv, "cap"))
+            c.capacity = (uint32_t)cli_long("--relay cap", v, SIPROTEC_BLOCKS, 1000000);
+        else if (!strcmp(kv, "overflow")) {
+            if (!strcmp(v, "drop-oldest"))
+                c.overflow = SIPROTEC_OVF_DROP_OLDEST;
+            else if (!strcmp(v, "drop-new"))
+                c.overflow = SIPROTEC_OVF_DROP_NEW;
+            else
+                cli_usage_error("--relay overflow: '%s' is not drop-oldest or drop-new", v);
+        } else if (!strcmp(kv, "seq-bits"))
+            c.seq_bits = (int)cli_long("--relay seq-bits", v, 2, 8);
+        else if (!strcmp(kv, "bad-ack")) {
+            if (!strcmp(v, "exc03"))
+                c.bad_ack = SIPROTEC_BAD_ACK_EXC03;
+            else if (!strcmp(v, "ignore"))
+                c.bad_ack = SIPROTEC_BAD_ACK_IGNORE;
+            else
+                cli_usage_error("--relay bad-ack: '%s' is not exc03 or ignore", v);
+        } else if (!strcmp(kv, "rate"))
+            c.rate = cli_double("--relay rate", v, 0, 1e6);
+        else if (!strcmp(kv, "burst")) {
+            char *sl = strchr(v, '/');
+            if (!sl)
+                cli_usage_error("--relay burst: '%s' is not N/SECONDS", v);
+            *sl++ = 0;
+            c.burst_n = (uint32_t)cli_long("--relay burst", v, 0, 1000000);
+            c.burst_every_s = cli_double("--relay burst period", sl, 0.001, 1e6);
+        } else if (!strcmp(kv, "origin"))
+            c.time_origin_ms = (uint64_t)cli_double("--relay origin", v, 0, 9e15);
+        else if (!strcmp(kv, "script"))
+            script = v;
+        else
+            cli_usage_error("--relay: unknown key '%s'", kv);
+    }
+    char err[160];
+    siprotec_relay *r = siprotec_new(&c, err, sizeof err);
+    if (!r)
+        cli_usage_error("--relay: %s", err);
+    if (script)
+        relay_load_script(r, script);
+    return r;
+}
+
 int main(int argc, char **argv)
 {
     cli_prog = PROG;
@@ -392,7 +522,8 @@ int main(int argc, char **argv)
     int mdp_port = 15020, trm_base = 15021;
 
     /* own options, then the network options of cli_config.c (long index >= N_OWN) */
-    enum { O_HOST = 256, O_MDP, O_TRM, O_TRACE, O_HELP, O_RTU, O_NOTCP, O_NET };
+    enum { O_HOST = 256, O_MDP, O_TRM, O_TRACE, O_HELP, O_RTU, O_NOTCP, O_RELAY, O_NET };
+    const char *relay_spec = NULL;
     const char *rtu_specs[MAX_BUSES];
     int n_rtu = 0, no_tcp = 0;
     static const struct option own[] = {
@@ -403,6 +534,7 @@ int main(int argc, char **argv)
         { "help", no_argument, 0, O_HELP },
         { "rtu", required_argument, 0, O_RTU },
         { "no-tcp", no_argument, 0, O_NOTCP },
+        { "relay", required_argument, 0, O_RELAY },
     };
     enum { N_OWN = sizeof own / sizeof own[0] };
     struct option opts[N_OWN + 32];
@@ -429,6 +561,11 @@ int main(int argc, char **argv)
             rtu_specs[n_rtu++] = optarg;
             break;
         case O_NOTCP: no_tcp = 1; break;
+        case O_RELAY:
+            if (relay_spec)
+                cli_usage_error("--relay given twice");
+            relay_spec = optarg;
+            break;
         case ':': cli_usage_error("option %s needs a value", argv[optind - 1]);
         default:
             cli_usage_error("unknown option '%s'", argv[optind - 1]);
@@ -446,6 +583,9 @@ int main(int argc, char **argv)
 
     if (no_tcp && n_rtu == 0)
         cli_usage_error("--no-tcp needs at least one --rtu line");
+    int relay_port = 0, relay_bound = 0;
+    if (relay_spec)
+        g_relay = relay_parse(relay_spec, &relay_port);
     cli_rtu_allow_127_check(&cfg, n_rtu);
     for (int i = 0; i < n_rtu; i++) {
         if (rtu_parse(&g_buses[i].bus, rtu_specs[i], cfg.stations, err, sizeof err) < 0)
@@ -497,6 +637,13 @@ int main(int argc, char **argv)
         if (epoll_ctl(g_epfd, EPOLL_CTL_ADD, listeners[i].fd, &e) < 0)
             die_sys("epoll_ctl");
     }
+    conn_t relay_listener = { .type = T_LISTEN, .ep = EP_RELAY, .fd = -1 };
+    if (g_relay) {
+        relay_listener.fd = listen_on(host, relay_port, &relay_bound);
+        struct epoll_event e = { .events = EPOLLIN, .data.ptr = &relay_listener };
+        if (epoll_ctl(g_epfd, EPOLL_CTL_ADD, relay_listener.fd, &e) < 0)
+            die_sys("epoll_ctl");
+    }
     for (int i = 0; i < n_rtu; i++) {
         if (rtu_open(&g_buses[i].bus, err, sizeof err) < 0) {
             fprintf(stderr, PROG ": error: %s\n", err);
@@ -524,6 +671,8 @@ int main(int argc, char **argv)
     }
     for (int i = 0; i < n_rtu; i++)
         printf("%s%s", i ? "," : " rtu=", g_buses[i].bus.path);
+    if (g_relay)
+        printf(" relay=%d", relay_bound);
     printf("\n");
     fflush(stdout);
     for (int i = 0; i < n_rtu; i++) {
@@ -597,6 +746,9 @@ int main(int argc, char **argv)
         close(listeners[i].fd);
     free(listeners);
     free(ports);
+    if (relay_listener.fd >= 0)
+        close(relay_listener.fd);
+    siprotec_free(g_relay);
     close(g_epfd);
     if (g_spare_fd >= 0)
         close(g_spare_fd);
