@@ -159,7 +159,7 @@ local function block_slots(outstation_block)
     return { { "ack", "outstation->central" } }
 end
 
--- The checks: per link (a TRM's TCP stream, or an MDP's stream and unit id) and stream.
+-- The checks: per link (a TRM's address and port, or an MDP's and the unit id) and stream.
 -- sent: record numbers the sender wrote (or the receiver read as new data) since the
 -- current transfer began; judged only once the capture has seen one.
 local function link(key, stream)
@@ -334,7 +334,9 @@ local function dissect_pdu(rng, pinfo, tree, idx, first_pass, sport, dport, tcps
     if not dev then return end
     local sub = tree:add(p, rng)
     sub:add(F.device, dev == "trm" and "TRM-810 (outstation)" or "MDP-810 (central)")
-    local key = tostring(tcpstream)
+    -- the link: the modem's address and port (a PLC may open a new connection for each request)
+    local key = is_request and (tostring(pinfo.dst) .. ":" .. tostring(dport))
+        or (tostring(pinfo.src) .. ":" .. tostring(sport))
     if dev == "mdp" then
         sub:add(F.station, rng:range(6, 1))
         key = key .. ":" .. unit

@@ -43,6 +43,11 @@ class Capture:
             self.conns[port] = [CLIENT + len(self.conns), 1000, 5000, 0]
         return self.conns[port]
 
+    def reconnect(self, port):
+        """The next exchange with port goes over a new TCP connection (a new client port)."""
+        self.conns.pop(port, None)
+        self.conns[port] = [CLIENT + 100 + len(self.frames), 1000, 5000, 0]
+
     def exchange(self, port, unit, request_pdu: bytes, response_pdu: bytes | None):
         """One request (and its response, unless None): frame numbers of both."""
         c = self._conn(port)

@@ -202,12 +202,19 @@ def test_expert_info_for_what_the_note_forbids(tmp_path):
     c.write(TRM, 1, 2001, [65535, 1])                       # 15: last record
     c.write(TRM, 1, 2001, [1, 1])                           # 17: a new transfer
     c.read(TRM, 1, 2198, [0x0001, 1, 65535])                # 19/20: the old 0xFFFF, fine
-    # the central's side: acknowledgements it writes against the records it read as new
+    # the central's side: acknowledgements it writes against the records it read as new, each
+    # request over a new TCP connection (the link is the modem's address, port and unit id)
     c.write(MDP, 3, 10, [0])                                # 21
+    c.reconnect(MDP)
     c.read(MDP, 3, 198, [0x0001, 2, 1, 0])                  # 23/24: record 1 arrived
+    c.reconnect(MDP)
     c.write(MDP, 3, 10, [1])                                # 25
+    c.reconnect(MDP)
     mdp_never = c.write(MDP, 3, 10, [4])[0]                 # 27: record 4 never arrived
+    c.reconnect(MDP)
     mdp_back = c.write(MDP, 3, 10, [2])[0]                  # 29: 4 -> 2, and 2 never arrived
+    c.reconnect(MDP)
+    c.write(MDP, 4, 10, [3])                                # 31: station 4 has its own counters
     pcap = c.save(tmp_path / "forbidden.pcap")
     got = experts(pcap)
     assert set(got) == {back, never, skip, mdp_never, mdp_back}, got
