@@ -80,12 +80,16 @@ local fi_dstport = Field.new("tcp.dstport")
 local fi_stream = Field.new("tcp.stream")
 
 -- state (built on the first pass, in frame order) -----------------------------------------
-local requests, links, verdicts, portset
+local requests, links, verdicts, portset, last_frame
 
+-- Frames are judged once, in order: a frame above the last one judged is new, the others
+-- (Wireshark's GUI revisiting a frame, tshark's second pass) show what was judged then. Not
+-- pinfo.visited: tshark -2 runs the init routine between its passes, which empties the state.
 local function reset()
     requests = {}   -- "stream:tid" -> {fc, ra, rq}
-    links = {}      -- "stream:unit" / "stream" -> counters of one link
+    links = {}      -- "modem address:port[:unit]/stream" -> counters of one link
     verdicts = {}   -- "frame:pdu:reg" -> expert key
+    last_frame = 0
 end
 reset()
 p.init = reset
@@ -366,7 +370,8 @@ function p.dissector(tvb, pinfo, tree)
         local sport = fi_srcport() and fi_srcport().value
         local dport = fi_dstport() and fi_dstport().value
         local stream = fi_stream() and fi_stream().value or 0
-        local first_pass = not pinfo.visited
+        local first_pass = pinfo.number > last_frame
+        if first_pass then last_frame = pinfo.number end
         info = {}
         for i, fi in ipairs(pdus) do
             local rng = fi.range

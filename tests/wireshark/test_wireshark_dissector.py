@@ -224,6 +224,8 @@ def test_expert_info_for_what_the_note_forbids(tmp_path):
     assert got[mdp_never] == "acknowledges 4, a record not sent in this transfer"
     assert got[mdp_back] == "counter went back to 2"
     assert stale not in got
+    # judged once, in frame order: tshark's two passes (and Wireshark revisiting frames) agree
+    assert experts(pcap, "-2") == got
     # the filter names a user types
     out = tshark(pcap, "-o", f"mipmb.ports:{MDP},{TRM}", "-Y",
                  "mipmb.counter_backwards || mipmb.ack_never_sent || mipmb.record_skipped",
