@@ -1,7 +1,8 @@
 """The Wireshark dissector dist/wireshark/mipmb.lua (docs/wireshark.md), run headless with tshark.
 
 Captures of the demo (plc/demo.py: the example programs in soft-PLCs against mip-emulator over
-Modbus TCP on 127.0.0.1) are recorded with dumpcap in a network namespace of their own (only
+Modbus TCP on 127.0.0.1) and of the co-simulation over TCP (mip-cosim --transport tcp) are
+recorded with dumpcap in a network namespace of their own (only
 the demo's traffic on its loopback), at test time; the counters tshark prints with the dissector
 are compared with the emulator's own trace of the same run (--trace, emulator/README.md "Trace
 format"), request for request and record for record. The expert info is tested on crafted
@@ -53,16 +54,16 @@ def rows(pcap, *opts, lua=True, display="mipmb"):
     return [dict(zip(FIELDS, line.split("\t"))) for line in out.splitlines() if line.strip()]
 
 
-def run_demo(tmp: Path, *demo_args):
-    """(pcap, trace, ports {port: (ep, station)}) of one demo run, captured on its own loopback."""
-    pcap, out, log = tmp / "demo.pcapng", tmp / "demo.out", tmp / "dumpcap.log"
-    rundir = tmp / "run"
+def captured(tmp: Path, command: str):
+    """Output of a shell command run in a network namespace of its own, while dumpcap records
+    every TCP frame on its loopback to tmp/capture.pcapng."""
+    pcap, out, log = tmp / "capture.pcapng", tmp / "command.out", tmp / "dumpcap.log"
     script = f"""
 {sys.executable} -c "{LOOPBACK_UP}"
 {DUMPCAP} -q -i lo -f tcp -w {pcap} 2>{log} &
 D=$!
 for i in $(seq 100); do grep -q '^File:' {log} && break; sleep 0.1; done
-{sys.executable} {REPO}/plc/demo.py --rundir {rundir} {' '.join(demo_args)} >{out} 2>&1
+{command} >{out} 2>&1
 st=$?
 sleep 0.3; kill -INT $D; wait $D
 exit $st
@@ -72,12 +73,43 @@ exit $st
     text = out.read_text() if out.exists() else ""
     assert r.returncode == 0, f"{r.stderr}\n{text}\n{log.read_text() if log.exists() else ''}"
     assert "result: ok" in text, text
+    return pcap, text
+
+
+def read_trace(path):
+    return [json.loads(line) for line in Path(path).read_text().splitlines()]
+
+
+def run_demo(tmp: Path, *demo_args):
+    """(pcap, trace, ports {port: (ep, station)}) of one demo run, captured on its own loopback."""
+    rundir = tmp / "run"
+    pcap, text = captured(tmp, f"{sys.executable} {REPO}/plc/demo.py --rundir {rundir} "
+                               + " ".join(demo_args))
     m = re.search(r"listening mdp=127\.0\.0\.1:(\d+) trm=([\d,]+)", text)
     ports = {int(m.group(1)): ("mdp", None)}
     for s, p in enumerate(m.group(2).split(","), 1):
         ports[int(p)] = ("trm", s)
-    trace = [json.loads(line) for line in (rundir / "emulator-trace.jsonl").read_text().splitlines()]
-    return pcap, trace, ports
+    return pcap, read_trace(rundir / "emulator-trace.jsonl"), ports
+
+
+def run_cosim(tmp: Path, *args):
+    """The same of one co-simulation run over real TCP on 127.0.0.1 (mip-cosim --transport
+    tcp, one station): the servers' ports are those of the connections' SYNs, the modem on
+    each is what the dissector says it is (the test then checks every request of it)."""
+    trace = tmp / "trace.jsonl"
+    cosim = Path(sys.executable).parent / "mip-cosim"
+    pcap, _ = captured(tmp, f"{cosim} run --transport tcp --workdir {tmp / 'w'} "
+                            f"--trace {trace} " + " ".join(args))
+    syn = tshark(pcap, "-Y", "tcp.flags.syn == 1 && tcp.flags.ack == 0", "-T", "fields",
+                 "-e", "tcp.dstport", lua=False).split()
+    opts = ["-o", f"mipmb.ports:{','.join(syn)}"]
+    ports = {}
+    for port in syn:
+        devs = {r["mipmb.device"] for r in rows(pcap, *opts, display=f"mipmb && tcp.dstport == {port}")}
+        assert len(devs) == 1, (port, devs)
+        ports[int(port)] = ("trm", 1) if devs.pop().startswith("TRM") else ("mdp", None)
+    assert sorted(ports.values(), key=str) == [("mdp", None), ("trm", 1)]
+    return pcap, read_trace(trace), ports
 
 
 def port_opts(ports):
@@ -163,6 +195,13 @@ def test_demo_capture_counters_are_the_emulators(tmp_path):
 def rows_plain(pcap, opts):
     return tshark(pcap, *opts, "-Y", "modbus.func_code == 16", "-T", "fields",
                   "-e", "modbus.func_code", lua=False).split()
+
+
+def test_cosim_tcp_capture_under_loss(tmp_path):
+    """The chain in co-simulation with the PLCs' Modbus over TCP, 10 % loss: the same
+    comparison with the emulator core's trace."""
+    pcap, trace, ports = run_cosim(tmp_path, "--records", "5", "--loss", "0.1", "--seed", "3")
+    assert compare_with_trace(pcap, trace, ports) >= 5
 
 
 @pytest.mark.slow
