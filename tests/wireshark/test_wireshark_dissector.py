@@ -311,5 +311,14 @@ def test_preferences_one_based_and_bidirectional(tmp_path):
     bidi = rows(pcap, *base, "-o", "mipmb.one_based:TRUE", "-o", "mipmb.bidi:TRUE",
                 display="mipmb.record || mipmb.ack")
     assert [(r["mipmb.record"], r["mipmb.ack"]) for r in bidi] == [("4", "3"), ("5", "3")]
+    # other register bases: a modem whose map sits elsewhere
+    c = Capture()
+    c.write(TRM, 1, 3001, [7, 1])
+    c.read(TRM, 1, 3198, [0x0001, 1, 6])
+    moved = c.save(tmp_path / "moved.pcap")
+    opts = [*base, "-o", "mipmb.trm_write:3001", "-o", "mipmb.trm_status:3198"]
+    assert [(r["mipmb.record"], r["mipmb.ack"]) for r in rows(moved, *opts)] == \
+        [("7", ""), ("", ""), ("", "6")]       # write, read request, read response
+    assert rows(moved, *base) == []
     # the port preference: a port not in it is not the modem's
     assert rows(pcap, "-o", "mipmb.ports:502", "-o", "mipmb.one_based:TRUE") == []
