@@ -14,6 +14,7 @@ mip-logger-<version>/:
     mip-logger-<version>.st         the same sources concatenated in import order (one import)
     mip-logger-<version>.xml        PLCopen XML (TC6 v2.01), validated against the schema
     blocks.md                       the block reference (docs/blocks.md, regenerated here)
+    wireshark/mipmb.lua             the Wireshark dissector of MIP over Modbus (docs/wireshark.md)
     LICENSE, CHANGELOG.md, README.txt
 
 The import order is the one of docs/blocks.md (every type and block before its first use); it is
@@ -38,6 +39,7 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 TOOLS = REPO / "docs" / "tools"
+WIRESHARK = "wireshark/mipmb.lua"     # dist/wireshark/mipmb.lua, at the same path in the archive
 sys.path.insert(0, str(TOOLS))
 
 from blockref import dependency_order, render  # noqa: E402
@@ -127,6 +129,13 @@ def readme(order: list[str], version: str) -> str:
               "IDEs that import it (CODESYS, TwinCAT, Beremiz). blocks.md is the block",
               "reference. MIP_Version(0) returns the version as a number: "
               "MAJOR * 10000 + MINOR * 100 + PATCH.",
+              "",
+              f"{WIRESHARK} is a Wireshark dissector (Lua) that labels the MIP",
+              "registers and counters in a capture of the PLC-modem link (Modbus/TCP).",
+              "Install: copy it into Wireshark's personal Lua plugins folder,",
+              "~/.local/lib/wireshark/plugins/ (`tshark -G folders` names it), and restart",
+              "Wireshark; or load it for one run:",
+              f"  tshark -X lua_script:{WIRESHARK} -r CAPTURE",
               ""]
     return "\n".join(lines)
 
@@ -159,7 +168,8 @@ def build(outdir: Path, xsd: Path | None, repo: Path = REPO) -> list[Path]:
     members += [(f"{top}/{f}", (repo / f).read_bytes()) for f in order]
     members += [(f"{top}/{top}.st", concatenated(order, version, repo).encode()),
                 (f"{top}/{top}.xml", xml.encode()),
-                (f"{top}/blocks.md", blocks.encode())]
+                (f"{top}/blocks.md", blocks.encode()),
+                (f"{top}/{WIRESHARK}", (repo / "dist" / WIRESHARK).read_bytes())]
     epoch = int(os.environ.get("SOURCE_DATE_EPOCH", DEFAULT_EPOCH))
     tgz = outdir / f"{top}.tar.gz"
     buf = io.BytesIO()

@@ -1,6 +1,7 @@
 """`make dist`: the release archive carries the version of MIP_Version.st in its name, holds
 the sources in import order, one concatenated .st that compiles and runs, the PLCopen XML
-valid against the TC6 schema, the block reference, LICENSE and CHANGELOG.md."""
+valid against the TC6 schema, the block reference, LICENSE and CHANGELOG.md, and the Wireshark
+dissector with its install steps."""
 import re
 import shutil
 import subprocess
@@ -193,3 +194,30 @@ def test_the_archives_are_reproducible(archive, tmp_path):
     assert r.returncode == 0, r.stderr
     for name in (tgz.name, tgz.name.replace(".tar.gz", ".zip")):
         assert (tmp_path / name).read_bytes() == (out / name).read_bytes(), name
+
+
+def test_the_wireshark_dissector_ships_and_installs_as_the_readme_says(archive, tmp_path):
+    """wireshark/mipmb.lua (docs/wireshark.md) is in the archive, and copied into the personal
+    Lua plugins folder the README names, tshark knows its fields (without it: it does not)."""
+    out, tgz, top = archive
+    lua = top / "wireshark" / "mipmb.lua"
+    assert lua.read_bytes() == (REPO / "dist" / "wireshark" / "mipmb.lua").read_bytes()
+    readme = (top / "README.txt").read_text()
+    assert "~/.local/lib/wireshark/plugins/" in readme
+    assert "tshark -X lua_script:wireshark/mipmb.lua -r CAPTURE" in readme
+    tshark = shutil.which("tshark")
+    if tshark is None:
+        pytest.skip("tshark is not installed (Debian package tshark)")
+    env = {"PATH": "/usr/bin:/bin", "HOME": str(tmp_path)}
+
+    def fields():
+        r = subprocess.run([tshark, "-G", "fields"], capture_output=True, text=True, env=env,
+                           timeout=120)
+        assert r.returncode == 0, r.stderr
+        return r.stdout
+
+    assert "\tmipmb.record\t" not in fields()
+    plugins = tmp_path / ".local" / "lib" / "wireshark" / "plugins"
+    plugins.mkdir(parents=True)
+    shutil.copy(lua, plugins)
+    assert "\tmipmb.record\t" in fields()
