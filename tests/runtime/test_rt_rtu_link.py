@@ -171,7 +171,9 @@ def test_a_tty_set_otherwise_beneath_the_runtime_is_configured_again(compiler, t
             statuses.append(plc["%IW11"])
         else:
             pytest.fail(f"no read succeeded: statuses {statuses}")
-        assert statuses == [1110] * 3, statuses
+        # three timeouts, then the reopen; on a loaded machine (make check beside the model) the
+        # first request after it may miss its 200 ms as well, a fourth: not a second reopen
+        assert statuses in ([1110] * 3, [1110] * 4), statuses
         assert plc["%IW100"] == 5151
     finally:
         plc.close()
