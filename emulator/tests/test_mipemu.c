@@ -8,32 +8,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-static int g_pass, g_fail, g_case_failed;
-static const char *g_case;
-static char g_junit[1 << 16];
-static size_t g_junit_len;
-
-#define CHECK(cond) do { if (!(cond)) { \
-    fprintf(stderr, "%s:%d: %s: check failed: %s\n", __FILE__, __LINE__, g_case, #cond); \
-    g_case_failed = 1; } } while (0)
-#define CHECK_EQ(a, b) do { long long a_ = (long long)(a), b_ = (long long)(b); if (a_ != b_) { \
-    fprintf(stderr, "%s:%d: %s: %s == %lld, expected %s == %lld\n", __FILE__, __LINE__, g_case, #a, a_, #b, b_); \
-    g_case_failed = 1; } } while (0)
-
-static void run(const char *name, void (*fn)(void))
-{
-    g_case = name;
-    g_case_failed = 0;
-    fn();
-    if (g_case_failed)
-        g_fail++;
-    else
-        g_pass++;
-    g_junit_len += (size_t)snprintf(g_junit + g_junit_len, sizeof g_junit - g_junit_len,
-                                    "  <testcase classname=\"emulator.unit\" name=\"%s\">%s</testcase>\n", name,
-                                    g_case_failed ? "<failure message=\"see log\"/>" : "");
-    printf("%s %s\n", g_case_failed ? "FAIL" : "ok  ", name);
-}
+#define UNIT_CLASS "emulator.unit"
+#include "unit.h"
 
 /* ---- request helpers ---- */
 
@@ -1163,10 +1139,6 @@ static void t_inject_and_peek(void)
 
 int main(int argc, char **argv)
 {
-    const char *junit = NULL;
-    for (int i = 1; i < argc; i++)
-        if (!strcmp(argv[i], "--junit") && i + 1 < argc)
-            junit = argv[++i];
     run("trm_map", t_trm_map);
     run("mdp_map", t_mdp_map);
     run("function_codes", t_function_codes);
@@ -1191,14 +1163,5 @@ int main(int argc, char **argv)
     run("fate_drop", t_fate_drop);
     run("fate_ok_changes_nothing", t_fate_ok_changes_nothing);
     run("inject_and_peek", t_inject_and_peek);
-    printf("emulator unit: %d passed, %d failed\n", g_pass, g_fail);
-    if (junit) {
-        FILE *f = fopen(junit, "w");
-        if (f) {
-            fprintf(f, "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuite name=\"emulator.unit\" tests=\"%d\" failures=\"%d\">\n%.*s</testsuite>\n",
-                    g_pass + g_fail, g_fail, (int)g_junit_len, g_junit);
-            fclose(f);
-        }
-    }
-    return g_fail ? 1 : 0;
+    return unit_finish(argc, argv, "emulator unit");
 }

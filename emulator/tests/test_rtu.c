@@ -14,29 +14,8 @@
 #include <string.h>
 #include <unistd.h>
 
-static int g_pass, g_fail, g_case_failed;
-static char g_case[160];
-static char g_junit[1 << 16];
-static size_t g_junit_len;
-
-#define CHECK(cond) do { if (!(cond)) { \
-    fprintf(stderr, "%s:%d: %s: check failed: %s\n", __FILE__, __LINE__, g_case, #cond); \
-    g_case_failed = 1; } } while (0)
-#define CHECK_EQ(a, b) do { long long a_ = (long long)(a), b_ = (long long)(b); if (a_ != b_) { \
-    fprintf(stderr, "%s:%d: %s: %s == %lld, expected %s == %lld\n", __FILE__, __LINE__, g_case, #a, a_, #b, b_); \
-    g_case_failed = 1; } } while (0)
-
-static void end_case(void)
-{
-    if (g_case_failed)
-        g_fail++;
-    else
-        g_pass++;
-    g_junit_len += (size_t)snprintf(g_junit + g_junit_len, sizeof g_junit - g_junit_len,
-                                    "  <testcase classname=\"emulator.rtu\" name=\"%s\">%s</testcase>\n", g_case,
-                                    g_case_failed ? "<failure message=\"see log\"/>" : "");
-    printf("%s %s\n", g_case_failed ? "FAIL" : "ok  ", g_case);
-}
+#define UNIT_CLASS "emulator.rtu"
+#include "unit.h"
 
 /* ---- a bus with one TRM at unit id 1; answers go into a pipe the test reads ---- */
 
@@ -255,22 +234,9 @@ static void test_a_late_timer_does_not_join_frames(void)
 
 int main(int argc, char **argv)
 {
-    const char *junit = NULL;
-    for (int i = 1; i < argc; i++)
-        if (!strcmp(argv[i], "--junit") && i + 1 < argc)
-            junit = argv[++i];
     test_pauses_in_character_times();
     test_fixed_timers_above_19200();
     test_frame_end_and_answer_to_the_nanosecond();
     test_a_late_timer_does_not_join_frames();
-    printf("emulator-rtu: %d passed, %d failed\n", g_pass, g_fail);
-    if (junit) {
-        FILE *f = fopen(junit, "w");
-        if (f) {
-            fprintf(f, "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuite name=\"emulator.rtu\" tests=\"%d\" failures=\"%d\">\n%.*s</testsuite>\n",
-                    g_pass + g_fail, g_fail, (int)g_junit_len, g_junit);
-            fclose(f);
-        }
-    }
-    return g_fail ? 1 : 0;
+    return unit_finish(argc, argv, "emulator-rtu");
 }

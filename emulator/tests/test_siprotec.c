@@ -6,32 +6,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-static int g_pass, g_fail, g_case_failed;
-static const char *g_case;
-static char g_junit[1 << 15];
-static size_t g_junit_len;
-
-#define CHECK(cond) do { if (!(cond)) { \
-    fprintf(stderr, "%s:%d: %s: check failed: %s\n", __FILE__, __LINE__, g_case, #cond); \
-    g_case_failed = 1; } } while (0)
-#define CHECK_EQ(a, b) do { long long a_ = (long long)(a), b_ = (long long)(b); if (a_ != b_) { \
-    fprintf(stderr, "%s:%d: %s: %s == %lld, expected %s == %lld\n", __FILE__, __LINE__, g_case, #a, a_, #b, b_); \
-    g_case_failed = 1; } } while (0)
-
-static void run(const char *name, void (*fn)(void))
-{
-    g_case = name;
-    g_case_failed = 0;
-    fn();
-    if (g_case_failed)
-        g_fail++;
-    else
-        g_pass++;
-    g_junit_len += (size_t)snprintf(g_junit + g_junit_len, sizeof g_junit - g_junit_len,
-                                    "  <testcase classname=\"emulator.siprotec\" name=\"%s\">%s</testcase>\n", name,
-                                    g_case_failed ? "<failure message=\"see log\"/>" : "");
-    printf("%s %s\n", g_case_failed ? "FAIL" : "ok  ", name);
-}
+#define UNIT_CLASS "emulator.siprotec"
+#include "unit.h"
 
 static uint8_t g_resp[SIPROTEC_RESPONSE_MAX];
 static long g_rlen;
@@ -490,10 +466,6 @@ static void t_hostile(void)
 
 int main(int argc, char **argv)
 {
-    const char *junit = NULL;
-    for (int i = 1; i < argc; i++)
-        if (!strcmp(argv[i], "--junit") && i + 1 < argc)
-            junit = argv[++i];
     run("relay_empty_map", t_empty_map);
     run("relay_handshake", t_handshake);
     run("relay_frozen_until_ack", t_frozen_until_ack);
@@ -509,14 +481,5 @@ int main(int argc, char **argv)
     run("relay_script_order", t_script_order);
     run("relay_bad_config", t_bad_config);
     run("relay_hostile", t_hostile);
-    printf("siprotec unit: %d passed, %d failed\n", g_pass, g_fail);
-    if (junit) {
-        FILE *f = fopen(junit, "w");
-        if (f) {
-            fprintf(f, "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuite name=\"emulator.siprotec\" tests=\"%d\" failures=\"%d\">\n%.*s</testsuite>\n",
-                    g_pass + g_fail, g_fail, (int)g_junit_len, g_junit);
-            fclose(f);
-        }
-    }
-    return g_fail ? 1 : 0;
+    return unit_finish(argc, argv, "siprotec unit");
 }
