@@ -271,10 +271,11 @@ def read_variables_csv(gen: Path):
     return symbols, decls, programs, fb_paths, retained
 
 
-def _matiec_member_ref(path, programs, fb_paths):
+def _matiec_member_ref(path, programs, fb_paths, whole=False):
     """The C lvalue of a variable of a program instance in matiec's layout, up to the value
     of the variable itself (X.value, S.value.member; arrays without .table), or None for a
-    path outside the program instances."""
+    path outside the program instances. whole: also a path that ends at an FB instance (its
+    plain struct)."""
     parts = path.split(".")
     inst = ".".join(parts[:3])
     if inst not in programs or len(parts) < 4:
@@ -291,7 +292,7 @@ def _matiec_member_ref(path, programs, fb_paths):
         else:
             ref += f".{comp}.value"     # a variable: {value, flags}
             wrapped = True
-    return ref if wrapped else None
+    return ref if wrapped or whole else None
 
 
 def read_stc_retain(gen: Path):
@@ -395,22 +396,9 @@ def matiec_arrays_via_stc(sources, workdir: Path, known, fb_paths, programs):
     for row in rows:
         if row.path in known or row.kind in ("LOCATED", "VAR_EXTERNAL", "VAR_IN_OUT"):
             continue
-        parts = row.path.split(".")
-        inst = ".".join(parts[:3])
-        if inst not in programs or len(parts) < 4:
+        ref = _matiec_member_ref(row.path, programs, fb_paths, whole=True)
+        if ref is None:
             continue  # globals: matiec's C type name of an array global is not known here
-        ref = f"{parts[1]}__{parts[2]}"
-        prefix = inst
-        wrapped = False
-        for comp in parts[3:]:
-            prefix = f"{prefix}.{comp}"
-            if wrapped:
-                ref += f".{comp}"           # a member of a STRUCT value
-            elif prefix in fb_paths:
-                ref += f".{comp}"           # an FB instance: a plain struct
-            else:
-                ref += f".{comp}.value"     # a variable: {value, flags}
-                wrapped = True
         base, dims = row.type, 0
         if "[" in row.type:
             base = row.type[:row.type.index("[")]
