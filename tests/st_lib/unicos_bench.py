@@ -1,0 +1,189 @@
+"""Test bench for MIP_UnicosEvents: a generated test PROGRAM around the block, the record source
+a MIP_Receiver with xAckByCaller would be (one record offered until xRecordProcessed), and the
+PLC's Modbus client with its trigger-policy FC16 writes, whose requests go, as Modbus TCP frames,
+to the independent WinCC OA stand-in (peers/mippeer/unicos.py) in virtual time.
+
+The program mirrors every array as plain WORD variables (rec0.., a0.., b0..): matiec's
+VARIABLES.csv does not list arrays (tests/st_lib/stlib_sim.py does the same)."""
+from __future__ import annotations
+
+import struct
+from pathlib import Path
+
+from mipcosim.layout import enum_values
+from mippeer.unicos import UnicosDriver
+from stlib_sim import LIB, LIB_PATHS, MS, compiler
+from plcharness import Plc
+
+UERR = enum_values("E_MIP_UnicosError", LIB / "MIP_UnicosTypes.st")
+USTATE = enum_values("E_MIP_UnicosState", LIB / "MIP_UnicosTypes.st")
+TICK_MS = 10
+
+
+def gen_program():
+    decl = ["  uni : MIP_UnicosEvents;", "  rec : MIP_T_Payload;",
+            "  " + ", ".join(f"rec{i}" for i in range(122)) + " : WORD;",
+            "  " + ", ".join(f"a{i}" for i in range(123)) + " : WORD;",
+            "  " + ", ".join(f"b{i}" for i in range(123)) + " : WORD;"]
+    pre = [f"rec[{i}] := rec{i};" for i in range(122)]
+    post = [f"a{i} := uni.aWriteA[{i}];" for i in range(123)]
+    post += [f"b{i} := uni.aWriteB[{i}];" for i in range(123)]
+    return ("PROGRAM MAIN\nVAR\n" + "\n".join(decl) + "\nEND_VAR\n" + "\n".join(pre)
+            + "\nuni(aRecord := rec);\n" + "\n".join(post) + "\nEND_PROGRAM\n\n"
+            "CONFIGURATION Config0\n  RESOURCE Res0 ON PLC\n"
+            f"    TASK tMain(INTERVAL := T#{TICK_MS}ms, PRIORITY := 0);\n"
+            "    PROGRAM inst0 WITH tMain : MAIN;\n  END_RESOURCE\nEND_CONFIGURATION\n")
+
+
+_BUILT = {}
+
+
+def build(workdir: Path) -> Plc:
+    key = compiler()
+    if key not in _BUILT:
+        bdir = Path(workdir) / "build"
+        bdir.mkdir(parents=True, exist_ok=True)
+        (bdir / "prog_main.st").write_text(gen_program())
+        plc = Plc.build(LIB_PATHS + [str(bdir / "prog_main.st")], workdir=bdir, compiler=key)
+        _BUILT[key] = (plc.build_result, bdir)
+        return plc
+    result, bdir = _BUILT[key]
+    return Plc(result, bdir)
+
+
+def entry(type_bit, address, cause, value, ts_ms):
+    """One relay entry of 8 registers (docs/chain.md's relay facts): time stamp most
+    significant register first."""
+    return [type_bit, address, cause, value] + [(ts_ms >> s) & 0xFFFF for s in (48, 32, 16, 0)]
+
+
+class Client:
+    """The PLC's Modbus client for one driver: on xWriteReq<X> it sends one FC16 of uWriteLen<X>
+    registers at wWriteAddress to `driver` (a UnicosDriver, called directly); done on a normal
+    answer, error with the exception code, or error with status 0 after `timeout_scans` when
+    the driver does not answer (muted, or `down`)."""
+
+    def __init__(self, bench, ch, driver, timeout_scans=20):
+        self.b, self.ch, self.driver = bench, ch, driver
+        self.timeout_scans = timeout_scans
+        self.down = False
+        self.adus = []              # every request sent
+        self._state, self._wait = "idle", 0
+        self._tid = 0
+
+    def _set(self, done, err, status=0):
+        u = self.b.u
+        u[f"xWriteDone{self.ch}"], u[f"xWriteError{self.ch}"] = done, err
+        u[f"wWriteStatus{self.ch}"] = status
+
+    def after_scan(self):
+        u = self.b.u
+        req = u[f"xWriteReq{self.ch}"]
+        if not req:
+            if self._state != "idle":
+                self._set(False, False)
+            self._state = "idle"
+            return
+        if self._state == "idle":
+            n = u[f"uWriteLen{self.ch}"]
+            regs = [self.b.plc[f"MAIN.{self.ch.lower()}{i}"] for i in range(n)]
+            self._tid = (self._tid + 1) & 0xFFFF
+            pdu = struct.pack(f">BHHB{n}H", 16, u["wWriteAddress"], n, 2 * n, *regs)
+            adu = struct.pack(">HHHB", self._tid, 0, len(pdu) + 1, 1) + pdu
+            self.adus.append(adu)
+            resp = None if self.down else self.driver.handle(adu)
+            if resp is None:
+                self._state, self._wait = "waiting", 0
+            elif resp[7] & 0x80:
+                self._state = "answered"
+                self._set(False, True, resp[8])
+            else:
+                self._state = "answered"
+                self._set(True, False)
+        elif self._state == "waiting":
+            self._wait += 1
+            if self._wait >= self.timeout_scans:
+                self._state = "answered"
+                self._set(False, True, 0)
+
+
+class Source:
+    """What MIP_Receiver (xAckByCaller) does: offers the next record until xRecordProcessed,
+    then drops it for one scan. Notes the scan each record was offered and processed."""
+
+    def __init__(self, bench):
+        self.b = bench
+        self.queue, self.offered, self.processed = [], [], []
+        self._cur = None
+        self._gap = False
+
+    def before_scan(self):
+        u, plc = self.b.u, self.b.plc
+        if self._cur is None and self.queue and not self._gap:
+            self._cur = self.queue.pop(0)
+            for i in range(122):
+                plc[f"MAIN.rec{i}"] = self._cur[i] if i < len(self._cur) else 0
+            u["uRecordLen"] = len(self._cur)
+            u["xRecordValid"] = True
+            self.offered.append(self.b.scans)
+        self._gap = False
+
+    def after_scan(self):
+        u = self.b.u
+        if self._cur is not None and u["xRecordProcessed"]:
+            self.processed.append(self.b.scans)
+            self._cur = None
+            u["xRecordValid"] = False
+            self._gap = True
+
+
+class _Fb:
+    def __init__(self, plc):
+        self.plc = plc
+
+    def __getitem__(self, m):
+        return self.plc[f"MAIN.uni.{m}"]
+
+    def __setitem__(self, m, v):
+        self.plc[f"MAIN.uni.{m}"] = v
+
+
+class UnicosBench:
+    """One PLC with MIP_UnicosEvents `u`, the stand-in drivers `da` (A) and `db` (B) with
+    their clients `ca` and `cb`, and the record source `src`."""
+
+    def __init__(self, workdir, cfg=None, **settings):
+        self.plc = build(workdir)
+        self.u = _Fb(self.plc)
+        self.scans = 0
+        self.da, self.db = UnicosDriver("A", cfg), UnicosDriver("B", cfg)
+        self.ca, self.cb = Client(self, "A", self.da), Client(self, "B", self.db)
+        self.src = Source(self)
+        self.u["xEnable"] = True
+        for k, v in settings.items():
+            self.u[k] = v * MS if k.startswith("t") else v
+
+    def step(self, n=1):
+        for _ in range(n):
+            self.src.before_scan()
+            self.plc.scan()
+            self.scans += 1
+            self.ca.after_scan()
+            self.cb.after_scan()
+            self.src.after_scan()
+            assert not (self.u["xBusy"] and self.u["xError"])
+
+    def run_until(self, cond, limit):
+        for _ in range(limit):
+            if cond():
+                return True
+            self.step()
+        return cond()
+
+    def offer(self, *records):
+        self.src.queue += [list(r) for r in records]
+
+    def drain(self, limit=2000):
+        ok = self.run_until(lambda: not self.src.queue and self.src._cur is None, limit)
+        assert ok, f"records not all processed after {limit} scans: state {self.u['eState']}, " \
+                   f"error {self.u['eErrorId']}"
