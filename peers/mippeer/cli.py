@@ -1,6 +1,7 @@
 """mip-peer: a MIP peer (outstation or central) that follows only the Piciorgros note.
 
 Example: mip-peer central --port 15020 --unit 1 --expect 1 --out received.json
+         mip-peer unicos --port 15040 --pair 15041 --out events.jsonl   (WinCC OA UNICOS stand-in)
 """
 
 import argparse
@@ -122,6 +123,10 @@ def _on_term(*_):
 
 
 def main(argv=None):
+    args = sys.argv[1:] if argv is None else list(argv)
+    if args[:1] == ["unicos"]:         # the WinCC OA UNICOS-driver stand-in (mippeer/unicos.py)
+        from . import unicos
+        return unicos.main(args[1:])
     a = parse_args(argv)
     records = logger_records(a.records, a.record_size, a.seed) if a.records else None
     try:

@@ -226,7 +226,7 @@ class DriverServer:
         srv = _Server((self.host, self.port), _Handler)
         srv.driver, srv.clients = self.driver, set()
         self.port = srv.server_address[1]
-        threading.Thread(target=srv.serve_forever, daemon=True).start()
+        threading.Thread(target=srv.serve_forever, kwargs={"poll_interval": 0.05}, daemon=True).start()
         self._srv = srv
         return self
 
