@@ -293,9 +293,6 @@ def main(argv=None):
     except OSError as e:
         print(f"mip-peer-unicos: error: {e}", file=sys.stderr)
         return 2
-    print("mip-peer-unicos: listening " + " ".join(
-        f"{s.driver.name}={s.port}" for s in servers), flush=True)
-
     # SIGUSR1 / SIGUSR2: take driver A / B down, or bring it back (a test's outage)
     def toggle(i):
         def h(*_):
@@ -309,6 +306,10 @@ def main(argv=None):
     signal.signal(signal.SIGUSR2, toggle(1))
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    # the handlers are in place before a test or supervisor learns the ports
+    print("mip-peer-unicos: listening " + " ".join(
+        f"{s.driver.name}={s.port}" for s in servers), flush=True)
+
     try:
         while not stop.wait(0.2):
             pass
