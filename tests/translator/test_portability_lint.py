@@ -59,6 +59,12 @@ ALLOWED = [
     ("plc/*.st", "timer-pt", "tonWr",
      "PT is the configured cyclic-write period; at T#0s matiec writes one scan later, a "
      "timing difference only"),
+    ("st_lib/MIP_UnicosChannel.st", "timer-pt", "tonRetry(",
+     "PT is tRetry (default T#500ms), the pause before a repeated write; at T#0s matiec "
+     "repeats one scan later, a timing difference only"),
+    ("st_lib/MIP_UnicosEvents.st", "timer-pt", "tonDelay(",
+     "PT is tMaxDelay (default T#2s), the latest time to send the event table; at T#0s matiec "
+     "sends it one scan later, a timing difference only"),
 ]
 
 
