@@ -74,6 +74,8 @@ class UnicosDriver:
         self.status = {}                   # (plc, offset) -> the last status words
         self.frames = 0                    # UNICOS frames accepted
         self.refused = 0                   # frames answered with an exception
+        self.duplicates = 0                # events seen before: same PLC, offset, value, time stamp
+        self._seen = set()
         self.holding = {}                  # plain Modbus holding registers written
         self.mute = False
         self._fail = []                    # exception codes for the next UNICOS frames
@@ -161,14 +163,20 @@ class UnicosDriver:
             for i in range(count):
                 e = regs[1 + i * ew: 1 + (i + 1) * ew]
                 ticks = _join(e[1 + vw:], little)
-                lines.append({"kind": "event", "driver": self.name, "plc": unit, "sub": sub,
-                              "offset": e[0], "value": _join(e[1:1 + vw], little),
-                              "ts_10ms": ticks, "utc": ticks_to_utc(ticks),
-                              "frame": self.frames + 1})
+                ev = {"kind": "event", "driver": self.name, "plc": unit, "sub": sub,
+                      "offset": e[0], "value": _join(e[1:1 + vw], little),
+                      "ts_10ms": ticks, "utc": ticks_to_utc(ticks), "frame": self.frames + 1}
+                # the same point, value and time stamp again: a repeat (WinCC OA would take it
+                # as a new value); marked, so a test or soak can report every duplicate
+                key = (unit, sub, ev["offset"], ev["value"], ticks)
+                ev["duplicate"] = key in self._seen
+                self._seen.add(key)
+                lines.append(ev)
         else:
             raise _Refuse(ILLEGAL_VALUE)
         self.frames += 1
         self.events += [x for x in lines if x["kind"] == "event"]
+        self.duplicates += sum(1 for x in lines if x.get("duplicate"))
         if self.out:
             with open(self.out, "a") as f:
                 for x in lines:
@@ -319,7 +327,7 @@ def main(argv=None):
         s.down()
     print("mip-peer-unicos: done " + " ".join(
         f"{s.driver.name}:frames={s.driver.frames},events={len(s.driver.events)},"
-        f"refused={s.driver.refused}" for s in servers), flush=True)
+        f"duplicates={s.driver.duplicates},refused={s.driver.refused}" for s in servers), flush=True)
     return 0
 
 

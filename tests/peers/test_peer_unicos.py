@@ -115,6 +115,15 @@ def test_faults_for_tests_mute_and_exceptions():
     assert not d.handle(frame)[7] & 0x80 and len(d.events) == 1
 
 
+def test_a_repeated_event_is_marked_a_duplicate():
+    d = UnicosDriver()
+    one = adu(fc16(0xFFFF, [0x1201, 7, 1] + t3(T)))
+    d.handle(one)
+    d.handle(adu(fc16(0xFFFF, [0x1201, 7, 0] + t3(T))))         # another value: not a repeat
+    d.handle(one)
+    assert [e["duplicate"] for e in d.events] == [False, False, True] and d.duplicates == 1
+
+
 def _write(port, regs):
     c = ModbusTcpClient("127.0.0.1", port=port, timeout=3, retries=0)
     assert c.connect()
@@ -176,8 +185,8 @@ def test_command_serves_and_prints_counts(tmp_path):
         assert p.stdout.readline().strip() == "mip-peer-unicos: driver A down"
         p.terminate()
         assert p.wait(timeout=10) == 0
-        assert p.stdout.read().strip() == ("mip-peer-unicos: done A:frames=0,events=0,refused=0 "
-                                           "B:frames=1,events=1,refused=0")
+        assert p.stdout.read().strip() == ("mip-peer-unicos: done A:frames=0,events=0,duplicates=0,"
+                                           "refused=0 B:frames=1,events=1,duplicates=0,refused=0")
         assert json.loads(out.read_text())["driver"] == "B"
     finally:
         if p.poll() is None:
