@@ -12,6 +12,7 @@ from pathlib import Path
 
 from mipcosim.layout import enum_values
 from mippeer.unicos import UnicosDriver
+import stlib_sim
 from stlib_sim import LIB, LIB_PATHS, MS, compiler
 from plcharness import Plc
 
@@ -21,18 +22,28 @@ TICK_MS = 10
 
 
 def gen_program():
+    """One program for every test of the hand-over (one build): `uni` fed by the bench's record
+    source, and stlib_sim's `snd` and `rcv` with `cuni` after `rcv` (fed by it, feeding its
+    xRecordProcessed: the chain's central); a PLC instance uses the part its test drives."""
+    text = stlib_sim.gen_program([("snd", "MIP_Sender"), ("rcv", "MIP_Receiver")], TICK_MS)
     decl = ["  uni : MIP_UnicosEvents;", "  rec : MIP_T_Payload;",
             "  " + ", ".join(f"rec{i}" for i in range(122)) + " : WORD;",
             "  " + ", ".join(f"a{i}" for i in range(123)) + " : WORD;",
-            "  " + ", ".join(f"b{i}" for i in range(123)) + " : WORD;"]
-    pre = [f"rec[{i}] := rec{i};" for i in range(122)]
+            "  " + ", ".join(f"b{i}" for i in range(123)) + " : WORD;",
+            "  cuni : MIP_UnicosEvents;",
+            "  " + ", ".join(f"ua{i}" for i in range(123)) + " : WORD;"]
+    text = text.replace("END_VAR\n", "\n".join(decl) + "\nEND_VAR\n", 1)
+    call = "rcv(aRead := rcv_rd);\n"
+    assert call in text
+    calls = [f"rec[{i}] := rec{i};" for i in range(122)] + [
+        "uni(aRecord := rec);",
+        "cuni(aRecord := rcv.aRecord, uRecordLen := rcv.uRecordLen, xRecordValid := rcv.xRecordValid);",
+        "rcv.xRecordProcessed := cuni.xRecordProcessed;"]
+    text = text.replace(call, call + "\n".join(calls) + "\n", 1)
     post = [f"a{i} := uni.aWriteA[{i}];" for i in range(123)]
     post += [f"b{i} := uni.aWriteB[{i}];" for i in range(123)]
-    return ("PROGRAM MAIN\nVAR\n" + "\n".join(decl) + "\nEND_VAR\n" + "\n".join(pre)
-            + "\nuni(aRecord := rec);\n" + "\n".join(post) + "\nEND_PROGRAM\n\n"
-            "CONFIGURATION Config0\n  RESOURCE Res0 ON PLC\n"
-            f"    TASK tMain(INTERVAL := T#{TICK_MS}ms, PRIORITY := 0);\n"
-            "    PROGRAM inst0 WITH tMain : MAIN;\n  END_RESOURCE\nEND_CONFIGURATION\n")
+    post += [f"ua{i} := cuni.aWriteA[{i}];" for i in range(123)]
+    return text.replace("END_PROGRAM", "\n".join(post) + "\nEND_PROGRAM", 1)
 
 
 _BUILT = {}
@@ -63,8 +74,10 @@ class Client:
     answer, error with the exception code, or error with status 0 after `timeout_scans` when
     the driver does not answer (muted, or `down`)."""
 
-    def __init__(self, bench, ch, driver, timeout_scans=20):
+    def __init__(self, bench, ch, driver, timeout_scans=20, fb=None, reg=None):
         self.b, self.ch, self.driver = bench, ch, driver
+        self.fb = fb or bench.u                      # the block's members
+        self.reg = reg or (lambda i: bench.plc[f"MAIN.{ch.lower()}{i}"])   # aWrite<ch>[i]
         self.timeout_scans = timeout_scans
         self.down = False
         self.adus = []              # every request sent
@@ -72,12 +85,12 @@ class Client:
         self._tid = 0
 
     def _set(self, done, err, status=0):
-        u = self.b.u
+        u = self.fb
         u[f"xWriteDone{self.ch}"], u[f"xWriteError{self.ch}"] = done, err
         u[f"wWriteStatus{self.ch}"] = status
 
     def after_scan(self):
-        u = self.b.u
+        u = self.fb
         req = u[f"xWriteReq{self.ch}"]
         if not req:
             if self._state != "idle":
@@ -86,7 +99,7 @@ class Client:
             return
         if self._state == "idle":
             n = u[f"uWriteLen{self.ch}"]
-            regs = [self.b.plc[f"MAIN.{self.ch.lower()}{i}"] for i in range(n)]
+            regs = [self.reg(i) for i in range(n)]
             self._tid = (self._tid + 1) & 0xFFFF
             pdu = struct.pack(f">BHHB{n}H", 16, u["wWriteAddress"], n, 2 * n, *regs)
             adu = struct.pack(">HHHB", self._tid, 0, len(pdu) + 1, 1) + pdu
