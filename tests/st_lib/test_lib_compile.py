@@ -12,7 +12,8 @@ import pytest
 from stlib_sim import LIB, LIB_FILES, LIB_PATHS
 
 ALL_BLOCKS = ["MIP_Status", "MIP_WriteChannel", "MIP_Layout", "MIP_ReadDecoder", "MIP_Sender",
-              "MIP_Receiver", "MIP_Link", "MIP_BufferSender", "MIP_UnicosChannel", "MIP_UnicosEvents"]
+              "MIP_Receiver", "MIP_Link", "MIP_BufferSender", "MIP_UnicosChannel", "MIP_UnicosEvents",
+              "MIP_UnicosStatus"]
 USE_ALL = """
 PROGRAM CompileCheck
 VAR
@@ -23,6 +24,7 @@ VAR
   bsnd : MIP_BufferSender;
   buf : MIP_T_Buffer;
   uni : MIP_UnicosEvents;
+  sts : MIP_UnicosStatus;
 END_VAR
 st();
 snd();
@@ -30,6 +32,7 @@ rcv();
 link();
 bsnd(aBuffer := buf);
 uni();
+sts();
 END_PROGRAM
 
 CONFIGURATION Config0

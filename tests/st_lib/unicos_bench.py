@@ -31,18 +31,25 @@ def gen_program():
             "  " + ", ".join(f"a{i}" for i in range(123)) + " : WORD;",
             "  " + ", ".join(f"b{i}" for i in range(123)) + " : WORD;",
             "  cuni : MIP_UnicosEvents;",
-            "  " + ", ".join(f"ua{i}" for i in range(123)) + " : WORD;"]
+            "  " + ", ".join(f"ua{i}" for i in range(123)) + " : WORD;",
+            "  sts : MIP_UnicosStatus;", "  tab : MIP_T_UnicosTable;",
+            "  " + ", ".join(f"tab{i}" for i in range(96)) + " : WORD;",
+            "  " + ", ".join(f"sa{i}" for i in range(98)) + " : WORD;",
+            "  " + ", ".join(f"sb{i}" for i in range(98)) + " : WORD;"]
     text = text.replace("END_VAR\n", "\n".join(decl) + "\nEND_VAR\n", 1)
     call = "rcv(aRead := rcv_rd);\n"
     assert call in text
     calls = [f"rec[{i}] := rec{i};" for i in range(122)] + [
         "uni(aRecord := rec);",
         "cuni(aRecord := rcv.aRecord, uRecordLen := rcv.uRecordLen, xRecordValid := rcv.xRecordValid);",
-        "rcv.xRecordProcessed := cuni.xRecordProcessed;"]
+        "rcv.xRecordProcessed := cuni.xRecordProcessed;"] + [
+        f"tab[{i}] := tab{i};" for i in range(96)] + ["sts(aTable := tab);"]
     text = text.replace(call, call + "\n".join(calls) + "\n", 1)
     post = [f"a{i} := uni.aWriteA[{i}];" for i in range(123)]
     post += [f"b{i} := uni.aWriteB[{i}];" for i in range(123)]
     post += [f"ua{i} := cuni.aWriteA[{i}];" for i in range(123)]
+    post += [f"sa{i} := sts.aWriteA[{i}];" for i in range(98)]
+    post += [f"sb{i} := sts.aWriteB[{i}];" for i in range(98)]
     return text.replace("END_PROGRAM", "\n".join(post) + "\nEND_PROGRAM", 1)
 
 
@@ -200,3 +207,41 @@ class UnicosBench:
         ok = self.run_until(lambda: not self.src.queue and self.src._cur is None, limit)
         assert ok, f"records not all processed after {limit} scans: state {self.u['eState']}, " \
                    f"error {self.u['eErrorId']}"
+
+
+class StatusBench:
+    """One PLC with MIP_UnicosStatus `s` (its table set by `set_table`), the stand-in drivers
+    `da`, `db` and their clients `ca`, `cb`."""
+
+    def __init__(self, workdir, cfg=None, **settings):
+        self.plc = build(workdir)
+        self.scans = 0
+        self.s = _Member(self.plc, "sts")
+        self.da, self.db = UnicosDriver("A", cfg), UnicosDriver("B", cfg)
+        self.ca = Client(self, "A", self.da, fb=self.s, reg=lambda i: self.plc[f"MAIN.sa{i}"])
+        self.cb = Client(self, "B", self.db, fb=self.s, reg=lambda i: self.plc[f"MAIN.sb{i}"])
+        self.s["xEnable"] = True
+        for k, v in settings.items():
+            self.s[k] = v * MS if k.startswith("t") else v
+
+    def set_table(self, words):
+        for i, w in enumerate(words):
+            self.plc[f"MAIN.tab{i}"] = w
+
+    def step(self, n=1):
+        for _ in range(n):
+            self.plc.scan()
+            self.scans += 1
+            self.ca.after_scan()
+            self.cb.after_scan()
+
+
+class _Member:
+    def __init__(self, plc, name):
+        self.plc, self.n = plc, name
+
+    def __getitem__(self, m):
+        return self.plc[f"MAIN.{self.n}.{m}"]
+
+    def __setitem__(self, m, v):
+        self.plc[f"MAIN.{self.n}.{m}"] = v

@@ -65,6 +65,9 @@ ALLOWED = [
     ("st_lib/MIP_UnicosEvents.st", "timer-pt", "tonDelay(",
      "PT is tMaxDelay (default T#2s), the latest time to send the event table; at T#0s matiec "
      "sends it one scan later, a timing difference only"),
+    ("st_lib/MIP_UnicosStatus.st", "timer-pt", "tonGap(",
+     "PT is tMinPeriod (default T#50ms), the least time between two status tables; at T#0s "
+     "matiec allows the next one a scan later, a timing difference only"),
 ]
 
 
