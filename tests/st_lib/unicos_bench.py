@@ -78,7 +78,7 @@ def entry(type_bit, address, cause, value, ts_ms):
 class Client:
     """The PLC's Modbus client for one driver: on xWriteReq<X> it sends one FC16 of uWriteLen<X>
     registers at wWriteAddress to `driver` (a UnicosDriver, called directly); done on a normal
-    answer, error with the exception code, or error with status 0 after `timeout_scans` when
+    answer, error with the exception code, or error with status 1110 (plcrt: timed out) after `timeout_scans` when
     the driver does not answer (muted, or `down`)."""
 
     def __init__(self, bench, ch, driver, timeout_scans=20, fb=None, reg=None):
@@ -124,7 +124,7 @@ class Client:
             self._wait += 1
             if self._wait >= self.timeout_scans:
                 self._state = "answered"
-                self._set(False, True, 0)
+                self._set(False, True, 1110)     # plcrt: 1000 + ETIMEDOUT
 
 
 class Source:
