@@ -183,3 +183,29 @@ def test_processed_only_after_the_active_drivers_positive_response(wd):
     assert len(answered) == 5 and len(b.src.processed) == 5
     for ok, done in zip(answered, b.src.processed):
         assert done >= ok
+
+
+def test_a_record_larger_than_the_table_goes_in_frames_processed_after_the_last(wd):
+    b = UnicosBench(wd, uTableEvents=4)
+    entries = relay_entries(10, seed=10)
+    b.offer(record(entries))
+    b.drain()
+    assert [adu[14] for adu in b.ca.adus] == [4, 4, 2]      # header low byte: events per frame
+    assert got(b.da) == expected(entries) and b.u["udiFrames"] == 3
+    assert len(b.src.processed) == 1 and b.src.processed[0] > b.scans - 5
+
+
+def test_disabled_and_enabled_again_the_record_is_sent_again_not_lost(wd):
+    b = UnicosBench(wd, tRetry=100)
+    b.ca.down = True
+    entries = relay_entries(2, seed=11)
+    b.offer(record(entries))
+    b.step(10)
+    b.u["xEnable"] = False
+    b.step(30)                                   # the write under way ends (no answer)
+    assert b.u["eState"] == USTATE["MIP_UNI_DISABLED"] and not b.u["xWriteReqA"]
+    assert b.src.processed == []
+    b.ca.down = False
+    b.u["xEnable"] = True
+    b.drain()
+    assert got(b.da) == expected(entries)
