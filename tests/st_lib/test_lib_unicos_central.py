@@ -51,3 +51,37 @@ def test_the_radio_acknowledgement_waits_for_the_control_system(wd):
     got = [(e["offset"], e["value"], e["ts_10ms"]) for e in driver.events]
     assert got == [(1 + n, (0x0100 + n % 16) << 16 | (n + 1), (T0 + 10 * n) // 10) for n in range(12)]
     assert driver.duplicates == 0 and uni["udiRecords"] == 12 // ENTRIES_PER_RECORD
+
+
+def transfer_scans(wd, handover, delay_scans=0, n=24, per=3, poll_scans=5):
+    """Scans until the outstation's transfer of n entries (per a record) is acknowledged:
+    the central acknowledging on receipt, or after the driver's answer (delay_scans later)."""
+    plc_o, plc_c = build(wd), build(wd)
+    snd, rcv, uni = Fb(plc_o, "snd"), Fb(plc_c, "rcv"), Fb(plc_c, "cuni")
+    radio = Radio(poll_scans=poll_scans)
+    data = sum((entry(0x0100, 1 + k, 0x0101, k, T0 + 10 * k) for k in range(n)), [])
+    driver = UnicosDriver("A")
+    bench = Bench([plc_o, plc_c], [ChunkSource(snd, data), Port(snd, radio.outstation),
+                                   Port(rcv, radio.central)], radio)
+    bench.parts.append(Client(bench, "A", driver, fb=uni, reg=lambda i: plc_c[f"MAIN.ua{i}"],
+                              delay_scans=delay_scans))
+    snd["uChunkSize"] = 1 + 8 * per
+    snd["tTimeout"] = rcv["tTimeout"] = 1000 * MS
+    rcv["xAckByCaller"] = uni["xEnable"] = handover
+    rcv["xEnable"] = True
+    bench.step(2)
+    snd["xExecute"] = True
+    assert bench.run_until(lambda: snd["xDone"], 20000)
+    assert len(driver.events) == (n if handover else 0)
+    return bench.scans
+
+
+def test_the_extra_round_trip_costs_a_poll_cycle_only_when_the_driver_is_slower(wd):
+    """The measured cost of acknowledging after the hand-over (docs/chain.md): 8 records,
+    radio poll every 5 scans (50 ms). A driver that answers within a scan or two: no time
+    added (the acknowledgement still makes the next poll); one that answers after 10 scans
+    (100 ms, two poll cycles): two poll cycles per record, nothing more."""
+    on_receipt = transfer_scans(wd, False)
+    assert transfer_scans(wd, True, delay_scans=0) == on_receipt
+    slow = transfer_scans(wd, True, delay_scans=10)
+    assert slow - on_receipt == 8 * 10, (on_receipt, slow)

@@ -81,8 +81,9 @@ class Client:
     answer, error with the exception code, or error with status 1110 (plcrt: timed out) after `timeout_scans` when
     the driver does not answer (muted, or `down`)."""
 
-    def __init__(self, bench, ch, driver, timeout_scans=20, fb=None, reg=None):
+    def __init__(self, bench, ch, driver, timeout_scans=20, fb=None, reg=None, delay_scans=0):
         self.b, self.ch, self.driver = bench, ch, driver
+        self.delay_scans = delay_scans               # an answer comes this many scans later
         self.fb = fb or bench.u                      # the block's members
         self.reg = reg or (lambda i: bench.plc[f"MAIN.{ch.lower()}{i}"])   # aWrite<ch>[i]
         self.timeout_scans = timeout_scans
@@ -111,20 +112,22 @@ class Client:
             pdu = struct.pack(f">BHHB{n}H", 16, u["wWriteAddress"], n, 2 * n, *regs)
             adu = struct.pack(">HHHB", self._tid, 0, len(pdu) + 1, 1) + pdu
             self.adus.append(adu)
-            resp = None if self.down else self.driver.handle(adu)
-            if resp is None:
-                self._state, self._wait = "waiting", 0
-            elif resp[7] & 0x80:
-                self._state = "answered"
-                self._set(False, True, resp[8])
-            else:
-                self._state = "answered"
-                self._set(True, False)
+            self._resp = None if self.down else self.driver.handle(adu)
+            self._state, self._wait = "waiting", 0
         elif self._state == "waiting":
             self._wait += 1
-            if self._wait >= self.timeout_scans:
+        if self._state == "waiting":
+            resp = self._resp
+            if resp is None:
+                if self._wait >= self.timeout_scans:
+                    self._state = "answered"
+                    self._set(False, True, 1110)     # plcrt: 1000 + ETIMEDOUT
+            elif self._wait >= self.delay_scans:
                 self._state = "answered"
-                self._set(False, True, 1110)     # plcrt: 1000 + ETIMEDOUT
+                if resp[7] & 0x80:
+                    self._set(False, True, resp[8])
+                else:
+                    self._set(True, False)
 
 
 class Source:
