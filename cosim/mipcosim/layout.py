@@ -17,7 +17,7 @@ if (Path(__file__).resolve().parent / "_st_lib").is_dir():
 LIB_FILES = ["MIP_CheckStep.st", "MIP_EchoMagic.st", "MIP_Layout.st", "MIP_Types.st",
              "MIP_Version.st", "MIP_WriteChannel.st", "MIP_StatusBit.st", "MIP_ReadDecoder.st",
              "MIP_Receiver.st", "MIP_Sender.st", "MIP_Status.st", "MIP_BufferSender.st",
-             "MIP_Link.st"]
+             "MIP_Link.st", "MIP_SoeServerTypes.st", "MIP_SoeServer.st"]
 MAX_STATIONS = 4
 WINDOW = 160
 FFFF = 0xFFFF
