@@ -1,6 +1,7 @@
 """mip-peer: a MIP peer (outstation or central) that follows only the Piciorgros note.
 
 Example: mip-peer central --port 15020 --unit 1 --expect 1 --out received.json
+         mip-peer scada --port 15030 --out entries.jsonl (SOE handshake master, mippeer/scada.py)
 """
 
 import argparse
@@ -122,6 +123,11 @@ def _on_term(*_):
 
 
 def main(argv=None):
+    argv = sys.argv[1:] if argv is None else argv
+    if argv[:1] == ["scada"]:
+        # the SCADA master of the pull way (issue 35): its own options, peers/mippeer/scada.py
+        from .scada import main as scada_main
+        return scada_main(argv[1:])
     a = parse_args(argv)
     records = logger_records(a.records, a.record_size, a.seed) if a.records else None
     try:
