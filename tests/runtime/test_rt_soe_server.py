@@ -252,3 +252,35 @@ def test_watch_goes_with_watch_count_and_must_be_a_holding_register(build, tmp_p
         with pytest.raises(PlcError) as e:
             Plc(build, tmp_path, config=cfg)
         assert msg in str(e.value) and "\n" not in str(e.value)
+
+
+def test_in_real_time_the_scada_command_takes_every_entry_once(build, tmp_path):
+    """The executable in real time (slave thread, scans every 10 ms) and `mip-peer scada` as a
+    separate process: the acknowledgement lands between two scans, a read before the next scan
+    still shows the offer the SCADA took, and it is not taken twice."""
+    import re
+    import signal
+    import subprocess
+    import json
+    cfg = tmp_path / "rt.conf"
+    cfg.write_text(CONFIG.format(file=tmp_path / "rt.retain"))
+    plc = subprocess.Popen([str(build.executable), "-c", str(cfg), "-m", "real"],
+                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        m = re.search(r"listening on 127\.0\.0\.1:(\d+)", plc.stderr.readline())
+        assert m
+        port = int(m.group(1))
+        c = Client("127.0.0.1", port)
+        c.write_register(1024, 30)                        # %MW0: 30 entries
+        c.close()
+        out = tmp_path / "e.jsonl"
+        p = subprocess.run([sys.executable, "-m", "mippeer.cli", "scada", "--port", str(port),
+                            "--out", str(out), "--entries", "30", "--interval", "0.005"],
+                           capture_output=True, text=True, timeout=60)
+        assert p.returncode == 0, p.stderr
+        assert taken([json.loads(x) for x in out.read_text().splitlines()]) == expected(30)
+        assert re.fullmatch(r"mip-peer scada: entries=30 acks=1\d reacks=0 refused=0", p.stdout.strip())
+    finally:
+        plc.send_signal(signal.SIGTERM)
+        plc.wait(timeout=10)
+        plc.stderr.close()
