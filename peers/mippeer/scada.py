@@ -48,9 +48,10 @@ class ModbusException(ScadaError):
 class Client:
     """Modbus TCP client of its own (function codes 3 and 6), one request at a time."""
 
-    def __init__(self, host, port, unit=1, timeout=1.0):
+    def __init__(self, host, port, unit=1, timeout=1.0, after_send=None):
         self.host, self.port, self.unit, self.timeout = host, port, unit, timeout
-        self.sock = None
+        self.after_send = after_send   # called after each request is sent, before its answer is
+        self.sock = None               # read: a simulation lets its server answer there (lockstep)
         self.tid = 0
 
     def close(self):
@@ -82,6 +83,8 @@ class Client:
         adu = struct.pack(">HHHB", self.tid, 0, len(pdu) + 1, self.unit) + pdu
         try:
             self.sock.sendall(adu)
+            if self.after_send:
+                self.after_send()
             if not answer:
                 self.close()
                 raise ScadaError(f"{self.host}:{self.port}: answer lost (fault injected)")
@@ -228,7 +231,10 @@ def main(argv=None, prog="mip-peer scada"):
     try:
         last, offers = resume(a.out)
         out = open(a.out, "a")
-    except (OSError, ScadaError) as e:
+    except OSError as e:
+        print(f"{prog}: error: {a.out}: {e.strerror or e}", file=sys.stderr)
+        return 2
+    except ScadaError as e:
         print(f"{prog}: error: {e}", file=sys.stderr)
         return 2
 
@@ -248,6 +254,10 @@ def main(argv=None, prog="mip-peer scada"):
             try:
                 taken += len(master.poll(time.monotonic() - start))
                 fails = 0
+            except OSError as e:         # the JSON-lines file (the sink): nothing acknowledged
+                print(f"{prog}: error: {a.out}: {e.strerror or e}", file=sys.stderr)
+                status = 1
+                break
             except ScadaError as e:
                 fails += 1
                 if fails >= a.retries:

@@ -186,6 +186,8 @@ def test_bad_options_are_one_line(tmp_path):
     p = cli("--port", 1, "--out", tmp_path / "bad.jsonl")
     assert p.returncode == 2
     assert p.stderr.strip() == f"mip-peer scada: error: {tmp_path / 'bad.jsonl'}:1: not a JSON line"
+    p = cli("--port", 1, "--out", tmp_path)
+    assert p.returncode == 2 and p.stderr.strip() == f"mip-peer scada: error: {tmp_path}: Is a directory"
 
 
 def test_the_scada_master_uses_nothing_of_ours():

@@ -284,3 +284,45 @@ def test_in_real_time_the_scada_command_takes_every_entry_once(build, tmp_path):
         plc.send_signal(signal.SIGTERM)
         plc.wait(timeout=10)
         plc.stderr.close()
+
+
+def test_the_hand_over_round_in_virtual_time(build, tmp_path):
+    """Lockstep (one thread, virtual time): an entry every 230 ms, the SCADA polling every
+    100 ms; each entry's time from its put to the SCADA's acknowledgement is at most one polling
+    interval plus three scans (docs/chain.md, the trade-off, quotes the figures it prints)."""
+    import select
+    plc = start(build, tmp_path, total=0)
+    put_at, ack_at = {}, {}
+
+    def tick():
+        plc.scan()
+        for k in range(len(put_at) + 1, plc["MAIN.srv.udiPut"] + 1):
+            put_at[k] = plc.time_ns
+        for k in range(len(ack_at) + 1, plc["MAIN.srv.udiAcked"] + 1):
+            ack_at[k] = plc.time_ns
+
+    def serve():                           # scans until the answer is there
+        for _ in range(10):
+            tick()
+            if select.select([client.sock], [], [], 0.05)[0]:
+                return
+        raise AssertionError("no answer within 10 scans")
+
+    client = Client("127.0.0.1", plc.slave_port, timeout=5, after_send=serve)
+    rows = []
+    m = SoeMaster(client, BASE, rows.extend, reack=1.0)
+    for n in range(1, 381):                # 3.8 s of virtual time
+        if n % 23 == 0 and n <= 345:
+            plc["%MW0"] = n // 23          # one more entry, every 230 ms: all phases of the poll
+        if n % 10 == 0:
+            m.poll(plc.time_ns / 1e9)
+        tick()
+    client.close()
+    assert taken(rows) == expected(15)
+    lat = sorted((ack_at[k] - put_at[k]) / 1e6 for k in range(1, 16))
+    print("put -> acknowledged, ms:", lat)
+    # the scan after the put (the offer forms without xPut), up to a polling interval, one scan
+    # for the read and one for the write
+    assert 3 * 10 <= lat[0] and lat[-1] <= 100 + 3 * 10, lat
+    assert m.reacks == 0 and plc["MAIN.srv.udiBadAcks"] == 0
+    plc.close()
