@@ -101,14 +101,35 @@ def cli(*args, timeout=60):
                           capture_output=True, text=True, timeout=timeout)
 
 
-def test_a_restarted_master_does_not_take_the_last_offer_of_its_file_again(tmp_path):
+class Ran:
+    def __init__(self, returncode, out, err):
+        self.returncode, self.stdout, self.stderr = returncode, out, err
+
+
+@pytest.fixture
+def inproc(monkeypatch, capsys):
+    """`mip-peer scada` run in this process (a subprocess costs a second of start-up here)."""
+    from mippeer import cli as mcli
+    monkeypatch.setattr(signal, "signal", lambda *a: None)
+
+    def run(*args):
+        try:
+            rc = mcli.main(["scada", *map(str, args)])
+        except SystemExit as e:
+            rc = e.code
+        out = capsys.readouterr()
+        return Ran(rc, out.out, out.err)
+    return run
+
+
+def test_a_restarted_master_does_not_take_the_last_offer_of_its_file_again(tmp_path, inproc):
     rec, srv = relay(LosesFirstAck)
     out = tmp_path / "e.jsonl"
     # the first run takes the first offer; its acknowledgement is lost; it stops
-    p = cli("--port", srv.port, "--out", out, "--entries", 3, "--interval", 0)
+    p = inproc("--port", srv.port, "--out", out, "--entries", 3, "--interval", 0)
     assert p.returncode == 0, p.stderr
     assert rec.registers()[:2] == [10, 1 | 3 << 8]          # still offered
-    p = cli("--port", srv.port, "--out", out, "--entries", 7, "--interval", 0.01, "--reack", 0)
+    p = inproc("--port", srv.port, "--out", out, "--entries", 7, "--interval", 0.01, "--reack", 0)
     assert p.returncode == 0, p.stderr
     assert p.stdout.strip() == "mip-peer scada: entries=7 acks=4 reacks=1 refused=0"
     rows = [json.loads(x) for x in out.read_text().splitlines()]
@@ -146,12 +167,12 @@ def test_takes_every_entry_of_the_emulators_relay_once_in_order(emulator_relay, 
     c.close()
 
 
-def test_a_dead_server_is_one_line_after_the_retries(tmp_path):
+def test_a_dead_server_is_one_line_after_the_retries(tmp_path, inproc):
     import socket
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]                           # nobody listens there
-    p = cli("--port", port, "--out", tmp_path / "e.jsonl", "--retries", 3, "--interval", 0)
+    p = inproc("--port", port, "--out", tmp_path / "e.jsonl", "--retries", 3, "--interval", 0)
     assert p.returncode == 1
     assert p.stderr.strip() == (f"mip-peer scada: error: 127.0.0.1:{port}: Connection refused "
                                 "(3 polls in a row failed)")
@@ -166,10 +187,10 @@ class Garbage(EventRecorder):
         return regs
 
 
-def test_a_bad_soe_control_is_never_taken(tmp_path):
+def test_a_bad_soe_control_is_never_taken(tmp_path, inproc):
     rec, srv = relay(Garbage)
     out = tmp_path / "e.jsonl"
-    p = cli("--port", srv.port, "--out", out, "--retries", 2, "--interval", 0)
+    p = inproc("--port", srv.port, "--out", out, "--retries", 2, "--interval", 0)
     assert p.returncode == 1
     assert p.stderr.strip() == ("mip-peer scada: error: bad SOE_Control 1281 (sequence 1, 5 blocks) "
                                 "with count 10: at most 3 blocks, a sequence number, at least as many "
@@ -179,14 +200,14 @@ def test_a_bad_soe_control_is_never_taken(tmp_path):
     srv.shutdown()
 
 
-def test_bad_options_are_one_line(tmp_path):
-    p = cli("--port", 1, "--out", tmp_path / "e", "--base", 70000)
+def test_bad_options_are_one_line(tmp_path, inproc):
+    p = inproc("--port", 1, "--out", tmp_path / "e", "--base", 70000)
     assert p.returncode == 2 and p.stderr.strip() == "mip-peer scada: error: --base must be 0..65510"
     (tmp_path / "bad.jsonl").write_text("{\n")
-    p = cli("--port", 1, "--out", tmp_path / "bad.jsonl")
+    p = inproc("--port", 1, "--out", tmp_path / "bad.jsonl")
     assert p.returncode == 2
     assert p.stderr.strip() == f"mip-peer scada: error: {tmp_path / 'bad.jsonl'}:1: not a JSON line"
-    p = cli("--port", 1, "--out", tmp_path)
+    p = inproc("--port", 1, "--out", tmp_path)
     assert p.returncode == 2 and p.stderr.strip() == f"mip-peer scada: error: {tmp_path}: Is a directory"
 
 
