@@ -12,10 +12,10 @@ import pytest
 
 from plcharness import Plc, PlcError, build_program
 
+from mippeer.scada import Client, ScadaError, SoeMaster
+from mipcosim.layout import LIB_FILES, ST_LIB, enum_values
+
 REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO / "peers"))
-from mippeer.scada import Client, ScadaError, SoeMaster  # noqa: E402
-from mipcosim.layout import LIB_FILES, ST_LIB, enum_values  # noqa: E402
 
 BASE = 600                  # the registers at %QW600..625 = holding 600..625, as the relay's 40601..
 TS0 = 1767225600000         # time stamp of entry 0 (ms since 1970)
