@@ -12,7 +12,7 @@ import pytest
 from stlib_sim import LIB, LIB_FILES, LIB_PATHS
 
 ALL_BLOCKS = ["MIP_Status", "MIP_WriteChannel", "MIP_Layout", "MIP_ReadDecoder", "MIP_Sender",
-              "MIP_Receiver", "MIP_Link", "MIP_BufferSender"]
+              "MIP_Receiver", "MIP_Link", "MIP_BufferSender", "MIP_SoeServer"]
 USE_ALL = """
 PROGRAM CompileCheck
 VAR
@@ -22,12 +22,14 @@ VAR
   link : MIP_Link;
   bsnd : MIP_BufferSender;
   buf : MIP_T_Buffer;
+  srv : MIP_SoeServer;
 END_VAR
 st();
 snd();
 rcv();
 link();
 bsnd(aBuffer := buf);
+srv();
 END_PROGRAM
 
 CONFIGURATION Config0
