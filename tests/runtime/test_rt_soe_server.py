@@ -326,3 +326,15 @@ def test_the_hand_over_round_in_virtual_time(build, tmp_path):
     assert 3 * 10 <= lat[0] and lat[-1] <= 100 + 3 * 10, lat
     assert m.reacks == 0 and plc["MAIN.srv.udiBadAcks"] == 0
     plc.close()
+
+
+def test_a_full_queue_refuses_entries_and_takes_them_once_there_is_room(build, tmp_path):
+    plc = start(build, tmp_path, total=130)
+    plc.scan(140)                            # no SCADA: 128 fit
+    assert plc["MAIN.srv.xFull"] and plc["MAIN.srv.udiPut"] == 128
+    assert plc["%QW600"] == 128 and plc["MAIN.uNext"] == 129      # the caller keeps entry 129
+    rows = []
+    run(plc, scada(plc, rows), lambda: plc["MAIN.srv.udiAcked"] == 130)
+    assert taken(rows) == expected(130)
+    assert not plc["MAIN.srv.xFull"]
+    plc.close()
