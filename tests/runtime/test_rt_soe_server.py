@@ -178,11 +178,11 @@ def write_ctrl(plc, value):
 
 
 def test_a_wrong_acknowledgement_is_refused_and_changes_nothing(build, tmp_path):
-    plc = start(build, tmp_path, total=5)
+    plc = start(build, tmp_path, total=4)
     plc.scan(10)
     regs = [plc[f"%QW{BASE + i}"] for i in range(26)]
     seq, n = regs[1] & 0xFF, regs[1] >> 8
-    assert (regs[0], n) == (5, 3) and plc["MAIN.srv.eState"] == STATES["MIP_SRV_OFFERED"]
+    assert (regs[0], n) == (4, 3) and plc["MAIN.srv.eState"] == STATES["MIP_SRV_OFFERED"]
     for bad in (seq + 1 + (3 << 8),          # another sequence number
                 seq + (4 << 8),              # more entries than offered
                 seq + (3 << 8) + 0x8000,     # reset list: the server never deletes untaken entries
@@ -192,8 +192,15 @@ def test_a_wrong_acknowledgement_is_refused_and_changes_nothing(build, tmp_path)
     assert plc["MAIN.srv.udiBadAcks"] == 4 and plc["MAIN.srv.wLastBadAck"] == 0x8000
     assert plc["MAIN.srv.udiAcked"] == 0
     write_ctrl(plc, seq + (2 << 8))          # 2 of the 3 evaluated: they go, the third comes again
-    assert plc["MAIN.srv.udiAcked"] == 2 and plc["%QW600"] == 3
-    assert plc["%QW601"] == ((seq + 1) | 3 << 8) and plc[f"%QW{BASE + 3}"] == 3   # entry 3 first
+    assert plc["MAIN.srv.udiAcked"] == 2 and plc["%QW600"] == 2
+    assert plc["%QW601"] == ((seq + 1) | 2 << 8)                  # entries 3 and 4, a new number
+    assert plc[f"%QW{BASE + 3}"] == 3 and plc[f"%QW{BASE + 11}"] == 4
+    write_ctrl(plc, seq + 1 + (3 << 8))      # more than the 2 offered now
+    assert plc["MAIN.srv.udiBadAcks"] == 5 and plc["MAIN.srv.uQueued"] == 2
+    write_ctrl(plc, seq + 1 + (2 << 8))
+    assert plc["MAIN.srv.udiAcked"] == 4 and plc["%QW600"] == 0 and plc["%QW601"] == seq + 1
+    write_ctrl(plc, seq + 1 + (2 << 8))      # the same again (its answer lost): nothing offered
+    assert plc["MAIN.srv.udiBadAcks"] == 6 and plc["MAIN.srv.udiAcked"] == 4
     plc.close()
 
 
