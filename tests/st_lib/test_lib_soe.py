@@ -13,11 +13,11 @@ ORIGIN = 1767225600000
 def make_relay(kind, events=(), **cfg):
     if kind == "py":
         return PyRelay(events, origin_ms=ORIGIN, **cfg)
-    from mipcosim.sim import Relay
+    from mipcosim.relay import Relay
     return Relay(events, origin_ms=ORIGIN, **cfg)
 
 
-RELAYS = ["py"]
+RELAYS = ["py", "c"]
 
 
 @pytest.fixture(scope="module")
