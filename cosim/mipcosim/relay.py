@@ -4,8 +4,11 @@ that mipcosim_run lets its event source run with the PLCs' time, and connects a 
 device to it in process (mipcosim_connect_relay), or answers Modbus TCP frames of a caller
 that is not a plcrt PLC (`handle`, e.g. tests/st_lib/soe_bench.py).
 
-    relay = Relay(kernel=chain, origin_ms=1767225600000, rate=2.0)
+    k = RelayKernel()
+    relay = Relay(kernel=k, origin_ms=1767225600000, rate=2.0)
+    pid = k.add_plc(plc)                    # a plcharness Plc
     relay.connect(pid, plc, "relay")        # the PLC's device "relay" reads the relay
+    k.run(10 * 10**9)                       # 10 s of virtual time
 """
 from __future__ import annotations
 
@@ -35,8 +38,11 @@ class RelayStats(ctypes.Structure):
                 ("seq", ctypes.c_uint16), ("offered", ctypes.c_uint16)]
 
 
-class _OwnKernel:
-    """A kernel with one idle station and no PLC: virtual time for a relay on its own."""
+class RelayKernel:
+    """A kernel with one idle radio station, for relays and the PLCs that read them (no
+    radio traffic): `add_plc` a plcharness Plc, `Relay(kernel=k)`, `relay.connect(pid, plc,
+    device)`, then `run(until_ns)` scans the PLCs and lets the relays' events happen in virtual
+    time. A Relay made without a kernel gets one of its own."""
 
     def __init__(self):
         self.lib = kernel_lib()
@@ -49,6 +55,18 @@ class _OwnKernel:
     @property
     def now(self):
         return self.lib.mipcosim_now(self.sim)
+
+    def add_plc(self, plc):
+        """A plcharness Plc scanned every plc.tick_ns from now on; returns its id."""
+        pid = self.lib.mipcosim_plc_add(self.sim, ctypes.cast(plc.library.plcrt_scan, ctypes.c_void_p),
+                                        plc.handle, plc.tick_ns)
+        if pid < 0:
+            raise CosimError(self.lib.mipcosim_errmsg(self.sim).decode())
+        return pid
+
+    def run(self, until_ns):
+        if self.lib.mipcosim_run(self.sim, until_ns) != 0:
+            raise CosimError(self.lib.mipcosim_errmsg(self.sim).decode())
 
     def __del__(self):
         if getattr(self, "sim", None):
@@ -71,8 +89,8 @@ class Relay:
             raise CosimError(f"overflow {overflow!r}: use drop-oldest or drop-new")
         if bad_ack not in BAD_ACK:
             raise CosimError(f"bad_ack {bad_ack!r}: use exc03 or ignore")
-        self._kernel = kernel or _OwnKernel()
-        self.lib = self._kernel.lib
+        self.kernel = kernel or RelayKernel()
+        self.lib = self.kernel.lib
         cfg = RelayConfig()
         self.lib.siprotec_config_default(ctypes.byref(cfg))
         cfg.base, cfg.capacity, cfg.seq_bits = base, capacity, seq_bits
@@ -81,10 +99,10 @@ class Relay:
             cfg.burst_n, cfg.burst_every_s = burst
         cfg.time_origin_ms = origin_ms
         self.origin_ms = origin_ms
-        self.rid = self.lib.mipcosim_relay_add(self._kernel.sim, ctypes.byref(cfg))
+        self.rid = self.lib.mipcosim_relay_add(self.kernel.sim, ctypes.byref(cfg))
         if self.rid < 0:
-            raise CosimError(self.lib.mipcosim_errmsg(self._kernel.sim).decode())
-        self.core = self.lib.mipcosim_relay(self._kernel.sim, self.rid)
+            raise CosimError(self.lib.mipcosim_errmsg(self.kernel.sim).decode())
+        self.core = self.lib.mipcosim_relay(self.kernel.sim, self.rid)
         self._rsp = ctypes.create_string_buffer(RESPONSE_MAX)
         for t_s, words in events:
             self.add(t_s, words)
@@ -96,16 +114,15 @@ class Relay:
             raise CosimError("relay: out of memory")
 
     def advance(self, now_ns):
-        """Virtual time to now_ns: only for a relay with a kernel of its own."""
-        if not isinstance(self._kernel, _OwnKernel):
+        """Virtual time to now_ns (RelayKernel.run: PLCs added to it are scanned too)."""
+        if not isinstance(self.kernel, RelayKernel):
             raise CosimError("advance: the relay's kernel runs the time (mipcosim_run)")
-        if self.lib.mipcosim_run(self._kernel.sim, now_ns) != 0:
-            raise CosimError(self.lib.mipcosim_errmsg(self._kernel.sim).decode())
+        self.kernel.run(now_ns)
 
     def handle(self, adu: bytes):
         """One Modbus TCP request frame -> the response frame (None: the relay would close the
         connection)."""
-        n = self.lib.mipcosim_relay_request(self._kernel.sim, self.rid, adu, len(adu),
+        n = self.lib.mipcosim_relay_request(self.kernel.sim, self.rid, adu, len(adu),
                                             self._rsp, len(self._rsp))
         return None if n < 0 else self._rsp.raw[:n]
 
@@ -113,9 +130,9 @@ class Relay:
         """PLC pid of the kernel (its plcharness Plc `plc`): its Modbus device `device` talks
         to this relay in process."""
         setter = ctypes.cast(plc.library.plcrt_device_set_transport, ctypes.c_void_p)
-        if self.lib.mipcosim_connect_relay(self._kernel.sim, pid, setter, device.encode(),
+        if self.lib.mipcosim_connect_relay(self.kernel.sim, pid, setter, device.encode(),
                                            self.rid) != 0:
-            raise CosimError(self.lib.mipcosim_errmsg(self._kernel.sim).decode())
+            raise CosimError(self.lib.mipcosim_errmsg(self.kernel.sim).decode())
 
     def stats(self):
         st = RelayStats()
