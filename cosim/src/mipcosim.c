@@ -308,15 +308,14 @@ static long transact(void *user, const uint8_t *req, size_t req_len, uint8_t *rs
     return n;
 }
 
-int mipcosim_connect_inproc(mipcosim *sim, int id, mipcosim_set_transport_fn set_transport,
-                            const char *device, int ep)
+/* The in-process connection of PLC id's device: the one it had, or a new one (NULL: the
+ * reason is in sim->err). */
+static conn_t *inproc_conn(mipcosim *sim, int id, const char *device)
 {
-    if (id < 0 || id >= sim->nplcs || !sim->plcs[id].rt) return fail(sim, "connect: no PLC %d", id);
-    if (!set_transport || !device) return fail(sim, "connect: no set_transport function or device");
-    if (ep < 0 || ep > mipemu_net_stations(sim->net))
-        return fail(sim, "connect: endpoint %d is not 0 (MDP) or a station 1..%d", ep,
-                    mipemu_net_stations(sim->net));
-    if (strlen(device) >= NAME_MAX_LEN) return fail(sim, "connect: device name too long");
+    if (strlen(device) >= NAME_MAX_LEN) {
+        fail(sim, "connect: device name too long");
+        return NULL;
+    }
     conn_t *c = NULL;
     int slot = -1;
     for (int i = 0; i < MAX_CONNS; i++) {
@@ -325,15 +324,34 @@ int mipcosim_connect_inproc(mipcosim *sim, int id, mipcosim_set_transport_fn set
         if (!o && slot < 0) slot = i;
     }
     if (!c) {
-        if (slot < 0) return fail(sim, "more than %d connections", MAX_CONNS);
+        if (slot < 0) {
+            fail(sim, "more than %d connections", MAX_CONNS);
+            return NULL;
+        }
         c = calloc(1, sizeof *c);
-        if (!c) return fail(sim, "out of memory");
+        if (!c) {
+            fail(sim, "out of memory");
+            return NULL;
+        }
         c->sim = sim;
         c->plc = id;
         c->fd_plc = c->fd_emu = -1;
         snprintf(c->device, sizeof c->device, "%s", device);
         sim->conns[slot] = c;
     }
+    return c;
+}
+
+int mipcosim_connect_inproc(mipcosim *sim, int id, mipcosim_set_transport_fn set_transport,
+                            const char *device, int ep)
+{
+    if (id < 0 || id >= sim->nplcs || !sim->plcs[id].rt) return fail(sim, "connect: no PLC %d", id);
+    if (!set_transport || !device) return fail(sim, "connect: no set_transport function or device");
+    if (ep < 0 || ep > mipemu_net_stations(sim->net))
+        return fail(sim, "connect: endpoint %d is not 0 (MDP) or a station 1..%d", ep,
+                    mipemu_net_stations(sim->net));
+    conn_t *c = inproc_conn(sim, id, device);
+    if (!c) return -1;
     c->ep = ep;
     c->relay = -1;
     if (set_transport(sim->plcs[id].rt, device, transact, c) != 0)
@@ -549,24 +567,8 @@ int mipcosim_connect_relay(mipcosim *sim, int id, mipcosim_set_transport_fn set_
     if (id < 0 || id >= sim->nplcs || !sim->plcs[id].rt) return fail(sim, "connect: no PLC %d", id);
     if (!set_transport || !device) return fail(sim, "connect: no set_transport function or device");
     if (!mipcosim_relay(sim, rid)) return fail(sim, "connect: no relay %d", rid);
-    if (strlen(device) >= NAME_MAX_LEN) return fail(sim, "connect: device name too long");
-    conn_t *c = NULL;
-    int slot = -1;
-    for (int i = 0; i < MAX_CONNS; i++) {
-        conn_t *o = sim->conns[i];
-        if (o && o->plc == id && !strcmp(o->device, device)) { c = o; break; }
-        if (!o && slot < 0) slot = i;
-    }
-    if (!c) {
-        if (slot < 0) return fail(sim, "more than %d connections", MAX_CONNS);
-        c = calloc(1, sizeof *c);
-        if (!c) return fail(sim, "out of memory");
-        c->sim = sim;
-        c->plc = id;
-        c->fd_plc = c->fd_emu = -1;
-        snprintf(c->device, sizeof c->device, "%s", device);
-        sim->conns[slot] = c;
-    }
+    conn_t *c = inproc_conn(sim, id, device);
+    if (!c) return -1;
     c->ep = -1;
     c->relay = rid;
     if (set_transport(sim->plcs[id].rt, device, transact_relay, c) != 0)

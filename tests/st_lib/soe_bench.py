@@ -19,8 +19,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from mipcosim.layout import enum_values
-from plcharness import Plc
-from stlib_sim import LIB_PATHS, compiler
+from plcharness import Plc  # noqa: F401 (the type build() returns)
+from stlib_sim import build_text
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO / "peers"))
@@ -45,22 +45,9 @@ def gen_program(tick_ms=10):
             "    PROGRAM inst0 WITH tMain : MAIN;\n  END_RESOURCE\nEND_CONFIGURATION\n")
 
 
-_BUILDS = {}
-
-
 def build(workdir: Path, tick_ms=10) -> Plc:
     """Build once per compiler, then a fresh instance per call."""
-    key = (tick_ms, compiler())
-    if key not in _BUILDS:
-        bdir = Path(workdir) / f"soe_build_{tick_ms}"
-        bdir.mkdir(parents=True, exist_ok=True)
-        prog = bdir / "prog_soe.st"
-        prog.write_text(gen_program(tick_ms))
-        plc = Plc.build(LIB_PATHS + [str(prog)], workdir=bdir, compiler=compiler())
-        _BUILDS[key] = (plc.build_result, bdir)
-        return plc
-    result, bdir = _BUILDS[key]
-    return Plc(result, bdir)
+    return build_text(gen_program(tick_ms), workdir, f"soe_build_{tick_ms}")
 
 
 class PyRelay:
