@@ -5,7 +5,7 @@ or deliver twice. The relay is the independent Python one (peers/mippeer/siprote
 where the C relay is in the co-simulation, the emulator's core (parametrised `relay`)."""
 import pytest
 
-from soe_bench import ERR, STATE, WAIT, Bench, PyRelay, expected, script
+from soe_bench import ERR, STATE, WAIT, Bench, PyRelay, expected, pyrelay, script
 
 ORIGIN = 1767225600000
 
@@ -149,14 +149,6 @@ def test_overflow_keeps_order(wd, relay):
 
 # ---------------------------------------------------------------- a relay that misbehaves
 
-class Tampered(PyRelay):
-    """The Python relay whose register answers pass through `fix(regs)`."""
-
-    def __init__(self, fix, *a, **kw):
-        super().__init__(*a, **kw)
-        self.fix = fix
-
-
 @pytest.mark.parametrize("name,tamper,error", [
     ("four blocks", lambda r: [r[0], (r[1] & 0xFF) | 4 << 8] + r[2:], "MIP_SOE_ERR_BAD_ANSWER"),
     ("count below blocks", lambda r: [0] + r[1:] if r[1] >> 8 else r, "MIP_SOE_ERR_BAD_ANSWER"),
@@ -216,8 +208,7 @@ def test_a_relay_that_refuses_every_ack(wd):
     relay = make_relay("py", script(3, start_s=0.0, every_s=0.001))
 
     def refuse(v):
-        raise relay_mod.ModbusError(3)
-    from soe_bench import pyrelay as relay_mod
+        raise pyrelay.ModbusError(3)
     relay.rec._control = refuse
     b = Bench(wd, relay, tAckTimeout=400_000_000, tAckRetry=50_000_000)
     assert b.run_until(lambda: b.fb["xError"], 300)
