@@ -28,7 +28,7 @@ REPO = HERE.parent if (HERE.parent / "translator" / "stc").is_dir() else HERE / 
 # what the wheel is made of, relative to REPO (the source archive carries exactly these)
 NEEDED = ["translator/stc", "runtime_shim/harness/plcharness", "runtime_shim/src",
           "runtime_shim/include", "cosim/mipcosim", "cosim/src/mipcosim.c", "cosim/include",
-          "emulator/src/mipemu.c", "emulator/include", "peers/mippeer", "st_lib",
+          "emulator/src/mipemu.c", "emulator/src/siprotec.c", "emulator/include", "peers/mippeer", "st_lib",
           "docs/tools/seqdiag.py", "plc/openplc_limits.py", "LICENSE"]
 PACKAGES = {"stc": "translator/stc", "plcharness": "runtime_shim/harness/plcharness",
             "mipcosim": "cosim/mipcosim", "mippeer": "peers/mippeer"}
@@ -75,9 +75,13 @@ class BuildKit(build_py):
         emu = tmp / "mipemu.o"
         _cc(["-std=c11", "-D_POSIX_C_SOURCE=200809L", "-O2", "-fPIC", f"-I{REPO / 'emulator/include'}",
              "-c", str(REPO / "emulator/src/mipemu.c"), "-o", str(emu)])
+        relay = tmp / "siprotec.o"       # the SIPROTEC relay core (mipcosim_relay_add)
+        _cc(["-std=c11", "-D_POSIX_C_SOURCE=200809L", "-O2", "-fPIC", f"-I{REPO / 'emulator/include'}",
+             "-c", str(REPO / "emulator/src/siprotec.c"), "-o", str(relay)])
         _cc(["-std=c11", "-D_GNU_SOURCE", "-O2", "-fPIC", "-shared",
              f"-I{REPO / 'cosim/include'}", f"-I{REPO / 'emulator/include'}",
-             "-o", str(lib / "libmipcosim.so"), str(REPO / "cosim/src/mipcosim.c"), str(emu), "-lm"])
+             "-o", str(lib / "libmipcosim.so"), str(REPO / "cosim/src/mipcosim.c"), str(emu), str(relay),
+             "-lm"])
 
 
 class SdistKit(sdist):

@@ -33,12 +33,7 @@ from xml.sax.saxutils import escape
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 MODEL = os.path.join(HERE, "mip.pml")
-
-
-def model_of(defs):
-    """The model file of a configuration: mip.pml unless its defines name another (_MODEL,
-    not passed to spin: handover.pml, the hand-over at the central, issue 35)."""
-    return os.path.join(HERE, defs.get("_MODEL", "mip.pml"))
+# a configuration may name another model file of this folder (defs key "_MODEL")
 
 # name, defines, expectation, what it shows
 #   expectation: "holds" or "known:<kind>" with kind one of
@@ -266,6 +261,25 @@ def expectation(name):
 
 CONFIGS = _matrix()
 
+# The SIPROTEC event-recorder handshake at the outstation (issue 35, model/soe.pml): a relay,
+# MIP_SoeReader and its logger; "acknowledge after store" loses nothing (LOST, GAP), and with
+# warm restarts delivers exactly once (DUP_ORDER). Lost answers (LOSS) and restarts (RST).
+SOE_CONFIGS = [
+    ("soe/cold", dict(_MODEL="soe.pml", RST=2, LOSS=3), "holds",
+     "ack after store, cold restarts and lost answers: nothing lost, no gap (duplicates allowed)"),
+    ("soe/warm", dict(_MODEL="soe.pml", WARM=1, RST=2, LOSS=3), "holds",
+     "ack after a snapshot holds the stored entries, warm restarts: exactly once, in order"),
+    ("soe/blk3", dict(_MODEL="soe.pml", BLK=3, N=5, SEQB=2, RST=1, LOSS=2), "holds",
+     "three message blocks per read as the relay, five events, sequence numbers wrap"),
+    ("soe-ackearly/cold", dict(_MODEL="soe.pml", ACK_EARLY=1, LOSS=0, RST=1), "known:LOST",
+     "acknowledge before store: a cold restart between the acknowledgement and the store loses "
+     "the entries the relay already deleted"),
+    ("soe-nogate/warm", dict(_MODEL="soe.pml", WARM=1, NOGATE=1, RST=1, LOSS=0), "known:LOST",
+     "warm restarts without the snapshot gate: the PLC comes back with a store older than "
+     "the acknowledgement"),
+]
+CONFIGS += SOE_CONFIGS
+
 def kind_of(text):
     """The property a pan/spin output reports violated."""
     if "acceptance cycle" in text:
@@ -285,6 +299,10 @@ def spin_defs(defs):
         if not k.startswith("_"):
             out.append("-D%s=%s" % (k, v))
     return out
+
+
+def model_of(defs):
+    return os.path.join(HERE, defs["_MODEL"]) if "_MODEL" in defs else MODEL
 
 
 def sh(cmd, cwd, timeout=900):
@@ -379,7 +397,8 @@ SIDE = {"M0": "central(MDP)", "M1": "outstation(TRM)"}
 def readable_trace(work, defs, limit=60):
     """Replays pan's trail with spin and keeps the model's own event lines."""
     model = model_of(defs)
-    rc, out = sh(["spin", "-t", "-k", os.path.basename(model) + ".trail"] + spin_defs(defs) + [model], work)
+    rc, out = sh(["spin", "-t", "-k", os.path.basename(model) + ".trail"] + spin_defs(defs)
+                 + [model], work)
     lines = []
     for ln in out.splitlines():
         s = ln.strip()
@@ -485,6 +504,8 @@ QUICK = [
     "win2/ours-ours/spont/up",                    # the pipelined sender
     "win2-pipelast/ours-ours/spont/up",           # must fail: P27 (GAP)
     "warm-split-bit0/ours-ours/spont/up+wrst-rcv",  # must fail: a read in parts with bit 0 alone (issue 38)
+    "soe/warm",                                   # the SOE handshake (issue 35), warm restarts
+    "soe-ackearly/cold",                          # must fail: acknowledge before store (LOST)
     "handover/ack-after/cold",                    # the hand-over at the central (issue 35)
     "handover/ack-first/cold",                    # must fail: acknowledged before the hand-over (LOST)
 ]

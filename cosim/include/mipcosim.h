@@ -19,6 +19,7 @@
 #include <stdint.h>
 
 #include "mipemu.h"  /* the library exports the core's API too (tests/st_lib uses it directly) */
+#include "siprotec.h" /* and the SIPROTEC relay core's (issue 35: mipcosim_relay_add below) */
 
 #ifdef __cplusplus
 extern "C" {
@@ -107,6 +108,24 @@ uint64_t mipcosim_scans(const mipcosim *sim);
 
 /* Trace lines of the emulator go to path (NULL: off). */
 int mipcosim_trace_file(mipcosim *sim, const char *path);
+
+/* SIPROTEC relays (emulator/src/siprotec.c, docs/chain.md "The relay") in the same virtual
+ * time: mipcosim_run lets each relay's event source run up to every time step, and a request
+ * reaches the relay at the current virtual time. A relay is not a station of the radio
+ * network: a PLC talks to it over its own Modbus device (the outstation's Modbus client to
+ * the relay next to it). Returns the relay's id (0..), or -1 (mipcosim_errmsg: the
+ * configuration's reason, or too many relays). The kernel frees it. */
+int mipcosim_relay_add(mipcosim *sim, const siprotec_config *cfg);
+/* The relay's core for the siprotec_* API (scripted events, stats, peek); NULL: no such id. */
+siprotec_relay *mipcosim_relay(mipcosim *sim, int rid);
+/* PLC id's device (a Modbus TCP client of the runtime) talks to relay rid in process, as
+ * mipcosim_connect_inproc does for a modem. */
+int mipcosim_connect_relay(mipcosim *sim, int id, mipcosim_set_transport_fn set_transport,
+                           const char *device, int rid);
+/* One request of a participant that is not a plcrt PLC, to relay rid at the current virtual
+ * time (as mipcosim_request for the modems). Returns the response's length, or -1. */
+long mipcosim_relay_request(mipcosim *sim, int rid, const uint8_t *req, size_t req_len,
+                            uint8_t *rsp, size_t rsp_cap);
 
 #ifdef __cplusplus
 }

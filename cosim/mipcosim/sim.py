@@ -85,6 +85,17 @@ def kernel_lib():
         ("mipemu_net_set_fate", None, [c.c_void_p, FATE_FN, c.c_void_p]),
         ("mipemu_net_inject", c.c_int, [c.c_void_p, c.c_int, c.c_int, u16p, c.c_int]),
         ("mipemu_net_peek", c.c_int, [c.c_void_p, c.c_int, c.c_int, c.c_uint, c.c_uint, u16p]),
+        # SIPROTEC relays in the kernel's virtual time (issue 35; mipcosim.relay wraps them)
+        ("mipcosim_relay_add", c.c_int, [c.c_void_p, c.c_void_p]),
+        ("mipcosim_relay", c.c_void_p, [c.c_void_p, c.c_int]),
+        ("mipcosim_connect_relay", c.c_int, [c.c_void_p, c.c_int, c.c_void_p, c.c_char_p, c.c_int]),
+        ("mipcosim_relay_request", c.c_long, [c.c_void_p, c.c_int, c.c_char_p, c.c_size_t,
+                                              c.c_char_p, c.c_size_t]),
+        ("siprotec_config_default", None, [c.c_void_p]),
+        ("siprotec_script", c.c_int, [c.c_void_p, c.c_uint64, u16p]),
+        ("siprotec_next_event", c.c_uint64, [c.c_void_p]),
+        ("siprotec_peek", None, [c.c_void_p, c.c_uint16, c.c_uint, u16p]),
+        ("siprotec_get_stats", None, [c.c_void_p, c.c_void_p]),
     ]:
         f = getattr(lib, name)
         f.restype, f.argtypes = res, args

@@ -17,6 +17,7 @@
 #define MAX_CONNS 1024
 #define MAX_TAPS 64
 #define NAME_MAX_LEN 64
+#define MAX_RELAYS 64
 
 typedef struct plc {
     int used;
@@ -32,6 +33,7 @@ typedef struct conn {
     int plc;
     int ep;
     int fd_plc, fd_emu;
+    int relay;                  /* mipcosim_connect_relay: the relay's id; -1: the modem ep */
     char device[NAME_MAX_LEN];
     uint8_t buf[MIPEMU_FRAME_MAX * 2];
     size_t len;
@@ -59,6 +61,8 @@ struct mipcosim {
     uint64_t requests, scans;
     FILE *trace;
     char err[256];
+    siprotec_relay *relays[MAX_RELAYS];
+    int nrelays;
 };
 
 static int fail(mipcosim *sim, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
@@ -119,6 +123,7 @@ void mipcosim_free(mipcosim *sim)
     for (int i = 0; i < MAX_CONNS; i++)
         if (sim->conns[i]) conn_close(sim->conns[i]);
     if (sim->trace) fclose(sim->trace);
+    for (int i = 0; i < sim->nrelays; i++) siprotec_free(sim->relays[i]);
     mipemu_net_free(sim->net);
     free(sim->log);
     free(sim);
@@ -284,6 +289,7 @@ static int connect_stream(mipcosim *sim, int id, mipcosim_set_fd_fn set_fd, cons
         sim->conns[slot] = c;
     }
     c->ep = ep;
+    c->relay = -1;
     if (set_fd(sim->plcs[id].rt, device, c->fd_plc, after_send, c) != 0)
         return fail(sim, "connect: the runtime refused device '%s'", device);
     return 0;
@@ -302,15 +308,14 @@ static long transact(void *user, const uint8_t *req, size_t req_len, uint8_t *rs
     return n;
 }
 
-int mipcosim_connect_inproc(mipcosim *sim, int id, mipcosim_set_transport_fn set_transport,
-                            const char *device, int ep)
+/* The in-process connection of PLC id's device: the one it had, or a new one (NULL: the
+ * reason is in sim->err). */
+static conn_t *inproc_conn(mipcosim *sim, int id, const char *device)
 {
-    if (id < 0 || id >= sim->nplcs || !sim->plcs[id].rt) return fail(sim, "connect: no PLC %d", id);
-    if (!set_transport || !device) return fail(sim, "connect: no set_transport function or device");
-    if (ep < 0 || ep > mipemu_net_stations(sim->net))
-        return fail(sim, "connect: endpoint %d is not 0 (MDP) or a station 1..%d", ep,
-                    mipemu_net_stations(sim->net));
-    if (strlen(device) >= NAME_MAX_LEN) return fail(sim, "connect: device name too long");
+    if (strlen(device) >= NAME_MAX_LEN) {
+        fail(sim, "connect: device name too long");
+        return NULL;
+    }
     conn_t *c = NULL;
     int slot = -1;
     for (int i = 0; i < MAX_CONNS; i++) {
@@ -319,16 +324,36 @@ int mipcosim_connect_inproc(mipcosim *sim, int id, mipcosim_set_transport_fn set
         if (!o && slot < 0) slot = i;
     }
     if (!c) {
-        if (slot < 0) return fail(sim, "more than %d connections", MAX_CONNS);
+        if (slot < 0) {
+            fail(sim, "more than %d connections", MAX_CONNS);
+            return NULL;
+        }
         c = calloc(1, sizeof *c);
-        if (!c) return fail(sim, "out of memory");
+        if (!c) {
+            fail(sim, "out of memory");
+            return NULL;
+        }
         c->sim = sim;
         c->plc = id;
         c->fd_plc = c->fd_emu = -1;
         snprintf(c->device, sizeof c->device, "%s", device);
         sim->conns[slot] = c;
     }
+    return c;
+}
+
+int mipcosim_connect_inproc(mipcosim *sim, int id, mipcosim_set_transport_fn set_transport,
+                            const char *device, int ep)
+{
+    if (id < 0 || id >= sim->nplcs || !sim->plcs[id].rt) return fail(sim, "connect: no PLC %d", id);
+    if (!set_transport || !device) return fail(sim, "connect: no set_transport function or device");
+    if (ep < 0 || ep > mipemu_net_stations(sim->net))
+        return fail(sim, "connect: endpoint %d is not 0 (MDP) or a station 1..%d", ep,
+                    mipemu_net_stations(sim->net));
+    conn_t *c = inproc_conn(sim, id, device);
+    if (!c) return -1;
     c->ep = ep;
+    c->relay = -1;
     if (set_transport(sim->plcs[id].rt, device, transact, c) != 0)
         return fail(sim, "connect: the runtime refused device '%s'", device);
     return 0;
@@ -450,6 +475,7 @@ int mipcosim_run(mipcosim *sim, uint64_t until_ns)
         for (int i = 0; i < sim->nplcs; i++)
             if (sim->plcs[i].rt && sim->plcs[i].due_ns < t) t = sim->plcs[i].due_ns;
         if (mipemu_net_advance(sim->net, t) != 0) return fail(sim, "emulator refused time %llu", (unsigned long long)t);
+        for (int r = 0; r < sim->nrelays; r++) siprotec_advance(sim->relays[r], t);
         sim->now = t;
         if (t >= until_ns) return 0;
         for (int i = 0; i < sim->nplcs; i++) {
@@ -484,5 +510,68 @@ int mipcosim_trace_file(mipcosim *sim, const char *path)
     sim->trace = fopen(path, "w");
     if (!sim->trace) return fail(sim, "%s: %s", path, strerror(errno));
     mipemu_net_set_trace(sim->net, trace_line, sim->trace);
+    return 0;
+}
+
+/* ---- SIPROTEC relays (issue 35) ---- */
+
+int mipcosim_relay_add(mipcosim *sim, const siprotec_config *cfg)
+{
+    if (!cfg) return fail(sim, "relay_add: no configuration");
+    if (sim->nrelays == MAX_RELAYS) return fail(sim, "more than %d relays", MAX_RELAYS);
+    char err[200];
+    siprotec_relay *r = siprotec_new(cfg, err, sizeof err);
+    if (!r) return fail(sim, "relay: %s", err);
+    siprotec_advance(r, sim->now);
+    sim->relays[sim->nrelays] = r;
+    return sim->nrelays++;
+}
+
+siprotec_relay *mipcosim_relay(mipcosim *sim, int rid)
+{
+    return rid >= 0 && rid < sim->nrelays ? sim->relays[rid] : NULL;
+}
+
+long mipcosim_relay_request(mipcosim *sim, int rid, const uint8_t *req, size_t req_len,
+                            uint8_t *rsp, size_t rsp_cap)
+{
+    siprotec_relay *r = mipcosim_relay(sim, rid);
+    if (!r) return fail(sim, "relay request: no relay %d", rid);
+    if (!req || !rsp || rsp_cap < SIPROTEC_RESPONSE_MAX)
+        return fail(sim, "relay request: no request, or a response buffer under %d bytes",
+                    SIPROTEC_RESPONSE_MAX);
+    siprotec_advance(r, sim->now);
+    long n = siprotec_handle(r, req, req_len, rsp, rsp_cap);
+    if (n < 0) return fail(sim, "relay request: not one whole Modbus TCP frame");
+    sim->requests++;
+    return n;
+}
+
+static long transact_relay(void *user, const uint8_t *req, size_t req_len, uint8_t *rsp,
+                           size_t cap)
+{
+    conn_t *c = user;
+    mipcosim *sim = c->sim;
+    siprotec_relay *r = mipcosim_relay(sim, c->relay);
+    if (!r) return -1;
+    siprotec_advance(r, sim->now);
+    long n = siprotec_handle(r, req, req_len, rsp, cap);
+    if (n < 0) return -1; /* malformed: the relay closes the connection */
+    sim->requests++;
+    return n;
+}
+
+int mipcosim_connect_relay(mipcosim *sim, int id, mipcosim_set_transport_fn set_transport,
+                           const char *device, int rid)
+{
+    if (id < 0 || id >= sim->nplcs || !sim->plcs[id].rt) return fail(sim, "connect: no PLC %d", id);
+    if (!set_transport || !device) return fail(sim, "connect: no set_transport function or device");
+    if (!mipcosim_relay(sim, rid)) return fail(sim, "connect: no relay %d", rid);
+    conn_t *c = inproc_conn(sim, id, device);
+    if (!c) return -1;
+    c->ep = -1;
+    c->relay = rid;
+    if (set_transport(sim->plcs[id].rt, device, transact_relay, c) != 0)
+        return fail(sim, "connect: the runtime refused device '%s'", device);
     return 0;
 }

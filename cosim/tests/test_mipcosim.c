@@ -407,6 +407,49 @@ static void test_core_api_exported(void)
     mipcosim_free(sim);
 }
 
+/* A relay in the kernel (issue 35): its scripted events happen at their virtual times; a
+ * PLC's device reads it in process; a wrong configuration is one line. */
+static void test_relay_in_virtual_time(void)
+{
+    mipcosim *sim = new_sim(1, 0, 1);
+    CHECK(sim);
+    siprotec_config cfg;
+    siprotec_config_default(&cfg);
+    cfg.time_origin_ms = 1000;
+    int rid = mipcosim_relay_add(sim, &cfg);
+    CHECK(rid == 0 && mipcosim_relay(sim, rid) != NULL && mipcosim_relay(sim, 1) == NULL);
+    const uint16_t w[4] = {0x0102, 101, 0x0101, 1};
+    CHECK(siprotec_script(mipcosim_relay(sim, rid), 25000000, w) == 0);     /* at 25 ms */
+    fake_ip_t a;
+    memset(&a, 0, sizeof a);
+    /* FC3 of 26 at 600 (40601..40626), transaction id 9 */
+    uint8_t r[] = {0, 9, 0, 0, 0, 6, 1, 3, 0x02, 0x58, 0, 26};
+    memcpy(a.req, r, sizeof r);
+    a.req_len = sizeof r;
+    int id = mipcosim_plc_add(sim, fake_ip_scan, &a, 10000000);
+    CHECK(mipcosim_connect_relay(sim, id, fake_set_transport, "relay", rid) == 0);
+    CHECK(mipcosim_connect_relay(sim, id, fake_set_transport, "x", 5) == -1);
+    CHECK(strstr(mipcosim_errmsg(sim), "no relay 5"));
+    CHECK(mipcosim_run(sim, 20000000) == 0);               /* scans at 0 and 10 ms: nothing yet */
+    CHECK(a.rsp_len == 9 + 52 && a.rsp[1] == 9 && a.rsp[9] == 0 && a.rsp[10] == 0);
+    CHECK(mipcosim_run(sim, 40000000) == 0);               /* the scan at 30 ms sees the entry */
+    CHECK(a.rsp[10] == 1 && a.rsp[11] == 1 && a.rsp[12] == 1);   /* count 1, SOE_Control 257 */
+    CHECK(a.rsp[13] == 0x01 && a.rsp[14] == 0x02);         /* type 1 bit 2 */
+    CHECK(a.rsp[27] == 0x04 && a.rsp[28] == 0x01);         /* time stamp 1000 + 25 ms (least significant word) */
+    siprotec_stats st;
+    siprotec_get_stats(mipcosim_relay(sim, rid), &st);
+    CHECK(st.entries == 1 && st.seq == 1 && st.offered == 1);
+    uint8_t ack[] = {0, 2, 0, 0, 0, 6, 1, 6, 0x02, 0x59, 0x01, 0x01};  /* FC6 601: 1 + 256 */
+    uint8_t rsp[SIPROTEC_RESPONSE_MAX];
+    CHECK(mipcosim_relay_request(sim, rid, ack, sizeof ack, rsp, sizeof rsp) == 12);
+    siprotec_get_stats(mipcosim_relay(sim, rid), &st);
+    CHECK(st.entries == 0 && st.acknowledged == 1);
+    CHECK(mipcosim_relay_request(sim, 3, ack, sizeof ack, rsp, sizeof rsp) == -1);
+    cfg.seq_bits = 1;
+    CHECK(mipcosim_relay_add(sim, &cfg) == -1 && strstr(mipcosim_errmsg(sim), "relay: "));
+    mipcosim_free(sim);
+}
+
 static void run(const char *name, void (*fn)(void))
 {
     g_test = name;
@@ -439,6 +482,7 @@ int main(int argc, char **argv)
     run("failed_scan_stops_the_run", test_failed_scan_stops_the_run);
     run("same_seed_same_trace", test_same_seed_same_trace);
     run("core_api_exported", test_core_api_exported);
+    run("relay_in_virtual_time", test_relay_in_virtual_time);
     printf("cosim-unit: %d passed, %d failed\n", g_pass, g_fail);
     if (junit) {
         g_junit = fopen(junit, "w");

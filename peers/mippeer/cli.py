@@ -1,7 +1,8 @@
 """mip-peer: a MIP peer (outstation or central) that follows only the Piciorgros note.
 
 Example: mip-peer central --port 15020 --unit 1 --expect 1 --out received.json
-         mip-peer unicos --port 15040 --pair 15041 --out events.jsonl   (WinCC OA UNICOS stand-in)
+         mip-peer scada --port 15030 --out entries.jsonl (SOE handshake master, mippeer/scada.py)
+         mip-peer unicos --port 15040 --pair 15041 --out events.jsonl (WinCC OA UNICOS stand-in)
 """
 
 import argparse
@@ -123,10 +124,15 @@ def _on_term(*_):
 
 
 def main(argv=None):
-    args = sys.argv[1:] if argv is None else list(argv)
-    if args[:1] == ["unicos"]:         # the WinCC OA UNICOS-driver stand-in (mippeer/unicos.py)
-        from . import unicos
-        return unicos.main(args[1:])
+    argv = sys.argv[1:] if argv is None else argv
+    if argv[:1] == ["scada"]:
+        # the SCADA master of the pull way (issue 35): its own options, peers/mippeer/scada.py
+        from .scada import main as scada_main
+        return scada_main(argv[1:])
+    if argv[:1] == ["unicos"]:
+        # the WinCC OA UNICOS-driver stand-in of the push way (issue 35), peers/mippeer/unicos.py
+        from .unicos import main as unicos_main
+        return unicos_main(argv[1:])
     a = parse_args(argv)
     records = logger_records(a.records, a.record_size, a.seed) if a.records else None
     try:

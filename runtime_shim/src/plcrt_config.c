@@ -388,7 +388,7 @@ static int parse_plcrt(parser_t *p, char *text)
     int retain_keys[4] = {0}; /* file, period, request, saved */
     m->retain_period_ns = 1000000000ull;
     int master_keys[4] = {0};
-    int slave_keys[4] = {0};
+    int slave_keys[6] = {0}; /* host, port, idle_timeout, byte_timeout, watch, watch_count */
     uint64_t default_poll = 100000000ull, default_timeout = 1000000000ull;
     memset(&rk, 0, sizeof rk);
     memset(&dk, 0, sizeof dk);
@@ -549,8 +549,27 @@ static int parse_plcrt(parser_t *p, char *text)
                 slot = &slave_keys[idle ? 2 : 3];
                 if (parse_duration(p, lineno, key, val, ns)) return -1;
                 if (*ns == 0) return perr(p, lineno, "%s must be > 0", key);
+            } else if (!strcmp(key, "watch")) {
+                /* a holding register (%QW n = n, %MW n = 1024 + n) whose writes are counted */
+                slot = &slave_keys[4];
+                char area, size;
+                long parts[2];
+                int n;
+                if (plcrt_parse_address(val, &area, &size, parts, &n) != 0 || size != 'W' ||
+                    (area != 'Q' && area != 'M') || n != 1)
+                    return perr(p, lineno, "watch: '%s' must be a %%QW or %%MW address (a holding register)", val);
+                if (parts[0] < 0 || parts[0] >= PLCRT_IMAGE_SIZE)
+                    return perr(p, lineno, "watch: '%s' is outside the image (n < 1024)", val);
+                m->slave_watch = (int)parts[0] + (area == 'M' ? PLCRT_IMAGE_SIZE : 0);
+            } else if (!strcmp(key, "watch_count")) {
+                /* the runtime's %IW word: writes to the watched register since the start */
+                slot = &slave_keys[5];
+                if (!slave_keys[5] &&
+                    (parse_location(p, lineno, key, val, 'I', 'W', &m->slave_watch_count) ||
+                     claim(p, lineno, 'I', 'W', m->slave_watch_count, 1, key)))
+                    return -1;
             } else
-                return perr(p, lineno, "unknown key '%s' in [slave] (host, port, idle_timeout, byte_timeout)", key);
+                return perr(p, lineno, "unknown key '%s' in [slave] (host, port, idle_timeout, byte_timeout, watch, watch_count)", key);
             break;
         case SEC_DEVICE:
             if (!strcmp(key, "host")) {
@@ -676,6 +695,9 @@ static int parse_plcrt(parser_t *p, char *text)
         return perr(p, retain_seen, "[retain]: missing key 'file'%s",
                     retain_keys[2] || retain_keys[3]
                         ? " (request and saved are about snapshots: they need somewhere to go)" : "");
+    if (!slave_keys[4] != !slave_keys[5])
+        return perr(p, slave_keys[4] ? slave_keys[4] : slave_keys[5],
+                    "[slave]: watch and watch_count go together (the register and its write count)");
     (void)master_seen;
     return 0;
 }
@@ -909,6 +931,7 @@ int plcrt_master_parse(plcrt_t *rt, const char *name, const char *text, struct p
     m->reconnect_max_ns = 5000000000ull;
     m->slave_port = -1;
     m->retain_request = m->retain_saved = -1;
+    m->slave_watch = m->slave_watch_count = -1;
     p->rt = rt;
     p->file = name;
     p->m = m;

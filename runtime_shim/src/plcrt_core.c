@@ -66,6 +66,7 @@ plcrt_t *plcrt_new(const plcrt_program_t *prog, char *err, size_t errlen)
     rt->tick_ns = *prog->ticktime_ns;
     rt->log_fn = default_log;
     rt->retain_request = rt->retain_saved = -1;
+    rt->slave_watch = rt->slave_watch_count = -1;
     pthread_mutex_init(&rt->image_lock, NULL);
     if (prog->bind && prog->bind(&rt->img, err, errlen) != 0) {
         free(rt);
@@ -295,6 +296,8 @@ int plcrt_load_config_text(plcrt_t *rt, const char *name, const char *text)
     if (m->retain_file[0]) plcrt_retain_set_file(rt, m->retain_file, m->retain_period_ns);
     rt->retain_request = m->retain_request;
     rt->retain_saved = m->retain_saved;
+    rt->slave_watch = m->slave_watch;
+    rt->slave_watch_count = m->slave_watch_count;
     if (m->slave_enabled && !rt->slave &&
         plcrt_slave_start(rt, m->slave_host, m->slave_port) != 0) {
         char why[sizeof rt->err];

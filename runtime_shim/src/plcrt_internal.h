@@ -40,6 +40,8 @@ struct plcrt {
     int retain_failing;         /* the last save failed */
     int retain_request;         /* [retain] request: flat %QX bit index, -1 = none */
     int retain_saved;           /* [retain] saved: %IW index, -1 = none */
+    int slave_watch;            /* [slave] watch: holding address whose writes are counted, -1 = none */
+    int slave_watch_count;      /* [slave] watch_count: %IW index of the count, -1 = none */
     int retain_mem;             /* snapshots go to retain_buf (plcrt_retain_set_memory) */
     uint8_t *retain_buf;        /* the last complete in-memory snapshot */
     size_t retain_len;          /* its length; 0 = none yet */

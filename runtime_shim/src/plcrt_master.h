@@ -139,6 +139,8 @@ struct plcrt_master {
     char slave_host[256];
     int slave_port;
     uint64_t slave_idle_ns, slave_byte_ns; /* 0 = default */
+    int slave_watch;                       /* [slave] watch: holding address, -1 = none */
+    int slave_watch_count;                 /* [slave] watch_count: %IW index, -1 = none */
     char retain_file[1024];                /* [retain] file; "" = none */
     uint64_t retain_period_ns;             /* [retain] period (default 1 s) */
     int retain_request;                    /* [retain] request: flat %QX bit index, -1 = none */

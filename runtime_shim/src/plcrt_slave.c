@@ -241,6 +241,11 @@ static int execute(plcrt_t *rt, const decoded_t *d, uint8_t *rsp, int lock)
             if (a < PLCRT_IMAGE_SIZE) img->qw[a] = v;
             else img->mw[a - PLCRT_IMAGE_SIZE] = v;
         }
+        /* [slave] watch: the program cannot tell a write of the value already there from no
+         * write; the count, changed under the same lock as the register, tells it */
+        if (rt->slave_watch_count >= 0 && d->addr <= rt->slave_watch &&
+            rt->slave_watch < d->addr + d->qty)
+            img->iw[rt->slave_watch_count]++;
         break;
     case 15:
         for (int i = 0; i < d->qty; i++) qx[d->addr + i] = (d->data[i / 8] >> (i % 8)) & 1;

@@ -89,10 +89,15 @@ _BUILDS = {}
 
 def build(instances, workdir: Path, tick_ms=10) -> Plc:
     """Build (once per program text and compiler, then a fresh instance per call)."""
-    text = gen_program(instances, tick_ms)
+    return build_text(gen_program(instances, tick_ms), workdir)
+
+
+def build_text(text, workdir: Path, subdir="build") -> Plc:
+    """The library and one program (its text): built once per text and compiler, then a
+    fresh instance per call (also for tests/st_lib/soe_bench.py)."""
     key = (text, compiler())
     if key not in _BUILDS:
-        bdir = Path(workdir) / "build"
+        bdir = Path(workdir) / subdir
         bdir.mkdir(parents=True, exist_ok=True)
         prog = bdir / "prog_main.st"
         prog.write_text(text)

@@ -13,7 +13,7 @@ from pathlib import Path
 from mipcosim.layout import enum_values
 from mippeer.unicos import UnicosDriver
 import stlib_sim
-from stlib_sim import LIB, LIB_PATHS, MS, compiler
+from stlib_sim import LIB, MS
 from plcharness import Plc
 
 UERR = enum_values("E_MIP_UnicosError", LIB / "MIP_UnicosTypes.st")
@@ -53,20 +53,9 @@ def gen_program():
     return text.replace("END_PROGRAM", "\n".join(post) + "\nEND_PROGRAM", 1)
 
 
-_BUILT = {}
-
-
 def build(workdir: Path) -> Plc:
-    key = compiler()
-    if key not in _BUILT:
-        bdir = Path(workdir) / "build"
-        bdir.mkdir(parents=True, exist_ok=True)
-        (bdir / "prog_main.st").write_text(gen_program())
-        plc = Plc.build(LIB_PATHS + [str(bdir / "prog_main.st")], workdir=bdir, compiler=key)
-        _BUILT[key] = (plc.build_result, bdir)
-        return plc
-    result, bdir = _BUILT[key]
-    return Plc(result, bdir)
+    """The hand-over program: built once per compiler, a fresh PLC instance per call."""
+    return stlib_sim.build_text(gen_program(), workdir, "unicos")
 
 
 def entry(type_bit, address, cause, value, ts_ms):

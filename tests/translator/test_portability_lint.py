@@ -54,11 +54,22 @@ ALLOWED = [
     ("st_lib/MIP_Status.st", "timer-pt", "tonStall(",
      "PT is tStallTime (default T#60s): xLinkStalled may rise one scan later under matiec when "
      "it is T#0s, a timing difference only"),
+    ("st_lib/MIP_SoeReader.st", "timer-pt", "tonRetry(",
+     "PT is tAckRetry (default T#1s), a delay before the next read; at T#0s matiec ends it one "
+     "scan later, a timing difference only"),
+    ("st_lib/MIP_SoeReader.st", "timer-pt", "tonProblem(",
+     "PT is tRetryTimeout or tAckTimeout, a bound before xError (timing only)"),
+    ("st_lib/MIP_SoeReader.st", "timer-pt", "tonWriteFail(",
+     "PT is tAckTimeout, a bound before xError (timing only)"),
+    ("st_lib/MIP_SoeReader.st", "timer-pt", "tonNoRead(",
+     "runs only when tReadTimeout > T#0s (the IN condition), so PT is never T#0s"),
     ("plc/PLC_Logger.st", "timer-pt", "tonLog(",
      "called only when tLogPeriod <> T#0s (the IF around it)"),
     ("plc/*.st", "timer-pt", "tonWr",
      "PT is the configured cyclic-write period; at T#0s matiec writes one scan later, a "
      "timing difference only"),
+    ("st_lib/MIP_SoeServer.st", "timer-pt", "tonSilent(",
+     "runs only when tAckTimeout > T#0s (the IN condition), so PT is never T#0s"),
     ("st_lib/MIP_UnicosChannel.st", "timer-pt", "tonRetry(",
      "PT is tRetry (default T#500ms), the pause before a repeated write; at T#0s matiec "
      "repeats one scan later, a timing difference only"),

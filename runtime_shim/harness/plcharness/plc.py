@@ -456,6 +456,12 @@ class Plc:
             raise PlcError(self._err())
         return self._lib.plcrt_slave_port(self._rt)
 
+    @property
+    def slave_port(self) -> int:
+        """The port the slave listens on (a config's [slave] with port = 0 picks a free one);
+        0 without a slave."""
+        return self._lib.plcrt_slave_port(self._rt)
+
     def device_stats(self):
         """{device name: {"errors": n, "requests": n, "connects": n, "dropped_replies": n}} of
         the Modbus master (dropped: replies with the transaction id of an earlier request)."""

@@ -1,0 +1,202 @@
+/* The SIPROTEC event-recorder handshake at the outstation (issue 35; docs/chain.md "The
+ * relay" and "The reader (MIP_SoeReader)"): a relay's recorder, MIP_SoeReader and the logger
+ * it stores into. Property: the handshake (acknowledge after store) loses nothing at the
+ * outstation - every event the relay recorded ends in the logger, in order, with no gap;
+ * exactly once unless the PLC restarts cold.
+ *
+ * One Modbus transaction is one atomic step (the relay answers one request at a time); its
+ * answer may be lost (LOSS of them), after the relay acted on it. The PLC may restart (RST
+ * times): cold (its state lost, the logger's durable store kept) or warm (WARM=1: the block
+ * and the logger come back as the last snapshot had them; the snapshot handshake of
+ * st_lib/README.md "Warm restarts").
+ *
+ * Variants that must fail (model/run.py):
+ *   ACK_EARLY=1  acknowledge a read before its entries are stored: a cold restart between the
+ *                acknowledgement and the store loses them (LOST)
+ *   NOGATE=1     warm restarts, but the acknowledgement does not wait for a snapshot that
+ *                holds the stored entries: the PLC comes back with an older store (LOST)
+ *
+ * Sizes: N events, BLK message blocks per read (3 in the relay; 2 gives the same cases with
+ * fewer states: a read of several, a partial one), sequence numbers of SEQB bits.
+ */
+#ifndef N
+#define N 4
+#endif
+#ifndef BLK
+#define BLK 2
+#endif
+#ifndef SEQB
+#define SEQB 2
+#endif
+#ifndef LOSS
+#define LOSS 2
+#endif
+#ifndef RST
+#define RST 1
+#endif
+#ifndef WARM
+#define WARM 0
+#endif
+#ifndef ACK_EARLY
+#define ACK_EARLY 0
+#endif
+#ifndef NOGATE
+#define NOGATE 0
+#endif
+/* the names of the properties, as in env.pml: -DSEEK=K_<name> (model/run.py's search for one
+ * documented weakness) switches the others off */
+#define K_GAP 1
+#define K_DUP_ORDER 3
+#define K_LOST 4
+#ifndef SEEK
+#define SEEK 0
+#endif
+bool GAP = (SEEK != 0 && SEEK != K_GAP), DUP_ORDER = (SEEK != 0 && SEEK != K_DUP_ORDER),
+     LOST = (SEEK != 0 && SEEK != K_LOST);
+#define TOP ((1 << SEQB) - 1)
+#define NEXT(s) ((s) >= TOP -> 1 : (s) + 1)
+
+/* ---- the relay's recorder: entries head .. gen (ids 1..N in event order) ---- */
+byte gen = 0;              /* events recorded so far */
+byte head = 1;             /* oldest entry not acknowledged */
+byte offer = 0;            /* entries offered: head .. head + offer - 1 */
+bool offer_read = false;   /* a read showed them: they stay until acknowledged */
+byte seq = 0;              /* SOE_Control's sequence number */
+
+inline refresh() {
+    /* docs/chain.md: a set no read has shown yet may grow to BLK; a new set, the next number */
+    if
+    :: !offer_read ->
+        if
+        :: offer == 0 && gen >= head -> seq = NEXT(seq)
+        :: else -> skip
+        fi;
+        offer = (gen - head + 1 > BLK -> BLK : gen - head + 1)
+    :: else -> skip
+    fi
+}
+
+/* ---- the logger's store (durable): the highest id stored in order ---- */
+byte last = 0;
+
+/* ---- MIP_SoeReader: the open read and how many of its entries were stored ---- */
+bool open = false;
+byte oseq, ohead, on, stored;
+bool acked_early = false;  /* ACK_EARLY: this open read's acknowledgement is done */
+bool unsaved = false;      /* a change no snapshot holds yet */
+/* the last snapshot (WARM): the block's state and the logger's store together */
+bool s_open = false;
+byte s_oseq, s_ohead, s_on, s_stored, s_last;
+bool s_acked = false;
+
+byte losses = 0, restarts = 0;
+
+inline store_one() {
+    /* the logger stores entry ohead + stored (the scan it is shown; xEntryStored) */
+    d_step {
+        assert(ohead + stored <= last + 1 || GAP);     /* an entry skipped */
+#if WARM || !RST
+        assert(ohead + stored == last + 1 || DUP_ORDER); /* exactly once, in order */
+#endif
+        if
+        :: ohead + stored == last + 1 -> last++
+        :: else -> skip                                 /* a duplicate after a cold restart */
+        fi;
+        stored++;
+        unsaved = true;
+        printf("@ store %d\n", ohead + stored - 1)
+    }
+}
+
+inline ack() {
+    /* the write of SOE_Control: seq + 256 n; the relay deletes n and raises the number */
+    atomic {
+        if
+        :: open && oseq == seq && offer > 0 && (ACK_EARLY -> on : stored) <= offer ->
+            head = head + (ACK_EARLY -> on : stored);
+            offer = 0;
+            offer_read = false;
+            refresh();
+            printf("@ ack seq %d n %d: taken\n", oseq, (ACK_EARLY -> on : stored));
+            if
+            :: losses < LOSS -> losses++; printf("@ ... its answer lost\n")
+            :: true ->
+                if
+                :: ACK_EARLY -> acked_early = true
+                :: else -> open = false; unsaved = true
+                fi
+            fi
+        :: else -> printf("@ ack seq %d refused (exception 03)\n", oseq)
+        fi
+    }
+}
+
+inline read_and_judge() {
+    /* one FC3 of 40601..40626 and the block's judgement (docs/chain.md "How a read is
+     * judged"; the model's reads are never stale: a read follows the write it may decide) */
+    atomic {
+        offer_read = offer_read || offer > 0;
+        if
+        :: losses < LOSS -> losses++; printf("@ read: answer lost\n")
+        :: true ->
+            if
+            :: open && offer > 0 && seq == oseq && head == ohead && offer == on -> skip  /* the open read again */
+            :: open && offer > 0 && seq == NEXT(oseq) ->
+                /* the open read's acknowledgement was taken: close it, take the new one */
+                open = true; oseq = seq; ohead = head; on = offer; stored = 0;
+                acked_early = false; unsaved = true; printf("@ read: seq %d (%d entries)\n", seq, offer)
+            :: open && offer == 0 && seq == oseq -> open = false; unsaved = true
+            :: !open && offer > 0 ->
+                open = true; oseq = seq; ohead = head; on = offer; stored = 0;
+                acked_early = false; unsaved = true; printf("@ read: seq %d (%d entries)\n", seq, offer)
+            :: else -> skip
+            fi
+        fi
+    }
+}
+
+active proctype Events() {
+    do
+    :: atomic { gen < N -> gen++; refresh(); printf("@ event %d\n", gen) }
+    :: gen == N -> break
+    od
+}
+
+active proctype Reader() {
+end:
+    do
+#if ACK_EARLY
+    :: (!open || !acked_early) -> read_and_judge()     /* not while handing over */
+    :: open && !acked_early -> ack()
+    :: open && acked_early && stored < on -> store_one()
+    :: atomic { open && acked_early && stored == on -> open = false }
+#else
+    :: (!open || stored == on) -> read_and_judge()     /* MIP_SOE_READ, MIP_SOE_RETRY */
+    :: open && stored < on -> store_one()
+    :: (open && stored == on && on > 0 && (NOGATE || WARM == 0 || !unsaved)) -> ack()
+#endif
+#if WARM
+    :: atomic { unsaved -> s_open = open; s_oseq = oseq; s_ohead = ohead; s_on = on;
+                s_stored = stored; s_last = last; s_acked = acked_early; unsaved = false;
+                printf("@ snapshot\n") }
+#endif
+    :: atomic { restarts < RST ->
+        restarts++;
+#if WARM
+        open = s_open; oseq = s_oseq; ohead = s_ohead; on = s_on; stored = s_stored;
+        last = s_last; acked_early = s_acked; unsaved = false;
+        printf("@ PLC warm restart\n")
+#else
+        open = false; stored = 0; acked_early = false;
+        printf("@ PLC cold restart\n")
+#endif
+       }
+    od
+}
+
+/* Nothing lost: once every event is recorded and acknowledged and nothing is open, the
+ * logger holds them all. */
+active proctype Check() {
+end:
+    atomic { gen == N && head > N && !open -> assert(last == N || LOST) }
+}

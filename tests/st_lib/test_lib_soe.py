@@ -1,0 +1,242 @@
+"""MIP_SoeReader against a relay (issue 35, docs/chain.md "The reader (MIP_SoeReader)"): every
+entry reaches the logger once, in order, with the relay's values and time stamps; a read is
+acknowledged only after its entries are stored; failures repeat the read and never acknowledge
+or deliver twice. The relay is the independent Python one (peers/mippeer/siprotec.py) and,
+where the C relay is in the co-simulation, the emulator's core (parametrised `relay`)."""
+import pytest
+
+from soe_bench import ERR, STATE, WAIT, Bench, PyRelay, expected, pyrelay, script
+
+ORIGIN = 1767225600000
+
+
+def make_relay(kind, events=(), **cfg):
+    if kind == "py":
+        return PyRelay(events, origin_ms=ORIGIN, **cfg)
+    from mipcosim.relay import Relay
+    return Relay(events, origin_ms=ORIGIN, **cfg)
+
+
+RELAYS = ["py", "c"]
+
+
+@pytest.fixture(scope="module")
+def wd(tmp_path_factory):
+    return tmp_path_factory.mktemp("stlib_soe")
+
+
+def acks_after_stores(log):
+    """Each acknowledgement (seq + 256 n) comes after the store of all n entries of its seq,
+    and no entry of that seq is stored after it."""
+    for i, ev in enumerate(log):
+        if ev[0] != "write" or ev[2] is not None:
+            continue
+        seq, n = ev[1] & 0xFF, ev[1] >> 8 & 0x3F
+        if ev[1] & 0x8000 and seq == 0:
+            continue
+        stored = [e for e in log[:i] if e[0] == "store" and e[1] == seq]
+        assert len(stored) >= n, f"ack {ev[1]:#x} before its {n} entries were stored: {log[:i+1]}"
+
+
+@pytest.mark.parametrize("relay", RELAYS)
+def test_every_entry_once_in_order(wd, relay):
+    events = script(14)
+    b = Bench(wd, make_relay(relay, events))
+    assert b.run_until(lambda: len(b.logger.stored) == 14 and b.fb["xDone"], 800)
+    assert b.logger.stored == expected(events, ORIGIN)
+    assert b.relay.entries() == 0
+    assert b.fb["udiEntries"] == 14 and b.fb["xError"] is False
+    acks_after_stores(b.log)
+    b.step(50)   # nothing new: nothing more is stored or written
+    assert len(b.logger.stored) == 14 and b.fb["eWaitReason"] == WAIT["MIP_SOE_WAIT_READ"]
+
+
+@pytest.mark.parametrize("relay", RELAYS)
+def test_ack_waits_for_a_slow_logger(wd, relay):
+    events = script(6, start_s=0.0, every_s=0.001)
+    b = Bench(wd, make_relay(relay, events), delay=7)
+    assert b.run_until(lambda: len(b.logger.stored) == 6 and b.fb["xDone"], 800)
+    assert b.logger.stored == expected(events, ORIGIN)
+    acks_after_stores(b.log)
+    assert b.acks()[0] == 1 + 3 * 256        # the first read: seq 1, three entries
+    assert b.fb["udiAcks"] == 2
+
+
+def test_read_failures_are_read_again_never_acknowledged(wd):
+    events = script(9, start_s=0.0, every_s=0.002)
+    b = Bench(wd, make_relay("py", events))
+    b.client.lose_read_answer = 5
+    b.run_until(lambda: b.client.reads >= 4, 100)
+    assert b.client.writes == [] and b.logger.stored == []
+    assert b.fb["xLinkError"] and b.fb["eWaitReason"] == WAIT["MIP_SOE_WAIT_LINK"]
+    assert b.run_until(lambda: len(b.logger.stored) == 9 and b.fb["xDone"], 800)
+    assert b.logger.stored == expected(events, ORIGIN)
+    assert not b.fb["xLinkError"] and b.fb["wLinkError"] == 0x0B
+
+
+@pytest.mark.parametrize("relay", RELAYS)
+@pytest.mark.parametrize("mode", ["trigger", "cyclic"])
+def test_lost_ack_answer_delivers_nothing_twice(wd, relay, mode):
+    """The relay took the acknowledgement, its answer was lost: the next read shows the raised
+    number (or no blocks); with cyclic reads an older image may make the block write the old
+    acknowledgement again, which the relay refuses with exception 03. No entry twice."""
+    events = script(10, start_s=0.0, every_s=0.001)
+    b = Bench(wd, make_relay(relay, events), read_mode=mode, read_every=3, tAckRetry=20_000_000)
+    b.client.lose_write_answer = 3
+    assert b.run_until(lambda: len(b.logger.stored) == 10 and b.fb["xDone"], 1500)
+    assert b.logger.stored == expected(events, ORIGIN)
+    assert b.fb["udiWriteErrors"] >= 3 and not b.fb["xError"]
+    assert b.relay.entries() == 0
+    acks_after_stores(b.log)
+
+
+def test_lost_ack_request_is_written_again(wd):
+    events = script(3, start_s=0.0, every_s=0.001)
+    b = Bench(wd, make_relay("py", events))
+    b.client.lose_write_request = 2
+    assert b.run_until(lambda: b.fb["xDone"] and len(b.logger.stored) == 3, 800)
+    assert [v for v, _ in b.client.writes] == [1 + 3 * 256] * 3
+    assert b.logger.stored == expected(events, ORIGIN)
+
+
+@pytest.mark.parametrize("relay", RELAYS)
+def test_logger_full_stops_reading_and_the_relay_keeps_the_rest(wd, relay):
+    events = script(8, start_s=0.0, every_s=0.001)
+    b = Bench(wd, make_relay(relay, events), capacity=2, follow_req=True)
+    b.step(200)
+    assert len(b.logger.stored) == 2
+    # the two stored were acknowledged (seq 1, 2 entries); the relay keeps the other six
+    assert b.acks() == [1 + 2 * 256]
+    assert b.relay.entries() == 6
+    assert b.fb["eWaitReason"] == WAIT["MIP_SOE_WAIT_LOGGER_FULL"]
+    assert not b.fb["xReadReq"] and not b.fb["xEntryValid"]
+    reads = b.client.reads
+    b.step(100)
+    assert b.client.reads == reads and b.relay.entries() == 6 and not b.fb["xError"]
+    b.logger.capacity = None
+    assert b.run_until(lambda: len(b.logger.stored) == 8 and b.fb["xDone"], 800)
+    assert b.logger.stored == expected(events, ORIGIN)
+
+
+@pytest.mark.parametrize("relay", RELAYS)
+def test_reset_list_only_on_request(wd, relay):
+    events = script(7, start_s=0.0, every_s=0.001)
+    b = Bench(wd, make_relay(relay, events), capacity=0)     # a logger that stores nothing
+    b.step(100)
+    assert b.relay.entries() == 7 and b.client.writes == []  # never reset by itself
+    b.fb["xResetList"] = True
+    b.step(20)
+    assert b.relay.entries() == 0 and b.fb["udiResets"] == 1
+    assert b.client.writes == [(0x8000, None)]
+    b.fb["xResetList"] = False
+    b.logger.capacity = None
+    b.relay.add(b.now_ns / 1e9 + 0.05, [0x0101, 7, 0x0101, 1])
+    assert b.run_until(lambda: len(b.logger.stored) == 1 and b.fb["xDone"], 300)
+    assert b.logger.stored[0].address == 7 and not b.fb["xError"]
+
+
+@pytest.mark.parametrize("relay", RELAYS)
+def test_overflow_keeps_order(wd, relay):
+    """A burst larger than the relay's capacity before the first read: the relay drops the
+    oldest not offered (its choice); the reader delivers what the relay kept, in order."""
+    events = script(12, start_s=0.0, every_s=0.0)
+    b = Bench(wd, make_relay(relay, events, capacity=5))
+    assert b.run_until(lambda: b.fb["xDone"] and b.scans > 20, 800)
+    exp = expected(events, ORIGIN)
+    assert b.logger.stored == exp[:3] + exp[-2:]    # offered first three stay, newest two
+    assert not b.fb["xError"]
+
+
+# ---------------------------------------------------------------- a relay that misbehaves
+
+@pytest.mark.parametrize("name,tamper,error", [
+    ("four blocks", lambda r: [r[0], (r[1] & 0xFF) | 4 << 8] + r[2:], "MIP_SOE_ERR_BAD_ANSWER"),
+    ("count below blocks", lambda r: [0] + r[1:] if r[1] >> 8 else r, "MIP_SOE_ERR_BAD_ANSWER"),
+    ("seq 0 with blocks", lambda r: [r[0], r[1] & 0xFF00] + r[2:], "MIP_SOE_ERR_BAD_ANSWER"),
+])
+def test_garbage_is_a_named_error_and_nothing_is_delivered(wd, name, tamper, error):
+    b = Bench(wd, make_relay("py", script(3, start_s=0.0, every_s=0.001)), tRetryTimeout=300_000_000)
+    b.client.tamper = tamper
+    assert b.run_until(lambda: b.fb["xError"], 200), name
+    assert b.fb["eErrorId"] == ERR[error] and b.fb["eState"] == STATE["MIP_SOE_ERROR"]
+    assert b.logger.stored == [] and b.client.writes == []
+    assert b.fb["udiBadReads"] >= 2 and b.relay.entries() == 3
+    b.client.tamper = None
+    b.fb["xEnable"] = False
+    b.step()
+    b.fb["xEnable"] = True               # the operator's reset: a good relay reads fine
+    assert b.run_until(lambda: len(b.logger.stored) == 3 and b.fb["xDone"], 300)
+
+
+def test_garbage_once_is_read_again(wd):
+    events = script(3, start_s=0.0, every_s=0.001)
+    b = Bench(wd, make_relay("py", events))
+    bad = [2]
+
+    def tamper(r):
+        if bad[0] and r[1] >> 8:
+            bad[0] -= 1
+            return [r[0], r[1] | 0x3F00] + r[2:]
+        return r
+    b.client.tamper = tamper
+    assert b.run_until(lambda: len(b.logger.stored) == 3 and b.fb["xDone"], 300)
+    assert b.logger.stored == expected(events, ORIGIN) and b.fb["udiBadReads"] == 2
+
+
+def test_sequence_backwards_is_a_named_error(wd):
+    """After the first acknowledgement the relay shows the number before it (as a relay that
+    lost its state would, or a garbled register): MIP_SOE_ERR_SEQUENCE, nothing delivered."""
+    b = Bench(wd, make_relay("py", script(8, start_s=0.0, every_s=0.001)), tRetryTimeout=200_000_000)
+    b.client.tamper = lambda r: [r[0], r[1] - 2] + r[2:] if (r[1] & 0xFF) == 3 else r
+    assert b.run_until(lambda: b.fb["xError"], 300)
+    assert b.fb["eErrorId"] == ERR["MIP_SOE_ERR_SEQUENCE"]
+    assert len(b.logger.stored) == 6 and b.fb["udiAcks"] == 2 and b.relay.entries() == 2
+
+
+def test_a_relay_that_ignores_the_ack(wd):
+    """The acknowledgement is answered but nothing is deleted: the acknowledged number stays;
+    after tAckTimeout MIP_SOE_ERR_SEQ_UNCHANGED, and the entries were delivered once."""
+    relay = make_relay("py", script(3, start_s=0.0, every_s=0.001))
+    relay.rec._control = lambda v: None
+    b = Bench(wd, relay, tAckTimeout=300_000_000)
+    assert b.run_until(lambda: b.fb["xError"], 300)
+    assert b.fb["eErrorId"] == ERR["MIP_SOE_ERR_SEQ_UNCHANGED"]
+    assert len(b.logger.stored) == 3 and len(b.acks()) == 1
+
+
+def test_a_relay_that_refuses_every_ack(wd):
+    relay = make_relay("py", script(3, start_s=0.0, every_s=0.001))
+
+    def refuse(v):
+        raise pyrelay.ModbusError(3)
+    relay.rec._control = refuse
+    b = Bench(wd, relay, tAckTimeout=400_000_000, tAckRetry=50_000_000)
+    assert b.run_until(lambda: b.fb["xError"], 300)
+    assert b.fb["eErrorId"] == ERR["MIP_SOE_ERR_ACK_REFUSED"]
+    assert len(b.logger.stored) == 3                 # once, not once per retry
+    assert len(b.client.writes) >= 3 and all(exc == 3 for _, exc in b.client.writes)
+
+
+def test_no_read_for_tReadTimeout(wd):
+    b = Bench(wd, make_relay("py"), tReadTimeout=200_000_000)
+    b.client.lose_read_answer = 10 ** 6
+    b.step(30)
+    assert b.fb["xError"] and b.fb["eErrorId"] == ERR["MIP_SOE_ERR_NO_READ"]
+    b.client.lose_read_answer = 0
+    b.step(4)
+    assert not b.fb["xError"] and b.fb["eLastErrorId"] == ERR["MIP_SOE_ERR_NO_READ"]
+
+
+def test_bad_seq_bits_parameter(wd):
+    b = Bench(wd, make_relay("py"), uSeqBits=9)
+    b.step(2)
+    assert b.fb["xError"] and b.fb["eErrorId"] == ERR["MIP_SOE_ERR_PARAM"]
+
+
+def test_small_sequence_numbers_wrap(wd):
+    """seq-bits 2: numbers 1, 2, 3, 1, ... (docs/chain.md); the reader follows the wrap."""
+    events = script(20, every_s=0.03)
+    b = Bench(wd, make_relay("py", events, seq_bits=2), uSeqBits=2)
+    assert b.run_until(lambda: len(b.logger.stored) == 20 and b.fb["xDone"], 1500)
+    assert b.logger.stored == expected(events, ORIGIN) and not b.fb["xError"]
+    assert set(b.logger.seqs) == {1, 2, 3}

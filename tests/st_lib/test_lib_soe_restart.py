@@ -1,0 +1,82 @@
+"""MIP_SoeReader over PLC restarts (docs/chain.md "The reader", restarts). Warm: the instance
+and the logger are RETAIN, xRetained is set, and the PLC comes back with its last snapshot
+(the logger's store as it was then, too): every entry reaches the logger exactly once. Cold:
+the block starts from nothing; the relay still holds what was not acknowledged, so nothing is
+lost, but entries of the open read stored before the restart come again (duplicates)."""
+import random
+
+import pytest
+
+from soe_bench import WAIT, Bench, expected, script
+from test_lib_soe import ORIGIN, make_relay
+
+
+@pytest.fixture(scope="module")
+def wd(tmp_path_factory):
+    return tmp_path_factory.mktemp("stlib_soe_restart")
+
+
+def test_ack_waits_for_the_snapshot(wd):
+    b = Bench(wd, make_relay("py", script(3, start_s=0.0, every_s=0.001)), retained=True)
+    seen = []
+    orig = b.step
+
+    def step_without_snapshots(n=1):
+        for _ in range(n):
+            keep = b.snapshots
+            orig()
+            b.snapshots = keep          # a runtime that never completes a snapshot
+            seen.append(b.fb["eWaitReason"])
+    step_without_snapshots(60)
+    assert len(b.logger.stored) == 3 and b.client.writes == []
+    assert seen[-1] == WAIT["MIP_SOE_WAIT_SNAPSHOT"] and b.fb["xSnapshotReq"]
+    orig(10)                             # snapshots complete again: the acknowledgement goes
+    assert b.acks() == [1 + 3 * 256]
+
+
+@pytest.mark.parametrize("relay", ["py", "c"])
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_warm_restarts_deliver_every_entry_exactly_once(wd, relay, seed):
+    rnd = random.Random(seed)
+    events = script(24, start_s=0.0, every_s=0.007, seed=seed)
+    b = Bench(wd, make_relay(relay, events), retained=True, delay=rnd.randrange(3))
+    b.client.lose_write_answer = 2
+    restarts = 0
+    for _ in range(60):
+        b.step(rnd.randrange(1, 12))
+        if b.snapshot and rnd.random() < 0.5:
+            b.warm_restart()
+            restarts += 1
+        if len(b.logger.stored) == 24 and b.fb["xDone"]:
+            break
+    assert b.run_until(lambda: len(b.logger.stored) == 24 and b.fb["xDone"], 1500)
+    assert restarts >= 10
+    assert b.logger.stored == expected(events, ORIGIN)
+    assert b.relay.entries() == 0 and not b.fb["xError"]
+
+
+def test_warm_restart_in_the_middle_of_a_read(wd):
+    """Restart after the first entry of a read of three was stored (and a snapshot holds it):
+    the block goes on with the second; the first is not handed over again."""
+    events = script(3, start_s=0.0, every_s=0.001)
+    b = Bench(wd, make_relay("py", events), retained=True)
+    assert b.run_until(lambda: len(b.logger.stored) == 1 and b.snapshot and b.snapshot[1] == 1, 100)
+    b.step()
+    b.warm_restart()
+    at = len(b.log)
+    assert b.run_until(lambda: len(b.logger.stored) == 3 and b.fb["xDone"], 300)
+    assert b.logger.stored == expected(events, ORIGIN)
+    # after the restart: the second and third (what the snapshot's logger lacks), not the first
+    assert [x[2] for x in b.log[at:] if x[0] == "store"] == [1, 2]
+
+
+def test_cold_restart_loses_nothing_but_may_duplicate(wd):
+    events = script(3, start_s=0.0, every_s=0.001)
+    b = Bench(wd, make_relay("py", events), delay=3)
+    assert b.run_until(lambda: len(b.logger.stored) == 2, 100)
+    b.cold_restart()
+    assert b.run_until(lambda: b.fb["xDone"], 300)
+    exp = expected(events, ORIGIN)
+    # the open read comes again from its first entry: the two stored before are duplicated
+    assert b.logger.stored == exp[:2] + exp
+    assert b.relay.entries() == 0
