@@ -1,0 +1,394 @@
+"""What the page shows and what its controls do, without the web server: a live run of the
+docs' chain (docs/tools/chainsim.py: the st_lib blocks in two soft PLCs and the emulator core in
+the co-simulation kernel, stepped one scan tick at a time) or a trace file followed as it grows.
+
+Both produce one state (`state()`, a dict the page draws): the sequence diagram of the last rows
+(docs/tools/seqdiag.py: the same rows and drawing as the docs' pictures), the modems' register
+windows with the registers changed since the previous state, the blocks' states and counters
+under the names of st_lib's enums (read from st_lib/MIP_Types.st), and the radio's counters.
+Nothing here models the link a second time: the live run is chainsim's Chain, the trace is
+the emulator's own.
+"""
+from __future__ import annotations
+
+import ctypes
+import json
+import random
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[2]
+TOOLS = REPO / "docs" / "tools"
+if str(TOOLS) not in sys.path:
+    sys.path.insert(0, str(TOOLS))          # the docs' chain and diagram, one copy of each
+
+import chainsim  # noqa: E402
+import seqdiag  # noqa: E402
+from chainsim import MS, Chain, ChainError, Side  # noqa: E402
+from gen_traces import WORK, logger_data  # noqa: E402
+from mipcosim.layout import st_enums  # noqa: E402
+from mipcosim.sim import FATE_FN  # noqa: E402
+
+ENUMS = st_enums(chainsim.LIB_DIR / "MIP_Types.st")
+FATE_OK, FATE_LOST = 0, 1            # mipemu.h: enum mipemu_fate
+ROWS_SHOWN = 36                      # rows of the diagram on the page (our choice: one screen)
+SLOT_LIMIT_MS = 10_000               # "one radio slot" gives up after this much virtual time
+# The register windows (emulator/README.md "Register maps", from the application note's
+# register tables): (title, endpoint, unit, first address, count). Endpoint 0 is the MDP-810
+# (unit = station), 1 the TRM-810 of station 1 (mipemu.h).
+WINDOWS = [
+    ("TRM-810 write (2000: count, 2001..: record)", 1, 1, 2000, 9),
+    ("TRM-810 read (2198: status, 2199: count, 2200..: data)", 1, 1, 2198, 9),
+    ("MDP-810 read, station 1 (198: status, 199: count, 200..: data)", 0, 1, 198, 9),
+    ("MDP-810 write, station 1 (9: count, 10..: acknowledgement)", 0, 1, 9, 9),
+]
+SPEEDS = (0.1, 0.25, 0.5, 1.0, 2.0, 5.0, 10.0, 50.0)   # virtual seconds per real second
+
+
+class ViewError(Exception):
+    """A bad option or control (one line for the user)."""
+
+
+@dataclass(frozen=True)
+class Preset:
+    """A run of docs/tools/mipsim.py's kind: the options of one exercise (docs/exercises.md)."""
+    title: str
+    exercise: str
+    records: int = 5
+    polled: bool = False
+    loss_up: float = 0.0
+    loss_down: float = 0.0
+    burst: float = 0.0
+    seed: int = 1
+    timeout_ms: int = 2000
+    restart: str | None = None            # "outstation" / "central": a cold restart ...
+    restart_at_ms: int = 1000             # ... at this virtual time
+
+    def mipsim_args(self) -> str:
+        """The mipsim command line of the same run (the exercise's own command)."""
+        out = [f"--records {self.records}"]
+        out += ["--polled"] if self.polled else []
+        for name in ("loss_up", "loss_down", "burst"):
+            if getattr(self, name):
+                out.append(f"--{name.replace('_', '-')} {getattr(self, name):g}")
+        if self.seed != 1:
+            out.append(f"--seed {self.seed}")
+        if self.timeout_ms != 2000:
+            out.append(f"--timeout-ms {self.timeout_ms}")
+        if self.restart:
+            out.append(f"--restart {self.restart} --restart-at-ms {self.restart_at_ms}")
+        return " ".join(out)
+
+
+# The exercises' runs (docs/exercises.md; tests/view checks each is the page's "watch it" line).
+PRESETS = {
+    "demo": Preset("a clean transfer of 5 records", "", records=5),
+    "ex2": Preset("the note's example: polled, bursty uplink loss", "2", records=4, polled=True,
+                  loss_up=0.2, burst=4, seed=13, timeout_ms=1000),
+    "ex3-up": Preset("uplink loss 30 %", "3", records=5, seed=3, loss_up=0.3),
+    "ex3-down": Preset("downlink loss 30 %", "3", records=5, seed=3, loss_down=0.3),
+    "ex4": Preset("a timeout that is too short (200 ms)", "4", records=5, timeout_ms=200),
+    "ex5": Preset("bursts of 8 telegrams at 20 % uplink loss", "5", records=10, loss_up=0.2,
+                  burst=8, seed=1),
+    "ex6-central": Preset("the central PLC restarts at 1 s", "6", records=4,
+                          restart="central"),
+    "ex6-outstation": Preset("the outstation PLC restarts at 1 s", "6", records=4,
+                             restart="outstation"),
+    "ex8": Preset("20 records at 20 % uplink loss", "8", records=20, loss_up=0.2),
+}
+
+
+def enum_name(type_name, value):
+    names = ENUMS[type_name]
+    return names[value] if 0 <= value < len(names) else f"{type_name}#{value}"
+
+
+# what the page shows of each block: (member, enum type or None)
+SENDER_VIEW = [("eState", "E_MIP_SenderState"), ("eWaitReason", "E_MIP_WaitReason"),
+               ("wRecord", None), ("udiRecords", None), ("udiRetransmissions", None),
+               ("udiUnexpectedAcks", None), ("udiTransfers", None),
+               ("eErrorId", "E_MIP_Error")]
+RECEIVER_VIEW = [("eState", "E_MIP_ReceiverState"), ("eWaitReason", "E_MIP_WaitReason"),
+                 ("wAck", None), ("udiRecords", None), ("udiDuplicates", None),
+                 ("udiUnexpected", None), ("udiTransfers", None),
+                 ("udiFailedTransfers", None), ("eErrorId", "E_MIP_Error")]
+
+
+class _Windows:
+    """The register windows and which registers changed since the last look."""
+
+    def __init__(self):
+        self.last = {}
+
+    def show(self, values_by_title):
+        out = []
+        for title, start, values in values_by_title:
+            old = self.last.get(title)
+            changed = [i for i, v in enumerate(values) if old is not None and old[i] != v]
+            self.last[title] = values
+            out.append({"title": title, "start": start, "values": values, "changed": changed})
+        return out
+
+
+def diagram(events, title):
+    """The seqdiag rows of a trace and the SVG of the last ROWS_SHOWN of them."""
+    rows = seqdiag.rows_from(events, 1, 0, 1 << 62)
+    shown = rows[-ROWS_SHOWN:]
+    caption = (f"The last {len(shown)} of {len(rows)} rows; empty polls and answers and PLC reads "
+               f"without new data omitted.")
+    svg = seqdiag.render(shown, title, caption)
+    return svg, [{"t_ms": t // MS, "kind": kind, "text": d.get("text", ""),
+                  "lost": bool(d.get("lost"))} for t, kind, d in shown], len(rows)
+
+
+def radio_counts(events):
+    """Telegrams and lost telegrams per direction, counted from the trace's radio lines."""
+    c = {"down": 0, "up": 0, "lost_down": 0, "lost_up": 0}
+    for d in events:
+        if d.get("ev") == "radio" and d.get("dir") in ("down", "up"):
+            c[d["dir"]] += 1
+            c["lost_" + d["dir"]] += bool(d.get("lost"))
+    return c
+
+
+class Live:
+    """A run of the docs' chain the page drives: pause, step, speed, extra loss, lose the next
+    record or acknowledgement, PLC restarts."""
+
+    mode = "live"
+
+    def __init__(self, preset="demo", workdir: Path | None = None):
+        if preset not in PRESETS:
+            raise ViewError(f"unknown preset {preset!r}: use one of {', '.join(PRESETS)}")
+        self.preset_name = preset
+        self.preset = p = PRESETS[preset]
+        self.workdir = Path(workdir) if workdir else WORK
+        payload = 122
+        self.data = logger_data(p.records * payload, p.seed)
+        self.o = Side("outstation", "sender", data=self.data, polled=p.polled,
+                      timeout_ms=p.timeout_ms)
+        self.c = Side("central", "receiver", polled=p.polled, timeout_ms=p.timeout_ms,
+                      read_phase_ms=50)
+        try:
+            self.ch = Chain(self.workdir, self.o, self.c, loss_up=p.loss_up,
+                            loss_down=p.loss_down, burst=p.burst, seed=p.seed)
+        except ChainError as e:
+            raise ViewError(str(e)) from None
+        self.paused = False
+        self.speed = 1.0
+        # the view's own loss (our choice, on top of the preset's loss model, which the
+        # emulator fixes at the start): telegrams that carry a block, from a seeded generator
+        self.extra = {"up": 0.0, "down": 0.0}
+        self.rng = random.Random(p.seed)
+        self.lose_next = {"up": False, "down": False}     # a record / an acknowledgement
+        self.lost_by_view = []                            # (t_ms, dir, first register)
+        self.off = {}                                     # side name -> virtual ms it returns
+        self.restarted = p.restart is None
+        self.windows = _Windows()
+        self._fate = FATE_FN(self._on_fate)               # kept alive as long as the network
+        self.ch.lib.mipemu_net_set_fate(self.ch.net, self._fate, None)
+
+    # ---------------------------------------------------------------- the simulation
+    def _on_fate(self, user, station, up, blk, n):
+        d = "up" if up else "down"
+        if self.lose_next[d]:
+            self.lose_next[d] = False
+            self.lost_by_view.append((self.ch.t // MS, d, blk[0] if n else None))
+            return FATE_LOST
+        if self.extra[d] and self.rng.random() < self.extra[d]:
+            self.lost_by_view.append((self.ch.t // MS, d, blk[0] if n else None))
+            return FATE_LOST
+        return FATE_OK
+
+    @property
+    def t_ms(self):
+        return self.ch.t // MS
+
+    @property
+    def done(self):
+        return self.o.send_done and self.c.send_done and self.ch.t > 0 and not self.off
+
+    def step(self):
+        """One scan tick, with the preset's restart and the end of a power-off when due."""
+        p = self.preset
+        if not self.restarted and self.ch.t >= p.restart_at_ms * MS:
+            self.ch.restart(self.o if p.restart == "outstation" else self.c)
+            self.restarted = True
+        for name, back_ms in list(self.off.items()):
+            if self.t_ms >= back_ms:
+                del self.off[name]
+                self._power_on(name)
+        self.ch.step()
+
+    def step_slot(self):
+        """Scan ticks up to and including the next radio telegram."""
+        n = len(self.ch.lines)
+        end = self.ch.t + SLOT_LIMIT_MS * MS
+        while self.ch.t < end:
+            self.step()
+            if any(d.get("ev") == "radio" for d in self.ch.lines[n:]):
+                return True
+            n = len(self.ch.lines)
+        return False
+
+    def side(self, name):
+        if name not in ("outstation", "central"):
+            raise ViewError(f"unknown PLC {name!r}: outstation or central")
+        return self.o if name == "outstation" else self.c
+
+    def restart(self, name, kind="cold", outage_ms=1000):
+        """cold: a fresh program instance now (all state lost, chainsim's restart). warm: the
+        PLC is off for outage_ms (not scanned, its modem runs on) and resumes with all its
+        memory, as a PLC whose whole state is durable (st_lib/PROTOCOL.md W3)."""
+        side = self.side(name)
+        if name in self.off:
+            raise ViewError(f"the {name} PLC is off already (back at {self.off[name]} ms)")
+        if kind == "cold":
+            self.ch.restart(side)
+        elif kind == "warm":
+            if not 10 <= outage_ms <= 600_000:
+                raise ViewError("outage_ms must be 10..600000")
+            self.ch._emit(side._line(self.ch.t, "restart",
+                                     f"PLC off for {outage_ms} ms (warm restart)", 0))
+            self.ch._check(self.ch.lib.mipcosim_plc_replace(
+                self.ch.sim, self.ch.ids[name], None, None, self.ch.tick))
+            self.off[name] = self.t_ms + outage_ms
+        else:
+            raise ViewError(f"restart kind {kind!r}: cold or warm")
+
+    def _power_on(self, name):
+        side = self.side(name)
+        plc = side.plc
+        scan = ctypes.cast(plc.library.plcrt_scan, ctypes.c_void_p)
+        self.ch._emit(side._line(self.ch.t, "restart", "PLC on again, its memory kept", 0))
+        self.ch._check(self.ch.lib.mipcosim_plc_replace(self.ch.sim, self.ch.ids[name], scan,
+                                                        plc.handle, self.ch.tick))
+
+    def set_loss(self, direction, p):
+        if direction not in self.extra:
+            raise ViewError(f"direction {direction!r}: up or down")
+        if not 0.0 <= p <= 1.0:
+            raise ViewError("loss must be 0..1")
+        self.extra[direction] = p
+
+    def set_speed(self, s):
+        if s not in SPEEDS:
+            raise ViewError(f"speed {s}: one of {', '.join(f'{x:g}' for x in SPEEDS)}")
+        self.speed = s
+
+    def lose(self, what):
+        """Lose the next telegram that carries a record (uplink: the outstation's block) or an
+        acknowledgement (downlink: the central's block)."""
+        if what not in ("record", "ack"):
+            raise ViewError(f"lose {what!r}: record or ack")
+        self.lose_next["up" if what == "record" else "down"] = True
+
+    # ---------------------------------------------------------------- what the page shows
+    def _block(self, side):
+        if side.plc is None:
+            return {"side": side.name, "block": "-", "vars": []}
+        view = SENDER_VIEW if side.role == "sender" else RECEIVER_VIEW
+        out = []
+        for member, enum in view:
+            v = side.fbv(member)
+            out.append({"name": member, "value": enum_name(enum, v) if enum else v})
+        block = "MIP_Sender" if side.role == "sender" else "MIP_Receiver"
+        return {"side": side.name, "block": block, "vars": out,
+                "off": side.name in self.off}
+
+    def _registers(self):
+        vals = []
+        for title, ep, unit, addr, n in WINDOWS:
+            buf = (ctypes.c_uint16 * n)()
+            self.ch.lib.mipemu_net_peek(self.ch.net, ep, unit, addr, n, buf)
+            vals.append((title, addr, list(buf)))
+        return self.windows.show(vals)
+
+    def state(self):
+        svg, rows, nrows = diagram(self.ch.lines, f"{self.preset.title} (live)")
+        st = self.ch.stats(1)
+        return {
+            "mode": self.mode, "preset": self.preset_name, "title": self.preset.title,
+            "mipsim": self.preset.mipsim_args(), "t_ms": self.t_ms, "paused": self.paused,
+            "speed": self.speed, "extra_loss": dict(self.extra), "lose_next": {
+                "record": self.lose_next["up"], "ack": self.lose_next["down"]},
+            "done": self.done, "svg": svg, "rows": rows, "nrows": nrows,
+            "registers": self._registers(), "blocks": [self._block(self.o), self._block(self.c)],
+            "radio": {"polls": st["polls"], "down": st["tel_down"], "lost_down": st["lost_down"],
+                      "up": st["tel_up"], "lost_up": st["lost_up"]},
+            "off": dict(self.off),
+        }
+
+    def trace(self):
+        return self.ch.trace()
+
+    def close(self):
+        self.ch.close()
+
+
+class Follow:
+    """A trace file (mip-emulator --trace, mipsim --trace, the demo's) read as it grows:
+    read-only, for commissioning and post-mortems."""
+
+    mode = "follow"
+
+    def __init__(self, path):
+        self.path = Path(path)
+        if not self.path.is_file():
+            raise ViewError(f"{path}: no such trace file")
+        self.events = []
+        self._pos = 0
+        self._partial = b""
+        self._n = 0
+        self.paused = False
+        self.speed = 1.0
+        self.bad = None         # the first line that is no trace line (file:line: why)
+        self.poll()
+
+    def poll(self):
+        """Reads what was appended since the last call; True if anything new."""
+        try:
+            with open(self.path, "rb") as f:
+                f.seek(0, 2)
+                if f.tell() < self._pos:            # truncated, a new run: start over
+                    self.events, self._pos, self._partial, self._n = [], 0, b"", 0
+                f.seek(self._pos)
+                chunk = f.read()
+                self._pos = f.tell()
+        except OSError as e:
+            self.bad = f"{self.path}: {e.strerror}"
+            return False
+        if not chunk:
+            return False
+        data = self._partial + chunk
+        lines = data.split(b"\n")
+        self._partial = lines.pop()              # a line still being written
+        for raw in lines:
+            self._n += 1
+            if not raw.strip():
+                continue
+            try:
+                d = json.loads(raw)
+            except json.JSONDecodeError as e:
+                self.bad = self.bad or f"{self.path}:{self._n}:{e.colno}: not a JSON line: {e.msg}"
+                continue
+            if not isinstance(d, dict) or not isinstance(d.get("t"), int) or "ev" not in d:
+                self.bad = self.bad or f"{self.path}:{self._n}:1: a trace line needs \"t\" and \"ev\""
+                continue
+            self.events.append(d)
+        return True
+
+    @property
+    def t_ms(self):
+        return self.events[-1]["t"] // MS if self.events else 0
+
+    def state(self):
+        svg, rows, nrows = diagram(self.events, f"{self.path.name} (following)")
+        return {"mode": self.mode, "title": str(self.path), "t_ms": self.t_ms,
+                "paused": self.paused, "svg": svg, "rows": rows, "nrows": nrows,
+                "radio": radio_counts(self.events), "lines": len(self.events),
+                "bad": self.bad, "registers": [], "blocks": [], "done": False}
+
+    def close(self):
+        pass
