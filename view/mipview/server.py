@@ -36,6 +36,7 @@ class App:
         self._carry = 0.0          # fractional scan ticks owed at slow speeds
         self._cached = None
         self.error = None          # why the run stopped by itself (one line)
+        self.closing = False       # the server stops: the event streams end
 
     def touch(self):
         self.version += 1
@@ -98,6 +99,9 @@ class App:
             elif action == "step_slot":
                 s.paused = True
                 s.step_slot()
+            elif action == "advance":
+                s.paused = True
+                s.advance(int(req.get("ms")))
             elif action == "speed":
                 s.set_speed(float(req.get("value")))
             elif action == "loss":
@@ -136,7 +140,7 @@ def make_app(app: App):
                                            "Cache-Control": "no-cache"})
         await resp.prepare(request)
         try:
-            while True:
+            while not app.closing:
                 waiter = app.changed
                 await resp.write(f"data: {app.state()}\n\n".encode())
                 await waiter.wait()
@@ -230,7 +234,7 @@ def main(argv=None):
 
 async def serve(app, sock, url, open_browser):
     from aiohttp import web
-    runner = web.AppRunner(make_app(app), access_log=None)
+    runner = web.AppRunner(make_app(app), access_log=None, shutdown_timeout=1.0)
     await runner.setup()
     site = web.SockSite(runner, sock)
     await site.start()
@@ -246,6 +250,8 @@ async def serve(app, sock, url, open_browser):
     clock = asyncio.create_task(app.run())
     await stop.wait()
     clock.cancel()
+    app.closing = True
+    app.touch()                    # wakes the event streams, which then end
     await runner.cleanup()
     app.session.close()
 

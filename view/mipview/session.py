@@ -232,6 +232,14 @@ class Live:
             n = len(self.ch.lines)
         return False
 
+    def advance(self, ms):
+        """Scan ticks for ms of virtual time (a jump ahead, e.g. to a moment of an exercise)."""
+        if not 0 < ms <= 600_000:
+            raise ViewError("advance: ms must be 1..600000")
+        end = self.ch.t + ms * MS
+        while self.ch.t < end:
+            self.step()
+
     def side(self, name):
         if name not in ("outstation", "central"):
             raise ViewError(f"unknown PLC {name!r}: outstation or central")
