@@ -7,3 +7,9 @@ PY_PACKAGES += view
 # make view VIEW_ARGS="--follow build/plc/run/emulator-trace.jsonl" (while `make run` runs)
 view: all
 	@$(VENV_ABS)/bin/mip-view $(VIEW_ARGS)
+
+.PHONY: view-shots
+# The screenshots of docs/view.md, taken in Debian's Chromium (tests/view checks the committed
+# ones are what this makes).
+view-shots: all
+	@$(PY) -m mipview.shots docs/img $(foreach p,demo ex2 ex6-outstation,--preset $(p))

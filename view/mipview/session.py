@@ -215,11 +215,11 @@ class Live:
         if not self.restarted and self.ch.t >= p.restart_at_ms * MS:
             self.ch.restart(self.o if p.restart == "outstation" else self.c)
             self.restarted = True
+        self.ch.step()
         for name, back_ms in list(self.off.items()):
-            if self.t_ms >= back_ms:
+            if self.t_ms >= back_ms:           # on again: scanned from the next tick
                 del self.off[name]
                 self._power_on(name)
-        self.ch.step()
 
     def step_slot(self):
         """Scan ticks up to and including the next radio telegram."""

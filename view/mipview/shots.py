@@ -3,7 +3,7 @@ pictures of docs/view.md (docs/img/view-*.png, `make view-shots`) and of the bro
 (build/view/). Each PNG carries a tEXt chunk "mip-view" that says what it shows (the preset and
 the virtual time), so tests/view can check a committed picture came from here.
 
-    python -m mipview.shots OUTDIR [--preset NAME ...]
+    python -m mipview.shots OUTDIR [--preset NAME ...]     (make view-shots: the docs' ones)
 """
 from __future__ import annotations
 
@@ -26,6 +26,8 @@ CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic"
                  "--no-first-run", "--disable-background-networking",
                  "--disable-component-update", "--disable-sync"]
 VIEWPORT = {"width": 1500, "height": 1000}
+# the presets pictured in docs/view.md (docs/img/view-<preset>.png); the tests take them all
+DOCS_PRESETS = ("demo", "ex2", "ex6-outstation")
 AFTER_MS = 400             # the picture: this long after the moment that matters (our choice)
 STEP_MS = 100
 
@@ -114,29 +116,35 @@ def png_size(path):
     return w, h
 
 
-def take(outdir, presets=None, workdir=None):
-    """One PNG per preset in outdir (view-<preset>.png); returns {preset: (path, state)}."""
-    from playwright.sync_api import sync_playwright
+def take(outdir, presets=None, workdir=None, browser=None):
+    """One PNG per preset in outdir (view-<preset>.png); returns {preset: (path, state)}.
+    browser: a Playwright browser to use (default: Chromium launched here)."""
+    if browser is None:
+        from playwright.sync_api import sync_playwright
+        with sync_playwright() as pw:
+            b = launch(pw)
+            try:
+                return take(outdir, presets, workdir, b)
+            finally:
+                b.close()
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
     server = Server(workdir=workdir)
     out = {}
     try:
-        with sync_playwright() as pw:
-            browser = launch(pw)
-            page = browser.new_page(viewport=VIEWPORT)
-            page.goto(server.url)
-            for name in presets or list(PRESETS):
-                server.control(action="preset", name=name)
-                st = moment(server)
-                # the page has drawn this state (the event stream's copy of it)
-                page.wait_for_function(f"document.body.dataset.version >= {st['version']}")
-                page.evaluate("window.scrollTo(0, 0)")
-                path = outdir / f"view-{name}.png"
-                png = page.screenshot()
-                path.write_bytes(with_text(png, "mip-view", describe(name, st["t_ms"])))
-                out[name] = (path, st)
-            browser.close()
+        page = browser.new_page(viewport=VIEWPORT)
+        page.goto(server.url)
+        for name in presets or list(PRESETS):
+            server.control(action="preset", name=name)
+            st = moment(server)
+            # the page has drawn this state (the event stream's copy of it)
+            page.wait_for_function(f"document.body.dataset.version >= {st['version']}")
+            page.evaluate("window.scrollTo(0, 0)")
+            path = outdir / f"view-{name}.png"
+            png = page.screenshot()
+            path.write_bytes(with_text(png, "mip-view", describe(name, st["t_ms"])))
+            out[name] = (path, st)
+        page.close()
     finally:
         server.close()
     return out
