@@ -95,7 +95,8 @@ PRESETS = {
                           restart="central"),
     "ex6-outstation": Preset("the outstation PLC restarts at 1 s", "6", records=4,
                              restart="outstation"),
-    "ex8": Preset("20 records at 20 % uplink loss", "8", records=20, loss_up=0.2),
+    "ex8": Preset("20 records at 20 % loss both ways", "8", records=20, loss_up=0.2,
+                  loss_down=0.2),
 }
 
 
