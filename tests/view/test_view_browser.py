@@ -46,7 +46,9 @@ def svg_texts(pg):
 
 
 def settle(pg, server):
-    """Waits until the page has drawn the server's latest state."""
+    """Waits until the page's controls are answered and it has drawn the server's latest
+    state."""
+    pg.wait_for_function("(document.body.dataset.pending || '0') === '0'")
     v = json.loads(server.get("api/state"))["version"]
     pg.wait_for_function(f"Number(document.body.dataset.version) >= {v}")
 
@@ -98,6 +100,7 @@ def test_every_preset_runs_in_the_page(page, server):
     for name in S.PRESETS:
         pg.select_option("#preset", name)
         pg.click("#start-preset")
+        settle(pg, server)
         pg.wait_for_function(f"document.getElementById('title').textContent === "
                              f"{json.dumps(S.PRESETS[name].title)}")
         if pg.inner_text("#pause") == "Resume":
@@ -135,6 +138,7 @@ def test_restart_buttons_and_speed(page, server):
     settle(pg, server)
     assert "PLC restarted" in svg_texts(pg)
     pg.select_option("#speed", "10")
+    settle(pg, server)
     pg.click("#pause")                                   # Resume
     pg.wait_for_function("document.getElementById('status').textContent === "
                          "'transfer complete'", timeout=60_000)
@@ -181,9 +185,13 @@ def test_follow_mode_shows_a_growing_trace(browser, view_workdir, tmp_path):
         assert all(w in texts or S.seqdiag.mark_reset(w) in texts for w in want)
         lost_up = sum(1 for x in lines if '"lost":true' in x and '"dir":"up"' in x)
         assert f"{lost_up}" in pg.inner_text("#radio-table") and lost_up > 0
+        r = pg.evaluate("fetch('/api/control', {method: 'POST', headers: {'Content-Type': "
+                        "'application/json'}, body: JSON.stringify({action: 'step_scan'})})"
+                        ".then(r => r.json())")
+        assert r == {"error": "step_scan: the view follows a trace (read-only)"}
         r = pg.evaluate("fetch('/api/control', {method: 'POST', body: "
-                        "JSON.stringify({action: 'step_scan'})}).then(r => r.status)")
-        assert r == 400
+                        "JSON.stringify({action: 'pause'})}).then(r => r.status)")
+        assert r == 415                     # not JSON: what another site's page could send
         pg.close()
     finally:
         srv.close()

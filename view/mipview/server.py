@@ -150,6 +150,11 @@ def make_app(app: App):
         return resp
 
     async def control(request):
+        # JSON only: another site's page in the same browser cannot send it without a CORS
+        # preflight, which this server never grants
+        if request.content_type != "application/json":
+            return web.json_response({"error": "Content-Type must be application/json"},
+                                     status=415)
         try:
             req = await request.json()
             if not isinstance(req, dict):

@@ -12,8 +12,11 @@ function esc(s) {
   return String(s).replace(/[&<>"]/g, (c) => ({"&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;"}[c]));
 }
 
+let pending = 0;                 // controls sent, not answered yet (data-pending: for tests)
+
 async function control(body) {
   $("message").textContent = "";
+  document.body.dataset.pending = ++pending;
   try {
     const r = await fetch("/api/control", {method: "POST", headers: {"Content-Type": "application/json"},
                                            body: JSON.stringify(body)});
@@ -22,6 +25,8 @@ async function control(body) {
     draw(j);
   } catch (e) {
     $("message").textContent = "the server does not answer (" + e + ")";
+  } finally {
+    document.body.dataset.pending = --pending;
   }
 }
 
