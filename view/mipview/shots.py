@@ -151,7 +151,8 @@ def take(outdir, presets=None, workdir=None, browser=None):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(prog="mipview.shots", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(prog="mipview.shots",
+                                 description=" ".join(__doc__.split("\n\n")[0].split()))
     ap.add_argument("outdir")
     ap.add_argument("--preset", action="append", choices=list(PRESETS))
     a = ap.parse_args(argv)
