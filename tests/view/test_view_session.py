@@ -187,3 +187,25 @@ def test_command_line_errors_are_one_line(tmp_path):
         r = mipview(*args)
         assert r.returncode == 2 and msg in r.stderr and "Traceback" not in r.stderr, args
         assert len(r.stderr.strip().splitlines()[-1]) > 0
+
+
+def test_follow_a_compressed_trace_and_another_station(tmp_path):
+    """The test kit's report keeps the trace around a fault as .jsonl.gz; a network of several
+    stations is drawn one station at a time."""
+    import gzip
+    lines = [{"t": 10_000_000 * (i + 1), "ev": "radio", "kind": "answer", "dir": "up", "st": st,
+              "t0": 0, "bytes": 258, "regs": 123, "r0": i + 1, "lost": st == 2}
+             for i, st in enumerate([1, 2, 2])]
+    path = tmp_path / "kit.jsonl.gz"
+    with gzip.open(path, "wt") as f:
+        f.write("\n".join(json.dumps(d) for d in lines))     # no newline at the end
+    one, two = S.Follow(path), S.Follow(path, station=2)
+    assert [r["text"] for r in one.state()["rows"]] == ["answer: [0]=1 (123 regs)"]
+    assert [r["text"] for r in two.state()["rows"]] == ["answer: [0]=2 (123 regs): LOST",
+                                                        "answer: [0]=3 (123 regs): LOST"]
+    assert two.state()["radio"]["lost_up"] == 2 and not two.poll()
+    with pytest.raises(S.ViewError, match="station must be 1..247"):
+        S.Follow(path, station=0)
+    bad = tmp_path / "cut.jsonl.gz"
+    bad.write_bytes(path.read_bytes()[:30])
+    assert S.Follow(bad).bad.startswith(f"{bad}: ")

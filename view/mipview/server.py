@@ -1,6 +1,6 @@
 """mip-view: the live view's web server (aiohttp) and its command line.
 
-    mip-view [--preset NAME] [--follow TRACE] [--host 127.0.0.1] [--port 8610] [--paused]
+    mip-view [--preset NAME] [--follow TRACE [--station N]] [--host 127.0.0.1] [--port 8610] [--paused]
              [--speed S] [--open]
 
 The page (static/) gets the state as Server-Sent Events (/api/events, one event per change)
@@ -192,6 +192,8 @@ def parse(argv):
     ap.add_argument("--follow", metavar="TRACE",
                     help="read-only: follow this JSON-lines trace (mip-emulator --trace, the "
                          "demo's build/plc/run/emulator-trace.jsonl, mipsim --trace)")
+    ap.add_argument("--station", type=int, default=1,
+                    help="with --follow: the station whose telegrams are drawn (default 1)")
     ap.add_argument("--host", default="127.0.0.1",
                     help="address to listen on (default 127.0.0.1: this PC only)")
     ap.add_argument("--port", type=int, default=DEFAULT_PORT, help="TCP port (0: any free one)")
@@ -212,7 +214,7 @@ def main(argv=None):
     a = parse(argv)
     from .session import Follow, Live, ViewError
     try:
-        session = Follow(a.follow) if a.follow else Live(a.preset, a.workdir)
+        session = Follow(a.follow, a.station) if a.follow else Live(a.preset, a.workdir)
     except ViewError as e:
         print(f"mip-view: error: {e}", file=sys.stderr)
         return 2

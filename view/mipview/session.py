@@ -12,6 +12,7 @@ the emulator's own.
 from __future__ import annotations
 
 import ctypes
+import gzip
 import json
 import random
 import sys
@@ -132,9 +133,9 @@ class _Windows:
         return out
 
 
-def diagram(events, title):
-    """The seqdiag rows of a trace and the SVG of the last ROWS_SHOWN of them."""
-    rows = seqdiag.rows_from(events, 1, 0, 1 << 62)
+def diagram(events, title, station=1):
+    """The seqdiag rows of a trace (one station's) and the SVG of the last ROWS_SHOWN."""
+    rows = seqdiag.rows_from(events, station, 0, 1 << 62)
     shown = rows[-ROWS_SHOWN:]
     caption = (f"The last {len(shown)} of {len(rows)} rows; empty polls and answers and PLC reads "
                f"without new data omitted.")
@@ -143,11 +144,11 @@ def diagram(events, title):
                   "lost": bool(d.get("lost"))} for t, kind, d in shown], len(rows)
 
 
-def radio_counts(events):
+def radio_counts(events, station=1):
     """Telegrams and lost telegrams per direction, counted from the trace's radio lines."""
     c = {"down": 0, "up": 0, "lost_down": 0, "lost_up": 0}
     for d in events:
-        if d.get("ev") == "radio" and d.get("dir") in ("down", "up"):
+        if d.get("ev") == "radio" and d.get("dir") in ("down", "up") and d.get("st") == station:
             c[d["dir"]] += 1
             c["lost_" + d["dir"]] += bool(d.get("lost"))
     return c
@@ -337,15 +338,20 @@ class Live:
 
 
 class Follow:
-    """A trace file (mip-emulator --trace, mipsim --trace, the demo's) read as it grows:
-    read-only, for commissioning and post-mortems."""
+    """A trace file (mip-emulator --trace, mipsim --trace, mip-cosim run --trace, the demo's,
+    the test kit's) read as it grows: read-only, for commissioning and post-mortems. A .gz
+    file (the kit's report keeps the trace around a fault so) is read once; station: whose
+    telegrams the diagram shows."""
 
     mode = "follow"
 
-    def __init__(self, path):
+    def __init__(self, path, station=1):
         self.path = Path(path)
         if not self.path.is_file():
             raise ViewError(f"{path}: no such trace file")
+        if not 1 <= station <= 247:
+            raise ViewError("station must be 1..247")
+        self.station = station
         self.events = []
         self._pos = 0
         self._partial = b""
@@ -357,6 +363,17 @@ class Follow:
 
     def poll(self):
         """Reads what was appended since the last call; True if anything new."""
+        if self.path.suffix == ".gz":
+            if self._pos:
+                return False
+            try:
+                with gzip.open(self.path, "rb") as f:
+                    chunk = f.read() + b"\n"
+            except (OSError, EOFError) as e:
+                self.bad = f"{self.path}: {getattr(e, 'strerror', None) or e}"
+                return False
+            self._pos = 1
+            return self._lines(chunk)
         try:
             with open(self.path, "rb") as f:
                 f.seek(0, 2)
@@ -370,6 +387,9 @@ class Follow:
             return False
         if not chunk:
             return False
+        return self._lines(chunk)
+
+    def _lines(self, chunk):
         data = self._partial + chunk
         lines = data.split(b"\n")
         self._partial = lines.pop()              # a line still being written
@@ -393,10 +413,11 @@ class Follow:
         return self.events[-1]["t"] // MS if self.events else 0
 
     def state(self):
-        svg, rows, nrows = diagram(self.events, f"{self.path.name} (following)")
+        svg, rows, nrows = diagram(self.events, f"{self.path.name}, station {self.station} "
+                                   f"(following)", self.station)
         return {"mode": self.mode, "title": str(self.path), "t_ms": self.t_ms,
                 "paused": self.paused, "svg": svg, "rows": rows, "nrows": nrows,
-                "radio": radio_counts(self.events), "lines": len(self.events),
+                "radio": radio_counts(self.events, self.station), "lines": len(self.events),
                 "bad": self.bad, "registers": [], "blocks": [], "done": False}
 
     def close(self):
