@@ -1,21 +1,16 @@
 """tests/view: mip-view (view/) in Debian's Chromium through Playwright, and its parts without
 a browser. The PLCs of the docs' chain are built in a directory of the test process (as
 tests/docs does: two workers building in build/docs/plc would remove each other's builds)."""
-import os
 import shutil
 import sys
 from pathlib import Path
 
 import pytest
 
-REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO / "view"))
+from view_helpers import CHROMIUM
 
-CHROMIUM = "/usr/bin/chromium"
-# CI installs chromium (.ci/apt-packages.txt): there its absence fails the browser tests,
-# elsewhere they skip with the package to install
-needs_browser = pytest.mark.skipif(not Path(CHROMIUM).is_file() and not os.environ.get("CI"),
-                                   reason="Chromium is not installed (Debian package chromium)")
+REPO = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(REPO / "view"))     # before `make venv` installed it
 
 
 @pytest.fixture(scope="session")

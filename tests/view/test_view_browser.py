@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import needs_browser
+from view_helpers import needs_browser
 from mipview import session as S
 from mipview import shots
 
