@@ -7,10 +7,10 @@ from pathlib import Path
 
 import pytest
 
-from view_helpers import CHROMIUM
-
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO / "view"))     # before `make venv` installed it
+
+from view_helpers import CHROMIUM  # noqa: E402
 
 
 @pytest.fixture(scope="session")
