@@ -23,7 +23,7 @@ pytestmark = needs_browser
 
 @pytest.fixture
 def server(view_workdir):
-    srv = shots.Server(workdir=view_workdir)
+    srv = shots.Server("--preset", "clean", workdir=view_workdir)
     yield srv
     srv.close()
 
@@ -118,7 +118,7 @@ def test_every_preset_runs_in_the_page(page, server):
         assert pg.inner_text("#block-central td[data-var=eState]") == "MIP_RCV_COMPLETE", name
         lost = sum(bool(d.get("lost")) for d in tr if d["ev"] == "radio")
         p = S.PRESETS[name]
-        assert (lost > 0) == bool(p.loss_up or p.loss_down), name
+        assert (lost > 0) == bool(p.loss_up or p.loss_down or p.lose_record), name
         restarts = [d for d in tr if d.get("what") == "restart"]
         assert [d["side"] for d in restarts] == ([p.restart] if p.restart else []), name
 

@@ -46,7 +46,7 @@ def test_a_preset_is_the_exercise_run_of_mipsim(view_workdir, tmp_path):
 
 
 def test_lose_the_next_record_loses_exactly_that_telegram(view_workdir):
-    s = S.Live("demo", view_workdir)
+    s = S.Live("clean", view_workdir)
     s.lose("record")
     run_to_end(s)
     tr = lines(s.trace())
@@ -63,8 +63,19 @@ def test_lose_the_next_record_loses_exactly_that_telegram(view_workdir):
     s.close()
 
 
-def test_lose_the_next_ack_and_extra_loss(view_workdir):
+def test_the_demo_preset_loses_record_2_once_as_make_run_does(view_workdir):
     s = S.Live("demo", view_workdir)
+    run_to_end(s)
+    tr = lines(s.trace())
+    lost = [d for d in tr if d["ev"] == "radio" and d.get("lost")]
+    assert [(d["dir"], d["r0"]) for d in lost] == [("up", 2)]
+    assert s.c.transfers == [s.data] and s.o.fbv("udiRetransmissions") == 0
+    assert "record 2 lost once" in s.state()["mipsim"]
+    s.close()
+
+
+def test_lose_the_next_ack_and_extra_loss(view_workdir):
+    s = S.Live("clean", view_workdir)
     s.advance(400)                        # record 1 is on its way
     s.lose("ack")
     n = len(s.ch.lines)
@@ -74,7 +85,7 @@ def test_lose_the_next_ack_and_extra_loss(view_workdir):
     assert s.c.transfers == [s.data]
     s.close()
     # extra loss 1.0 uplink: no record gets through, the sender waits
-    s = S.Live("demo", view_workdir)
+    s = S.Live("clean", view_workdir)
     s.set_loss("up", 1.0)
     s.advance(3000)
     st = s.state()
@@ -87,7 +98,7 @@ def test_lose_the_next_ack_and_extra_loss(view_workdir):
 
 
 def test_warm_restart_keeps_the_state_cold_restart_loses_it(view_workdir):
-    s = S.Live("demo", view_workdir)
+    s = S.Live("clean", view_workdir)
     s.advance(700)                         # record 1 delivered
     before = s.c.fbv("udiRecords")
     assert before == 1
@@ -103,7 +114,7 @@ def test_warm_restart_keeps_the_state_cold_restart_loses_it(view_workdir):
     assert texts == ["PLC off for 500 ms (warm restart)", "PLC on again, its memory kept"]
     assert s.c.fbv("udiFailedTransfers") == 0 and s.o.errors == []
     s.close()
-    s = S.Live("demo", view_workdir)
+    s = S.Live("clean", view_workdir)
     s.advance(700)
     s.restart("central", "cold")
     s.step()
@@ -114,7 +125,7 @@ def test_warm_restart_keeps_the_state_cold_restart_loses_it(view_workdir):
 
 
 def test_register_windows_show_the_emulator_and_mark_changes(view_workdir):
-    s = S.Live("demo", view_workdir)
+    s = S.Live("clean", view_workdir)
     s.state()
     s.advance(30)                           # the outstation wrote record 1 at 20 ms
     w = {x["start"]: x for x in s.state()["registers"]}
@@ -136,7 +147,7 @@ def test_register_windows_show_the_emulator_and_mark_changes(view_workdir):
     (lambda s: s.advance(0), "1..600000"),
 ])
 def test_bad_controls_say_what_is_wrong(view_workdir, bad, why):
-    s = S.Live("demo", view_workdir)
+    s = S.Live("clean", view_workdir)
     with pytest.raises(S.ViewError, match=re.escape(why)):
         bad(s)
     s.close()

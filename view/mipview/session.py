@@ -65,9 +65,12 @@ class Preset:
     timeout_ms: int = 2000
     restart: str | None = None            # "outstation" / "central": a cold restart ...
     restart_at_ms: int = 1000             # ... at this virtual time
+    lose_record: int = 0                  # the first uplink telegram carrying this record is
+                                          # lost (mip-emulator --lose-record; not in mipsim)
 
     def mipsim_args(self) -> str:
-        """The mipsim command line of the same run (the exercise's own command)."""
+        """The mipsim command line of the same run (the exercise's own command); a scripted
+        lost record, which mipsim has not, is said in words."""
         out = [f"--records {self.records}"]
         out += ["--polled"] if self.polled else []
         for name in ("loss_up", "loss_down", "burst"):
@@ -79,12 +82,17 @@ class Preset:
             out.append(f"--timeout-ms {self.timeout_ms}")
         if self.restart:
             out.append(f"--restart {self.restart} --restart-at-ms {self.restart_at_ms}")
+        if self.lose_record:
+            out.append(f"(and record {self.lose_record} lost once on its way up)")
         return " ".join(out)
 
 
 # The exercises' runs (docs/exercises.md; tests/view checks each is the page's "watch it" line).
 PRESETS = {
-    "demo": Preset("a clean transfer of 5 records", "", records=5),
+    # make run's default: the note's example of section 2.1.1 (README.md, plc/demo.py)
+    "demo": Preset("the demo: 5 records, record 2 lost once on its way up", "", records=5,
+                   lose_record=2),
+    "clean": Preset("a clean transfer of 5 records", "", records=5),
     "ex2": Preset("the note's example: polled, bursty uplink loss", "2", records=4, polled=True,
                   loss_up=0.2, burst=4, seed=13, timeout_ms=1000),
     "ex3-up": Preset("uplink loss 30 %", "3", records=5, seed=3, loss_up=0.3),
@@ -184,6 +192,7 @@ class Live:
         self.extra = {"up": 0.0, "down": 0.0}
         self.rng = random.Random(p.seed)
         self.lose_next = {"up": False, "down": False}     # a record / an acknowledgement
+        self.scripted = p.lose_record                     # the preset's lost record, once
         self.lost_by_view = []                            # (t_ms, dir, first register)
         self.off = {}                                     # side name -> virtual ms it returns
         self.restarted = p.restart is None
@@ -194,6 +203,9 @@ class Live:
     # ---------------------------------------------------------------- the simulation
     def _on_fate(self, user, station, up, blk, n):
         d = "up" if up else "down"
+        if up and n and self.scripted and blk[0] == self.scripted:
+            self.scripted = 0
+            return FATE_LOST
         if self.lose_next[d]:
             self.lose_next[d] = False
             self.lost_by_view.append((self.ch.t // MS, d, blk[0] if n else None))
