@@ -145,6 +145,7 @@ def test_register_windows_show_the_emulator_and_mark_changes(view_workdir):
     (lambda s: s.restart("plant", "cold"), "outstation or central"),
     (lambda s: s.restart("central", "lukewarm"), "cold or warm"),
     (lambda s: s.advance(0), "1..600000"),
+    (lambda s: s.restart("central", "warm"), "the central PLC has not started yet (it starts at 50 ms)"),
 ])
 def test_bad_controls_say_what_is_wrong(view_workdir, bad, why):
     s = S.Live("clean", view_workdir)

@@ -78,6 +78,10 @@ class App:
             except (ChainError, ViewError) as e:
                 s.paused = True            # the run cannot go on: say why, keep the page
                 self.error = str(e)
+            except Exception as e:         # a bug: one line here and on the page, no traceback
+                s.paused = True
+                self.error = f"internal error: {type(e).__name__}: {e}"
+                print(f"mip-view: {self.error}", file=sys.stderr, flush=True)
             if n:
                 self.touch()
 
@@ -165,6 +169,10 @@ def make_app(app: App):
             app.control(req)
         except ViewError as e:
             return web.json_response({"error": str(e)}, status=400)
+        except Exception as e:             # a bug: one line here and on the page, no traceback
+            msg = f"internal error: {type(e).__name__}: {e}"
+            print(f"mip-view: {req.get('action')}: {msg}", file=sys.stderr, flush=True)
+            return web.json_response({"error": msg}, status=500)
         return web.Response(text=app.state(), content_type="application/json")
 
     async def trace(request):

@@ -264,6 +264,11 @@ class Live:
         PLC is off for outage_ms (not scanned, its modem runs on) and resumes with all its
         memory, as a PLC whose whole state is durable (st_lib/PROTOCOL.md W3)."""
         side = self.side(name)
+        if kind not in ("cold", "warm"):
+            raise ViewError(f"restart kind {kind!r}: cold or warm")
+        if side.plc is None:
+            raise ViewError(f"the {name} PLC has not started yet (it starts at "
+                            f"{side.read_phase_ms} ms)")
         if name in self.off:
             raise ViewError(f"the {name} PLC is off already (back at {self.off[name]} ms)")
         if kind == "cold":
