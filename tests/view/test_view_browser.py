@@ -6,6 +6,7 @@ the restart buttons are full tier."""
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 import time
@@ -168,7 +169,7 @@ def test_follow_mode_shows_a_growing_trace(browser, view_workdir, tmp_path):
     lines = full.read_text().splitlines(keepends=True)
     path = tmp_path / "live.jsonl"
     path.write_text("".join(lines[:len(lines) // 2]))
-    srv = shots.Server("--follow", str(path))
+    srv = shots.Server("--follow", str(path), paused=False)
     try:
         pg = browser.new_page(viewport=shots.VIEWPORT)
         pg.goto(srv.url)
@@ -185,6 +186,18 @@ def test_follow_mode_shows_a_growing_trace(browser, view_workdir, tmp_path):
         assert all(w in texts or S.seqdiag.mark_reset(w) in texts for w in want)
         lost_up = sum(1 for x in lines if '"lost":true' in x and '"dir":"up"' in x)
         assert f"{lost_up}" in pg.inner_text("#radio-table") and lost_up > 0
+        pg.click("#pause")                   # stops redrawing: what is appended waits
+        settle(pg, srv)
+        shown = pg.inner_text("#radio-table")
+        with open(path, "a") as f:
+            f.write(json.dumps({"t": 10**12, "ev": "radio", "kind": "answer", "dir": "up",
+                                "st": 1, "t0": 0, "bytes": 258, "regs": 123, "r0": 7,
+                                "lost": True}) + "\n")
+        time.sleep(0.5)
+        assert pg.inner_text("#radio-table") == shown
+        pg.click("#pause")                   # Resume
+        pg.wait_for_function("document.querySelector('#diagram svg').textContent"
+                             ".includes('answer: [0]=7 (123 regs): LOST')")
         r = pg.evaluate("fetch('/api/control', {method: 'POST', headers: {'Content-Type': "
                         "'application/json'}, body: JSON.stringify({action: 'step_scan'})})"
                         ".then(r => r.json())")
@@ -195,6 +208,43 @@ def test_follow_mode_shows_a_growing_trace(browser, view_workdir, tmp_path):
         pg.close()
     finally:
         srv.close()
+
+
+@pytest.mark.slow
+def test_demo_in_real_time_is_followed_and_stopped_with_the_view(browser):
+    """--demo: the real-time demo (plc/demo.py: soft PLCs and mip-emulator over Modbus TCP)
+    started by the view, its trace followed as it grows; the demo's result line on the page;
+    stopping the view stops the demo."""
+    srv = shots.Server("--demo", "--records 3", paused=False)
+    try:
+        pid = int(re.search(r"pid (\d+)", srv.said[0]).group(1))
+        pg = browser.new_page(viewport=shots.VIEWPORT)
+        pg.goto(srv.url)
+        pg.wait_for_function("document.getElementById('note').textContent.startsWith('result:')",
+                             timeout=120_000)
+        assert pg.inner_text("#note").startswith("result: ok records=3 ")
+        trace_file = REPO / "build" / "view" / "demo" / "emulator-trace.jsonl"
+        events = [json.loads(x) for x in trace_file.read_text().splitlines() if x]
+        settle(pg, srv)
+        lost = [d for d in events if d["ev"] == "radio" and d.get("lost")]
+        assert [d["r0"] for d in lost] == [2]          # the demo's record 2, lost once
+        want = [d["text"] for _, _, d in S.seqdiag.rows_from(events, 1, 0, 1 << 62)]
+        texts = svg_texts(pg)
+        assert all(w in texts or S.seqdiag.mark_reset(w) in texts
+                   for w in want[-S.ROWS_SHOWN:])
+        pg.close()
+        # a long demo, stopped with the view: its processes end too
+        srv.close()
+        srv = shots.Server("--demo", "--records 500 --realistic", paused=False)
+        pid = int(re.search(r"pid (\d+)", srv.said[0]).group(1))
+        time.sleep(1)
+        assert Path(f"/proc/{pid}").exists()
+    finally:
+        srv.close()
+    deadline = time.time() + 20
+    while time.time() < deadline and Path(f"/proc/{pid}").exists():
+        time.sleep(0.1)
+    assert not Path(f"/proc/{pid}").exists(), "the demo outlived the view"
 
 
 @pytest.mark.slow

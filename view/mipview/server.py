@@ -14,8 +14,10 @@ import argparse
 import asyncio
 import errno
 import json
+import shlex
 import signal
 import socket
+import subprocess
 import sys
 import webbrowser
 from pathlib import Path
@@ -64,7 +66,7 @@ class App:
             await asyncio.sleep(FRAME_S)
             s = self.session
             if s.mode == "follow":
-                if s.poll():
+                if not s.paused and s.poll():     # paused: the file is read on resume
                     self.touch()
                 continue
             if s.paused:
@@ -200,6 +202,9 @@ def parse(argv):
     ap.add_argument("--follow", metavar="TRACE",
                     help="read-only: follow this JSON-lines trace (mip-emulator --trace, the "
                          "demo's build/plc/run/emulator-trace.jsonl, mipsim --trace)")
+    ap.add_argument("--demo", metavar="ARGS", nargs="?", const="",
+                    help="read-only: start the real-time demo (plc/demo.py, `make run`) with "
+                         "these options (e.g. \"--realistic --records 20\") and follow its trace")
     ap.add_argument("--station", type=int, default=1,
                     help="with --follow: the station whose telegrams are drawn (default 1)")
     ap.add_argument("--host", default="127.0.0.1",
@@ -211,6 +216,15 @@ def parse(argv):
     ap.add_argument("--open", action="store_true", help="open the page in the default browser")
     ap.add_argument("--workdir", help="where the PLCs are built (default build/docs/plc)")
     a = ap.parse_args(argv)
+    if a.demo is not None and a.follow:
+        ap.error("--demo and --follow: one of them (--demo follows the demo's own trace)")
+    if a.demo is not None:
+        try:
+            a.demo_args = shlex.split(a.demo)
+        except ValueError as e:
+            ap.error(f"--demo: {e}")
+        if "--rundir" in a.demo_args:
+            ap.error("--demo: mip-view chooses the demo's --rundir (build/view/demo)")
     if not 0 <= a.port <= 65535:
         ap.error("--port must be 0..65535")
     if a.speed not in SPEEDS:
@@ -220,9 +234,20 @@ def parse(argv):
 
 def main(argv=None):
     a = parse(argv)
-    from .session import Follow, Live, ViewError
+    from .session import REPO, Follow, Live, ViewError
+    demo = None
     try:
-        session = Follow(a.follow, a.station) if a.follow else Live(a.preset, a.workdir)
+        if a.demo is not None:
+            rundir = REPO / "build" / "view" / "demo"
+            rundir.mkdir(parents=True, exist_ok=True)
+            trace = rundir / "emulator-trace.jsonl"
+            trace.unlink(missing_ok=True)          # the page shows this run, not the last one
+            # the log beside the run directory: the demo empties that at its start
+            session = Follow(trace, a.station, wait=True, log=rundir.parent / "demo.log")
+        elif a.follow:
+            session = Follow(a.follow, a.station)
+        else:
+            session = Live(a.preset, a.workdir)
     except ViewError as e:
         print(f"mip-view: error: {e}", file=sys.stderr)
         return 2
@@ -240,11 +265,35 @@ def main(argv=None):
         return 2
     port = sock.getsockname()[1]
     url = f"http://{a.host if ':' not in a.host else '[' + a.host + ']'}:{port}/"
+    if a.demo is not None:
+        # the demo in a process of its own; its output (progress, result) goes to demo.log
+        with open(rundir.parent / "demo.log", "w") as log:
+            demo = subprocess.Popen([sys.executable, str(REPO / "plc" / "demo.py"), "--rundir",
+                                     str(rundir), *a.demo_args], stdout=log,
+                                    stderr=subprocess.STDOUT, cwd=REPO)
+        print(f"mip-view: the demo runs in {rel(rundir)} (pid {demo.pid}, its output in "
+              f"{rel(rundir.parent / 'demo.log')})", flush=True)
     try:
         asyncio.run(serve(App(session, a.workdir), sock, url, a.open))
     except KeyboardInterrupt:
         pass
+    finally:
+        if demo is not None and demo.poll() is None:
+            demo.terminate()                    # the demo stops its emulator and PLCs
+            try:
+                demo.wait(20)
+            except subprocess.TimeoutExpired:
+                demo.kill()
+                demo.wait()
     return 0
+
+
+def rel(path):
+    """A path as the user gave it, or relative to the current directory when it is in it."""
+    try:
+        return str(Path(path).resolve().relative_to(Path.cwd()))
+    except ValueError:
+        return str(path)
 
 
 async def serve(app, sock, url, open_browser):
@@ -253,7 +302,7 @@ async def serve(app, sock, url, open_browser):
     await runner.setup()
     site = web.SockSite(runner, sock)
     await site.start()
-    what = "following " + str(app.session.path) if app.session.mode == "follow" else \
+    what = "following " + rel(app.session.path) if app.session.mode == "follow" else \
         f"live run, preset {app.session.preset_name}"
     print(f"mip-view: {what}: open {url} (Ctrl-C to stop)", flush=True)
     if open_browser:

@@ -362,9 +362,13 @@ class Follow:
 
     mode = "follow"
 
-    def __init__(self, path, station=1):
+    def __init__(self, path, station=1, wait=False, log=None):
+        """wait: the file may not exist yet (a run that is starting); log: a file whose last
+        line the page shows (the demo's progress)."""
         self.path = Path(path)
-        if not self.path.is_file():
+        self.wait = wait
+        self.log = Path(log) if log else None
+        if not wait and not self.path.is_file():
             raise ViewError(f"{path}: no such trace file")
         if not 1 <= station <= 247:
             raise ViewError("station must be 1..247")
@@ -376,10 +380,17 @@ class Follow:
         self.paused = False
         self.speed = 1.0
         self.bad = None         # the first line that is no trace line (file:line: why)
+        self._note = None
         self.poll()
 
     def poll(self):
-        """Reads what was appended since the last call; True if anything new."""
+        """Reads what was appended since the last call; True if anything new (the trace or
+        the log's last line)."""
+        note = self._last_log_line()
+        new_note, self._note = note != self._note, note
+        return self._poll_trace() or new_note
+
+    def _poll_trace(self):
         if self.path.suffix == ".gz":
             if self._pos:
                 return False
@@ -391,6 +402,8 @@ class Follow:
                 return False
             self._pos = 1
             return self._lines(chunk)
+        if self.wait and not self.path.exists():
+            return False
         try:
             with open(self.path, "rb") as f:
                 f.seek(0, 2)
@@ -435,7 +448,19 @@ class Follow:
         return {"mode": self.mode, "title": str(self.path), "t_ms": self.t_ms,
                 "paused": self.paused, "svg": svg, "rows": rows, "nrows": nrows,
                 "radio": radio_counts(self.events, self.station), "lines": len(self.events),
+                "note": self._note,
                 "bad": self.bad, "registers": [], "blocks": [], "done": False}
+
+    def _last_log_line(self):
+        if self.log is None:
+            return None
+        try:
+            text = self.log.read_text(errors="replace")
+        except OSError:
+            return None
+        # the demo redraws its progress line with carriage returns
+        lines = [x.strip() for x in text.replace("\r", "\n").splitlines() if x.strip()]
+        return lines[-1] if lines else None
 
     def close(self):
         pass

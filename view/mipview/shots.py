@@ -33,20 +33,27 @@ STEP_MS = 100
 
 
 class Server:
-    """mip-view in a process of its own, paused, on a free port."""
+    """mip-view in a process of its own (paused unless paused=False), on a free port."""
 
-    def __init__(self, *args, workdir=None):
-        cmd = [sys.executable, "-m", "mipview.server", "--port", "0", "--paused", *args]
+    def __init__(self, *args, workdir=None, paused=True):
+        cmd = [sys.executable, "-m", "mipview.server", "--port", "0", *args]
+        cmd += ["--paused"] if paused else []
         if workdir:
             cmd += ["--workdir", str(workdir)]
         self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                      text=True)
-        line = self.proc.stdout.readline()
-        m = re.search(r"open (\S+)", line)
+        self.said = []
+        m = None
+        while m is None:
+            line = self.proc.stdout.readline()
+            self.said.append(line)
+            m = re.search(r"open (\S+)", line)
+            if not line:
+                break
         if not m:
             err = self.proc.stderr.read()
             self.proc.wait()
-            raise RuntimeError(f"mip-view did not start: {(line + err).strip()}")
+            raise RuntimeError(f"mip-view did not start: {(''.join(self.said) + err).strip()}")
         self.url = m.group(1)
 
     def control(self, **req):

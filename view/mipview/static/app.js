@@ -100,6 +100,7 @@ function draw(st) {
   drawBlocks(st);
   drawRadio(st);
   drawRegisters(st);
+  $("note").textContent = st.note || "";
   if (st.error) $("message").textContent = st.error;
   if (st.bad) $("message").textContent = st.bad;
   if (st.mode === "live") {
