@@ -1,12 +1,13 @@
 """mip-view: the live view's web server (aiohttp) and its command line.
 
-    mip-view [--preset NAME] [--follow TRACE [--station N]] [--host 127.0.0.1] [--port 8610] [--paused]
-             [--speed S] [--open]
+    mip-view [--preset NAME | --follow TRACE | --demo "ARGS"] [--station N]
+             [--host 127.0.0.1] [--port 8610] [--paused] [--speed S] [--open]
 
 The page (static/) gets the state as Server-Sent Events (/api/events, one event per change)
 and sends its controls as POST /api/control {"action": ..., ...}. A live run (the default) is
 stepped here, in the server's event loop, at the chosen speed (virtual seconds per real second);
---follow reads a trace file as it grows (read-only). Errors in options are one line, exit 2.
+--follow reads a trace file as it grows, --demo starts the real-time demo and follows its trace
+(both read-only). Errors in options are one line, exit 2.
 """
 from __future__ import annotations
 
@@ -122,6 +123,7 @@ class App:
                 new.paused, new.speed = s.paused, s.speed
                 s.close()
                 self.session = new
+                self.error = None
             else:
                 raise ViewError(f"unknown action {action!r}")
         except (TypeError, ValueError) as e:
