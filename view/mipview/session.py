@@ -291,6 +291,9 @@ class Live:
         self.ch._emit(side._line(self.ch.t, "restart", "PLC on again, its memory kept", 0))
         self.ch._check(self.ch.lib.mipcosim_plc_replace(self.ch.sim, self.ch.ids[name], scan,
                                                         plc.handle, self.ch.tick))
+        # not wired again: the kernel keeps the PLC's connection across a replace (only its
+        # taps and half-exchanged bytes go, cosim/src/mipcosim.c drop_plc_wiring) and the
+        # instance keeps its transport (plcrt takes one only before its first scan)
 
     def set_loss(self, direction, p):
         if direction not in self.extra:
