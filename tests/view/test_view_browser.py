@@ -151,6 +151,22 @@ def test_restart_buttons_and_speed(page, server):
 
 
 @pytest.mark.slow
+def test_a_choice_in_the_lists_stays_while_the_run_goes_on(page, server):
+    """The page redraws ten times a second; the preset a trainer is choosing is not reset."""
+    pg = page
+    pg.click("#pause")                                   # Resume
+    settle(pg, server)
+    pg.select_option("#preset", "ex4")
+    v = json.loads(server.get("api/state"))["version"]
+    pg.wait_for_function(f"Number(document.body.dataset.version) >= {v + 3}")
+    assert pg.input_value("#preset") == "ex4"
+    assert json.loads(server.get("api/state"))["preset"] == "clean"
+    pg.click("#start-preset")
+    settle(pg, server)
+    assert json.loads(server.get("api/state"))["preset"] == "ex4"
+
+
+@pytest.mark.slow
 def test_bad_control_shows_one_line(page, server):
     pg = page
     pg.evaluate("control({action: 'lose', what: 'everything'})")

@@ -15,6 +15,7 @@ import argparse
 import asyncio
 import errno
 import json
+import secrets
 import shlex
 import signal
 import socket
@@ -40,6 +41,8 @@ class App:
         self._cached = None
         self.error = None          # why the run stopped by itself (one line)
         self.closing = False       # the server stops: the event streams end
+        self.boot = secrets.token_hex(4)   # this server's run: a page that reconnects to a
+                                           # restarted server starts its versions over
 
     def touch(self):
         self.version += 1
@@ -51,6 +54,7 @@ class App:
         if self._cached is None:
             st = self.session.state()
             st["version"] = self.version
+            st["boot"] = self.boot
             st["error"] = self.error
             if st["mode"] == "live":
                 from .session import PRESETS, SPEEDS

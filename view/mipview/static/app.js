@@ -88,7 +88,10 @@ function fillOptions(st) {
 }
 
 function draw(st) {
-  if (last && st.version < last.version) return;     // an older answer overtaken by an event
+  if (last && st.boot !== last.boot) last = null;     // another server (restarted): start over
+  // the same state twice (a control's answer and its event) or an older one: nothing to draw
+  if (last && st.version <= last.version) return;
+  const before = last;
   last = st;
   document.body.className = st.mode;
   fillOptions(st);
@@ -104,8 +107,9 @@ function draw(st) {
   if (st.error) $("message").textContent = st.error;
   if (st.bad) $("message").textContent = st.bad;
   if (st.mode === "live") {
-    $("preset").value = st.preset;
-    $("speed").value = st.speed;
+    // the lists follow the run only when it changed them: a choice being made stays
+    if (!before || before.preset !== st.preset) $("preset").value = st.preset;
+    if (!before || before.speed !== st.speed) $("speed").value = st.speed;
     $("mipsim").textContent = "mipsim " + st.mipsim;
     for (const d of ["up", "down"]) {
       if (document.activeElement !== $("loss-" + d)) $("loss-" + d).value = st.extra_loss[d];
