@@ -42,6 +42,36 @@ FFFF = 0xFFFF
 MS = 1_000_000
 
 
+def dialect() -> str:
+    """"st", or "scl" under PLCRT_STLIB_DIALECT=scl (make scl-tests): the bench then builds the
+    library from the TIA SCL that stc.scl_out generates from st_lib (docs/wiring-s7.md), so
+    the behaviour tests run the generated SCL."""
+    d = os.environ.get("PLCRT_STLIB_DIALECT") or "st"
+    if d not in ("st", "scl"):
+        raise ValueError(f"PLCRT_STLIB_DIALECT must be st or scl, not {d!r}")
+    return d
+
+
+def _array_types():
+    """{array TYPE name of st_lib: its ARRAY[..] OF .. spelled out} (SCL has no array type
+    names, so under the SCL dialect the test program declares its arrays so)."""
+    from stc.scl_out import array_aliases
+    return array_aliases(LIB_PATHS)
+
+
+def scl_library(workdir: Path) -> list[str]:
+    """The generated .scl files of st_lib, written once per directory, in import order."""
+    from stc.scl_out import generate_files, library_version
+    out = Path(workdir) / "scl"
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for src, text in generate_files(LIB_PATHS, library_version(LIB_PATHS)).items():
+        dst = out / (Path(src).stem + ".scl")
+        dst.write_text(text)
+        paths.append(str(dst))
+    return paths
+
+
 def compiler() -> str:
     """stc unless PLCRT_COMPILER / STLIB_COMPILER says otherwise (CI runs stc)."""
     return os.environ.get("STLIB_COMPILER") or os.environ.get("PLCRT_COMPILER") or "stc"
@@ -50,9 +80,14 @@ def compiler() -> str:
 def gen_program(instances, tick_ms=10):
     """instances: list of (name, fb type). Returns the ST text of PROGRAM MAIN + configuration."""
     decl, pre, post, calls = [], [], [], []
+    arrays = _array_types() if dialect() == "scl" else {}
+
+    def ty(name):
+        return arrays.get(name.upper(), name)
+
     for name, fb in instances:
         decl.append(f"  {name} : {fb};")
-        decl.append(f"  {name}_rd : MIP_T_ReadBlock;")
+        decl.append(f"  {name}_rd : {ty('MIP_T_ReadBlock')};")
         decl.append("  " + ", ".join(f"{name}_r{i}" for i in range(125)) + " : WORD;")
         pre += [f"{name}_rd[{i}] := {name}_r{i};" for i in range(125)]
         args = [f"aRead := {name}_rd"]
@@ -60,7 +95,7 @@ def gen_program(instances, tick_ms=10):
             decl.append("  " + ", ".join(f"{name}_w{i}" for i in range(123)) + " : WORD;")
             post += [f"{name}_w{i} := {name}.aWrite[{i}];" for i in range(123)]
         if fb in HAS_CHUNK:
-            decl.append(f"  {name}_ck : MIP_T_Payload;")
+            decl.append(f"  {name}_ck : {ty('MIP_T_Payload')};")
             decl.append("  " + ", ".join(f"{name}_c{i}" for i in range(122)) + " : WORD;")
             pre += [f"{name}_ck[{i}] := {name}_c{i};" for i in range(122)]
             args.append(f"aChunk := {name}_ck")
@@ -68,7 +103,7 @@ def gen_program(instances, tick_ms=10):
             decl.append("  " + ", ".join(f"{name}_p{i}" for i in range(122)) + " : WORD;")
             post += [f"{name}_p{i} := {name}.aRecord[{i}];" for i in range(122)]
         if fb == "MIP_BufferSender":
-            decl.append(f"  {name}_buf : MIP_T_Buffer;")
+            decl.append(f"  {name}_buf : {ty('MIP_T_Buffer')};")
             decl.append(f"  {name}_fill : BOOL;")
             decl.append(f"  {name}_seed : UINT;")
             decl.append(f"  {name}_i : UINT;")
@@ -90,13 +125,16 @@ _BUILDS = {}
 def build(instances, workdir: Path, tick_ms=10) -> Plc:
     """Build (once per program text and compiler, then a fresh instance per call)."""
     text = gen_program(instances, tick_ms)
-    key = (text, compiler())
+    key = (text, compiler(), dialect())
     if key not in _BUILDS:
         bdir = Path(workdir) / "build"
         bdir.mkdir(parents=True, exist_ok=True)
         prog = bdir / "prog_main.st"
         prog.write_text(text)
-        plc = Plc.build(LIB_PATHS + [str(prog)], workdir=bdir, compiler=compiler())
+        if dialect() == "scl" and compiler() != "stc":
+            raise ValueError("PLCRT_STLIB_DIALECT=scl needs stc (matiec reads no SCL)")
+        lib = scl_library(bdir) if dialect() == "scl" else LIB_PATHS
+        plc = Plc.build(lib + [str(prog)], workdir=bdir, compiler=compiler())
         _BUILDS[key] = (plc.build_result, bdir)
         return plc
     result, bdir = _BUILDS[key]
