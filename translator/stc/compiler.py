@@ -32,7 +32,9 @@ def compile_files(texts, diags, semantics="matiec", strict_iec=False, dialect=No
         parsed.append((fname, nodes))
     if diags:
         return None
-    if any(dialect_of(f, dialect) == "scl" for f, _t, _l in texts):
+    checker = Checker(diags, semantics, strict_iec)
+    checker.scl_files = {f for f, _t, _l in texts if dialect_of(f, dialect) == "scl"}
+    if checker.scl_files:
         from .scl_in import name_arrays
         name_arrays(parsed)
-    return Checker(diags, semantics, strict_iec).run(parsed)
+    return checker.run(parsed)

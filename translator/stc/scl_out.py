@@ -293,16 +293,23 @@ class _Pou:
             self.flush_comments(s.pos[0], ind)
             self.stmt(s, ind)
 
+    def trail(self, line):
+        """A comment that followed on the source line `line` goes to the end of the last line."""
+        self.flush_comments(line + 1, "", same_line=line)
+
     def stmt(self, s, ind):
         o = self.out
         if isinstance(s, S.Assign):
             o.append(f"{ind}{self.expr(s.target)} := {self.expr(s.value)};")
+            self.trail(s.pos[0])
         elif isinstance(s, S.CallStmt):
             name = self.name(s.name) if s.name in self.locals else self.callee(s.name)
             o.append(f"{ind}{name}({self.args(s.args)});")
+            self.trail(s.pos[0])
         elif isinstance(s, S.If):
             for i, (cond, body) in enumerate(s.branches):
                 o.append(f"{ind}{'IF' if i == 0 else 'ELSIF'} {self.expr(cond)} THEN")
+                self.trail(cond.pos[0])
                 self.stmts(body, ind + "    ")
             if s.orelse is not None:
                 o.append(f"{ind}ELSE")
@@ -385,9 +392,10 @@ class _Pou:
             head.append(f'FUNCTION_BLOCK "{name}"')
         head.append("{ S7_Optimized_Access := 'TRUE' }")
         head.append(f"VERSION : {version}")
-        decl_out = self.out = []
+        sections = {}          # header -> lines, filled in source order (comments in place)
         for blk in n.blocks:
-            self.var_block(blk)
+            header, lines = self.var_block(blk)
+            sections.setdefault(header, []).extend(lines)
         self.used_enums |= {self.enum_type(d.type) for b in n.blocks for d in b.decls} - {None}
         body_out = self.out = []
         temp_inits = []
@@ -405,25 +413,25 @@ class _Pou:
         self.flush_comments(n.end_pos[0], "    ")
         if lgf:
             body_out.extend(self.status_region())
-        extra = []
         if lgf:
-            extra.append("   VAR_OUTPUT")
-            extra.append(f"      {STATUS_NAME} : Word := WORD#16#7000;  // LGF-style status, "
-                         "derived from xBusy, xError, eErrorId (docs/wiring-s7.md)")
-            extra.append("   END_VAR")
-            extra.append("   VAR")
-            extra.append(f"      {STATUS_PREV} : Bool;  // xBusy in the previous call "
-                         "(status 16#7001 on the first busy call)")
-            extra.append("   END_VAR")
-        consts = []
+            sections.setdefault("VAR_OUTPUT", []).append(
+                f"      {STATUS_NAME} : Word := WORD#16#7000;  // LGF-style status, derived from "
+                "xBusy, xError, eErrorId (docs/wiring-s7.md)")
+            sections.setdefault("VAR", []).append(
+                f"      {STATUS_PREV} : Bool;  // xBusy in the previous call (status 16#7001 on "
+                "the first busy call)")
         for et in sorted(self.used_enums):
+            consts = sections.setdefault("VAR CONSTANT", [])
             consts.append(f"      // {self.lib.names.get(et, et)} (an enumeration in st_lib: "
                           "here Int constants with the same numbers)")
             for item, v in self.lib.enums[et]:
                 consts.append(f"      {item} : Int := {v};")
-        if consts:
-            consts = ["   VAR CONSTANT"] + consts + ["   END_VAR"]
-        return head + decl_out + extra + consts + ["", "BEGIN"] + body_out + [
+        decl_out = []
+        order = ["VAR_INPUT", "VAR_OUTPUT", "VAR_IN_OUT", "VAR", "VAR RETAIN", "VAR NON_RETAIN",
+                 "VAR_TEMP", "VAR CONSTANT"]
+        for header in sorted(sections, key=lambda h: order.index(h) if h in order else len(order)):
+            decl_out += [f"   {header}"] + sections[header] + ["   END_VAR"]
+        return head + decl_out + ["", "BEGIN"] + body_out + [
             "END_FUNCTION" if self.is_fn else "END_FUNCTION_BLOCK", ""]
 
     def temp_init(self, d):
@@ -444,9 +452,9 @@ class _Pou:
         kind = blk.kind
         if self.is_fn and kind == "VAR" and "CONSTANT" not in blk.quals:
             kind = "VAR_TEMP"      # a TIA FC has no static data
-        quals = [q for q in blk.quals]
-        self.flush_comments(blk.pos[0], "   ")
-        self.out.append("   " + " ".join([kind] + quals))
+        header = " ".join([kind] + list(blk.quals))
+        self.out = []
+        self.flush_comments(blk.pos[0], "      ")
         for d in blk.decls:
             self.flush_comments(d.pos[0], "      ")
             names = ", ".join(self.locals[nm] for nm, _ in d.names)
@@ -458,7 +466,7 @@ class _Pou:
                                "(AT %...) have no SCL form in the generator")
             self.out.append(f"      {names} : {self.type_ref(d.type)}{init};")
             self.flush_comments(d.pos[0] + 1, "      ", same_line=d.pos[0])
-        self.out.append("   END_VAR")
+        return header, self.out
 
     def status_region(self):
         has_done = "XDONE" in self.locals
