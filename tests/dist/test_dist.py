@@ -119,6 +119,36 @@ def test_one_file_library_translates_with_stc(archive, tmp_path):
     assert (tmp_path / "POUS.c").is_file()
 
 
+def test_scl_library_is_generated_complete_and_runs(archive, tmp_path):
+    """scl/*.scl: one file per st_lib file with a block, in import order, exactly what the
+    generator writes from st_lib; the one-file .scl translates as SCL and runs (MIP_Version)."""
+    from stc.scl_out import generate_files
+    _, tgz, top = archive
+    version = top.name.split("-")[-1]
+    with tarfile.open(tgz) as t:
+        names = [n[len(top.name) + 1:] for n in t.getnames()]
+    order = blocks_md_order()
+    fresh = generate_files([str(REPO / f) for f in order], version)
+    want = [f"scl/{Path(f).stem}.scl" for f in order if str(REPO / f) in fresh]
+    assert [n for n in names if n.startswith("scl/")] == want
+    assert len(want) == sum(1 for f in order if re.search(
+        r"^\s*FUNCTION(_BLOCK)?\s", (REPO / f).read_text(), re.M))
+    for f in order:
+        if str(REPO / f) in fresh:
+            assert (top / f"scl/{Path(f).stem}.scl").read_text() == fresh[str(REPO / f)], f
+    one = top / f"{top.name}.scl"
+    major, minor, patch = map(int, version.split("."))
+    assert one.read_text().count(f"VERSION : {major}.{minor}\n") == \
+        one.read_text().count("\nBEGIN\n")
+    assert f"{top.name}.scl" in (top / "README.txt").read_text()
+    prog = tmp_path / "probe.st"
+    prog.write_text(PROBE)
+    with Plc.build([one, prog], workdir=tmp_path / "b", compiler="stc") as plc:
+        plc.scan()
+        assert (plc["Probe.udiMajor"], plc["Probe.udiMinor"], plc["Probe.udiPatch"]) == \
+            (major, minor, patch)
+
+
 def test_plcopen_xml_is_valid_and_complete(archive):
     _, _, top = archive
     xml = top / f"{top.name}.xml"
