@@ -127,6 +127,10 @@ ROUND_TRIP_LIB = """\
 TYPE
   T_Buf : ARRAY[0..3] OF WORD;
   E_Mode : (MODE_OFF, MODE_SLOW, MODE_FAST);
+  T_Pair : STRUCT
+    a : UINT;
+    b : E_Mode := MODE_FAST; (* a PLC data type member of an enumeration *)
+  END_STRUCT;
 END_TYPE
 FUNCTION Twice : UINT
 VAR_INPUT
@@ -150,6 +154,7 @@ VAR_OUTPUT
   eMode : E_Mode := MODE_SLOW;
   aOut : T_Buf;
   uCount : UINT;
+  pair : T_Pair;
 END_VAR
 VAR
   trig : R_TRIG;
@@ -173,6 +178,7 @@ tWait(IN := xGo, PT := T#30ms);
 xBusy := xGo AND NOT tWait.Q;
 xDone := tWait.Q;
 xError := uCount > 100;
+pair.a := uCount + 1;
 IF xError THEN
   eErrorId := MODE_FAST;
 END_IF;
@@ -185,10 +191,12 @@ ROUND_TRIP_PROG = """\
 (* EXPECT MAIN0.MODE = 2 *)
 (* EXPECT MAIN0.W3 = 5 *)
 (* EXPECT MAIN0.DONE = 1 *)
+(* EXPECT MAIN0.PA = 3 *)
 PROGRAM Main
-VAR fb : Stepper; go : BOOL := TRUE; cnt : UINT; mode : INT; w3 : WORD; done : BOOL; END_VAR
+VAR fb : Stepper; go : BOOL := TRUE; cnt : UINT; mode : INT; w3 : WORD; done : BOOL;
+  pa : UINT; END_VAR
 fb(xGo := go);
-cnt := fb.uCount; w3 := fb.aOut[3]; done := fb.xDone;
+cnt := fb.uCount; w3 := fb.aOut[3]; done := fb.xDone; pa := fb.pair.a;
 MODE_OUT
 END_PROGRAM
 CONFIGURATION Config0
@@ -209,7 +217,8 @@ def test_generated_scl_computes_what_the_st_computes(tmp_path):
     for want in ('FUNCTION_BLOCK "Stepper"', "VERSION : 2.3", "tWait : TON_TIME;",
                  "aOut : Array[0..3] of Word;", "eMode : Int := 1 (* MODE_SLOW *);",
                  "MODE_FAST : Int := 2;", "#eMode := #MODE_OFF;", '"Twice"(#uCount + 1)',
-                 "#tmp := 1;", "status : Word", "(* the value *)"):
+                 "#tmp := 1;", "status : Word", "(* the value *)", 'TYPE "T_Pair"',
+                 "b : Int := 2 (* MODE_FAST *);  (* a PLC data type member", 'pair : "T_Pair";'):
         assert want in scl_text, want
     scl = tmp_path / "lib.scl"
     scl.write_text(scl_text)

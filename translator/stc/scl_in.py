@@ -202,6 +202,10 @@ def name_arrays(parsed):
     for _fname, nodes in parsed:
         for n in nodes:
             blocks = list(getattr(n, "blocks", None) or [])
+            if isinstance(n, S.Function) and isinstance(n.rtype, S.ArraySpec):
+                name = key(n.rtype)          # an FC that returns an array
+                if name is not None:
+                    n.rtype = S.NamedType(n.rtype.pos, name)
             if isinstance(n, S.TypeDecl):
                 for d in n.defs:
                     if isinstance(d.spec, S.StructSpec):

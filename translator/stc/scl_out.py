@@ -279,6 +279,9 @@ class _Pou:
             if item in self.lib.enum_of:
                 self.used_enums.add(self.lib.enum_of[item])
                 return f"{self.enum_value(item)} (* {self.enum_spell(item)} *)"
+        if isinstance(v, S.StructInit):
+            return "(" + ", ".join(f"{_spelled(self.lines, pos, name)} := {self.init(val, None)}"
+                                   for name, val, pos in v.items) + ")"
         if isinstance(v, S.ArrayInit):
             items = []
             for count, val in v.items:
@@ -540,8 +543,10 @@ class Generator:
             lines.append("   STRUCT")
             for m in d.spec.members:
                 init = f" := {pou.init(m.init, pou.enum_type(m.type))}" if m.init is not None else ""
+                trail = "".join(f"  {t}" for ln, _c, end, t in comments
+                                if ln == m.pos[0] and end == ln)
                 lines.append(f"      {_spelled(pou.lines, m.pos, m.names[0][0])} : "
-                             f"{pou.type_ref(m.type)}{init};")
+                             f"{pou.type_ref(m.type)}{init};{trail}")
             lines.append("   END_STRUCT;")
             lines.append("END_TYPE")
             lines.append("")
