@@ -199,7 +199,7 @@ def test_generated_scl_computes_what_the_st_computes(tmp_path):
     for want in ('FUNCTION_BLOCK "Stepper"', "VERSION : 2.3", "tWait : TON_TIME;",
                  "aOut : Array[0..3] of Word;", "eMode : Int := 1 (* MODE_SLOW *);",
                  "MODE_FAST : Int := 2;", "#eMode := #MODE_OFF;", '"Twice"(#uCount + 1)',
-                 "#tmp := 1;", "status : Word", "(* the value *)", 'TYPE "T_Pair"',
+                 "#tmp := 1;", "status : Word", "u : UInt;  // the value", 'TYPE "T_Pair"',
                  "b : Int := 2 (* MODE_FAST *);  (* a PLC data type member", 'pair : "T_Pair";'):
         assert want in scl_text, want
     scl = tmp_path / "lib.scl"

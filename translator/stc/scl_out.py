@@ -149,13 +149,14 @@ class _Pou:
         self.out = []
 
     # ---- comments
-    def flush_comments(self, before_line, indent, same_line=None):
+    def flush_comments(self, before_line, indent, same_line=None, slash=False):
         """Write the pending comments that start before before_line (own lines); a comment on
-        same_line goes to the end of the last written line instead."""
+        same_line goes to the end of the last written line instead (slash: as a // comment,
+        which TIA takes as a declaration's comment)."""
         while self.comments and self.comments[0][0] < before_line:
             line, _col, _end, t = self.comments.pop(0)
             if same_line is not None and line == same_line and self.out and "\n" not in t:
-                self.out[-1] += "  " + t
+                self.out[-1] += "  " + ("// " + t[2:-2].strip() if slash else t)
             else:
                 # continuation lines as they were: their indentation is the comment's layout
                 self.out.extend(x.rstrip() if i else indent + x
@@ -386,15 +387,21 @@ class _Pou:
         self.used_enums = set()
         lgf = self.lgf_status()
         # in source order, so that each comment lands where it was
-        head = self.out = []
+        before = self.out = []
         self.flush_comments(n.pos[0], "")
         name = self.lib.names.get(n.name, n.name)
+        head = []
         if self.is_fn:
             head.append(f'FUNCTION "{name}" : {self.type_ref(n.rtype)}')
         else:
             head.append(f'FUNCTION_BLOCK "{name}"')
         head.append("{ S7_Optimized_Access := 'TRUE' }")
         head.append(f"VERSION : {version}")
+        # the block's documentation comment: inside the block, as // lines after VERSION, where
+        # TIA's own source export writes a block comment (our reading of its exports)
+        doc = "\n".join(before)
+        doc = re.sub(r"\(\*|\*\)", "", doc).strip("\n")
+        head += [("// " + x).rstrip() for x in doc.split("\n")] if doc.strip() else []
         sections = {}          # header -> lines, filled in source order (comments in place)
         for blk in n.blocks:
             header, lines = self.var_block(blk)
@@ -416,7 +423,6 @@ class _Pou:
         self.flush_comments(n.end_pos[0], "    ")
         if lgf:
             body_out.extend(self.status_region())
-        if lgf:
             sections.setdefault("VAR_OUTPUT", []).append(
                 f"      {STATUS_NAME} : Word := WORD#16#7000;  // LGF-style status, derived from "
                 "xBusy, xError, eErrorId (docs/wiring-s7.md)")
@@ -468,7 +474,7 @@ class _Pou:
                 raise SclError(f"{self.g.fname}:{d.pos[0]}:{d.pos[1]}: error: located variables "
                                "(AT %...) have no SCL form in the generator")
             self.out.append(f"      {names} : {self.type_ref(d.type)}{init};")
-            self.flush_comments(d.pos[0] + 1, "      ", same_line=d.pos[0])
+            self.flush_comments(d.pos[0] + 1, "      ", same_line=d.pos[0], slash=True)
         return header, self.out
 
     def status_region(self):
