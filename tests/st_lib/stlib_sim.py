@@ -52,11 +52,23 @@ def dialect() -> str:
     return d
 
 
-def _array_types():
-    """{array TYPE name of st_lib: its ARRAY[..] OF .. spelled out} (SCL has no array type
-    names, so under the SCL dialect the test program declares its arrays so)."""
+def lib_type(name: str) -> str:
+    """How a test program declares a variable of st_lib's type `name`: the name itself, or
+    under the SCL dialect, where the library has no array type names, `ARRAY[..] OF ..`."""
+    if dialect() != "scl":
+        return name
     from stc.scl_out import array_aliases
-    return array_aliases(LIB_PATHS)
+    return array_aliases(LIB_PATHS).get(name.upper(), name)
+
+
+def lib_sources(workdir: Path) -> list[str]:
+    """The library files a bench builds its program with: st_lib/*.st, or under the SCL
+    dialect the generated .scl (any bench that builds through this runs on the SCL too)."""
+    if dialect() != "scl":
+        return LIB_PATHS
+    if compiler() != "stc":
+        raise ValueError("PLCRT_STLIB_DIALECT=scl needs stc (matiec reads no SCL)")
+    return scl_library(workdir)
 
 
 def scl_library(workdir: Path) -> list[str]:
@@ -80,14 +92,10 @@ def compiler() -> str:
 def gen_program(instances, tick_ms=10):
     """instances: list of (name, fb type). Returns the ST text of PROGRAM MAIN + configuration."""
     decl, pre, post, calls = [], [], [], []
-    arrays = _array_types() if dialect() == "scl" else {}
-
-    def ty(name):
-        return arrays.get(name.upper(), name)
 
     for name, fb in instances:
         decl.append(f"  {name} : {fb};")
-        decl.append(f"  {name}_rd : {ty('MIP_T_ReadBlock')};")
+        decl.append(f"  {name}_rd : {lib_type('MIP_T_ReadBlock')};")
         decl.append("  " + ", ".join(f"{name}_r{i}" for i in range(125)) + " : WORD;")
         pre += [f"{name}_rd[{i}] := {name}_r{i};" for i in range(125)]
         args = [f"aRead := {name}_rd"]
@@ -95,7 +103,7 @@ def gen_program(instances, tick_ms=10):
             decl.append("  " + ", ".join(f"{name}_w{i}" for i in range(123)) + " : WORD;")
             post += [f"{name}_w{i} := {name}.aWrite[{i}];" for i in range(123)]
         if fb in HAS_CHUNK:
-            decl.append(f"  {name}_ck : {ty('MIP_T_Payload')};")
+            decl.append(f"  {name}_ck : {lib_type('MIP_T_Payload')};")
             decl.append("  " + ", ".join(f"{name}_c{i}" for i in range(122)) + " : WORD;")
             pre += [f"{name}_ck[{i}] := {name}_c{i};" for i in range(122)]
             args.append(f"aChunk := {name}_ck")
@@ -103,7 +111,7 @@ def gen_program(instances, tick_ms=10):
             decl.append("  " + ", ".join(f"{name}_p{i}" for i in range(122)) + " : WORD;")
             post += [f"{name}_p{i} := {name}.aRecord[{i}];" for i in range(122)]
         if fb == "MIP_BufferSender":
-            decl.append(f"  {name}_buf : {ty('MIP_T_Buffer')};")
+            decl.append(f"  {name}_buf : {lib_type('MIP_T_Buffer')};")
             decl.append(f"  {name}_fill : BOOL;")
             decl.append(f"  {name}_seed : UINT;")
             decl.append(f"  {name}_i : UINT;")
@@ -131,10 +139,7 @@ def build(instances, workdir: Path, tick_ms=10) -> Plc:
         bdir.mkdir(parents=True, exist_ok=True)
         prog = bdir / "prog_main.st"
         prog.write_text(text)
-        if dialect() == "scl" and compiler() != "stc":
-            raise ValueError("PLCRT_STLIB_DIALECT=scl needs stc (matiec reads no SCL)")
-        lib = scl_library(bdir) if dialect() == "scl" else LIB_PATHS
-        plc = Plc.build(lib + [str(prog)], workdir=bdir, compiler=compiler())
+        plc = Plc.build(lib_sources(bdir) + [str(prog)], workdir=bdir, compiler=compiler())
         _BUILDS[key] = (plc.build_result, bdir)
         return plc
     result, bdir = _BUILDS[key]
