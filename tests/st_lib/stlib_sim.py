@@ -12,6 +12,7 @@ VARIABLES.csv does not list arrays, so this keeps the tests runnable with either
 from __future__ import annotations
 
 import ctypes
+import functools
 import os
 import random
 import shutil
@@ -57,8 +58,13 @@ def lib_type(name: str) -> str:
     under the SCL dialect, where the library has no array type names, `ARRAY[..] OF ..`."""
     if dialect() != "scl":
         return name
+    return _array_aliases().get(name.upper(), name)
+
+
+@functools.lru_cache(maxsize=None)
+def _array_aliases():
     from stc.scl_out import array_aliases
-    return array_aliases(LIB_PATHS).get(name.upper(), name)
+    return array_aliases(LIB_PATHS)      # parses st_lib: once per process
 
 
 def lib_sources(workdir: Path) -> list[str]:

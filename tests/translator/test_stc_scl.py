@@ -143,10 +143,12 @@ VAR
   tWait : TON;
   i : INT;
 END_VAR
+(* ---- counting ---- *)
 trig(CLK := xGo);
 IF trig.Q THEN
   uCount := Twice(uCount + 1); (* 0, 2, 6, ... *)
 END_IF;
+(* ---- the mode, then the outputs ---- *)
 CASE eMode OF
   MODE_SLOW: eMode := MODE_FAST;
   MODE_FAST: eMode := E_Mode#MODE_OFF;
@@ -200,7 +202,8 @@ def test_generated_scl_computes_what_the_st_computes(tmp_path):
                  "aOut : Array[0..3] of Word;", "eMode : Int := 1 (* MODE_SLOW *);",
                  "MODE_FAST : Int := 2;", "#eMode := #MODE_OFF;", '"Twice"(#uCount + 1)',
                  "#tmp := 1;", "status : Word", "u : UInt;  // the value", 'TYPE "T_Pair"',
-                 "b : Int := 2 (* MODE_FAST *);  (* a PLC data type member", 'pair : "T_Pair";'):
+                 "b : Int := 2 (* MODE_FAST *);  (* a PLC data type member",
+                 "    REGION counting\n", "    END_REGION\n    REGION the mode, then the outputs\n", 'pair : "T_Pair";'):
         assert want in scl_text, want
     scl = tmp_path / "lib.scl"
     scl.write_text(scl_text)

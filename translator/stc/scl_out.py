@@ -55,6 +55,7 @@ class SclError(Exception):
     """FILE:LINE:COL: error: MESSAGE (one line for the user)."""
 
 
+_SECTION = re.compile(r"\(\* ----+ ([^\n]*?)(?: ----+)? ?(?:\*\))?$", re.M)
 _COMMENT = re.compile(r"\(\*.*?\*\)|'(?:[^'$\n]|\$[^\n])*'|\"(?:[^\"$\n]|\$[^\n])*\"", re.S)
 
 
@@ -292,10 +293,34 @@ class _Pou:
         return self.expr(v)
 
     # ---- statements
-    def stmts(self, body, ind):
+    def stmts(self, body, ind, top=False):
         for s in body:
+            if top:
+                self.regions(s.pos[0], ind)
             self.flush_comments(s.pos[0], ind)
             self.stmt(s, ind)
+
+    def regions(self, before_line, ind):
+        """A section comment `(* ---- name ---- *)` between the body's top-level statements
+        starts a REGION named so (TIA folds it), up to the next one or the end of the body."""
+        while self.comments and self.comments[0][0] < before_line:
+            line, _c, end, t = self.comments[0]
+            m = _SECTION.match(t)
+            if not m:
+                self.flush_comments(line + 1, ind)
+                continue
+            self.comments.pop(0)
+            self.close_region(ind)
+            name = m.group(1).strip().rstrip("-").strip()
+            self.out.append(f"{ind}REGION {name}")
+            self.open_region = True
+            if end != line:          # the rest of a longer section comment stays a comment
+                self.out.extend(x.rstrip() if i else ind + x for i, x in enumerate(t.split("\n")))
+
+    def close_region(self, ind):
+        if getattr(self, "open_region", False):
+            self.out.append(f"{ind}END_REGION")
+            self.open_region = False
 
     def trail(self, line):
         """A comment that followed on the source line `line` goes to the end of the last line."""
@@ -419,8 +444,9 @@ class _Pou:
             body_out.append("    // IEC initialises a function's locals on every call; TIA's "
                             "VAR_TEMP is not")
             body_out.extend(temp_inits)
-        self.stmts(n.body, "    ")
+        self.stmts(n.body, "    ", top=True)
         self.flush_comments(n.end_pos[0], "    ")
+        self.close_region("    ")
         if lgf:
             body_out.extend(self.status_region())
             sections.setdefault("VAR_OUTPUT", []).append(
