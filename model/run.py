@@ -20,6 +20,7 @@ usage: model/run.py [-k SUBSTRING] [--quick] [--list] [--junit FILE] [--trace-di
 """
 import argparse
 import concurrent.futures
+import errno
 import hashlib
 import os
 import re
@@ -28,6 +29,7 @@ import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from xml.sax.saxutils import escape
 
@@ -364,7 +366,7 @@ def build(work, defs, extra_cc=(), cache=None, collapse=False):
         raise RuntimeError("cc pan.c failed:\n" + out)
     if key:
         os.makedirs(cache, exist_ok=True)
-        tmp = key + ".%d.tmp" % os.getpid()
+        tmp = key + ".%d.%d.tmp" % (os.getpid(), threading.get_ident())   # threads share the pid
         shutil.copy2(os.path.join(work, "pan"), tmp)
         os.replace(tmp, key)   # atomic: a parallel runner may write the same key
 
@@ -428,8 +430,18 @@ def readable_trace(work, defs, limit=60):
 def run_pan(cmd, cwd, timeout):
     """pan's output; at the timeout pan is interrupted (SIGINT), and then prints what it
     searched so far, as at any other stop."""
-    p = subprocess.Popen(cmd, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                         universal_newlines=True)
+    # ETXTBSY: another thread's child, forked while this thread still had ./pan open for
+    # writing (the copy from the cache), holds that descriptor until its exec; it is gone a
+    # moment later
+    for attempt in range(50):
+        try:
+            p = subprocess.Popen(cmd, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                 universal_newlines=True)
+            break
+        except OSError as e:
+            if e.errno != errno.ETXTBSY or attempt == 49:
+                raise
+            time.sleep(0.05)
     try:
         return p.communicate(timeout=timeout)[0], False
     except subprocess.TimeoutExpired:
