@@ -186,7 +186,11 @@ def test_generated_scl_has_no_error(tmp_path, record_property):
 
 def test_s7_glue_has_no_error(tmp_path, record_property):
     glue = need_glue("s7")
-    checked = [*stubs(), *generated_scl(tmp_path), *glue]
+    # a block the glue declares itself (a stand-in) replaces the stub of that name
+    own = {n.upper() for g in glue for n in BLOCK.findall(g.read_text(encoding="utf-8"))}
+    kept = [s for s in stubs()
+            if not own & {n.upper() for n in BLOCK.findall(s.read_text(encoding="utf-8"))}]
+    checked = [*kept, *generated_scl(tmp_path), *glue]
     real, limits = classify(run_checker(checked), checked)
     record_property("checker_limits", limits)
     assert real == [], "\n".join(real)
