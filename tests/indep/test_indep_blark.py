@@ -10,10 +10,9 @@ per type). blark is a parser only: it checks syntax, not names or types (IronPLC
 test_indep_ironplc.py)."""
 import re
 
+import blark.parse as blark_parse
 import pytest
 from indep_files import need_glue, st_lib_files
-
-blark_parse = pytest.importorskip("blark.parse")
 
 COMMENT = re.compile(r"\(\*.*?\*\)|//[^\n]*", re.S)
 
