@@ -7,8 +7,8 @@ files (dist/glue/<family>/**) and declarations of the vendor client blocks the g
 a block itself, such as a stand-in, replaces the stub of that name).
 
 IronPLC has no library namespaces (`ModbusFB.ClientTCP` is a syntax error in its codesys
-dialect, test_namespace_is_ironplc_limit), so the CODESYS glue is checked with the prefix
-`ModbusFB.` dropped. What IronPLC checks: syntax, undeclared names, named inputs a block does not
+dialect, test_namespace_is_ironplc_limit, and so is `Tc2_ModbusSrv.FB_MBReadRegs` in its twincat
+dialect), so the glue is checked with the prefixes `ModbusFB.` / `Tc2_ModbusSrv.` dropped. What IronPLC checks: syntax, undeclared names, named inputs a block does not
 have, assignment type mismatches (test_ironplc_finds_what_it_checks); it does not flag an unknown
 member of an instance (`fb.nothere`), so 0 errors is no proof of that.
 
@@ -22,8 +22,8 @@ from indep_files import REPO, STUBS, ironplcc, need_glue, st_lib_files
 
 ANSI = re.compile(r"\x1b\[[0-9;]*m")
 DIALECTS = {"twincat": "twincat", "codesys": "codesys"}
-# the library namespace of CODESYS' ModbusFB, which IronPLC cannot parse
-NAMESPACES = {"codesys": ("ModbusFB.",), "twincat": ()}
+# the library namespaces the glue qualifies the vendor blocks with, which IronPLC cannot parse
+NAMESPACES = {"codesys": ("ModbusFB.",), "twincat": ("Tc2_ModbusSrv.",)}
 DECL = re.compile(r"^\s*(?:FUNCTION_BLOCK|FUNCTION|PROGRAM)\s+(\w+)", re.M | re.I)
 
 
@@ -128,15 +128,16 @@ def test_vendor_pointer_syntax_needs_the_dialect(tmp_path):
     assert problems(exe, "codesys", [f]) == []
 
 
-def test_namespace_is_ironplc_limit(tmp_path):
-    """Why the CODESYS glue is checked without `ModbusFB.`: IronPLC's codesys dialect rejects a
-    namespace-qualified type (CODESYS resolves library namespaces; IronPLC has none) and
-    accepts the same program without the prefix."""
+@pytest.mark.parametrize("dialect,ns,block", [("codesys", "ModbusFB.", "ClientTCP"),
+                                               ("twincat", "Tc2_ModbusSrv.", "FB_MBReadRegs")])
+def test_namespace_is_ironplc_limit(dialect, ns, block, tmp_path):
+    """Why the glue is checked without its library prefixes: IronPLC rejects a
+    namespace-qualified type (CODESYS and TwinCAT resolve library namespaces; IronPLC has none)
+    and accepts the same program without the prefix."""
     exe = ironplcc()
-    decl = "FUNCTION_BLOCK ClientTCP\nVAR_INPUT\n  xConnect : BOOL;\nEND_VAR\nEND_FUNCTION_BLOCK\n"
-    use = "PROGRAM P_Ns\nVAR\n  c : {}ClientTCP;\nEND_VAR\n  c(xConnect := TRUE);\nEND_PROGRAM\n"
-    with_ns = write(tmp_path, "ns.st", decl + use.format("ModbusFB."))
+    decl = f"FUNCTION_BLOCK {block}\nVAR_INPUT\n  xIn : BOOL;\nEND_VAR\nEND_FUNCTION_BLOCK\n"
+    use = f"PROGRAM P_Ns\nVAR\n  c : {{}}{block};\nEND_VAR\n  c(xIn := TRUE);\nEND_PROGRAM\n"
+    with_ns = write(tmp_path, "ns.st", decl + use.format(ns))
     without = write(tmp_path, "plain.st", decl + use.format(""))
-    assert [m for _, m in problems(exe, "codesys", [with_ns])][:1] == ["error[P0002]: Syntax error"]
-    assert problems(exe, "codesys", [without]) == []
-
+    assert [m for _, m in problems(exe, dialect, [with_ns])][:1] == ["error[P0002]: Syntax error"]
+    assert problems(exe, dialect, [without]) == []
