@@ -21,9 +21,10 @@ semantics-iec-tests: all
 C_TESTS += scl-tests
 # The modules whose PLCs the bench builds (its Uni, Bi, build or lib_sources): the others build
 # their own way and would only run as ST once more. A new bench builds through
-# stlib_sim.lib_sources / lib_type to be run here on the SCL too.
+# stlib_sim.lib_sources / lib_type (as soe_bench and unicos_bench do) to be run here on the SCL too.
 SCL_TEST_PATHS ?= $(filter-out tests/st_lib/test_lib_scl_status.py,$(shell grep -lE \
-  'from stlib_sim import .*\b(Uni|Bi|build|lib_sources)\b' tests/st_lib/test_lib_*.py))
+  'from stlib_sim import .*\b(Uni|Bi|build|lib_sources)\b|from (soe|unicos)_bench import' \
+  tests/st_lib/test_lib_*.py))
 QUICK_VARS += SCL_TEST_PATHS="$(addprefix tests/st_lib/test_lib_,protocol.py status.py modes.py \
   latching.py window.py warm.py)"
 

@@ -6,7 +6,7 @@ import pytest
 from mipcosim.pydevice import PyDevice
 from mippeer.unicos import UnicosConfig, UnicosDriver
 from plcharness import Plc
-from stlib_sim import LIB_PATHS, compiler
+from stlib_sim import compiler, lib_sources, lib_type
 from unicos_bench import UERR, entry
 
 MARKER = 0xFF80          # 16#FFFF + 123 registers would run past address 65535: plcrt refuses it
@@ -14,7 +14,7 @@ T0 = 1767225600000
 
 
 def program():
-    decl = ["  uni : MIP_UnicosEvents;", "  rec : MIP_T_Payload;",
+    decl = ["  uni : MIP_UnicosEvents;", f"  rec : {lib_type('MIP_T_Payload')};",
             "  " + ", ".join(f"rec{i}" for i in range(24)) + " : WORD;",
             "  uLen : UINT;", "  xValid : BOOL;", "END_VAR", "VAR",
             "  wrTrig AT %QX1.0 : BOOL;", "  wrDone AT %IX1.0 : BOOL;", "  wrErr AT %IX1.1 : BOOL;",
@@ -58,7 +58,7 @@ def built(tmp_path_factory):
     d = tmp_path_factory.mktemp("unicos_runtime")
     (d / "prog.st").write_text(program())
     (d / "plcrt.conf").write_text(CONFIG)
-    plc = Plc.build(LIB_PATHS + [str(d / "prog.st")], workdir=d, compiler=compiler(),
+    plc = Plc.build(lib_sources(d) + [str(d / "prog.st")], workdir=d, compiler=compiler(),
                     config=d / "plcrt.conf")
     return plc.build_result, d
 

@@ -26,13 +26,13 @@ def gen_program():
     source, and stlib_sim's `snd` and `rcv` with `cuni` after `rcv` (fed by it, feeding its
     xRecordProcessed: the chain's central); a PLC instance uses the part its test drives."""
     text = stlib_sim.gen_program([("snd", "MIP_Sender"), ("rcv", "MIP_Receiver")], TICK_MS)
-    decl = ["  uni : MIP_UnicosEvents;", "  rec : MIP_T_Payload;",
+    decl = ["  uni : MIP_UnicosEvents;", f"  rec : {stlib_sim.lib_type('MIP_T_Payload')};",
             "  " + ", ".join(f"rec{i}" for i in range(122)) + " : WORD;",
             "  " + ", ".join(f"a{i}" for i in range(123)) + " : WORD;",
             "  " + ", ".join(f"b{i}" for i in range(123)) + " : WORD;",
             "  cuni : MIP_UnicosEvents;",
             "  " + ", ".join(f"ua{i}" for i in range(123)) + " : WORD;",
-            "  sts : MIP_UnicosStatus;", "  tab : MIP_T_UnicosTable;",
+            "  sts : MIP_UnicosStatus;", f"  tab : {stlib_sim.lib_type('MIP_T_UnicosTable')};",
             "  " + ", ".join(f"tab{i}" for i in range(96)) + " : WORD;",
             "  " + ", ".join(f"sa{i}" for i in range(98)) + " : WORD;",
             "  " + ", ".join(f"sb{i}" for i in range(98)) + " : WORD;"]
