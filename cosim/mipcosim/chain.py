@@ -1,0 +1,429 @@
+"""The whole chain of issue 35 in the co-simulation, one virtual time, deterministic:
+
+    relay (C core, mipcosim_relay_add) -> outstation soft-PLC (plc/outstation_soe.st:
+    MIP_SoeReader -> PLC_SoeLog -> MIP_Sender) -> radio (emulator core) -> central soft-PLC
+    (plc/central_soe.st: MIP_Receiver, xAckByCaller -> PLC_SoeHandOver -> MIP_SoeServer) ->
+    the SCADA master stand-in (mippeer.scada.SoeMaster, the pull way)
+
+The SCADA is a participant of the kernel's lockstep loop (a scan function of its own,
+mipcosim_plc_add, as interop/ adds the note peer): every `scada_period_ms` of virtual time it
+polls the central's Modbus slave once. Its Modbus TCP frames go through a socketpair whose
+other end the central's slave serves (plcrt_slave_add_client); the request is served at once
+(plcrt_slave_poll), so a request takes no virtual time and the program sees a write in its
+next scan, as with a slave that answers between two scans.
+
+    ch = SoeChain(workdir, events=script, loss=0.3, retain=True)
+    ch.run_to_end(limit_ns)             # every event at the SCADA, or the limit
+    ch.restart("out", warm=True)        # ("out" | "cen"), warm / graceful as mipcosim.sim
+    problems = check_chain(ch)          # [] when every event arrived once, in order, unchanged
+"""
+from __future__ import annotations
+
+import ctypes
+import socket
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from plcharness import Plc
+
+from . import layout as L
+from .relay import Relay
+from .sim import MS, SEC, CosimError, Radio, _Kernel, build, kernel_lib, radio_stats
+
+ORIGIN_MS = 1767225600000          # the relay's time stamp of virtual time 0 (2026-01-01 UTC)
+SOE_BASE = 600                     # PDU address of 40601, at the relay and at the central
+PROGRAMS = {"out": "outstation_soe.st", "cen": "central_soe.st"}
+HELPERS = ["PLC_Logger.st", "PLC_SoeChain.st"]
+_SCAN = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_uint64)
+
+# status words %MW100.. of the chain's programs (plc/gen_programs.py soe_status)
+OUT_STORED, OUT_SENT, OUT_LEVEL, OUT_DONE, OUT_FAILED, OUT_ERROR, OUT_FLAGS, OUT_RETRANS = \
+    100, 102, 104, 105, 106, 107, 108, 109
+CEN_RECORDS, CEN_PUT, CEN_ACKED, CEN_BAD_ACKS, CEN_BAD_RECORDS, CEN_DUP, CEN_FAILED, \
+    CEN_FLAGS, CEN_QUEUED = 100, 102, 104, 106, 107, 108, 109, 110, 111
+
+
+def program_sources(role):
+    """The st_lib files, the programs' helpers and the chain's program of `role`."""
+    return ([str(L.ST_LIB / f) for f in L.LIB_FILES] + [str(L.PLC_DIR / h) for h in HELPERS]
+            + [str(L.PLC_DIR / PROGRAMS[role])])
+
+
+def relay_sections(port=15030, host="127.0.0.1"):
+    """The outstation's device `relay`: 40601..40626 read into %IW300.., SOE_Control written from
+    %QW300 (FC16 of one register), trigger policy (plc/outstation_soe.st)."""
+    return f"""
+[device relay]
+host = {host}
+port = {port}
+unit_id = 1
+
+[write soe_control]
+device = relay
+start = {SOE_BASE + 1}
+size = 1
+image = %QW300
+policy = trigger
+trigger = %QX2.1
+done = %IX2.2
+error = %IX2.3
+length = %QW2
+
+[read soe]
+device = relay
+start = {SOE_BASE}
+size = 26
+image = %IW300
+policy = trigger
+trigger = %QX2.0
+done = %IX2.0
+error = %IX2.1
+status = %IW12
+"""
+
+
+def slave_section(port=0, host="127.0.0.1"):
+    """The central's Modbus slave for the SCADA: SOE_Control's writes counted (MIP_SoeServer)."""
+    return (f"\n[slave]\nhost = {host}\nport = {port}\nwatch = %QW{SOE_BASE + 1}\n"
+            f"watch_count = %IW9\n")
+
+
+def outstation_soe_config(trm_port=15021, relay_port=15030, retain="", host="127.0.0.1"):
+    return L.outstation_config(trm_port, host, comment="# the chain (plc/outstation_soe.st): "
+                               "also the relay's event recorder.\n", retain=retain) \
+        + relay_sections(relay_port, host)
+
+
+def central_soe_config(mdp_port=15020, slave_port=0, retain="", host="127.0.0.1"):
+    return L.central_config(mdp_port, 1, host, comment="# the chain (plc/central_soe.st): "
+                            "also the SCADA's Modbus slave.\n", retain=retain) \
+        + slave_section(slave_port, host)
+
+
+@dataclass
+class SoeParams:
+    """%MW0..6 of the chain's programs (plc/gen_programs.py SOE_PARAMS)."""
+    per_record: int = 15          # relay entries per MIP record (1..15)
+    per_transfer: int = 1         # records per transfer
+    retain: bool = False          # the blocks' xRetained (warm restarts)
+    ack_on_receipt: bool = False  # the central acknowledges on receipt (measurement only)
+    timeout_ms: int = 300
+    max_retries: int = 0
+    ack_timeout_s: int = 0
+
+    def words(self):
+        flags = (1 if self.retain else 0) | (2 if self.ack_on_receipt else 0)
+        return [1, self.per_record, self.per_transfer, flags, self.timeout_ms, self.max_retries,
+                self.ack_timeout_s]
+
+
+def script(n, start_s=0.5, every_s=0.05, seed=1):
+    """n relay events, one every `every_s` seconds from start_s: (t_s, [type/bit, address,
+    cause/type, value]); the words vary with n and seed, so a swapped, repeated or changed entry
+    shows."""
+    out = []
+    for k in range(n):
+        x = (k * 2654435761 + seed * 40503) & 0xFFFFFFFF
+        out.append((start_s + k * every_s,
+                    [0x0100 + (x >> 4) % 16, 1 + (x >> 8) % 1000, 0x0101 + (x >> 20) % 3, k & 0xFFFF]))
+    return out
+
+
+def expected(events, origin_ms=ORIGIN_MS):
+    """What the SCADA must take, in order: (type/bit, address, cause/type, value, time stamp ms)."""
+    return [(*w, origin_ms + int(round(t * 1e9)) // 1_000_000) for t, w in events]
+
+
+class _ScadaClient:
+    """mippeer.scada.Client's transport, in process: a socketpair to the central's slave, the
+    request served in the same virtual instant. Made anew when the central restarted."""
+
+    def __init__(self, chain):
+        self.chain = chain
+
+    def bind(self, client):
+        ch = self.chain
+
+        def connect():
+            if client.sock is None:
+                plc = ch.plcs.get("cen")
+                if plc is None or not ch.up["cen"]:
+                    from mippeer.scada import ScadaError
+                    raise ScadaError("central: not running")
+                a, b = socket.socketpair()
+                if plc.library.plcrt_slave_add_client(plc.handle, b.detach()) != 0:
+                    a.close()
+                    raise CosimError("central: no Modbus slave ([slave] section)")
+                a.settimeout(1.0)
+                client.sock = a
+                client.plc = plc
+
+        def after_send():
+            plc = getattr(client, "plc", None)
+            if plc is not None and ch.plcs.get("cen") is plc and ch.up["cen"]:
+                plc.library.plcrt_slave_poll(plc.handle, 0)
+
+        client._connect = connect
+        client.after_send = after_send
+
+
+@dataclass
+class ChainSetup:
+    events: list = field(default_factory=lambda: script(60))
+    loss: float = 0.0
+    seed: int = 1
+    radio: Radio = field(default_factory=Radio)
+    params: SoeParams = field(default_factory=SoeParams)
+    scada_period_ms: int = 50
+    scada_reack_s: float = 1.0
+    relay_capacity: int = 1000
+    tick_ms: int = 10
+    retain_period_ms: int = 1000
+    compiler: str = "stc"
+
+
+class SoeChain(_Kernel):
+    """relay -> outstation PLC -> radio -> central PLC -> SCADA, in one process."""
+
+    def __init__(self, setup: ChainSetup, workdir: Path, trace=None):
+        from mippeer.scada import Client, SoeMaster
+        self.s = setup
+        self.workdir = Path(workdir)
+        self.workdir.mkdir(parents=True, exist_ok=True)
+        self.lib = kernel_lib()
+        self.plcs = {}
+        err = ctypes.create_string_buffer(256)
+        r = setup.radio
+        self.sim = self.lib.mipcosim_new_args(1, 0, 123, setup.loss, setup.loss, 0.0, setup.seed,
+                                              r.bitrate, r.slot_gap_ns, r.overhead_bytes, err, len(err))
+        if not self._handle:
+            raise CosimError(err.value.decode())
+        try:
+            if trace:
+                self._check(self.lib.mipcosim_trace_file(self.sim, str(trace).encode()))
+            self.tick_ns = setup.tick_ms * MS
+            self.builds = {role: build(f"{role}_soe", False, self.workdir, setup.compiler,
+                                       setup.tick_ms, program_sources(role)) for role in PROGRAMS}
+            ret = lambda who: L.retain_section(self.workdir / f"{who}.retain", setup.retain_period_ms)
+            self.confs = {"out": self.workdir / "outstation_soe.conf",
+                          "cen": self.workdir / "central_soe.conf"}
+            self.confs["out"].write_text(outstation_soe_config(retain=ret("out")))
+            self.confs["cen"].write_text(central_soe_config(retain=ret("cen")))
+            self.relay = Relay(setup.events, kernel=self, capacity=setup.relay_capacity,
+                               origin_ms=ORIGIN_MS)
+            self.ids = {}
+            self.up = {"out": False, "cen": False, "scada": True}
+            self.restarts = []          # (t_ns, who, kind): kind cold | warm | graceful
+            self.last_snapshot = {}
+            self.snapshots_before = 0
+            self.rows = []              # what the SCADA took (mippeer.scada.entry dicts)
+            self.scada_failures = 0
+            self.scada_outages = 0
+            for who in ("out", "cen"):
+                self._start(who)
+            self.client = Client("central", 0, timeout=1.0)
+            _ScadaClient(self).bind(self.client)
+            self.scada = SoeMaster(self.client, SOE_BASE, self.rows.extend, setup.scada_reack_s)
+            self._scada_error = None
+            self._scan_cb = _SCAN(self._scada_round)
+            self.scada_id = self.lib.mipcosim_plc_add(self.sim, ctypes.cast(self._scan_cb, ctypes.c_void_p),
+                                                      1, setup.scada_period_ms * MS)
+            self._check(0 if self.scada_id >= 0 else -1)
+        except BaseException:
+            self.close()
+            raise
+
+    # ------------------------------------------------------------------ wiring
+
+    def _check(self, rc):
+        if rc != 0:
+            raise CosimError(self.lib.mipcosim_errmsg(self.sim).decode())
+
+    def _start(self, who, snapshot=None):
+        plc = Plc(self.builds[who], self.workdir, config=self.confs[who])
+        if plc.tick_ns != self.tick_ns:
+            raise CosimError(f"{who}: the program scans every {plc.tick_ns} ns, the kernel every {self.tick_ns}")
+        lib = plc.library
+        lib.plcrt_slave_add_client.argtypes = [ctypes.c_void_p, ctypes.c_int]
+        lib.plcrt_slave_poll.argtypes = [ctypes.c_void_p, ctypes.c_int]
+        plc.retain_in_memory(self.s.retain_period_ms * MS)
+        if snapshot is not None:
+            plc.retain_load(snapshot)
+        old = self.plcs.get(who)
+        self.plcs[who] = plc
+        scan = ctypes.cast(lib.plcrt_scan, ctypes.c_void_p)
+        if who in self.ids:
+            self._check(self.lib.mipcosim_plc_replace(self.sim, self.ids[who], scan, plc.handle, self.tick_ns))
+        else:
+            pid = self.lib.mipcosim_plc_add(self.sim, scan, plc.handle, self.tick_ns)
+            self._check(0 if pid >= 0 else -1)
+            self.ids[who] = pid
+        if old is not None:
+            self.snapshots_before += old.retain_saves
+            old.close()
+        setter = ctypes.cast(lib.plcrt_device_set_transport, ctypes.c_void_p)
+        if who == "out":
+            self._check(self.lib.mipcosim_connect_inproc(self.sim, self.ids[who], setter, b"trm", 1))
+            self.relay.connect(self.ids[who], plc, "relay")
+        else:
+            self._check(self.lib.mipcosim_connect_inproc(self.sim, self.ids[who], setter, b"mdp1", 0))
+        for i, w in enumerate(self.s.params.words()):
+            plc[f"%MW{i}"] = w
+        self.up[who] = True
+
+    def _scada_round(self, _rt, _n):
+        """The SCADA's "scan": one poll of the central, at its due virtual time."""
+        from mippeer.scada import ScadaError
+        if not self.up["scada"]:
+            return 0
+        try:
+            self.scada.poll(self.now / SEC)
+        except ScadaError:
+            self.scada_failures += 1
+        except BaseException as e:      # noqa: BLE001 (handed back through the C loop)
+            self._scada_error = e
+            return -1
+        return 0
+
+    # ------------------------------------------------------------------ running
+
+    def run_until(self, t_ns):
+        rc = self.lib.mipcosim_run(self.sim, t_ns)
+        if rc != 0:
+            e, self._scada_error = self._scada_error, None
+            if e is not None:
+                raise CosimError(f"the SCADA failed: {type(e).__name__}: {e}") from e
+            msg = self.lib.mipcosim_errmsg(self.sim).decode()
+            failed = self.lib.mipcosim_failed_plc(self.sim)
+            for who, pid in self.ids.items():
+                if pid == failed and who in self.plcs:
+                    plc = self.plcs[who]
+                    why = plc.library.plcrt_errmsg(plc.handle) or b""
+                    msg += f": {who}: {why.decode()}"
+            raise CosimError(msg)
+
+    def run_for(self, ns):
+        self.run_until(self.now + ns)
+
+    def mw(self, who, addr):
+        return self.plcs[who][f"%MW{addr}"]
+
+    def mw32(self, who, addr):
+        return self.mw(who, addr) | self.mw(who, addr + 1) << 16
+
+    def finished(self):
+        """Every relay event happened and the SCADA took as many entries as there are events,
+        the relay's recorder is empty."""
+        st = self.relay.stats()
+        return (st["generated"] >= len(self.s.events) and st["entries"] == 0
+                and len(self.rows) >= len(self.s.events))
+
+    def run_to_end(self, limit_ns, step_ns=SEC, settle_ns=2 * SEC):
+        while self.now < limit_ns:
+            self.run_for(step_ns)
+            if self.finished():
+                self.run_for(settle_ns)
+                return True
+        return False
+
+    def restart(self, who, kind="warm", down_ns=500 * MS):
+        """A PLC restart ("out" | "cen"): off for down_ns (its modem, the relay and the SCADA go
+        on), then a fresh instance. kind "warm": it gets the RETAIN variables of its last complete
+        snapshot (plcrt's kill -9); "graceful": a snapshot taken at the stop (SIGTERM); "cold":
+        nothing retained (the outstation's logger with it: its stored entries are gone)."""
+        if kind not in ("warm", "graceful", "cold"):
+            raise CosimError(f"restart kind {kind!r}: warm, graceful or cold")
+        old = self.plcs[who]
+        snapshot = None
+        if kind == "graceful":
+            snapshot = old.retain_save()
+        elif kind == "warm":
+            snapshot = old.retain_last() or self.last_snapshot.get(who)
+        if snapshot is not None:
+            self.last_snapshot[who] = snapshot
+        self._check(self.lib.mipcosim_plc_replace(self.sim, self.ids[who], None, None, 0))
+        self.up[who] = False
+        if who == "cen":
+            self.client.close()
+        self.restarts.append((self.now, who, kind if snapshot is not None or kind == "cold" else "cold"))
+        self.run_for(down_ns)
+        self._start(who, snapshot)
+
+    def scada_outage(self, down_ns):
+        """The control system away for down_ns (it polls nothing), then back: a restarted
+        master that knows the offer it took last (mippeer.scada.resume: from its own file)."""
+        from mippeer.scada import SoeMaster
+        self.up["scada"] = False
+        self.scada_outages += 1
+        self.client.close()
+        self.run_for(down_ns)
+        last, offers = self.scada.last, self.scada.offers
+        self.scada = SoeMaster(self.client, SOE_BASE, self.rows.extend, self.s.scada_reack_s,
+                               last=last, offers=offers)
+        self.up["scada"] = True
+
+    def radio_stats(self):
+        return radio_stats(self.lib, self.sim, [1])
+
+    def snapshots(self):
+        return self.snapshots_before + sum(p.retain_saves for p in self.plcs.values())
+
+    def close(self):
+        client = getattr(self, "client", None)
+        if client is not None:
+            client.close()
+        super().close()
+
+
+@dataclass
+class ChainReport:
+    events: int            # relay events scripted
+    taken: int             # entries the SCADA took (duplicates included)
+    lost: int              # events that never reached the SCADA
+    duplicated: int        # entries taken more than once
+    changed: int           # entries taken that the relay never had (a field changed)
+    out_of_order: int      # entries taken before an earlier event's first arrival
+    relay_left: int        # entries still in the relay's recorder
+    relay_dropped: int     # entries the relay dropped (its recorder overflowed)
+    problems: list
+
+
+def check_chain(ch: SoeChain) -> ChainReport:
+    """Every relay event at the SCADA exactly once, in order, with its original time stamp and
+    value (all four words), and the relay's recorder empty."""
+    exp = expected(ch.s.events)
+    index = {e: i for i, e in enumerate(exp)}
+    seen = {}
+    changed = dup = disorder = 0
+    last = -1
+    problems = []
+    for n, r in enumerate(ch.rows):
+        key = (r["type_bit"], r["address"], r["cause_type"], r["value"], r["ts_ms"])
+        i = index.get(key)
+        if i is None:
+            changed += 1
+            if changed <= 3:
+                problems.append(f"entry {n + 1} at the SCADA was never in the relay: {key}")
+            continue
+        if i in seen:
+            dup += 1
+            if dup <= 3:
+                problems.append(f"event {i + 1} taken twice (entries {seen[i] + 1} and {n + 1})")
+            continue
+        seen[i] = n
+        if i < last:
+            disorder += 1
+            if disorder <= 3:
+                problems.append(f"event {i + 1} arrived after event {last + 1}")
+        last = max(last, i)
+    lost = len(exp) - len(seen)
+    if lost:
+        first = next(i for i in range(len(exp)) if i not in seen)
+        problems.append(f"{lost} event(s) never reached the SCADA (the first: event {first + 1}, {exp[first]})")
+    st = ch.relay.stats()
+    if st["entries"]:
+        problems.append(f"the relay still holds {st['entries']} entries")
+    if st["dropped"]:
+        problems.append(f"the relay dropped {st['dropped']} entries (recorder full)")
+    return ChainReport(len(exp), len(ch.rows), lost, dup, changed, disorder, st["entries"],
+                       st["dropped"], problems)
