@@ -1,0 +1,146 @@
+"""mip-cosim run|soak --chain: the whole chain of issue 35 in the co-simulation (mipcosim.chain):
+relay -> outstation PLC -> radio -> central PLC -> SCADA, virtual time.
+
+    mip-cosim run --chain [--events 300] [--loss 0.3] [--restart-every S] ...
+    mip-cosim soak --chain            # 10^5 events, 30 % loss, warm restarts, SCADA outages
+    mip-cosim soak --chain --cold     # the central restarts cold: lost 0, duplicates counted
+
+Ends with `result: ok events=N ...` (exit 0) or `result: FAIL <what differs>` (exit 1).
+"""
+from __future__ import annotations
+
+import argparse
+import random
+import tempfile
+import time
+from pathlib import Path
+
+from .chain import ChainSetup, SoeChain, SoeParams, check_chain, script
+from .sim import MS, SEC, CosimError, Radio
+
+
+def parse(argv):
+    p = argparse.ArgumentParser(prog="mip-cosim --chain", description=__doc__.splitlines()[0])
+    p.add_argument("what", choices=["run", "soak"])
+    p.add_argument("--chain", action="store_true", help="(this mode)")
+    p.add_argument("--events", type=int, help="relay events (run: 300, soak: 100000)")
+    p.add_argument("--every-ms", type=float, default=50.0,
+                   help="ms between two relay events (default 50: 20 events/s)")
+    p.add_argument("--loss", type=float, help="telegram loss per direction (run: 0.1, soak: 0.3)")
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--per-record", type=int, default=15, help="relay entries per MIP record (1..15)")
+    p.add_argument("--per-transfer", type=int, default=1, help="records per transfer")
+    p.add_argument("--scada-ms", type=int, default=50, help="the SCADA's polling interval in ms")
+    p.add_argument("--realistic", action="store_true", help="9600 bit/s, 20 ms gaps")
+    p.add_argument("--restart-every", type=float,
+                   help="virtual seconds between faults: warm restarts of the outstation and the "
+                        "central (kill -9, every third graceful) and SCADA outages, in turn "
+                        "(run: none, soak: 30)")
+    p.add_argument("--cold", action="store_true",
+                   help="the central restarts cold (nothing retained): lost 0 is demanded, "
+                        "duplicates are counted; the outstation stays warm (its logger holds "
+                        "entries the relay deleted: a cold one loses them)")
+    p.add_argument("--ack-on-receipt", action="store_true",
+                   help="the central acknowledges a record on receipt (not after the hand-over): "
+                        "for a measurement; a central restart can then lose entries")
+    p.add_argument("--limit", type=float, default=0, help="virtual seconds before giving up")
+    p.add_argument("--trace", help="emulator trace (JSON lines) to this file")
+    p.add_argument("--workdir", help="build and scratch directory (default: a temp dir)")
+    a = p.parse_args(argv)
+    soak = a.what == "soak"
+    a.events = a.events if a.events is not None else (100_000 if soak else 300)
+    a.loss = a.loss if a.loss is not None else (0.3 if soak else 0.1)
+    a.restart_every = a.restart_every if a.restart_every is not None else (30 if soak else 0)
+    if a.events < 1:
+        p.error("--events must be at least 1")
+    if not 0 <= a.loss < 1:
+        p.error("--loss must be in 0..1 (exclusive)")
+    if not 1 <= a.per_record <= 15:
+        p.error("--per-record must be in 1..15 (8 registers an entry, 122 in a record)")
+    if not 1 <= a.per_transfer <= 65534:
+        p.error("--per-transfer must be in 1..65534")
+    if not 1 <= a.scada_ms <= 60000:
+        p.error("--scada-ms must be in 1..60000")
+    if a.every_ms <= 0:
+        p.error("--every-ms must be positive")
+    return a
+
+
+def main(argv=None):
+    a = parse(argv)
+    events = script(a.events, every_s=a.every_ms / 1000, seed=a.seed)
+    st = ChainSetup(events=events, loss=a.loss, seed=a.seed,
+                    radio=Radio.realistic() if a.realistic else Radio(),
+                    params=SoeParams(per_record=a.per_record, per_transfer=a.per_transfer,
+                                     retain=not a.ack_on_receipt,
+                                     ack_on_receipt=a.ack_on_receipt,
+                                     timeout_ms=3000 if a.realistic else 300),
+                    scada_period_ms=a.scada_ms)
+    workdir = Path(a.workdir or tempfile.mkdtemp(prefix="mipcosim-chain-"))
+    last_event_s = events[-1][0]
+    limit = a.limit or (60 + last_event_s * 2 / (1 - a.loss) ** 2)
+    rnd = random.Random(a.seed)
+    t0 = time.monotonic()
+    try:
+        with SoeChain(st, workdir, trace=a.trace) as ch:
+            faults = (f", a fault every {a.restart_every:g} s ({'central cold' if a.cold else 'warm'}"
+                      f" restarts, SCADA outages)" if a.restart_every else "")
+            print(f"mip-cosim: {a.what} --chain: {a.events} relay events every {a.every_ms:g} ms, "
+                  f"{a.per_record} per record, loss {a.loss:.0%}, seed {a.seed}, SCADA polls every "
+                  f"{a.scada_ms} ms{faults}", flush=True)
+            k = 0
+            next_fault = a.restart_every * SEC if a.restart_every else None
+            last_report = time.monotonic()
+            finished = False
+            while ch.now < limit * SEC:
+                ch.run_for(SEC)
+                if next_fault is not None and ch.now >= next_fault and not ch.finished():
+                    step = k % 3
+                    if step == 2:
+                        ch.scada_outage(rnd.randint(1, 5) * SEC)
+                    else:
+                        who = "out" if step == 0 else "cen"
+                        kind = "graceful" if (k // 3) % 3 == 2 else "warm"
+                        if a.cold and who == "cen":
+                            kind = "cold"
+                        ch.restart(who, kind, down_ns=rnd.randint(100, 2000) * MS)
+                    k += 1
+                    next_fault += a.restart_every * SEC
+                if time.monotonic() - last_report > 10:
+                    print(f"  t={ch.now / SEC:.0f}s virtual, {time.monotonic() - t0:.0f}s wall: "
+                          f"{len(ch.rows)}/{a.events} entries at the SCADA, {k} faults", flush=True)
+                    last_report = time.monotonic()
+                if ch.finished():
+                    ch.run_for(2 * SEC)
+                    finished = True
+                    break
+            rep = check_chain(ch)
+            radio = ch.radio_stats()
+            wall = time.monotonic() - t0
+            kinds = [kd for _, _, kd in ch.restarts]
+            for p in rep.problems[:10]:
+                print(f"  problem: {p}")
+            print(f"  radio: telegrams={radio['tel_up'] + radio['tel_down']} "
+                  f"lost={radio['lost_up'] + radio['lost_down']}; relay: acknowledged="
+                  f"{ch.relay.stats()['acknowledged']} refused_acks={ch.relay.stats()['bad_acks']}; "
+                  f"SCADA: failed_polls={ch.scada_failures}; {ch.now / SEC:.0f} s virtual")
+            line = (f"events={rep.events} lost {rep.lost} duplicated {rep.duplicated} "
+                    f"changed {rep.changed} out_of_order {rep.out_of_order} "
+                    f"restarts {len(kinds)} (graceful {kinds.count('graceful')}, kill -9 "
+                    f"{kinds.count('warm')}, cold {kinds.count('cold')}) scada_outages "
+                    f"{ch.scada_outages} snapshots {ch.snapshots()} seconds={wall:.0f}")
+            if not finished:
+                print(f"result: FAIL not finished within {limit:.0f} virtual seconds; {line}")
+                return 1
+            bad = rep.lost or rep.changed or rep.out_of_order or rep.relay_left or rep.relay_dropped
+            if bad or (rep.duplicated and not a.cold):
+                print(f"result: FAIL {rep.problems[0] if rep.problems else 'see above'}; {line}")
+                return 1
+            print(f"result: ok {line}")
+            return 0
+    except CosimError as e:
+        print(f"result: FAIL {e}")
+        return 1
+    except KeyboardInterrupt:
+        print("result: FAIL interrupted")
+        return 1
