@@ -606,7 +606,7 @@ SOE_PARAMS = """\
   pStart AT %MW0 : WORD;          (* <> 0: run *)
   pPerRecord AT %MW1 : WORD;      (* outstation: relay entries per record (0: 15, at most 15) *)
   pPerTransfer AT %MW2 : WORD;    (* outstation: records per transfer (0: 1) *)
-  pFlags AT %MW3 : WORD;          (* bit 0: warm restarts (the blocks' xRetained); bit 1: central acknowledges on receipt (xAckByCaller FALSE; for a measurement only) *)
+  pFlags AT %MW3 : WORD;          (* bit 0: warm restarts (the blocks' xRetained); bit 1: central acknowledges a record once its entries are queued, not after the SCADA took them (a measurement only) *)
   pTimeout AT %MW4 : WORD;        (* ms, tTimeout of the MIP blocks (0: 2000) *)
   pMaxRetries AT %MW5 : WORD;     (* outstation: MIP_Sender's uMaxRetries (0: unlimited) *)
   pAckTimeout AT %MW6 : WORD;     (* central: s without the SCADA's acknowledgement until MIP_SoeServer reports it silent (0: never) *)
@@ -756,9 +756,9 @@ def central_soe():
     code += soe_io_before()
     code += ["tAck := T#1s * WORD_TO_DINT(pAckTimeout);",
              "(* the hand-over first, with the receiver's and the server's outputs of the last scan *)",
-             "ho(xRecordValid := rcv.xRecordValid, aRecord := rcv.aRecord, uRecordLen := rcv.uRecordLen,",
+             "ho(xWaitScada := NOT xAckOnReceipt, xRecordValid := rcv.xRecordValid, aRecord := rcv.aRecord, uRecordLen := rcv.uRecordLen,",
              "   xTaken := srv.xTaken, udiPut := srv.udiPut, udiAcked := srv.udiAcked);",
-             "rcv(xEnable := xRun, tTimeout := tTimeout, xAckByCaller := NOT xAckOnReceipt,",
+             "rcv(xEnable := xRun, tTimeout := tTimeout, xAckByCaller := TRUE,",
              "    xRecordProcessed := ho.xProcessed, aRead := rd1, xReadValid := xRdValid1,",
              "    xReadError := rdErr1, wReadStatus := rdSt1,",
              "    xWriteDone := xWrDone1, xWriteError := wrErr1, xRetained := xRetain,",

@@ -106,7 +106,7 @@ class SoeParams:
     per_record: int = 15          # relay entries per MIP record (1..15)
     per_transfer: int = 1         # records per transfer
     retain: bool = False          # the blocks' xRetained (warm restarts)
-    ack_on_receipt: bool = False  # the central acknowledges on receipt (measurement only)
+    ack_on_receipt: bool = False  # the central acknowledges a record once queued, not after the SCADA (measurement)
     timeout_ms: int = 300
     max_retries: int = 0
     ack_timeout_s: int = 0
@@ -217,13 +217,15 @@ class SoeChain(_Kernel):
             self.last_snapshot = {}
             self.snapshots_before = 0
             self.rows = []              # what the SCADA took (mippeer.scada.entry dicts)
+            self.taken_at = []          # the virtual time (ns) each row was taken
+            self.distinct = set()       # (value, time stamp) of the entries taken
             self.scada_failures = 0
             self.scada_outages = 0
             for who in ("out", "cen"):
                 self._start(who)
             self.client = Client("central", 0, timeout=1.0)
             _ScadaClient(self).bind(self.client)
-            self.scada = SoeMaster(self.client, SOE_BASE, self.rows.extend, setup.scada_reack_s)
+            self.scada = SoeMaster(self.client, SOE_BASE, self._sink, setup.scada_reack_s)
             self._scada_error = None
             self._scan_cb = _SCAN(self._scada_round)
             self.scada_id = self.lib.mipcosim_plc_add(self.sim, ctypes.cast(self._scan_cb, ctypes.c_void_p),
@@ -271,6 +273,24 @@ class SoeChain(_Kernel):
             plc[f"%MW{i}"] = w
         self.up[who] = True
 
+    def _sink(self, entries):
+        """The SCADA's store: the entries of one offer, before it acknowledges them."""
+        self.rows.extend(entries)
+        self.taken_at.extend([self.now] * len(entries))
+        self.distinct.update((e["value"], e["ts_ms"]) for e in entries)
+
+    def latencies_ns(self):
+        """Per event taken (first time): virtual time from the relay event to the SCADA."""
+        first = {}
+        for r, t in zip(self.rows, self.taken_at):
+            first.setdefault((r["value"], r["ts_ms"]), t)
+        out = []
+        for (t_s, w), e in zip(self.s.events, expected(self.s.events)):
+            t = first.get((e[3], e[4]))
+            if t is not None:
+                out.append(t - int(round(t_s * 1e9)))
+        return out
+
     def _scada_round(self, _rt, _n):
         """The SCADA's "scan": one poll of the central, at its due virtual time."""
         from mippeer.scada import ScadaError
@@ -312,11 +332,11 @@ class SoeChain(_Kernel):
         return self.mw(who, addr) | self.mw(who, addr + 1) << 16
 
     def finished(self):
-        """Every relay event happened and the SCADA took as many entries as there are events,
-        the relay's recorder is empty."""
+        """Every relay event happened, the SCADA took as many distinct entries as there are
+        events (a duplicate does not count), the relay's recorder is empty."""
         st = self.relay.stats()
         return (st["generated"] >= len(self.s.events) and st["entries"] == 0
-                and len(self.rows) >= len(self.s.events))
+                and len(self.distinct) >= len(self.s.events))
 
     def run_to_end(self, limit_ns, step_ns=SEC, settle_ns=2 * SEC):
         while self.now < limit_ns:
@@ -358,7 +378,7 @@ class SoeChain(_Kernel):
         self.client.close()
         self.run_for(down_ns)
         last, offers = self.scada.last, self.scada.offers
-        self.scada = SoeMaster(self.client, SOE_BASE, self.rows.extend, self.s.scada_reack_s,
+        self.scada = SoeMaster(self.client, SOE_BASE, self._sink, self.s.scada_reack_s,
                                last=last, offers=offers)
         self.up["scada"] = True
 

@@ -43,8 +43,9 @@ def parse(argv):
                         "duplicates are counted; the outstation stays warm (its logger holds "
                         "entries the relay deleted: a cold one loses them)")
     p.add_argument("--ack-on-receipt", action="store_true",
-                   help="the central acknowledges a record on receipt (not after the hand-over): "
-                        "for a measurement; a central restart can then lose entries")
+                   help="the central acknowledges a record over the radio once its entries are "
+                        "queued in MIP_SoeServer, not after the SCADA took them: for a "
+                        "measurement; a central restart can then lose entries")
     p.add_argument("--limit", type=float, default=0, help="virtual seconds before giving up")
     p.add_argument("--trace", help="emulator trace (JSON lines) to this file")
     p.add_argument("--workdir", help="build and scratch directory (default: a temp dir)")
@@ -74,7 +75,7 @@ def main(argv=None):
     st = ChainSetup(events=events, loss=a.loss, seed=a.seed,
                     radio=Radio.realistic() if a.realistic else Radio(),
                     params=SoeParams(per_record=a.per_record, per_transfer=a.per_transfer,
-                                     retain=not a.ack_on_receipt,
+                                     retain=True,
                                      ack_on_receipt=a.ack_on_receipt,
                                      timeout_ms=3000 if a.realistic else 300),
                     scada_period_ms=a.scada_ms)

@@ -16,9 +16,9 @@ sys.path.insert(0, str(REPO / "peers"))
 
 
 def run_chain(workdir, events, loss, faults=(), retain=True, ack_on_receipt=False, seed=1,
-              limit_s=120):
+              limit_s=120, scada_ms=50):
     """faults: (virtual s, what) with what ("out" | "cen", kind) or "scada" (a 2 s outage)."""
-    st = ChainSetup(events=events, loss=loss, seed=seed,
+    st = ChainSetup(events=events, loss=loss, seed=seed, scada_period_ms=scada_ms,
                     params=SoeParams(retain=retain, ack_on_receipt=ack_on_receipt))
     with SoeChain(st, workdir) as ch:
         for at_s, what in faults:
@@ -57,13 +57,18 @@ def test_a_cold_central_loses_nothing_and_its_duplicates_are_exact_copies(chain_
 
 
 def test_acknowledging_on_receipt_loses_entries_over_a_central_restart(chain_workdir):
-    """The must-fail variant: a central that acknowledges a record over the radio as soon as it
-    arrives (xAckByCaller FALSE) and restarts cold loses what the SCADA had not taken yet; the
-    check says so."""
+    """The must-fail variant: a central that acknowledges a record over the radio as soon as its
+    entries are queued for the SCADA (PLC_SoeHandOver.xWaitScada FALSE) and restarts cold loses
+    what the SCADA (polling every second here) had not taken yet; the check says so. The same
+    run acknowledging after the hand-over loses nothing."""
     finished, rep, _ = run_chain(chain_workdir, script(200, every_s=0.01), 0.0,
-                                 [(1.0, ("cen", "cold")), (1.8, ("cen", "cold"))],
-                                 retain=False, ack_on_receipt=True, limit_s=30)
+                                 [(3.0, ("cen", "cold")), (6.0, ("cen", "cold"))],
+                                 retain=False, ack_on_receipt=True, limit_s=60, scada_ms=1000)
     assert rep.lost > 0 and any("never reached the SCADA" in p for p in rep.problems)
+    finished, rep, _ = run_chain(chain_workdir, script(200, every_s=0.01), 0.0,
+                                 [(3.0, ("cen", "cold")), (6.0, ("cen", "cold"))],
+                                 retain=False, limit_s=200, scada_ms=1000)
+    assert finished and rep.lost == 0, rep.problems
 
 
 def test_mip_cosim_run_chain_prints_one_result_line(capsys):
