@@ -338,9 +338,24 @@ class SoeChain(_Kernel):
         return (st["generated"] >= len(self.s.events) and st["entries"] == 0
                 and len(self.distinct) >= len(self.s.events))
 
+    def settled(self):
+        """Nothing is left anywhere on the way: every relay event happened, the relay, the
+        outstation's logger and the central's server hold none (what the SCADA lacks now will
+        never come: lost)."""
+        st = self.relay.stats()
+        return (st["generated"] >= len(self.s.events) and st["entries"] == 0
+                and self.up["out"] and self.up["cen"]
+                and self.mw("out", OUT_LEVEL) == 0 and self.mw("cen", CEN_QUEUED) == 0)
+
     def run_to_end(self, limit_ns, step_ns=SEC, settle_ns=2 * SEC):
+        """Run until finished() (then settle_ns more, so late duplicates show), until nothing is
+        left on the way for 5 s (settled(): the rest is lost), or until limit_ns."""
+        quiet = 0
         while self.now < limit_ns:
             self.run_for(step_ns)
+            quiet = quiet + step_ns if self.settled() else 0
+            if quiet >= 5 * SEC and not self.finished():
+                return False
             if self.finished():
                 self.run_for(settle_ns)
                 return True
