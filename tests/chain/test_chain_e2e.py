@@ -54,6 +54,7 @@ def test_a_cold_central_loses_nothing_and_its_duplicates_are_exact_copies(chain_
                                  [(3.0, ("cen", "cold")), (6.0, ("cen", "cold"))])
     assert finished and rep.lost == 0 and rep.changed == 0 and rep.relay_left == 0, rep.problems
     assert rep.taken == 200 + rep.duplicated
+    assert rep.duplicated == rep.cold_duplicates and rep.problems == []   # each around a restart
 
 
 def test_acknowledging_on_receipt_loses_entries_over_a_central_restart(chain_workdir):
