@@ -26,11 +26,14 @@ def chain_run(workdir, events, loss, seed=1, ack_on_receipt=False, limit_s=3600)
     st = C.ChainSetup(events=events, loss=loss, seed=seed, radio=Radio.realistic(),
                       params=C.SoeParams(timeout_ms=3000, ack_on_receipt=ack_on_receipt,
                                          retain=True),
-                      scada_period_ms=50)
+                      scada_period_ms=50,
+                      relay_capacity=max(1000, len(events)))   # saturated: all wait in the relay
     with C.SoeChain(st, workdir) as ch:
-        if not ch.run_to_end(limit_s * SEC, settle_ns=0):
-            raise RuntimeError(f"{len(ch.rows)} of {len(events)} events at the SCADA after {limit_s} virtual s")
+        done = ch.run_to_end(limit_s * SEC, settle_ns=0)
         rep = C.check_chain(ch)
+        if not done:
+            why = rep.problems[0] if rep.problems else f"not finished after {limit_s} virtual s"
+            raise RuntimeError(f"{len(ch.distinct)} of {len(events)} events at the SCADA: {why}")
         if rep.problems:
             raise RuntimeError(f"the chain delivered wrongly: {rep.problems[0]}")
         return list(ch.taken_at), ch.latencies_ns(), ch.radio_stats()["polls"]
