@@ -111,3 +111,17 @@ def test_chain_random_faults_many_seeds(tmp_path, seed):
 def test_chain_programs_compile_with_matiec(tmp_path, role):
     res = build_program(program_sources(role), tmp_path / "out", compiler="matiec")
     assert res.executable.is_file()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("cold", [False, True], ids=["warm", "central-cold"])
+def test_chain_soak_20000_events(capsys, cold):
+    """The soak's shape, shorter (20,000 events, a fault every 10 s): warm restarts lose and
+    repeat nothing; a cold central loses nothing and each duplicate lies around its restart."""
+    from mipcosim.cli import main
+    rc = main(["soak", "--chain", "--events", "20000", "--restart-every", "10"]
+              + (["--cold"] if cold else []))
+    last = capsys.readouterr().out.strip().splitlines()[-1]
+    assert rc == 0 and last.startswith("result: ok events=20000 lost 0 "), last
+    if not cold:
+        assert " duplicated 0 failed 0 " in last, last

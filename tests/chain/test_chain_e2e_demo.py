@@ -5,6 +5,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from mipcosim import chain as C
 from plcharness.build import build_program
 
@@ -35,3 +37,12 @@ def test_committed_chain_configs_are_generated_and_load(tmp_path):
         p = subprocess.run([str(res.executable), "-c", str(REPO / "plc" / conf), "--check"],
                            capture_output=True, text=True)
         assert p.returncode == 0, p.stderr
+
+
+@pytest.mark.slow
+def test_make_run_chain_on_the_realistic_radio_at_30_percent_loss(tmp_path):
+    p = subprocess.run([sys.executable, str(REPO / "plc" / "demo.py"), "--chain", "--events", "60",
+                        "--realistic", "--loss", "0.3", "--rundir", str(tmp_path / "run")],
+                       capture_output=True, text=True, timeout=300)
+    last = p.stdout.strip().splitlines()[-1]
+    assert p.returncode == 0 and last.startswith("result: ok events=60 "), p.stdout[-2000:] + p.stderr
