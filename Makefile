@@ -5,6 +5,7 @@
 #   make test       the quick tier: every suite, its slow variants left out (minutes)
 #   make check      the full tier: every test, the exhaustive model, full fuzz budgets (CI)
 #   make run        the demo: a logger read out over the emulated radio network
+#   make view       the link live in the browser (mip-view; VIEW_ARGS, docs/view.md)
 #   make bench      benchmarks (BENCH_QUICK=1 for a short smoke run)
 #
 # Both tiers run their suites side by side (make -j, JOBS; pytest-xdist inside the pytest

@@ -168,6 +168,20 @@ def _matrix():
             name = "bidi-noC3/ours-ours/%s/up%s" % (dn, fn)
             exp, why = expectation(name)
             out.append((name, d, exp, why))
+    # the hand-over at the central (issue 35, model/handover.pml): the radio acknowledgement
+    # after the control system took the record, with restarts of the central between receipt
+    # and hand-over; acknowledging first (ACK_FIRST) must lose a record at a cold restart
+    for rule, rd in (("ack-after", {}), ("ack-first", {"ACK_FIRST": 1})):
+        for rn, r in (("none", {"RST": 0}), ("cold", {"RST": 1, "COLD": 1}),
+                      ("cold2", {"RST": 2, "COLD": 1}), ("warm", {"RST": 1, "COLD": 0}),
+                      ("warm2", {"RST": 2, "COLD": 0})):
+            if rule == "ack-first" and rn.endswith("2"):
+                continue
+            d = {"_MODEL": "handover.pml"}
+            d.update(rd); d.update(r)
+            name = "handover/%s/%s" % (rule, rn)
+            exp, why = expectation(name)
+            out.append((name, d, exp, why))
     return out
 
 
@@ -204,6 +218,10 @@ KNOWN = [
      "issue 38: a master that reads the rest of the block only with bit 0 gives a receiver "
      "killed while a read's answer was on the line (bit 0 taken) the next counter with data "
      "of no read: it accepts and acknowledges a record without its data"),
+    (r"^handover/ack-first/cold$", "LOST",
+     "issue 35: a central that acknowledges a record over the radio on receipt and restarts "
+     "cold before it handed the record to the control system loses it: the outstation has "
+     "deleted it, the control system never gets it"),
     (r"^warm-nogate/", "WARMFAIL",
      "W4: without the link's gate the other part's write carries a record or an "
      "acknowledgement no snapshot holds; after the rollback the two sides are out of step "
@@ -488,6 +506,8 @@ QUICK = [
     "warm-split-bit0/ours-ours/spont/up+wrst-rcv",  # must fail: a read in parts with bit 0 alone (issue 38)
     "soe/warm",                                   # the SOE handshake (issue 35), warm restarts
     "soe-ackearly/cold",                          # must fail: acknowledge before store (LOST)
+    "handover/ack-after/cold",                    # the hand-over at the central (issue 35)
+    "handover/ack-first/cold",                    # must fail: acknowledged before the hand-over (LOST)
 ]
 
 

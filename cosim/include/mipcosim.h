@@ -47,8 +47,10 @@ uint64_t mipcosim_now(const mipcosim *sim);
 /* Adds a PLC scanned every tick_ns from the current time on; returns its id. */
 int mipcosim_plc_add(mipcosim *sim, mipcosim_scan_fn scan, void *rt, uint64_t tick_ns);
 /* Replaces PLC id's instance (a restart), first scan at the current time. rt = NULL switches
- * the PLC off (not scanned, its modem keeps running) until the next replace. Connections and
- * taps of the old instance are dropped: wire the new one again. */
+ * the PLC off (not scanned, its modem keeps running) until the next replace. The taps of the
+ * old instance are dropped (tap the new one again); its connections stay, like a PLC that
+ * reconnects to its modem (half-exchanged bytes are dropped): connect the new instance again,
+ * which hands it the same connection. */
 int mipcosim_plc_replace(mipcosim *sim, int id, mipcosim_scan_fn scan, void *rt, uint64_t tick_ns);
 
 /* Wires device `device` of PLC id to endpoint ep (0 = MDP, s = TRM of station s). */

@@ -2,6 +2,7 @@
 
 Example: mip-peer central --port 15020 --unit 1 --expect 1 --out received.json
          mip-peer scada --port 15030 --out entries.jsonl (SOE handshake master, mippeer/scada.py)
+         mip-peer unicos --port 15040 --pair 15041 --out events.jsonl (WinCC OA UNICOS stand-in)
 """
 
 import argparse
@@ -128,6 +129,10 @@ def main(argv=None):
         # the SCADA master of the pull way (issue 35): its own options, peers/mippeer/scada.py
         from .scada import main as scada_main
         return scada_main(argv[1:])
+    if argv[:1] == ["unicos"]:
+        # the WinCC OA UNICOS-driver stand-in of the push way (issue 35), peers/mippeer/unicos.py
+        from .unicos import main as unicos_main
+        return unicos_main(argv[1:])
     a = parse_args(argv)
     records = logger_records(a.records, a.record_size, a.seed) if a.records else None
     try:

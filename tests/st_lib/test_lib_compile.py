@@ -12,7 +12,8 @@ import pytest
 from stlib_sim import LIB, LIB_FILES, LIB_PATHS
 
 ALL_BLOCKS = ["MIP_Status", "MIP_WriteChannel", "MIP_Layout", "MIP_ReadDecoder", "MIP_Sender",
-              "MIP_Receiver", "MIP_Link", "MIP_BufferSender", "MIP_SoeServer"]
+              "MIP_Receiver", "MIP_Link", "MIP_BufferSender", "MIP_SoeServer", "MIP_UnicosChannel",
+              "MIP_UnicosEvents", "MIP_UnicosStatus"]
 USE_ALL = """
 PROGRAM CompileCheck
 VAR
@@ -23,6 +24,8 @@ VAR
   bsnd : MIP_BufferSender;
   buf : MIP_T_Buffer;
   srv : MIP_SoeServer;
+  uni : MIP_UnicosEvents;
+  sts : MIP_UnicosStatus;
 END_VAR
 st();
 snd();
@@ -30,6 +33,8 @@ rcv();
 link();
 bsnd(aBuffer := buf);
 srv();
+uni();
+sts();
 END_PROGRAM
 
 CONFIGURATION Config0

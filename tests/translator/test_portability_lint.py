@@ -70,6 +70,15 @@ ALLOWED = [
      "timing difference only"),
     ("st_lib/MIP_SoeServer.st", "timer-pt", "tonSilent(",
      "runs only when tAckTimeout > T#0s (the IN condition), so PT is never T#0s"),
+    ("st_lib/MIP_UnicosChannel.st", "timer-pt", "tonRetry(",
+     "PT is tRetry (default T#500ms), the pause before a repeated write; at T#0s matiec "
+     "repeats one scan later, a timing difference only"),
+    ("st_lib/MIP_UnicosEvents.st", "timer-pt", "tonDelay(",
+     "PT is tMaxDelay (default T#2s), the latest time to send the event table; at T#0s matiec "
+     "sends it one scan later, a timing difference only"),
+    ("st_lib/MIP_UnicosStatus.st", "timer-pt", "tonGap(",
+     "PT is tMinPeriod (default T#50ms), the least time between two status tables; at T#0s "
+     "matiec allows the next one a scan later, a timing difference only"),
 ]
 
 

@@ -1,0 +1,247 @@
+"""A live run of the docs' chain (docs/tools/chainsim.py) that the page drives."""
+from __future__ import annotations
+
+import ctypes
+import random
+from pathlib import Path
+
+from .common import MS, ViewError, diagram, enum_name   # first: docs/tools on the path
+from .presets import PRESETS
+
+from chainsim import Chain, ChainError, Side  # noqa: E402  (docs/tools)
+from gen_traces import WORK, logger_data  # noqa: E402
+from mipcosim.sim import FATE_FN  # noqa: E402
+
+FATE_OK, FATE_LOST = 0, 1            # mipemu.h: enum mipemu_fate
+SLOT_LIMIT_MS = 10_000               # "one radio slot" gives up after this much virtual time
+# The register windows (emulator/README.md "Register maps", from the application note's
+# register tables): (title, endpoint, unit, first address, count). Endpoint 0 is the MDP-810
+# (unit = station), 1 the TRM-810 of station 1 (mipemu.h).
+WINDOWS = [
+    ("TRM-810 write (2000: count, 2001..: record)", 1, 1, 2000, 9),
+    ("TRM-810 read (2198: status, 2199: count, 2200..: data)", 1, 1, 2198, 9),
+    ("MDP-810 read, station 1 (198: status, 199: count, 200..: data)", 0, 1, 198, 9),
+    ("MDP-810 write, station 1 (9: count, 10..: acknowledgement)", 0, 1, 9, 9),
+]
+SPEEDS = (0.1, 0.25, 0.5, 1.0, 2.0, 5.0, 10.0, 50.0)   # virtual seconds per real second
+
+# what the page shows of each block: (member, enum type or None)
+SENDER_VIEW = [("eState", "E_MIP_SenderState"), ("eWaitReason", "E_MIP_WaitReason"),
+               ("wRecord", None), ("udiRecords", None), ("udiRetransmissions", None),
+               ("udiUnexpectedAcks", None), ("udiTransfers", None),
+               ("eErrorId", "E_MIP_Error")]
+RECEIVER_VIEW = [("eState", "E_MIP_ReceiverState"), ("eWaitReason", "E_MIP_WaitReason"),
+                 ("wAck", None), ("udiRecords", None), ("udiDuplicates", None),
+                 ("udiUnexpected", None), ("udiTransfers", None),
+                 ("udiFailedTransfers", None), ("eErrorId", "E_MIP_Error")]
+
+
+class _Windows:
+    """The register windows and which registers changed since the last look."""
+
+    def __init__(self):
+        self.last = {}
+
+    def show(self, values_by_title):
+        out = []
+        for title, start, values in values_by_title:
+            old = self.last.get(title)
+            changed = [i for i, v in enumerate(values) if old is not None and old[i] != v]
+            self.last[title] = values
+            out.append({"title": title, "start": start, "values": values, "changed": changed})
+        return out
+
+
+class Live:
+    """A run of the docs' chain the page drives: pause, step, speed, extra loss, lose the next
+    record or acknowledgement, PLC restarts."""
+
+    mode = "live"
+
+    def __init__(self, preset="demo", workdir: Path | None = None):
+        if preset not in PRESETS:
+            raise ViewError(f"unknown preset {preset!r}: use one of {', '.join(PRESETS)}")
+        self.preset_name = preset
+        self.preset = p = PRESETS[preset]
+        self.workdir = Path(workdir) if workdir else WORK
+        payload = 122
+        self.data = logger_data(p.records * payload, p.seed)
+        self.o = Side("outstation", "sender", data=self.data, polled=p.polled,
+                      timeout_ms=p.timeout_ms)
+        self.c = Side("central", "receiver", polled=p.polled, timeout_ms=p.timeout_ms,
+                      read_phase_ms=50)
+        try:
+            self.ch = Chain(self.workdir, self.o, self.c, loss_up=p.loss_up,
+                            loss_down=p.loss_down, burst=p.burst, seed=p.seed)
+        except ChainError as e:
+            raise ViewError(str(e)) from None
+        self.paused = False
+        self.speed = 1.0
+        # the view's own loss (our choice, on top of the preset's loss model, which the
+        # emulator fixes at the start): telegrams that carry a block, from a seeded generator
+        self.extra = {"up": 0.0, "down": 0.0}
+        self.rng = random.Random(p.seed)
+        self.lose_next = {"up": False, "down": False}     # a record / an acknowledgement
+        self.scripted = p.lose_record                     # the preset's lost record, once
+        self.lost_by_view = []                            # (t_ms, dir, first register)
+        self.off = {}                                     # side name -> virtual ms it returns
+        self.restarted = p.restart is None
+        self.windows = _Windows()
+        self._fate = FATE_FN(self._on_fate)               # kept alive as long as the network
+        self.ch.lib.mipemu_net_set_fate(self.ch.net, self._fate, None)
+
+    # ---------------------------------------------------------------- the simulation
+    def _on_fate(self, user, station, up, blk, n):
+        d = "up" if up else "down"
+        if up and n and self.scripted and blk[0] == self.scripted:
+            self.scripted = 0
+            return FATE_LOST
+        if self.lose_next[d]:
+            self.lose_next[d] = False
+            self.lost_by_view.append((self.ch.t // MS, d, blk[0] if n else None))
+            return FATE_LOST
+        if self.extra[d] and self.rng.random() < self.extra[d]:
+            self.lost_by_view.append((self.ch.t // MS, d, blk[0] if n else None))
+            return FATE_LOST
+        return FATE_OK
+
+    @property
+    def t_ms(self):
+        return self.ch.t // MS
+
+    @property
+    def done(self):
+        return self.o.send_done and self.c.send_done and self.ch.t > 0 and not self.off
+
+    def step(self):
+        """One scan tick, with the preset's restart and the end of a power-off when due."""
+        p = self.preset
+        if not self.restarted and self.ch.t >= p.restart_at_ms * MS:
+            self.ch.restart(self.o if p.restart == "outstation" else self.c)
+            self.restarted = True
+        self.ch.step()
+        for name, back_ms in list(self.off.items()):
+            if self.t_ms >= back_ms:           # on again: scanned from the next tick
+                del self.off[name]
+                self._power_on(name)
+
+    def step_slot(self):
+        """Scan ticks up to and including the next radio telegram."""
+        n = len(self.ch.lines)
+        end = self.ch.t + SLOT_LIMIT_MS * MS
+        while self.ch.t < end:
+            self.step()
+            if any(d.get("ev") == "radio" for d in self.ch.lines[n:]):
+                return True
+            n = len(self.ch.lines)
+        return False
+
+    def advance(self, ms):
+        """Scan ticks for ms of virtual time (a jump ahead, e.g. to a moment of an exercise)."""
+        if not 0 < ms <= 600_000:
+            raise ViewError("advance: ms must be 1..600000")
+        end = self.ch.t + ms * MS
+        while self.ch.t < end:
+            self.step()
+
+    def side(self, name):
+        if name not in ("outstation", "central"):
+            raise ViewError(f"unknown PLC {name!r}: outstation or central")
+        return self.o if name == "outstation" else self.c
+
+    def restart(self, name, kind="cold", outage_ms=1000):
+        """cold: a fresh program instance now (all state lost, chainsim's restart). warm: the
+        PLC is off for outage_ms (not scanned, its modem runs on) and resumes with all its
+        memory, as a PLC whose whole state is durable (st_lib/PROTOCOL.md W3)."""
+        side = self.side(name)
+        if kind not in ("cold", "warm"):
+            raise ViewError(f"restart kind {kind!r}: cold or warm")
+        if side.plc is None:
+            raise ViewError(f"the {name} PLC has not started yet (it starts at "
+                            f"{side.read_phase_ms} ms)")
+        if name in self.off:
+            raise ViewError(f"the {name} PLC is off already (back at {self.off[name]} ms)")
+        if kind == "cold":
+            self.ch.restart(side)
+        elif kind == "warm":
+            if not 10 <= outage_ms <= 600_000:
+                raise ViewError("outage_ms must be 10..600000")
+            self.ch._emit(side._line(self.ch.t, "restart",
+                                     f"PLC off for {outage_ms} ms (warm restart)", 0))
+            self.ch._check(self.ch.lib.mipcosim_plc_replace(
+                self.ch.sim, self.ch.ids[name], None, None, self.ch.tick))
+            self.off[name] = self.t_ms + outage_ms
+        else:
+            raise ViewError(f"restart kind {kind!r}: cold or warm")
+
+    def _power_on(self, name):
+        side = self.side(name)
+        plc = side.plc
+        scan = ctypes.cast(plc.library.plcrt_scan, ctypes.c_void_p)
+        self.ch._emit(side._line(self.ch.t, "restart", "PLC on again, its memory kept", 0))
+        self.ch._check(self.ch.lib.mipcosim_plc_replace(self.ch.sim, self.ch.ids[name], scan,
+                                                        plc.handle, self.ch.tick))
+        # not wired again: the kernel keeps the PLC's connection across a replace (only its
+        # taps and half-exchanged bytes go, cosim/src/mipcosim.c drop_plc_wiring) and the
+        # instance keeps its transport (plcrt takes one only before its first scan)
+
+    def set_loss(self, direction, p):
+        if direction not in self.extra:
+            raise ViewError(f"direction {direction!r}: up or down")
+        if not 0.0 <= p <= 1.0:
+            raise ViewError("loss must be 0..1")
+        self.extra[direction] = p
+
+    def set_speed(self, s):
+        if s not in SPEEDS:
+            raise ViewError(f"speed {s}: one of {', '.join(f'{x:g}' for x in SPEEDS)}")
+        self.speed = s
+
+    def lose(self, what):
+        """Lose the next telegram that carries a record (uplink: the outstation's block) or an
+        acknowledgement (downlink: the central's block)."""
+        if what not in ("record", "ack"):
+            raise ViewError(f"lose {what!r}: record or ack")
+        self.lose_next["up" if what == "record" else "down"] = True
+
+    # ---------------------------------------------------------------- what the page shows
+    def _block(self, side):
+        if side.plc is None:
+            return {"side": side.name, "block": "-", "vars": []}
+        view = SENDER_VIEW if side.role == "sender" else RECEIVER_VIEW
+        out = []
+        for member, enum in view:
+            v = side.fbv(member)
+            out.append({"name": member, "value": enum_name(enum, v) if enum else v})
+        block = "MIP_Sender" if side.role == "sender" else "MIP_Receiver"
+        return {"side": side.name, "block": block, "vars": out,
+                "off": side.name in self.off}
+
+    def _registers(self):
+        vals = []
+        for title, ep, unit, addr, n in WINDOWS:
+            buf = (ctypes.c_uint16 * n)()
+            self.ch.lib.mipemu_net_peek(self.ch.net, ep, unit, addr, n, buf)
+            vals.append((title, addr, list(buf)))
+        return self.windows.show(vals)
+
+    def state(self):
+        svg, rows, nrows = diagram(self.ch.lines, f"{self.preset.title} (live)")
+        st = self.ch.stats(1)
+        return {
+            "mode": self.mode, "preset": self.preset_name, "title": self.preset.title,
+            "mipsim": self.preset.mipsim_args(), "t_ms": self.t_ms, "paused": self.paused,
+            "speed": self.speed, "extra_loss": dict(self.extra), "lose_next": {
+                "record": self.lose_next["up"], "ack": self.lose_next["down"]},
+            "done": self.done, "svg": svg, "rows": rows, "nrows": nrows,
+            "registers": self._registers(), "blocks": [self._block(self.o), self._block(self.c)],
+            "radio": {"polls": st["polls"], "down": st["tel_down"], "lost_down": st["lost_down"],
+                      "up": st["tel_up"], "lost_up": st["lost_up"]},
+            "off": dict(self.off),
+        }
+
+    def trace(self):
+        return self.ch.trace()
+
+    def close(self):
+        self.ch.close()
