@@ -606,7 +606,7 @@ SOE_PARAMS = """\
   pStart AT %MW0 : WORD;          (* <> 0: run *)
   pPerRecord AT %MW1 : WORD;      (* outstation: relay entries per record (0: 15, at most 15) *)
   pPerTransfer AT %MW2 : WORD;    (* outstation: records per transfer (0: 1) *)
-  pFlags AT %MW3 : WORD;          (* bit 0: warm restarts (the blocks' xRetained); bit 1: central acknowledges a record once its entries are queued, not after the SCADA took them (a measurement only) *)
+  pFlags AT %MW3 : WORD;          (* bit 0: warm restarts (the blocks' xRetained); bit 1: central (pull) acknowledges a record once its entries are queued, not after the SCADA took them (a measurement only); bit 2: central (push) a redundant pair of drivers; bit 3: central (push) driver B is the active one, read every scan *)
   pTimeout AT %MW4 : WORD;        (* ms, tTimeout of the MIP blocks (0: 2000) *)
   pMaxRetries AT %MW5 : WORD;     (* outstation: MIP_Sender's uMaxRetries (0: unlimited) *)
   pAckTimeout AT %MW6 : WORD;     (* central: s without the SCADA's acknowledgement until MIP_SoeServer reports it silent (0: never) *)
@@ -788,6 +788,79 @@ def central_soe():
             + "\nEND_PROGRAM\n" + config(prog, "cen0"))
 
 
+UNICOS_MARKER = 0xFF80    # the frames' reference number: 16#FFFF + 123 registers would run past
+                          # 65535, which plcrt's write range refuses; WinCC OA: [mod] addUnicosMarker
+UNICOS_IMAGE = {"A": 400, "B": 530}   # the frames for driver A / B at %QW400.. / %QW530..
+
+
+def unicos_io(d, k):
+    """Located I/O of the write range to WinCC OA driver d (A, B): trigger %QX3.k etc."""
+    b = UNICOS_IMAGE[d]
+    return ([f"  uni{d}Trig AT %QX3.{k} : BOOL;      (* driver {d}: write trigger *)",
+             f"  uni{d}Done AT %IX3.{2 * k} : BOOL;      (* driver {d}: write done (positive response) *)",
+             f"  uni{d}Err AT %IX3.{2 * k + 1} : BOOL;       (* driver {d}: write failed *)",
+             f"  uni{d}St AT %IW{13 + k} : WORD;         (* driver {d}: exception code or 1000 + errno *)",
+             f"  uni{d}Len AT %QW{3 + k} : WORD;         (* driver {d}: registers of the frame *)"]
+            + [f"  uni{d}{i} AT %QW{b + i} : WORD;" for i in range(123)])
+
+
+def central_push():
+    prog = "CentralPush"
+    decl = [SOE_PARAMS, SOE_PARAM_VARS,
+            "  rcv : MIP_Receiver;           (* records from the outstation *)",
+            "  uni : MIP_UnicosEvents;       (* their entries to WinCC OA's UNICOS driver(s) *)",
+            "  xRedundant : BOOL;            (* flags bit 2: a redundant pair of drivers *)"]
+    decl += soe_located_io("MDP-810 unit 1")
+    decl += unicos_io("A", 0) + unicos_io("B", 1)
+    decl += soe_status([("mRecLo", "records handed over, low word"), ("mRecHi", "high word"),
+                        ("mEvLo", "events the active driver took, low word"), ("mEvHi", "high word"),
+                        ("mFrames", "frames handed over (mod 65536)"),
+                        ("mRetries", "writes repeated after a failure (mod 65536)"),
+                        ("mPassive", "frames the passive driver missed (mod 65536)"),
+                        ("mDup", "duplicates the receiver dropped (mod 65536)"),
+                        ("mFailed", "transfers that failed at the receiver (mod 65536)"),
+                        ("mFlags", "bit 0 hand-over error (active driver), bit 1 receiver error, bit 2 passive driver failing")])
+    code = [SOE_PARAM_CODE.replace("  xRun := pStart <> 0;",
+                                   "  xRedundant := (pFlags AND 16#0004) <> 0;\n  xRun := pStart <> 0;")]
+    code += soe_io_before()
+    code += ["rcv(xEnable := xRun, tTimeout := tTimeout, xAckByCaller := TRUE,",
+             "    xRecordProcessed := uni.xRecordProcessed, aRead := rd1, xReadValid := xRdValid1,",
+             "    xReadError := rdErr1, wReadStatus := rdSt1,",
+             "    xWriteDone := xWrDone1, xWriteError := wrErr1, xRetained := xRetain,",
+             "    wSnapshots := snapSaved);",
+             "(* flags bit 3, read every scan: driver B is the active one (a fail-over) *)",
+             f"uni(xEnable := xRun, aRecord := rcv.aRecord, uRecordLen := rcv.uRecordLen,",
+             f"    xRecordValid := rcv.xRecordValid, wMarker := WORD#{UNICOS_MARKER},",
+             "    xRedundant := xRedundant, xActiveB := (pFlags AND 16#0008) <> 0,",
+             "    xWriteDoneA := uniADone, xWriteErrorA := uniAErr, wWriteStatusA := uniASt,",
+             "    xWriteDoneB := uniBDone, xWriteErrorB := uniBErr, wWriteStatusB := uniBSt);",
+             "snapReq := rcv.xSnapshotReq;",
+             "uniATrig := uni.xWriteReqA;",
+             "uniALen := UINT_TO_WORD(uni.uWriteLenA);",
+             "uniBTrig := uni.xWriteReqB;",
+             "uniBLen := UINT_TO_WORD(uni.uWriteLenB);"]
+    code += [f"uniA{i} := uni.aWriteA[{i}];" for i in range(123)]
+    code += [f"uniB{i} := uni.aWriteB[{i}];" for i in range(123)]
+    code += udint_words("mRecLo", "mRecHi", "uni.udiRecords")
+    code += udint_words("mEvLo", "mEvHi", "uni.udiEvents")
+    code += ["mFrames := UDINT_TO_WORD(uni.udiFrames MOD 65536);",
+             "mRetries := UDINT_TO_WORD(uni.udiRetries MOD 65536);",
+             "mPassive := UDINT_TO_WORD(uni.udiPassiveMissed MOD 65536);",
+             "mDup := UDINT_TO_WORD(rcv.udiDuplicates MOD 65536);",
+             "mFailed := UDINT_TO_WORD(rcv.udiFailedTransfers MOD 65536);",
+             "mFlags := WORD#0;",
+             "IF uni.xError THEN mFlags := mFlags OR WORD#1; END_IF;",
+             "IF rcv.xError THEN mFlags := mFlags OR WORD#2; END_IF;",
+             "IF uni.xPassiveError THEN mFlags := mFlags OR WORD#4; END_IF;"]
+    code += [c.replace(" OR xCyclic", "").replace("rcv1.", "rcv.") for c in io_after(1, "rcv")]
+    doc = ("    The chain's central (issue 35, the push way): MIP_Receiver with xAckByCaller hands each\n"
+           "    record to MIP_UnicosEvents, which writes its entries as UNICOS event frames to WinCC\n"
+           "    OA's driver (or both of a redundant pair); the record is acknowledged over the radio\n"
+           "    only when the active driver answered positively.")
+    return (HEADER.format(doc=doc) + f"PROGRAM {prog}\n" + var_blocks(decl) + "\n".join(code)
+            + "\nEND_PROGRAM\n" + config(prog, "cen0"))
+
+
 def mbconfig(devices):
     """An OpenPLC v3 mbconfig.cfg: devices = [(name, slave id, port, read start, write start)];
     each reads READ_REGS holding registers and writes WRITE_REGS (static MIP mode)."""
@@ -835,7 +908,8 @@ def main(argv=()):
     files = [("outstation.st", outstation(False)), ("central.st", central(False)),
              ("outstation_bidi.st", outstation(True)), ("central_bidi.st", central(True)),
              ("central_many.st", central_many(a.many_stations)),
-             ("outstation_soe.st", outstation_soe()), ("central_soe.st", central_soe())]
+             ("outstation_soe.st", outstation_soe()), ("central_soe.st", central_soe()),
+             ("central_push.st", central_push())]
     files += openplc_configs(a.openplc_stations)
     for name, text in files:              # check everything before writing anything
         if name.endswith(".cfg"):

@@ -33,6 +33,9 @@ from .sim import MS, SEC, CosimError, Radio, _Kernel, build, kernel_lib, radio_s
 ORIGIN_MS = 1767225600000          # the relay's time stamp of virtual time 0 (2026-01-01 UTC)
 SOE_BASE = 600                     # PDU address of 40601, at the relay and at the central
 PROGRAMS = {"out": "outstation_soe.st", "cen": "central_soe.st"}
+PUSH_PROGRAM = "central_push.st"   # the central of the push way (MIP_UnicosEvents)
+UNICOS_MARKER = 0xFF80             # the frames' reference number (plc/gen_programs.py)
+UNICOS_IMAGE = {"a": 400, "b": 530}
 HELPERS = ["PLC_Logger.st", "PLC_SoeChain.st"]
 _SCAN = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_uint64)
 
@@ -41,12 +44,17 @@ OUT_STORED, OUT_SENT, OUT_LEVEL, OUT_DONE, OUT_FAILED, OUT_ERROR, OUT_FLAGS, OUT
     100, 102, 104, 105, 106, 107, 108, 109
 CEN_RECORDS, CEN_PUT, CEN_ACKED, CEN_BAD_ACKS, CEN_BAD_RECORDS, CEN_DUP, CEN_FAILED, \
     CEN_FLAGS, CEN_QUEUED = 100, 102, 104, 106, 107, 108, 109, 110, 111
+# plc/central_push.st
+PUSH_RECORDS, PUSH_EVENTS, PUSH_FRAMES, PUSH_RETRIES, PUSH_PASSIVE, PUSH_DUP, PUSH_FAILED, \
+    PUSH_FLAGS = 100, 102, 104, 105, 106, 107, 108, 109
 
 
-def program_sources(role):
-    """The st_lib files, the programs' helpers and the chain's program of `role`."""
+def program_sources(role, handover="pull"):
+    """The st_lib files, the programs' helpers and the chain's program of `role` ("out" |
+    "cen"; the central of the push way with handover "push")."""
+    name = PUSH_PROGRAM if role == "cen" and handover == "push" else PROGRAMS[role]
     return ([str(L.ST_LIB / f) for f in L.LIB_FILES] + [str(L.PLC_DIR / h) for h in HELPERS]
-            + [str(L.PLC_DIR / PROGRAMS[role])])
+            + [str(L.PLC_DIR / name)])
 
 
 def relay_sections(port=15030, host="127.0.0.1"):
@@ -88,6 +96,38 @@ def slave_section(port=0, host="127.0.0.1"):
             f"watch_count = %IW9\n")
 
 
+def unicos_sections(ports=(15040, 15041), host="127.0.0.1"):
+    """The push central's devices unicos_a / unicos_b (WinCC OA's redundant pair of UNICOS
+    drivers) and its write ranges: FC16 of the frame at the marker, trigger policy."""
+    out = ""
+    for k, (d, port) in enumerate(zip("ab", ports)):
+        out += f"""
+[device unicos_{d}]
+host = {host}
+port = {port}
+unit_id = 1
+
+[write unicos_{d}]
+device = unicos_{d}
+start = {UNICOS_MARKER}
+size = 123
+image = %QW{UNICOS_IMAGE[d]}
+policy = trigger
+trigger = %QX3.{k}
+done = %IX3.{2 * k}
+error = %IX3.{2 * k + 1}
+status = %IW{13 + k}
+length = %QW{3 + k}
+"""
+    return out
+
+
+def central_push_config(mdp_port=15020, unicos_ports=(15040, 15041), retain="", host="127.0.0.1"):
+    return L.central_config(mdp_port, 1, host, comment="# the chain (plc/central_push.st): also "
+                            "WinCC OA's UNICOS drivers A and B.\n", retain=retain) \
+        + unicos_sections(unicos_ports, host)
+
+
 def outstation_soe_config(trm_port=15021, relay_port=15030, retain="", host="127.0.0.1"):
     return L.outstation_config(trm_port, host, comment="# the chain (plc/outstation_soe.st): "
                                "also the relay's event recorder.\n", retain=retain) \
@@ -107,12 +147,15 @@ class SoeParams:
     per_transfer: int = 1         # records per transfer
     retain: bool = False          # the blocks' xRetained (warm restarts)
     ack_on_receipt: bool = False  # the central acknowledges a record once queued, not after the SCADA (measurement)
+    redundant: bool = False       # push: a redundant pair of drivers (both get every frame)
+    active_b: bool = False        # push: driver B is the active one
     timeout_ms: int = 300
     max_retries: int = 0
     ack_timeout_s: int = 0
 
     def words(self):
-        flags = (1 if self.retain else 0) | (2 if self.ack_on_receipt else 0)
+        flags = ((1 if self.retain else 0) | (2 if self.ack_on_receipt else 0)
+                 | (4 if self.redundant else 0) | (8 if self.active_b else 0))
         return [1, self.per_record, self.per_transfer, flags, self.timeout_ms, self.max_retries,
                 self.ack_timeout_s]
 
@@ -174,6 +217,7 @@ class ChainSetup:
     seed: int = 1
     radio: Radio = field(default_factory=Radio)
     params: SoeParams = field(default_factory=SoeParams)
+    handover: str = "pull"         # "pull": MIP_SoeServer + the SCADA; "push": MIP_UnicosEvents + WinCC OA
     scada_period_ms: int = 50
     scada_reack_s: float = 1.0
     relay_capacity: int = 1000
@@ -202,13 +246,28 @@ class SoeChain(_Kernel):
             if trace:
                 self._check(self.lib.mipcosim_trace_file(self.sim, str(trace).encode()))
             self.tick_ns = setup.tick_ms * MS
-            self.builds = {role: build(f"{role}_soe", False, self.workdir, setup.compiler,
-                                       setup.tick_ms, program_sources(role)) for role in PROGRAMS}
+            if setup.handover not in ("pull", "push"):
+                raise CosimError(f"handover {setup.handover!r}: pull or push")
+            self.push = setup.handover == "push"
+            self.builds = {role: build(f"{role}_{setup.handover if role == 'cen' else 'soe'}", False,
+                                       self.workdir, setup.compiler, setup.tick_ms,
+                                       program_sources(role, setup.handover)) for role in PROGRAMS}
             ret = lambda who: L.retain_section(self.workdir / f"{who}.retain", setup.retain_period_ms)
             self.confs = {"out": self.workdir / "outstation_soe.conf",
                           "cen": self.workdir / "central_soe.conf"}
             self.confs["out"].write_text(outstation_soe_config(retain=ret("out")))
-            self.confs["cen"].write_text(central_soe_config(retain=ret("cen")))
+            self.confs["cen"].write_text(central_push_config(retain=ret("cen")) if self.push
+                                         else central_soe_config(retain=ret("cen")))
+            # push: WinCC OA's redundant pair of UNICOS drivers, devices of the central PLC
+            self.drivers, self.driver_up, self.pydevs = {}, {"a": True, "b": True}, []
+            self.active = "b" if setup.params.active_b else "a"
+            self.failovers = 0
+            if self.push:
+                from mippeer.unicos import UnicosConfig, UnicosDriver
+                self.drivers = {d: UnicosDriver(d.upper(), UnicosConfig(marker=UNICOS_MARKER))
+                                for d in "ab"}
+            self.exp_keys = [(e[3], e[4] // 10 * 10 if self.push else e[4])
+                             for e in expected(setup.events)]
             self.relay = Relay(setup.events, kernel=self, capacity=setup.relay_capacity,
                                origin_ms=ORIGIN_MS)
             self.ids = {}
@@ -227,10 +286,11 @@ class SoeChain(_Kernel):
             _ScadaClient(self).bind(self.client)
             self.scada = SoeMaster(self.client, SOE_BASE, self._sink, setup.scada_reack_s)
             self._scada_error = None
-            self._scan_cb = _SCAN(self._scada_round)
-            self.scada_id = self.lib.mipcosim_plc_add(self.sim, ctypes.cast(self._scan_cb, ctypes.c_void_p),
-                                                      1, setup.scada_period_ms * MS)
-            self._check(0 if self.scada_id >= 0 else -1)
+            if not self.push:           # the pull way's SCADA polls; the push way's drivers wait
+                self._scan_cb = _SCAN(self._scada_round)
+                self.scada_id = self.lib.mipcosim_plc_add(
+                    self.sim, ctypes.cast(self._scan_cb, ctypes.c_void_p), 1, setup.scada_period_ms * MS)
+                self._check(0 if self.scada_id >= 0 else -1)
         except BaseException:
             self.close()
             raise
@@ -249,6 +309,9 @@ class SoeChain(_Kernel):
         lib.plcrt_slave_add_client.argtypes = [ctypes.c_void_p, ctypes.c_int]
         lib.plcrt_slave_poll.argtypes = [ctypes.c_void_p, ctypes.c_int]
         plc.retain_in_memory(self.s.retain_period_ms * MS)
+        if who == "cen" and self.push:      # before its first scan (pydevice.py)
+            from .pydevice import PyDevice
+            self.pydevs = [PyDevice(plc, f"unicos_{d}", self._driver(d)) for d in "ab"]
         if snapshot is not None:
             plc.retain_load(snapshot)
         old = self.plcs.get(who)
@@ -272,6 +335,41 @@ class SoeChain(_Kernel):
         for i, w in enumerate(self.s.params.words()):
             plc[f"%MW{i}"] = w
         self.up[who] = True
+
+    def _driver(self, d):
+        """Driver d's Modbus handler as a device of the central: its new events are the
+        control system's (rows, with the driver's name)."""
+        def handle(adu):
+            if not self.driver_up[d]:
+                return None                       # the driver is down: no answer
+            drv = self.drivers[d]
+            n0 = len(drv.events)
+            rsp = drv.handle(adu)
+            for ev in drv.events[n0:]:
+                self.rows.append({"driver": d, "type_bit": ev["value"] >> 16, "address": ev["offset"],
+                                  "cause_type": None, "value": ev["value"] & 0xFFFF,
+                                  "ts_ms": ev["ts_10ms"] * 10})
+                self.taken_at.append(self.now)
+                self.distinct.add((ev["value"] & 0xFFFF, ev["ts_10ms"] * 10))
+            return rsp
+        return handle
+
+    def failover(self):
+        """Push: the other driver of the pair becomes the active one (the program reads flags
+        bit 3 every scan)."""
+        self.active = "b" if self.active == "a" else "a"
+        self.s.params.active_b = self.active == "b"
+        self.failovers += 1
+        if self.up["cen"]:
+            self.plcs["cen"]["%MW3"] = self.s.params.words()[3]
+
+    def driver_outage(self, down_ns, which=None):
+        """Push: a driver (the active one by default) answers nothing for down_ns."""
+        d = which or self.active
+        self.driver_up[d] = False
+        self.scada_outages += 1
+        self.run_for(down_ns)
+        self.driver_up[d] = True
 
     def _sink(self, entries):
         """The SCADA's store: the entries of one offer, before it acknowledges them."""
@@ -336,7 +434,7 @@ class SoeChain(_Kernel):
         events (a duplicate does not count), the relay's recorder is empty."""
         st = self.relay.stats()
         return (st["generated"] >= len(self.s.events) and st["entries"] == 0
-                and len(self.distinct) >= len(self.s.events))
+                and all(k in self.distinct for k in self.exp_keys))
 
     def settled(self):
         """Nothing is left anywhere on the way: every relay event happened, the relay, the
@@ -345,7 +443,8 @@ class SoeChain(_Kernel):
         st = self.relay.stats()
         return (st["generated"] >= len(self.s.events) and st["entries"] == 0
                 and self.up["out"] and self.up["cen"]
-                and self.mw("out", OUT_LEVEL) == 0 and self.mw("cen", CEN_QUEUED) == 0)
+                and self.mw("out", OUT_LEVEL) == 0
+                and (self.push or self.mw("cen", CEN_QUEUED) == 0))
 
     def run_to_end(self, limit_ns, step_ns=SEC, settle_ns=2 * SEC):
         """Run until finished() (then settle_ns more, so late duplicates show), until nothing is
@@ -414,7 +513,7 @@ class SoeChain(_Kernel):
 class ChainReport:
     events: int            # relay events scripted
     taken: int             # entries the SCADA took (duplicates included)
-    lost: int              # events that never reached the SCADA
+    lost: int              # events that never reached the control system
     duplicated: int        # entries taken more than once
     cold_duplicates: int   # of them: both copies taken around a cold restart of the central
     changed: int           # entries taken that the relay never had (a field changed)
@@ -425,41 +524,51 @@ class ChainReport:
 
 
 def check_chain(ch: SoeChain) -> ChainReport:
-    """Every relay event at the SCADA exactly once, in order, with its original time stamp and
-    value (all four words), and the relay's recorder empty."""
+    """Every relay event at the control system exactly once, in order, with its original time
+    stamp and value, and the relay's recorder empty. Pull: the SCADA's entries (all four words,
+    the time stamp in ms). Push: what each driver of the pair received (WinCC OA keeps no cause /
+    type, and time stamps of 10 ms): an event counts as arrived when either driver has it, and
+    each driver must have it once and in order."""
     exp = expected(ch.s.events)
+    if ch.push:
+        exp = [(e[0], e[1], None, e[3], e[4] // 10 * 10) for e in exp]
     index = {e: i for i, e in enumerate(exp)}
-    seen = {}
+    seen = {}        # (group, event) -> its first row; a group: the SCADA, or one driver
+    anywhere = set()
     changed = dup = disorder = cold_dup = 0
-    last = -1
+    last = {}
     problems = []
     for n, r in enumerate(ch.rows):
+        g = r.get("driver", "scada")
         key = (r["type_bit"], r["address"], r["cause_type"], r["value"], r["ts_ms"])
         i = index.get(key)
         if i is None:
             changed += 1
             if changed <= 3:
-                problems.append(f"entry {n + 1} at the SCADA was never in the relay: {key}")
+                problems.append(f"entry {n + 1} at the control system was never in the relay: {key}")
             continue
-        if i in seen:
+        if (g, i) in seen:
             dup += 1
-            t0, t1 = ch.taken_at[seen[i]], ch.taken_at[n]
+            t0, t1 = ch.taken_at[seen[g, i]], ch.taken_at[n]
             if any(who == "cen" and kind == "cold" and t0 <= t <= t1 for t, who, kind in ch.restarts):
                 cold_dup += 1          # a cold central forgot it had handed the record over
             elif dup - cold_dup <= 3:
-                problems.append(f"event {i + 1} taken twice (entries {seen[i] + 1} and {n + 1}), "
-                                f"no cold restart of the central between them")
+                by = f" by driver {g.upper()}" if g != "scada" else ""
+                problems.append(f"event {i + 1} taken twice{by} (entries {seen[g, i] + 1} and "
+                                f"{n + 1}), no cold restart of the central between them")
             continue
-        seen[i] = n
-        if i < last:
+        seen[g, i] = n
+        anywhere.add(i)
+        if i < last.get(g, -1):
             disorder += 1
             if disorder <= 3:
-                problems.append(f"event {i + 1} arrived after event {last + 1}")
-        last = max(last, i)
-    lost = len(exp) - len(seen)
+                problems.append(f"event {i + 1} arrived after event {last[g] + 1}")
+        last[g] = max(last.get(g, -1), i)
+    lost = len(exp) - len(anywhere)
     if lost:
-        first = next(i for i in range(len(exp)) if i not in seen)
-        problems.append(f"{lost} event(s) never reached the SCADA (the first: event {first + 1}, {exp[first]})")
+        first = next(i for i in range(len(exp)) if i not in anywhere)
+        problems.append(f"{lost} event(s) never reached the control system (the first: event "
+                        f"{first + 1}, {exp[first]})")
     st = ch.relay.stats()
     if st["entries"]:
         problems.append(f"the relay still holds {st['entries']} entries")

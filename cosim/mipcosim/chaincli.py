@@ -32,12 +32,17 @@ def parse(argv):
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--per-record", type=int, default=15, help="relay entries per MIP record (1..15)")
     p.add_argument("--per-transfer", type=int, default=1, help="records per transfer")
+    p.add_argument("--handover", choices=["pull", "push"], default="pull",
+                   help="the central's hand-over to the control system: pull (MIP_SoeServer, a "
+                        "polling SCADA; default) or push (MIP_UnicosEvents to WinCC OA's "
+                        "redundant pair of UNICOS drivers)")
     p.add_argument("--scada-ms", type=int, default=50, help="the SCADA's polling interval in ms")
     p.add_argument("--realistic", action="store_true", help="9600 bit/s, 20 ms gaps")
     p.add_argument("--restart-every", type=float,
-                   help="virtual seconds between faults: warm restarts of the outstation and the "
-                        "central (kill -9, every third graceful) and SCADA outages, in turn "
-                        "(run: none, soak: 30)")
+                   help="virtual seconds between faults, in turn: a warm restart of the "
+                        "outstation, of the central (kill -9, every third graceful), a control-"
+                        "system outage (the SCADA, or the active UNICOS driver), and with "
+                        "--handover push a fail-over of the driver pair (run: none, soak: 30)")
     p.add_argument("--cold", action="store_true",
                    help="the central restarts cold (nothing retained): lost 0 is demanded, "
                         "duplicates are counted; the outstation stays warm (its logger holds "
@@ -77,8 +82,9 @@ def main(argv=None):
                     params=SoeParams(per_record=a.per_record, per_transfer=a.per_transfer,
                                      retain=True,
                                      ack_on_receipt=a.ack_on_receipt,
+                                     redundant=a.handover == "push",
                                      timeout_ms=3000 if a.realistic else 300),
-                    scada_period_ms=a.scada_ms)
+                    scada_period_ms=a.scada_ms, handover=a.handover)
     workdir = Path(a.workdir or tempfile.mkdtemp(prefix="mipcosim-chain-"))
     last_event_s = events[-1][0]
     limit = a.limit or (60 + last_event_s * 2 / (1 - a.loss) ** 2)
@@ -87,10 +93,12 @@ def main(argv=None):
     try:
         with SoeChain(st, workdir, trace=a.trace) as ch:
             faults = (f", a fault every {a.restart_every:g} s ({'central cold' if a.cold else 'warm'}"
-                      f" restarts, SCADA outages)" if a.restart_every else "")
+                      f" restarts, {'driver outages and fail-overs' if a.handover == 'push' else 'SCADA outages'})"
+                      if a.restart_every else "")
             print(f"mip-cosim: {a.what} --chain: {a.events} relay events every {a.every_ms:g} ms, "
-                  f"{a.per_record} per record, loss {a.loss:.0%}, seed {a.seed}, SCADA polls every "
-                  f"{a.scada_ms} ms{faults}", flush=True)
+                  f"{a.per_record} per record, loss {a.loss:.0%}, seed {a.seed}, "
+                  + (f"pushed to a redundant pair of UNICOS drivers" if a.handover == "push" else
+                     f"SCADA polls every {a.scada_ms} ms") + faults, flush=True)
             k = 0
             next_fault = a.restart_every * SEC if a.restart_every else None
             last_report = time.monotonic()
@@ -99,12 +107,18 @@ def main(argv=None):
             while ch.now < limit * SEC:
                 ch.run_for(SEC)
                 if next_fault is not None and ch.now >= next_fault and not ch.finished():
-                    step = k % 3
+                    cycle = 4 if a.handover == "push" else 3
+                    step = k % cycle
                     if step == 2:
-                        ch.scada_outage(rnd.randint(1, 5) * SEC)
+                        if a.handover == "push":
+                            ch.driver_outage(rnd.randint(1, 5) * SEC)
+                        else:
+                            ch.scada_outage(rnd.randint(1, 5) * SEC)
+                    elif step == 3:
+                        ch.failover()
                     else:
                         who = "out" if step == 0 else "cen"
-                        kind = "graceful" if (k // 3) % 3 == 2 else "warm"
+                        kind = "graceful" if (k // cycle) % 3 == 2 else "warm"
                         if a.cold and who == "cen":
                             kind = "cold"
                         ch.restart(who, kind, down_ns=rnd.randint(100, 2000) * MS)
@@ -130,17 +144,21 @@ def main(argv=None):
             print(f"  radio: telegrams={radio['tel_up'] + radio['tel_down']} "
                   f"lost={radio['lost_up'] + radio['lost_down']}; relay: acknowledged="
                   f"{ch.relay.stats()['acknowledged']} refused_acks={ch.relay.stats()['bad_acks']}; "
-                  f"SCADA: failed_polls={ch.scada_failures}; {ch.now / SEC:.0f} s virtual")
+                  + (f"drivers: events A={len(ch.drivers['a'].events)} B={len(ch.drivers['b'].events)}, "
+                     f"marked duplicates A={ch.drivers['a'].duplicates} B={ch.drivers['b'].duplicates}; "
+                     if ch.push else f"SCADA: failed_polls={ch.scada_failures}; ")
+                  + f"{ch.now / SEC:.0f} s virtual")
             # transfers that failed (the outstation sends them again; the central drops them):
             # the retained counters, over warm restarts; a cold central starts its own at 0
-            failed = ch.mw("out", C.OUT_FAILED) + ch.mw("cen", C.CEN_FAILED)
+            failed = ch.mw("out", C.OUT_FAILED) + ch.mw("cen", C.PUSH_FAILED if ch.push else C.CEN_FAILED)
             cold = (f" (after a cold central restart: {rep.cold_duplicates})"
                     if a.cold else "")
             line = (f"events={rep.events} lost {rep.lost} duplicated {rep.duplicated}{cold} "
                     f"failed {failed} changed {rep.changed} out_of_order {rep.out_of_order} "
                     f"restarts {len(kinds)} (graceful {kinds.count('graceful')}, kill -9 "
-                    f"{kinds.count('warm')}, cold {kinds.count('cold')}) scada_outages "
-                    f"{ch.scada_outages} snapshots {ch.snapshots()} seconds={wall:.0f}")
+                    f"{kinds.count('warm')}, cold {kinds.count('cold')}) "
+                    f"{'driver_outages' if a.handover == 'push' else 'scada_outages'} "
+                    f"{ch.scada_outages}{f' failovers {ch.failovers}' if a.handover == 'push' else ''} snapshots {ch.snapshots()} seconds={wall:.0f}")
             if not finished and not quiet:
                 print(f"result: FAIL not finished within {limit:.0f} virtual seconds; {line}")
                 return 1

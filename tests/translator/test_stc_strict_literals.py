@@ -76,7 +76,7 @@ def test_input_argument_of_a_block_call(tmp_path):
 
 LIB = sorted(glob.glob(os.path.join(H.ROOT, "st_lib", "*.st")))
 PLC = ["central", "central_bidi", "central_many", "outstation", "outstation_bidi",
-       "central_soe", "outstation_soe"]
+       "central_soe", "outstation_soe", "central_push"]
 
 
 @pytest.mark.parametrize("prog", [None] + PLC)
