@@ -515,7 +515,8 @@ class ChainReport:
     taken: int             # entries the SCADA took (duplicates included)
     lost: int              # events that never reached the control system
     duplicated: int        # entries taken more than once
-    cold_duplicates: int   # of them: both copies taken around a cold restart of the central
+    restart_duplicates: int  # of them: a restart of the central between the two copies that
+                             # explains it (cold; push: also kill -9, see check_chain)
     changed: int           # entries taken that the relay never had (a field changed)
     out_of_order: int      # entries taken before an earlier event's first arrival
     relay_left: int        # entries still in the relay's recorder
@@ -535,7 +536,7 @@ def check_chain(ch: SoeChain) -> ChainReport:
     index = {e: i for i, e in enumerate(exp)}
     seen = {}        # (group, event) -> its first row; a group: the SCADA, or one driver
     anywhere = set()
-    changed = dup = disorder = cold_dup = 0
+    changed = dup = disorder = rst_dup = 0
     last = {}
     problems = []
     for n, r in enumerate(ch.rows):
@@ -550,12 +551,17 @@ def check_chain(ch: SoeChain) -> ChainReport:
         if (g, i) in seen:
             dup += 1
             t0, t1 = ch.taken_at[seen[g, i]], ch.taken_at[n]
-            if any(who == "cen" and kind == "cold" and t0 <= t <= t1 for t, who, kind in ch.restarts):
-                cold_dup += 1          # a cold central forgot it had handed the record over
-            elif dup - cold_dup <= 3:
+            # a cold central forgot it had handed the record over; a pushing central killed
+            # (kill -9) after a driver took a frame and before a snapshot recorded it writes the
+            # frame again: MIP_UnicosEvents cannot know, and WinCC OA has no sequence number to
+            # tell it (the SCADA of the pull way has: its SOE_Control sequence number)
+            kinds = ("cold", "warm") if ch.push else ("cold",)
+            if any(who == "cen" and kind in kinds and t0 <= t <= t1 for t, who, kind in ch.restarts):
+                rst_dup += 1
+            elif dup - rst_dup <= 3:
                 by = f" by driver {g.upper()}" if g != "scada" else ""
                 problems.append(f"event {i + 1} taken twice{by} (entries {seen[g, i] + 1} and "
-                                f"{n + 1}), no cold restart of the central between them")
+                                f"{n + 1}), no restart of the central between them that explains it")
             continue
         seen[g, i] = n
         anywhere.add(i)
@@ -574,5 +580,5 @@ def check_chain(ch: SoeChain) -> ChainReport:
         problems.append(f"the relay still holds {st['entries']} entries")
     if st["dropped"]:
         problems.append(f"the relay dropped {st['dropped']} entries (recorder full)")
-    return ChainReport(len(exp), len(ch.rows), lost, dup, cold_dup, changed, disorder, st["entries"],
+    return ChainReport(len(exp), len(ch.rows), lost, dup, rst_dup, changed, disorder, st["entries"],
                        st["dropped"], problems)
