@@ -36,6 +36,9 @@ def parse_args(argv):
     p.add_argument("--loss", type=float, default=0.0, help="telegram loss, each direction (default 0)")
     p.add_argument("--seed", type=int, default=1, help="seed of the radio and the events")
     p.add_argument("--realistic", action="store_true", help="9600 bit/s, 20 ms gaps")
+    p.add_argument("--handover", choices=["pull", "push"], default="pull",
+                   help="the central's hand-over: pull (MIP_SoeServer, polled by mip-peer scada; "
+                        "default) or push (MIP_UnicosEvents to a redundant pair of mip-peer unicos)")
     p.add_argument("--scada-interval", type=float, default=0.1,
                    help="seconds between the SCADA's polls (default 0.1)")
     p.add_argument("--timeout", type=float, default=0, help="give up after this many seconds")
@@ -55,12 +58,14 @@ def parse_args(argv):
     return a
 
 
-def build_programs(outdir):
+def build_programs(outdir, handover="pull"):
     from plcharness.build import BuildError, build_program
     res = {}
     for role, name in C.PROGRAMS.items():
+        if role == "cen" and handover == "push":
+            name = C.PUSH_PROGRAM
         try:
-            res[role] = build_program(C.program_sources(role), outdir / role)
+            res[role] = build_program(C.program_sources(role, handover), outdir / role)
         except BuildError as e:
             raise DemoError(f"building plc/{name}: {e}") from None
     return res
@@ -87,8 +92,10 @@ def run(a):
     for f in rundir.glob("*"):
         if not f.is_dir():
             f.unlink()
-    print("demo: building plc/outstation_soe.st and plc/central_soe.st ...", flush=True)
-    progs = build_programs(rundir / "programs")
+    push = a.handover == "push"
+    print(f"demo: building plc/outstation_soe.st and plc/{C.PUSH_PROGRAM if push else 'central_soe.st'}"
+          " ...", flush=True)
+    progs = build_programs(rundir / "programs", a.handover)
     t_start = time.monotonic()
     events = C.script(a.events, start_s=1.0, every_s=a.every_ms / 1000, seed=a.seed)
     script = rundir / "events.txt"
@@ -118,12 +125,31 @@ def run(a):
         trm_port = int(fields["trm"].split(",")[0])
         relay_port = int(fields["relay"].rsplit(":", 1)[-1])
         print(f"demo: {line}", flush=True)
-        params = C.SoeParams(per_record=a.per_record, timeout_ms=3000 if a.realistic else 300)
+        params = C.SoeParams(per_record=a.per_record, timeout_ms=3000 if a.realistic else 300,
+                             redundant=push)
         cen_port = free_port()
-        cen_conf = rundir / "central_soe.conf"
-        cen_conf.write_text(C.central_soe_config(mdp_port, cen_port))
-        procs.start("central soft-PLC", [str(progs["cen"].executable), "-c", str(cen_conf)],
-                    rundir / "central.log")
+        events_file = rundir / "unicos-events.jsonl"
+        if push:
+            # WinCC OA's redundant pair of UNICOS drivers (the stand-in), A active
+            u = procs.start("UNICOS driver stand-in",
+                            [sys.executable, "-m", "mippeer.unicos", "--port", "0", "--pair", "0",
+                             "--marker", hex(C.UNICOS_MARKER), "--out", str(events_file)],
+                            rundir / "unicos.log", stdout=subprocess.PIPE, text=True)
+            uline = u.stdout.readline().strip()
+            if not uline.startswith("mip-peer-unicos: listening"):
+                procs.check_alive()
+                raise DemoError(f"the UNICOS stand-in did not start: {uline!r}")
+            uports = dict(kv.split("=") for kv in uline.split()[2:])
+            print(f"demo: {uline}", flush=True)
+            cen_conf = rundir / "central_push.conf"
+            cen_conf.write_text(C.central_push_config(mdp_port, (int(uports["A"]), int(uports["B"]))))
+            procs.start("central soft-PLC", [str(progs["cen"].executable), "-c", str(cen_conf),
+                                             "-s", f"127.0.0.1:{cen_port}"], rundir / "central.log")
+        else:
+            cen_conf = rundir / "central_soe.conf"
+            cen_conf.write_text(C.central_soe_config(mdp_port, cen_port))
+            procs.start("central soft-PLC", [str(progs["cen"].executable), "-c", str(cen_conf)],
+                        rundir / "central.log")
         out_port = free_port()
         out_conf = rundir / "outstation_soe.conf"
         out_conf.write_text(C.outstation_soe_config(trm_port, relay_port))
@@ -137,14 +163,29 @@ def run(a):
         central.write(0, params.words())
         outst.write(0, params.words())
         entries = rundir / "scada-entries.jsonl"
-        scada = procs.start("SCADA stand-in",
-                            [sys.executable, "-m", "mippeer.scada", "--port", str(cen_port),
-                             "--out", str(entries), "--entries", str(a.events),
-                             "--interval", str(a.scada_interval), "--retries", "100"],
-                            rundir / "scada.log")
+        want = C.expected(events)
+        dup_i = (C.PUSH_DUP if push else C.CEN_DUP) - C.CEN_RECORDS   # the receiver's duplicates
+        if push:
+            scada = None
+            want_keys = {(w[3], w[4] // 10) for w in want}
+
+            def pushed():
+                """Events of the active driver (A) in the stand-in's file, in order."""
+                if not events_file.exists():
+                    return []
+                rows = [json.loads(x) for x in events_file.read_text().splitlines() if x.strip()]
+                return [r for r in rows if r.get("kind") == "event" and r["driver"] == "A"]
+        else:
+            scada = procs.start("SCADA stand-in",
+                                [sys.executable, "-m", "mippeer.scada", "--port", str(cen_port),
+                                 "--out", str(entries), "--entries", str(a.events),
+                                 "--interval", str(a.scada_interval), "--retries", "100"],
+                                rundir / "scada.log")
         print(f"demo: a relay with {a.events} events every {a.every_ms} ms, {a.per_record} per "
               f"record, over a {'realistic' if a.realistic else 'fast'} radio with {a.loss:.0%} "
-              f"loss (seed {a.seed}), to a SCADA polling every {a.scada_interval:g} s", flush=True)
+              f"loss (seed {a.seed}), "
+              + ("pushed to a redundant pair of UNICOS drivers" if push else
+                 f"to a SCADA polling every {a.scada_interval:g} s"), flush=True)
         limit = a.timeout or (20 + events[-1][0] + a.events * (0.5 if a.realistic else 0.05)
                               / (1 - a.loss) ** 2)
         stats = TraceStats(trace)
@@ -152,27 +193,33 @@ def run(a):
         last_print = 0.0
         t_run = time.monotonic()
         while True:
-            if scada.poll() is None:
+            if push or scada.poll() is None:
                 procs.check_alive()
             stats.update()
-            taken = sum(1 for _ in open(entries)) if entries.exists() else 0
+            if push:
+                got_push = pushed()
+                taken = len({(r["value"] & 0xFFFF, r["ts_10ms"]) for r in got_push} & want_keys)
+                done = taken >= a.events
+            else:
+                taken = sum(1 for _ in open(entries)) if entries.exists() else 0
+                done = scada.poll() is not None
             stored = outst.read(C.OUT_STORED, 2)
             ob = outst.read(C.OUT_RETRANS, 1)[0]
             cb = central.read(C.CEN_RECORDS, 12)
             now = time.monotonic()
-            line1 = (f"relay -> SCADA {bar(min(taken, a.events), a.events)}  stored at the "
+            line1 = (f"relay -> {'WinCC OA' if push else 'SCADA'} {bar(min(taken, a.events), a.events)}  stored at the "
                      f"outstation={stored[0] | stored[1] << 16} records at the central="
                      f"{cb[0] | cb[1] << 16}")
             line2 = (f"link: polls={stats.polls} telegrams={stats.telegrams} lost={stats.lost} "
-                     f"blocks={stats.blocks} retransmissions={ob} duplicates={cb[8]} "
+                     f"blocks={stats.blocks} retransmissions={ob} duplicates={cb[dup_i]} "
                      f"t={now - t_run:.1f}s")
             if tty:
                 sys.stdout.write(f"\r\033[K{line1}\n\033[K{line2}\033[F")
                 sys.stdout.flush()
-            elif now - last_print >= 1 or scada.poll() is not None:
+            elif now - last_print >= 1 or done:
                 print(f"{line1}  {line2}", flush=True)
                 last_print = now
-            if scada.poll() is not None:
+            if done:
                 break
             if now - t_run > limit:
                 if tty:
@@ -181,19 +228,24 @@ def run(a):
             time.sleep(0.1)
         if tty:
             print("\n")
-        if scada.returncode != 0:
+        if not push and scada.returncode != 0:
             tail = Path(rundir / "scada.log").read_text().strip().splitlines()[-1:]
             raise DemoError(f"the SCADA stand-in exited with {scada.returncode}: {' | '.join(tail)}")
-        time.sleep(0.5)        # the SCADA's last acknowledgement reaches the relay's side
-        rows = [json.loads(x) for x in entries.read_text().splitlines() if x.strip()]
-        got = [(r["type_bit"], r["address"], r["cause_type"], r["value"], r["ts_ms"]) for r in rows]
-        want = C.expected(events)
+        time.sleep(0.5)        # the last acknowledgement reaches the relay's side
+        if push:
+            # WinCC OA keeps no cause / type, and time stamps of 10 ms (docs/chain.md)
+            got = [(r["value"] >> 16, r["offset"], None, r["value"] & 0xFFFF, r["ts_10ms"] * 10)
+                   for r in pushed()]
+            want = [(w[0], w[1], None, w[3], w[4] // 10 * 10) for w in want]
+        else:
+            rows = [json.loads(x) for x in entries.read_text().splitlines() if x.strip()]
+            got = [(r["type_bit"], r["address"], r["cause_type"], r["value"], r["ts_ms"]) for r in rows]
         problems = []
         if got != want:
             dup = len(got) - len(set(got))
             missing = [i for i, e in enumerate(want) if e not in set(got)]
             first = next((i for i, (g, w) in enumerate(zip(got, want)) if g != w), min(len(got), len(want)))
-            problems.append(f"the SCADA took {len(got)} entries, the relay had {len(want)} "
+            problems.append(f"the control system took {len(got)} entries, the relay had {len(want)} "
                             f"({len(missing)} missing, {dup} duplicated); the first difference at "
                             f"entry {first + 1}")
         left = relay_left(relay_port)
@@ -202,7 +254,7 @@ def run(a):
         cb = central.read(C.CEN_RECORDS, 12)
         return problems, dict(events=len(got), records=cb[0] | cb[1] << 16, polls=stats.polls,
                               lost=stats.lost, retransmissions=outst.read(C.OUT_RETRANS, 1)[0],
-                              duplicates=cb[8], seconds=round(time.monotonic() - t_start, 1))
+                              duplicates=cb[dup_i], seconds=round(time.monotonic() - t_start, 1))
     finally:
         for sl in slaves:
             sl.close()

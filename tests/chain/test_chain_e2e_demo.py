@@ -46,3 +46,15 @@ def test_make_run_chain_on_the_realistic_radio_at_30_percent_loss(tmp_path):
                        capture_output=True, text=True, timeout=300)
     last = p.stdout.strip().splitlines()[-1]
     assert p.returncode == 0 and last.startswith("result: ok events=60 "), p.stdout[-2000:] + p.stderr
+
+
+@pytest.mark.slow
+def test_make_run_chain_push_to_the_unicos_pair(tmp_path):
+    """--handover push: the central writes UNICOS frames to `mip-peer unicos` (a redundant pair);
+    driver A's file holds every event once, in order, with its 10 ms time stamp."""
+    p = subprocess.run([sys.executable, str(REPO / "plc" / "demo.py"), "--chain", "--handover", "push",
+                        "--events", "40", "--loss", "0.1", "--rundir", str(tmp_path / "run")],
+                       capture_output=True, text=True, timeout=300)
+    last = p.stdout.strip().splitlines()[-1]
+    assert p.returncode == 0 and last.startswith("result: ok events=40 "), p.stdout[-2000:] + p.stderr
+    assert "relay -> WinCC OA [" in p.stdout
