@@ -1116,7 +1116,7 @@ def fig_chain(quick, workdir):
     """The chain's figures (issue 35): bench/chain_bench.py."""
     ok, why = cosim_available()
     if not ok:
-        for name in ("chain_goodput", "chain_latency_0pct", "chain_latency_30pct",
+        for name in ("chain_goodput", "chain_goodput_push", "chain_latency_0pct", "chain_latency_30pct",
                      "chain_ack_after_handover"):
             error(name, why)
         return
