@@ -102,6 +102,7 @@ class Checker:
         self.p.semantics = semantics
         self.strict_iec = strict_iec   # --strict-iec: warn where an edition-2 checker is stricter
         self.file = None
+        self.scl_files = set()         # files read as TIA SCL (compiler.py, scl_in.name_arrays)
 
     def warn(self, pos, msg):
         """Portability warning: the construct's value differs between matiec and IEC."""
@@ -1388,6 +1389,9 @@ class Checker:
             return
         if T.same_type(from_t, to_t):
             return
+        if from_t.is_array and to_t.is_array and self.file in self.scl_files:
+            self.fail(e.pos, f"{what}: {from_t} cannot be {to_t}: SCL assigns and passes arrays "
+                      "only between the same bounds and element type")
         if from_t.is_array and to_t.is_array:
             self.fail(e.pos, f"{what}: arrays can only be assigned or passed between variables of "
                       "the same named array TYPE (matiec rejects anonymous ARRAY[..] types here): "

@@ -22,6 +22,9 @@ differs between them get a portability warning (FILE:LINE:COL: warning: MESSAGE)
 mode; --werror-portability makes them errors.
 --strict-iec adds warnings where a strict IEC 61131-3 edition-2 checker rejects what matiec
 accepts (an untyped integer literal stored in an ANY_BIT variable: write WORD#0 or 16#0).
+--dialect=scl reads the inputs as TIA Portal SCL external sources (#locals, "quoted" block
+names, REGION, { attributes }, VERSION, BEGIN, // comments, TON_TIME ...; see
+translator/README.md); a FILE.scl is read so without it, and with it -I DIR reads DIR/*.scl.
 Errors are printed as FILE:LINE:COL: error: MESSAGE. Exit status: 0 success, 1 errors in
 the input, 2 bad usage."""
 
@@ -57,6 +60,9 @@ def main(argv=None):
                     help="also list every construct whose value can differ between upstream "
                          "matiec, OpenPLC's fork and IEC (FILE:LINE:COL: note: KIND: ...), "
                          "warned or not")
+    ap.add_argument("--dialect", choices=["st", "scl"], default=None,
+                    help="input language: IEC ST (matiec dialect) or TIA Portal SCL; default: "
+                         "by file name (*.scl is SCL, anything else ST)")
     ap.add_argument("--version", action="version", version=f"stc {__version__}")
     ap.add_argument("files", nargs="*", metavar="FILE.st")
     args = ap.parse_args(argv)
@@ -69,7 +75,8 @@ def main(argv=None):
     def work():
         try:
             result.append(run(args.files, args.libdirs, args.outdir, args.semantics,
-                              args.werror_portability, args.strict_iec, args.divergences))
+                              args.werror_portability, args.strict_iec, args.divergences,
+                              args.dialect))
         except Exception as e:  # last resort: never show a traceback to the user
             if os.environ.get("STC_DEBUG"):
                 raise
@@ -102,7 +109,7 @@ def run_deep(fn):
 
 
 def run(files, libdirs, outdir, semantics="matiec", werror_portability=False, strict_iec=False,
-        divergences=False):
+        divergences=False, dialect=None):
     from .compiler import compile_files
     sources = []
     seen = set()
@@ -116,7 +123,7 @@ def run(files, libdirs, outdir, semantics="matiec", werror_portability=False, st
         if not os.path.isdir(d):
             print(f"stc: error: -I {d}: not a directory", file=sys.stderr)
             return 1
-        for f in sorted(glob.glob(os.path.join(d, "*.st"))):
+        for f in sorted(glob.glob(os.path.join(d, "*.scl" if dialect == "scl" else "*.st"))):
             rp = os.path.realpath(f)
             if rp in seen:
                 continue
@@ -131,7 +138,7 @@ def run(files, libdirs, outdir, semantics="matiec", werror_portability=False, st
             print(f"stc: error: {f}: {e.strerror}", file=sys.stderr)
             return 1
     diags = Diagnostics()
-    project = compile_files(texts, diags, semantics, strict_iec)
+    project = compile_files(texts, diags, semantics, strict_iec, dialect)
     for line in diags.format(warnings=True):
         if werror_portability:   # the warnings are what fails the build: say so
             line = line.replace(": warning: ", ": error: ", 1) + " [--werror-portability]"

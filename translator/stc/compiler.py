@@ -7,16 +7,24 @@ from .check import Checker
 SEMANTICS = ("matiec", "openplc", "iec")
 
 
-def compile_files(texts, diags, semantics="matiec", strict_iec=False):
+def dialect_of(fname, dialect=None):
+    """The dialect of a file: the one given, else "scl" for *.scl, else "st"."""
+    if dialect:
+        return dialect
+    return "scl" if fname.lower().endswith(".scl") else "st"
+
+
+def compile_files(texts, diags, semantics="matiec", strict_iec=False, dialect=None):
     """texts: [(filename, text, is_library)]. Returns a Project (valid only without errors).
     semantics: "matiec" (reproduce upstream matiec's run-time values, the default), "openplc"
     (the matiec fork OpenPLC v3 ships) or "iec" (IEC 61131-3 values); portability warnings go
-    to diags.warnings in every mode."""
+    to diags.warnings in every mode. dialect: "st", "scl" (TIA Portal SCL) or None (by each
+    file's name: *.scl is SCL)."""
     if semantics not in SEMANTICS:
         raise ValueError(f"semantics must be one of {', '.join(SEMANTICS)}, not {semantics!r}")
     parsed = []
     for fname, text, lib in texts:
-        nodes = parser.parse(text, fname, diags)
+        nodes = parser.parse(text, fname, diags, dialect_of(fname, dialect))
         if nodes is None:
             continue
         if lib:
@@ -24,4 +32,9 @@ def compile_files(texts, diags, semantics="matiec", strict_iec=False):
         parsed.append((fname, nodes))
     if diags:
         return None
-    return Checker(diags, semantics, strict_iec).run(parsed)
+    checker = Checker(diags, semantics, strict_iec)
+    checker.scl_files = {f for f, _t, _l in texts if dialect_of(f, dialect) == "scl"}
+    if checker.scl_files:
+        from .scl_in import name_arrays
+        name_arrays(parsed)
+    return checker.run(parsed)

@@ -654,14 +654,21 @@ def _unexpected_message(e):
     return f"unexpected {what}"
 
 
-def parse(text, filename, diags):
-    """Parse one file; syntax errors go to diags. Returns a list of top-level nodes."""
+def parse(text, filename, diags, dialect="st"):
+    """Parse one file; syntax errors go to diags. Returns a list of top-level nodes.
+    dialect "scl": TIA Portal SCL, rewritten to ST in place first (scl_in.py)."""
     p = _get_parser()
     errors = []
 
     def report(pos, msg):
         diags.error(filename, pos, msg)
         errors.append(msg)
+
+    if dialect == "scl":
+        from .scl_in import to_st
+        text = to_st(text, report)
+        if text is None or errors:
+            return None
 
     rec = _Recovery(report)
     _comment_sink[0] = lambda tok: report(
