@@ -19,6 +19,7 @@ class ChainReport:
     out_of_order: int      # entries taken before an earlier event's first arrival
     relay_left: int        # entries still in the relay's recorder
     relay_dropped: int     # entries the relay dropped (its recorder overflowed)
+    lost_at_relay: int     # events a relay restart took before the outstation had them
     problems: list
 
 
@@ -68,15 +69,17 @@ def check_chain(ch) -> ChainReport:
             if disorder <= 3:
                 problems.append(f"event {i + 1} arrived after event {last[g] + 1}")
         last[g] = max(last.get(g, -1), i)
-    lost = len(exp) - len(anywhere)
+    gone = [i for i in range(len(exp)) if i not in anywhere]
+    at_relay = sum(1 for i in gone if i in ch.at_risk)
+    lost = len(gone) - at_relay
     if lost:
-        first = next(i for i in range(len(exp)) if i not in anywhere)
+        first = next(i for i in gone if i not in ch.at_risk)
         problems.append(f"{lost} event(s) never reached the control system (the first: event "
                         f"{first + 1}, {exp[first]})")
-    st = ch.relay.stats()
+    st = ch.relay_stats()
     if st["entries"]:
         problems.append(f"the relay still holds {st['entries']} entries")
     if st["dropped"]:
         problems.append(f"the relay dropped {st['dropped']} entries (recorder full)")
     return ChainReport(len(exp), len(ch.rows), lost, dup, rst_dup, changed, disorder, st["entries"],
-                       st["dropped"], problems)
+                       st["dropped"], at_relay, problems)

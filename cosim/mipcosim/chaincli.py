@@ -41,7 +41,7 @@ def parse(argv):
     p.add_argument("--restart-every", type=float,
                    help="virtual seconds between faults, in turn: a warm restart of the "
                         "outstation, of the central (kill -9, every third graceful), a control-"
-                        "system outage (the SCADA, or the active UNICOS driver), and with "
+                        "system outage (the SCADA, or the active UNICOS driver), with "
                         "--handover push a fail-over of the driver pair (run: none, soak: 30)")
     p.add_argument("--cold", action="store_true",
                    help="the central restarts cold (nothing retained): lost 0 is demanded, "
@@ -138,12 +138,15 @@ def main(argv=None):
             rep = check_chain(ch)
             radio = ch.radio_stats()
             wall = time.monotonic() - t0
-            kinds = [kd for _, _, kd in ch.restarts]
+            kinds = [kd for _, who, kd in ch.restarts if who != "relay"]
+            relay_restarts = len(ch.restarts) - len(kinds)
             for p in rep.problems[:10]:
                 print(f"  problem: {p}")
             print(f"  radio: telegrams={radio['tel_up'] + radio['tel_down']} "
                   f"lost={radio['lost_up'] + radio['lost_down']}; relay: acknowledged="
-                  f"{ch.relay.stats()['acknowledged']} refused_acks={ch.relay.stats()['bad_acks']}; "
+                  f"{ch.relay_stats()['acknowledged']} refused_acks={ch.relay_stats()['bad_acks']} "
+                  f"restarts={relay_restarts} (events it held then, not yet stored at the outstation: "
+                  f"{len(ch.at_risk)}, of them never at the control system: {rep.lost_at_relay}); "
                   + (f"drivers: events A={len(ch.drivers['a'].events)} B={len(ch.drivers['b'].events)}, "
                      f"marked duplicates A={ch.drivers['a'].duplicates} B={ch.drivers['b'].duplicates}; "
                      if ch.push else f"SCADA: failed_polls={ch.scada_failures}; ")

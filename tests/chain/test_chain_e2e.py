@@ -7,7 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from mipcosim.chain import ChainSetup, SoeChain, SoeParams, check_chain, expected, program_sources, script
+from mipcosim.chain import (ChainSetup, SoeChain, SoeParams, check_chain, expected, program_sources,
+                            script)
 from mipcosim.sim import MS, SEC
 from plcharness.build import build_program, matiec_available
 
@@ -29,6 +30,8 @@ def run_chain(workdir, events, loss, faults=(), retain=True, ack_on_receipt=Fals
                 ch.driver_outage(2 * SEC)
             elif what == "failover":
                 ch.failover()
+            elif what == "relay":
+                ch.restart_relay()
             elif what == "scada":
                 ch.scada_outage(2 * SEC)
             else:
@@ -68,6 +71,27 @@ def test_push_chain_exact_with_a_fail_over_a_driver_outage_and_warm_restarts(cha
         assert got == [(w[1], w[0] << 16 | w[3], (ts // 10)) for (_, w), (*_, ts) in
                        zip(events, expected(events))], d
         assert ch.drivers[d].duplicates == 0
+
+
+def test_a_relay_restart_between_two_bursts_loses_and_repeats_nothing(chain_workdir):
+    """The relay restarts (mipcosim_relay_restart: recorder empty, sequence number 0) after the
+    outstation took its entries and before the next ones: the reader sees 0 (a relay that
+    started, docs/chain.md "How a read is judged") and takes the new relay's numbers from 1;
+    every event arrives once, in order."""
+    events = script(50) + [(t + 6.0, w) for t, w in script(50, seed=2)]   # 0.5..2.95, 6.5..8.95 s
+    finished, rep, ch = run_chain(chain_workdir, events, 0.3, [(5.5, "relay")])
+    assert finished and rep.problems == [] and rep.lost == rep.duplicated == 0, rep.problems
+    assert rep.lost_at_relay == 0 and [w for _, w, _ in ch.restarts] == ["relay"]
+
+
+@pytest.mark.xfail(strict=True, reason="MIP_SoeReader keeps its open read over a disable; a "
+                   "restarted relay whose first offer comes before the reader saw 0 shows a "
+                   "sequence number the reader rejects for good (reported with issue 35's chain)")
+def test_a_relay_restart_with_events_right_after_it(chain_workdir):
+    """The relay restarts while events keep coming: the reader should take the new relay's
+    numbers; today it stays in MIP_SOE_ERR_SEQUENCE and the relay fills up."""
+    finished, rep, _ = run_chain(chain_workdir, script(400), 0.3, [(3.02, "relay")], limit_s=60)
+    assert finished and rep.lost == 0, rep.problems
 
 
 def test_a_cold_central_loses_nothing_and_its_duplicates_are_exact_copies(chain_workdir):
