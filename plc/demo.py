@@ -394,6 +394,10 @@ def run(a):
 
 
 def main(argv=None):
+    args = sys.argv[1:] if argv is None else list(argv)
+    if "--chain" in args:     # relay -> PLCs -> radio -> SCADA (issue 35): plc/demo_chain.py
+        import demo_chain
+        return demo_chain.main(args)
     a = parse_args(argv)
     # Ctrl-C and SIGTERM end the run through the finally clauses (every process stopped)
     signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
