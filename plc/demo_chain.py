@@ -23,7 +23,8 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "cosim"))
 sys.path.insert(0, str(REPO / "plc"))
 
-from demo import DemoError, Procs, Slave, TraceStats, bar, free_port   # noqa: E402
+from demo import (DemoError, Procs, Progress, Slave, TraceStats, bar, free_port,  # noqa: E402
+                  fresh_rundir, radio_args, start_emulator)
 from mipcosim import chain as C                                         # noqa: E402
 
 
@@ -87,11 +88,7 @@ def relay_left(port):
 
 
 def run(a):
-    rundir = Path(a.rundir)
-    rundir.mkdir(parents=True, exist_ok=True)
-    for f in rundir.glob("*"):
-        if not f.is_dir():
-            f.unlink()
+    rundir = fresh_rundir(a.rundir)
     push = a.handover == "push"
     print(f"demo: building plc/outstation_soe.st and plc/{C.PUSH_PROGRAM if push else 'central_soe.st'}"
           " ...", flush=True)
@@ -101,26 +98,16 @@ def run(a):
     script = rundir / "events.txt"
     script.write_text("".join(f"{t:.3f} " + " ".join(f"{w:#06x}" for w in ws) + "\n"
                               for t, ws in events))
-    emu = REPO / "build" / "emulator" / "mip-emulator"
-    if not emu.is_file():
-        raise DemoError(f"{emu} missing: run make")
-    radio = (["--bitrate", "9600", "--slot-gap-ms", "20"] if a.realistic
-             else ["--bitrate", "1000000", "--slot-gap-ms", "1"])
+    radio = radio_args(a.realistic)
     procs = Procs()
     slaves = []
     try:
         trace = rundir / "emulator-trace.jsonl"
-        p = procs.start("mip-emulator",
-                        [str(emu), "--mdp-port", "0", "--trm-base-port", "0", "--stations", "1",
-                         "--loss-up", str(a.loss), "--loss-down", str(a.loss), "--seed", str(a.seed),
-                         "--trace", str(trace), "--lose-record", "0",
-                         "--relay", f"0:origin={C.ORIGIN_MS},cap=1000,script={script}"] + radio,
-                        rundir / "emulator.log", stdout=subprocess.PIPE, text=True)
-        line = p.stdout.readline().strip()
-        if not line.startswith("mip-emulator: listening"):
-            procs.check_alive()
-            raise DemoError(f"mip-emulator did not start: {line!r}")
-        fields = dict(kv.split("=", 1) for kv in line.split()[2:])
+        line, fields = start_emulator(
+            procs, rundir, ["--mdp-port", "0", "--trm-base-port", "0", "--stations", "1",
+                            "--loss-up", str(a.loss), "--loss-down", str(a.loss),
+                            "--seed", str(a.seed), "--trace", str(trace), "--lose-record", "0",
+                            "--relay", f"0:origin={C.ORIGIN_MS},cap=1000,script={script}"] + radio)
         mdp_port = int(fields["mdp"].rsplit(":", 1)[1])
         trm_port = int(fields["trm"].split(",")[0])
         relay_port = int(fields["relay"].rsplit(":", 1)[-1])
@@ -189,9 +176,7 @@ def run(a):
         limit = a.timeout or (20 + events[-1][0] + a.events * (0.5 if a.realistic else 0.05)
                               / (1 - a.loss) ** 2)
         stats = TraceStats(trace)
-        tty = sys.stdout.isatty()
-        last_print = 0.0
-        t_run = time.monotonic()
+        progress = Progress()
         while True:
             if push or scada.poll() is None:
                 procs.check_alive()
@@ -206,28 +191,20 @@ def run(a):
             stored = outst.read(C.OUT_STORED, 2)
             ob = outst.read(C.OUT_RETRANS, 1)[0]
             cb = central.read(C.CEN_RECORDS, 12)
-            now = time.monotonic()
             line1 = (f"relay -> {'WinCC OA' if push else 'SCADA'} {bar(min(taken, a.events), a.events)}  stored at the "
                      f"outstation={stored[0] | stored[1] << 16} records at the central="
                      f"{cb[0] | cb[1] << 16}")
             line2 = (f"link: polls={stats.polls} telegrams={stats.telegrams} lost={stats.lost} "
                      f"blocks={stats.blocks} retransmissions={ob} duplicates={cb[dup_i]} "
-                     f"t={now - t_run:.1f}s")
-            if tty:
-                sys.stdout.write(f"\r\033[K{line1}\n\033[K{line2}\033[F")
-                sys.stdout.flush()
-            elif now - last_print >= 1 or done:
-                print(f"{line1}  {line2}", flush=True)
-                last_print = now
+                     f"t={progress.elapsed():.1f}s")
+            progress.show(line1, line2, final=done)
             if done:
                 break
-            if now - t_run > limit:
-                if tty:
-                    print("\n")
+            if progress.elapsed() > limit:
+                progress.close()
                 raise DemoError(f"timeout after {limit:.0f} s: {taken} of {a.events} events at the SCADA")
             time.sleep(0.1)
-        if tty:
-            print("\n")
+        progress.close()
         if not push and scada.returncode != 0:
             tail = Path(rundir / "scada.log").read_text().strip().splitlines()[-1:]
             raise DemoError(f"the SCADA stand-in exited with {scada.returncode}: {' | '.join(tail)}")
