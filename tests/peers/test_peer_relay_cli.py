@@ -35,19 +35,3 @@ def test_bad_script_is_one_line(tmp_path):
                        capture_output=True, text=True, timeout=30)
     assert p.returncode == 2
     assert p.stderr.strip() == f"mip-peer-relay: error: {bad}:1: expected SECONDS W0 W1 W2 W3"
-
-
-def test_the_independent_relay_uses_nothing_of_ours():
-    """Kept independent (peers/README.md): only the standard library, nothing of the emulator,
-    st_lib, the co-simulation or the rest of mippeer; and no pymodbus, so its framing is its own."""
-    import ast
-    from pathlib import Path
-    src = Path(__file__).resolve().parents[2] / "peers" / "mippeer" / "siprotec.py"
-    mods = set()
-    for node in ast.walk(ast.parse(src.read_text())):
-        if isinstance(node, ast.Import):
-            mods |= {a.name.split(".")[0] for a in node.names}
-        elif isinstance(node, ast.ImportFrom):
-            assert node.level == 0, "a relative import"
-            mods.add(node.module.split(".")[0])
-    assert mods and mods <= set(sys.stdlib_module_names), mods - set(sys.stdlib_module_names)

@@ -3,7 +3,6 @@ independent one (mippeer/siprotec.py, in this process) and the emulator's (`mip-
 in real time): every entry once, in order, time stamps unchanged, the recorder empty after; a lost
 acknowledgement answer, a lost acknowledgement and a restarted master take nothing twice; bad
 answers and a dead server are one line after bounded retries."""
-import ast
 import json
 import os
 import re
@@ -208,17 +207,3 @@ def test_bad_options_are_one_line(tmp_path, inproc):
     assert p.stderr.strip() == f"mip-peer scada: error: {tmp_path / 'bad.jsonl'}:1: not a JSON line"
     p = inproc("--port", 1, "--out", tmp_path)
     assert p.returncode == 2 and p.stderr.strip() == f"mip-peer scada: error: {tmp_path}: Is a directory"
-
-
-def test_the_scada_master_uses_nothing_of_ours():
-    """Written from the manual's handshake alone: the standard library only, nothing of st_lib,
-    the emulator, the co-simulation or the rest of mippeer (its Modbus framing is its own)."""
-    src = REPO / "peers" / "mippeer" / "scada.py"
-    mods = set()
-    for node in ast.walk(ast.parse(src.read_text())):
-        if isinstance(node, ast.Import):
-            mods |= {a.name.split(".")[0] for a in node.names}
-        elif isinstance(node, ast.ImportFrom):
-            assert node.level == 0, "a relative import"
-            mods.add(node.module.split(".")[0])
-    assert mods and mods <= set(sys.stdlib_module_names), mods - set(sys.stdlib_module_names)
