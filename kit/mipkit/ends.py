@@ -8,6 +8,10 @@ PLC's config would otherwise talk to, and follow the PLC through its restarts.
 from __future__ import annotations
 
 import collections
+import ctypes
+import hashlib
+import socket
+from pathlib import Path
 
 from .net import MS, SEC, KitError
 
@@ -111,6 +115,8 @@ def _as_entries(received):
     tuples)."""
     if isinstance(received, KitUnicos):
         return "unicos", received.unique()
+    if isinstance(received, KitScada):
+        received = received.unique()
     out = []
     for item in received:
         item = list(item)
@@ -234,3 +240,140 @@ class KitUnicos:
             parts.append(f"driver {d}: {len(drv.events)} events, {drv.duplicates} duplicates, "
                          f"{drv.refused} refused, {pd.unanswered if pd else 0} unanswered")
         return f"unicos {self.name}: " + "; ".join(parts)
+
+
+def slave_config(config: Path, workdir: Path) -> Path:
+    """The config the kit loads: a plcrt config with a [slave] section listens on a free port
+    in the kit (the SCADA stand-in reaches it in process; port 502 needs root and two tests
+    would share it): a copy with port = 0, every other line where it was (plcrt's messages keep
+    their line numbers; a [slave] without a port key gets the line after its header). Other
+    configs as they are."""
+    lines = config.read_text().splitlines()
+    section, header, changed = None, None, False
+    for i, raw in enumerate(lines):
+        line = raw.split("#", 1)[0].strip()
+        if line.startswith("["):
+            section = line.strip("[] ").lower()
+            if section == "slave":
+                header = i
+        elif section == "slave" and "=" in line and line.split("=", 1)[0].strip() == "port":
+            lines[i], changed = "port = 0", True
+    if header is None:
+        return config
+    if not changed:
+        lines.insert(header + 1, "port = 0")
+    out = Path(workdir) / "configs" / hashlib.sha1(str(config.resolve()).encode()).hexdigest()[:10]
+    out.mkdir(parents=True, exist_ok=True)
+    out = out / config.name
+    out.write_text("\n".join(lines) + "\n")
+    return out
+
+
+class KitScada:
+    """The SCADA master of the pull way (peers/mippeer/scada.py's SoeMaster, written from the
+    SOE handshake alone) polling the Modbus slave of PLC `kp` (its [slave] section; the
+    program's MIP_SoeServer) every poll_ms, in process and in virtual time: a request is
+    answered at once from the PLC's image of its last scan (a LAN without delay). base: the
+    register of the event count (600 = 40601); reack: seconds before an unchanged offer is
+    acknowledged again; down: [(from_s, to_s), ...] without polls (the SCADA stopped)."""
+
+    def __init__(self, net, name, kp, base=600, poll_ms=100, reack=1.0, down=()):
+        from mippeer.scada import Client, SoeMaster
+        from .net import _SCAN
+        if kp.plc.slave_port <= 0:
+            raise KitError(f"scada {name}: {kp.name}'s config {kp.config} has no [slave] "
+                           "section: the SCADA polls the PLC's Modbus slave")
+        if not isinstance(base, int) or not 0 <= base <= 65535 - 26:
+            raise KitError(f"scada {name}: base {base!r}: a register 0..65509")
+        if not isinstance(poll_ms, (int, float)) or poll_ms <= 0:
+            raise KitError(f"scada {name}: poll_ms {poll_ms!r}: a period in ms, > 0")
+        self.net, self.name, self.plc = net, name, kp
+        self.down = _times(down, f"scada {name}: down")
+        self.rows = []              # the entries taken, in order (dicts of mippeer.scada.entry)
+        self.failures = 0           # polls that failed (no answer, connection gone)
+        kit = self
+
+        class InProcess(Client):
+            """mippeer's client on one end of a socket pair whose other end the PLC's slave
+            serves (plcrt_slave_add_client); a new pair after a failure (a restarted PLC)."""
+
+            def _connect(self):
+                if self.sock is None:
+                    a, b = socket.socketpair()
+                    lib = kit.plc.plc.library
+                    lib.plcrt_slave_add_client.argtypes = [ctypes.c_void_p, ctypes.c_int]
+                    if lib.plcrt_slave_add_client(kit.plc.plc.handle, b.detach()) != 0:
+                        a.close()
+                        raise ScadaError("the PLC's slave refused the connection")
+                    a.settimeout(0.5)
+                    self.sock = a
+
+        from mippeer.scada import ScadaError
+
+        def serve():
+            lib = kit.plc.plc.library
+            lib.plcrt_slave_poll.argtypes = [ctypes.c_void_p, ctypes.c_int]
+            lib.plcrt_slave_poll(kit.plc.plc.handle, 0)
+
+        self._client = InProcess("kit", 0, after_send=serve)
+
+        def sink(entries):
+            t = net.now / SEC
+            for e in entries:
+                e["t_s"] = t
+                k = (e["type_bit"], e["address"], e["value"], e["ts_ms"])
+                e["duplicate"] = k in self._seen
+                self._seen.add(k)
+            self.rows.extend(entries)
+
+        self._seen = set()
+        self.master = SoeMaster(self._client, base, sink, reack)
+        self.error = None
+        self._scan = _SCAN(self._poll)
+        self.pid = net.lib.mipcosim_plc_add(net.sim, ctypes.cast(self._scan, ctypes.c_void_p), 1,
+                                            int(poll_ms * MS))
+        net._check(0 if self.pid >= 0 else -1)
+
+    def _poll(self, _rt, _n):
+        from mippeer.scada import ScadaError
+        now = self.net.now
+        if any(a <= now < b for a, b in self.down):
+            self._client.close()
+            return 0
+        try:
+            self.master.poll(now / SEC)
+        except ScadaError:
+            self.failures += 1          # read again at the next poll, as the master's CLI does
+        except BaseException as e:  # noqa: BLE001 - handed back through the C loop
+            self.error = e
+            return -1
+        return 0
+
+    def check(self):
+        if self.error is not None:
+            e, self.error = self.error, None
+            raise e
+
+    def entries(self):
+        """The entries taken, in order: type_bit, address, cause_type, value, ts_ms, regs (the
+        8 registers), offer, seq, t_s (virtual time taken), duplicate (taken before)."""
+        return list(self.rows)
+
+    def duplicates(self):
+        return [e for e in self.rows if e["duplicate"]]
+
+    def unique(self):
+        """The 8 registers of every entry taken, once each."""
+        seen, out = set(), []
+        for e in self.rows:
+            k = tuple(e["regs"])
+            if k not in seen:
+                seen.add(k)
+                out.append(list(k))
+        return out
+
+    def report(self):
+        m = self.master
+        return (f"scada {self.name}: {len(self.rows)} entries, {len(self.duplicates())} "
+                f"duplicates, {m.acks} acknowledgements ({m.reacks} repeated, {m.refused} "
+                f"refused), {self.failures} failed polls")

@@ -232,7 +232,8 @@ class KitPlc:
 
     def _start(self, snapshot=None):
         net = self.net
-        plc = Plc(self.result, net.workdir, config=self.config)
+        from .ends import slave_config
+        plc = Plc(self.result, net.workdir, config=slave_config(self.config, net.workdir))
         plc.retain_in_memory(self.retain_period_ns)
         if snapshot is not None:
             plc.retain_load(snapshot)
@@ -554,9 +555,26 @@ class Net:
         an answer. Give it before the network runs. Returns a KitUnicos."""
         from .ends import KitUnicos
         name = self._name(name)
-        u = KitUnicos(self, name, self._plc_of(plc, f"unicos {name}"), device, device_b, **kw)
+        try:
+            u = KitUnicos(self, name, self._plc_of(plc, f"unicos {name}"), device, device_b, **kw)
+        except TypeError as e:
+            raise KitError(f"unicos {name}: {e}") from None
         self.ends[name] = u
         return u
+
+    def scada(self, name="scada", plc=None, **kw):
+        """A SCADA polling PLC `plc`'s Modbus slave (its config's [slave]; the program's
+        MIP_SoeServer) through the SOE handshake (peers/mippeer/scada.py), in virtual time:
+        base (600), poll_ms (100), reack (1.0 s), down = [(from_s, to_s), ...] without polls.
+        Returns a KitScada."""
+        from .ends import KitScada
+        name = self._name(name)
+        try:
+            s = KitScada(self, name, self._plc_of(plc, f"scada {name}"), **kw)
+        except TypeError as e:
+            raise KitError(f"scada {name}: {e}") from None
+        self.ends[name] = s
+        return s
 
     def __getitem__(self, name):
         if name in self.plcs:
@@ -630,6 +648,10 @@ class Net:
                 if p.error is not None:
                     e, p.error = p.error, None
                     raise KitError(f"peer {p.name} failed: {type(e).__name__}: {e}") from None
+            for p in self.ends.values():
+                if getattr(p, "error", None) is not None:
+                    e, p.error = p.error, None
+                    raise KitError(f"{p.name} failed: {type(e).__name__}: {e}") from None
             failed = self.lib.mipcosim_failed_plc(self.sim)
             for p in self.plcs.values():
                 if p.pid == failed:

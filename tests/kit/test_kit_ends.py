@@ -152,3 +152,49 @@ def test_unicos_bad_input_is_one_line(net):
         net.unicos("u", kp, "unicos_b")
     with pytest.raises(KitError, match=r"^central: device 'unicos' is given to a stand-in already$"):
         net.unicos("u2", kp, "unicos")
+
+
+def soe_central(net, total):
+    kp = net.plc("central", lib() + [HERE / "SoeCentral.st"], HERE / "soe.conf", at="mdp")
+    kp["%MW0"] = total
+    return kp
+
+
+def test_scada_polls_the_central_and_takes_every_entry_once(net):
+    kp = soe_central(net, 20)
+    scada = net.scada("scada", kp, poll_ms=100, down=[(0.5, 1.5)])
+    net.run_for(0.45)
+    first = len(scada.entries())
+    assert 0 < first < 20                   # 3 entries per offer, one offer per poll
+    net.run_for(1.0)
+    assert len(scada.entries()) == first    # stopped: nothing taken, nothing lost
+    assert net.run_until(lambda: kp["MAIN.srv.udiAcked"] == 20, within_s=5)
+    rows = scada.entries()
+    assert [(r["address"], r["ts_ms"]) for r in rows] == [(k, ORIGIN + k) for k in range(1, 21)]
+    assert all(r["t_s"] >= 1.5 for r in rows[first:]) and scada.duplicates() == []
+    assert "20 entries, 0 duplicates" in scada.report()
+    want = [entry(0x0101, k, 0x0101, k % 2, ORIGIN + k) for k in range(1, 21)]
+    assert missing(want, scada) == []
+
+
+def test_scada_follows_a_restarted_central_and_bad_input_is_one_line(net):
+    kp = soe_central(net, 6)
+    with pytest.raises(KitError, match=r"^scada s: poll_ms 0: a period in ms, > 0$"):
+        net.scada("s", kp, poll_ms=0)
+    with pytest.raises(KitError, match=r"^scada s: .*unexpected keyword argument 'period'"):
+        net.scada("s", kp, period=1)
+    scada = net.scada("s", kp)
+    assert net.run_until(lambda: len(scada.entries()) == 6, within_s=3)
+    kp.restart("cold")                      # a new slave: the SCADA connects again
+    kp["%MW0"] = 3
+    assert net.run_until(lambda: len(scada.entries()) == 9, within_s=3)
+    # the cold-started server offers entries 1..3 again: the SCADA takes them as new, marked
+    assert [r["address"] for r in scada.duplicates()] == [1, 2, 3] and scada.failures >= 1
+    other = Net(net.workdir / "other", 1)
+    try:
+        kr = other.plc("outstation", lib() + [HERE / "RelayReader.st"], HERE / "relay.conf", at=1)
+        with pytest.raises(KitError, match=r"^scada s: outstation's config .*relay\.conf has no "
+                                           r"\[slave\] section"):
+            other.scada("s", kr)
+    finally:
+        other.close()
