@@ -101,6 +101,12 @@ class KitRelay:
         acknowledged, reset_cleared, bad_acks, seq, offered."""
         return self.relay.stats()
 
+    def report(self):
+        st = self.stats()
+        return (f"relay {self.name}: {st['generated']} events ({len(self.scripted)} scripted), "
+                f"{st['acknowledged']} acknowledged, {st['dropped']} dropped (overflow), "
+                f"{st['entries']} still in the recorder")
+
     def missing(self, received):
         """The scripted events (8 words each) that `received` does not hold: received is a
         KitUnicos (its events, either driver), a list of 8-word entries, or of payloads whose
