@@ -369,7 +369,8 @@ class Run:
         from .report import fmt_t, observer
         net = self.net
         done = f"complete at {fmt_t(self.done_at)}" if self.done_at is not None else \
-            f"not complete at {fmt_t(net.now)}"
+            f"not complete at {fmt_t(net.now)}" if self.delivered is not None else \
+            f"ran to {fmt_t(net.now)}"          # no judge: nothing to complete
         parts = [done]
         if self.delivered is not None:
             parts.append(f"{self.delivered()} records delivered")

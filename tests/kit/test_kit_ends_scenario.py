@@ -83,3 +83,21 @@ def test_bad_ends_are_one_line(capsys, work, tmp_path, name, change, line):
     fails = [l for l in out.splitlines() if l.startswith("FAIL")]
     assert len(fails) == 1 and re.search(line, fails[0]), out
     assert "Traceback" not in out
+
+
+def test_the_pages_ends_tables_use_known_keys():
+    """docs/test-kit.md's [[relay]] / [[unicos]] / [[scada]] example: every key is one mip-kit
+    knows (a renamed key would make the page's example a one-line error)."""
+    import tomllib
+    from mipkit.scenario import _check_keys
+    page = (kit_helpers.REPO / "docs" / "test-kit.md").read_text()
+    block = next(b for b in re.findall(r"```toml\n(.*?)```", page, re.S) if "[[relay]]" in b)
+    doc = tomllib.loads(block)
+    _check_keys(doc, "", "test-kit.md")
+    for t in ("relay", "unicos", "scada"):
+        assert doc[t], t
+        for item in doc[t]:
+            _check_keys(item, t, "test-kit.md")
+    for v in doc["expect"]["reached"]:
+        _check_keys(v, "expect.reached", "test-kit.md")
+    _check_keys(doc["expect"], "expect", "test-kit.md")
