@@ -198,3 +198,39 @@ def test_scada_follows_a_restarted_central_and_bad_input_is_one_line(net):
             other.scada("s", kr)
     finally:
         other.close()
+
+
+PLUGIN_TEST = '''
+from pathlib import Path
+HERE = Path(r"{here}")
+
+def test_relay_to_log(mip_network, mip_st_lib):
+    net = mip_network()
+    out = net.plc("outstation", mip_st_lib + [HERE / "RelayReader.st"], HERE / "relay.conf", at=1)
+    relay = net.relay("relay", out, "relay", [(0.05, [0x0102, 101, 0x0101, 1])], rate=5.0)
+    net.run_for(1)
+    log = [[out[f"MAIN.ALOG[{{8 * k + j}}]"] for j in range(8)] for k in range(out["MAIN.ULOGN"])]
+    st = relay.stats()
+    assert relay.missing(log) == [] and len(log) == st["acknowledged"] and st["generated"] >= 5
+
+def test_wrong_device(mip_network, mip_st_lib):
+    net = mip_network()
+    out = net.plc("outstation", mip_st_lib + [HERE / "RelayReader.st"], HERE / "relay.conf", at=1)
+    net.unicos("wincc", out, "unicos")
+'''
+
+
+def test_the_plugins_network_has_the_ends(tmp_path):
+    """Through the pytest plugin (mip_network), as an integrator's test uses them: green, and a
+    stand-in given a device the config lacks fails with its one line."""
+    import re
+    import sys
+    from kit_helpers import kit_env, run
+    (tmp_path / "test_user.py").write_text(PLUGIN_TEST.format(here=HERE))
+    r = run([sys.executable, "-m", "pytest", "-p", "mipkit.plugin", "-p", "no:cacheprovider", "-q",
+             "test_user.py", f"--basetemp={tmp_path / 'bt'}"], tmp_path, kit_env())
+    out = r.stdout + r.stderr
+    assert r.returncode == 1 and "1 passed" in out and "1 failed" in out, out
+    m = re.search(r"_+ test_wrong_device _+\n(.*?)\n(?:-|=)", out, re.S)
+    assert m and re.fullmatch(r"outstation: device 'unicos' is not in .*relay\.conf \(it has relay\)",
+                              m.group(1).strip()), out
