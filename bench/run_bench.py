@@ -1112,10 +1112,23 @@ def fig_readout(quick, workdir):
          "OK" if block_scans <= 1 else "MISSED")
 
 
+def fig_chain(quick, workdir):
+    """The chain's figures (issue 35): bench/chain_bench.py."""
+    ok, why = cosim_available()
+    if not ok:
+        for name in ("chain_goodput", "chain_goodput_push", "chain_latency_0pct", "chain_latency_30pct",
+                     "chain_ack_after_handover"):
+            error(name, why)
+        return
+    sys.path.insert(0, str(REPO / "bench"))
+    import chain_bench
+    chain_bench.fig_chain(quick, workdir, line, error)
+
+
 # ---------------------------------------------------------------- main
 
 FIGURES = ["goodput", "goodput_pipelined", "goodput_rtu", "fc23_gain", "scan_cost", "emu_throughput",
-           "cosim_speed", "cosim_scale", "translator", "memory", "readout", "kit_scenario"]
+           "cosim_speed", "cosim_scale", "translator", "memory", "readout", "kit_scenario", "chain"]
 
 
 def main(argv=None):
@@ -1153,6 +1166,7 @@ def main(argv=None):
             "memory": lambda: fig_memory(a.quick),
             "readout": lambda: fig_readout(a.quick, work / "readout"),
             "kit_scenario": lambda: fig_kit_scenario(a.quick, work / "kit"),
+            "chain": lambda: fig_chain(a.quick, work / "chain"),
         }
         for fig in FIGURES:
             if fig in only:

@@ -218,22 +218,72 @@ def lost_record_clause(a):
             f"there is no record {a.lose_record})")
 
 
-def run(a):
-    rundir = Path(a.rundir)
+def fresh_rundir(path) -> Path:
+    """The run's directory, emptied of the files of an earlier run."""
+    rundir = Path(path)
     rundir.mkdir(parents=True, exist_ok=True)
     for f in rundir.glob("*"):
         if not f.is_dir():
             f.unlink()
+    return rundir
+
+
+def start_emulator(procs, rundir, args):
+    """Starts mip-emulator with `args` (a trace, fault and port options) and returns its
+    'listening' line and that line's fields (mdp=, trm=, relay=, ...)."""
+    emu = REPO / "build" / "emulator" / "mip-emulator"
+    if not emu.is_file():
+        raise DemoError(f"{emu} missing: run make")
+    p = procs.start("mip-emulator", [str(emu)] + args, rundir / "emulator.log",
+                    stdout=subprocess.PIPE, text=True)
+    line = p.stdout.readline().strip()
+    if not line.startswith("mip-emulator: listening"):
+        procs.check_alive()
+        raise DemoError(f"mip-emulator did not start: {line!r}")
+    return line, dict(kv.split("=", 1) for kv in line.split()[2:])
+
+
+def radio_args(realistic):
+    """The emulator's radio: the realistic one (9600 bit/s, 20 ms gaps) or a fast one."""
+    return (["--bitrate", "9600", "--slot-gap-ms", "20"] if realistic
+            else ["--bitrate", "1000000", "--slot-gap-ms", "1"])
+
+
+class Progress:
+    """The demo's two progress lines: redrawn in place on a terminal, else printed once a
+    second and at the end."""
+
+    def __init__(self):
+        self.tty = sys.stdout.isatty()
+        self.last_print = 0.0
+        self.t_run = time.monotonic()
+
+    def elapsed(self):
+        return time.monotonic() - self.t_run
+
+    def show(self, line1, line2, final=False):
+        now = time.monotonic()
+        if self.tty:
+            sys.stdout.write(f"\r\033[K{line1}\n\033[K{line2}\033[F")
+            sys.stdout.flush()
+        elif now - self.last_print >= 1 or final:
+            print(f"{line1}  {line2}", flush=True)
+            self.last_print = now
+
+    def close(self):
+        """Leaves the two lines (on a terminal the cursor stood on the first)."""
+        if self.tty:
+            print("\n")
+
+
+def run(a):
+    rundir = fresh_rundir(a.rundir)
     print(f"demo: building plc/outstation.st and plc/central.st ...", flush=True)
     # into the run's own directory: two demos at once (tests side by side) must not replace
     # each other's programs while they run (the harness's cache makes a rebuild a copy)
     progs = build_programs(rundir / "programs")
     t_start = time.monotonic()   # seconds= is the read-out's time, not the build's
-    emu = REPO / "build" / "emulator" / "mip-emulator"
-    if not emu.is_file():
-        raise DemoError(f"{emu} missing: run make")
-    radio = (["--bitrate", "9600", "--slot-gap-ms", "20"] if a.realistic
-             else ["--bitrate", "1000000", "--slot-gap-ms", "1"])
+    radio = radio_args(a.realistic)
     # --link rtu:BAUD: every PLC reaches its modem over Modbus RTU on a pty the emulator makes
     # (the central the MDP-810, unit id = station; each outstation its TRM-810, unit id 1)
     rtu_args, serial = [], {}
@@ -247,17 +297,11 @@ def run(a):
     slaves = []
     try:
         trace = rundir / "emulator-trace.jsonl"
-        p = procs.start("mip-emulator",
-                        [str(emu), "--mdp-port", "0", "--trm-base-port", "0",
-                         "--stations", str(a.stations), "--loss-up", str(a.loss),
-                         "--loss-down", str(a.loss), "--seed", str(a.seed), "--trace", str(trace),
-                         "--lose-record", str(a.lose_record)]
-                        + radio + rtu_args, rundir / "emulator.log", stdout=subprocess.PIPE, text=True)
-        line = p.stdout.readline().strip()
-        if not line.startswith("mip-emulator: listening"):
-            procs.check_alive()
-            raise DemoError(f"mip-emulator did not start: {line!r}")
-        fields = dict(kv.split("=", 1) for kv in line.split()[2:])
+        line, fields = start_emulator(
+            procs, rundir, ["--mdp-port", "0", "--trm-base-port", "0",
+                            "--stations", str(a.stations), "--loss-up", str(a.loss),
+                            "--loss-down", str(a.loss), "--seed", str(a.seed), "--trace", str(trace),
+                            "--lose-record", str(a.lose_record)] + radio + rtu_args)
         mdp_port = int(fields["mdp"].rsplit(":", 1)[1])
         trm_ports = [int(x) for x in fields["trm"].split(",")]
         print(f"demo: {line}", flush=True)
@@ -316,9 +360,7 @@ def run(a):
         limit = a.timeout or (30 + a.records * a.stations * (6.0 if a.realistic else 0.5)
                               / (1 - a.loss) ** 2 + a.records * a.log_period_ms / 1000)
         stats = TraceStats(trace)
-        tty = sys.stdout.isatty()
-        last_print = 0.0
-        t_run = time.monotonic()
+        progress = Progress()
         while True:
             procs.check_alive()
             stats.update()
@@ -332,26 +374,18 @@ def run(a):
             retrans = sum(sl.read(L.peer_base(1) + L.S_RETRANS, 1)[0] for sl in outs)
             dups = sum(central.read(L.peer_base(s) + L.R_DUP, 1)[0]
                        for s in range(1, a.stations + 1))
-            now = time.monotonic()
             line1 = f"read-out {bar(done, total)}"
             line2 = (f"link: polls={stats.polls} telegrams={stats.telegrams} lost={stats.lost} "
                      f"blocks={stats.blocks} blocks_lost={stats.blocks_lost} "
-                     f"retransmissions={retrans} duplicates={dups} t={now - t_run:.1f}s")
-            if tty:
-                sys.stdout.write(f"\r\033[K{line1}\n\033[K{line2}\033[F")
-                sys.stdout.flush()
-            elif now - last_print >= 1 or finished:
-                print(f"{line1}  {line2}", flush=True)
-                last_print = now
+                     f"retransmissions={retrans} duplicates={dups} t={progress.elapsed():.1f}s")
+            progress.show(line1, line2, final=finished)
             if finished:
                 break
-            if now - t_run > limit:
-                if tty:
-                    print("\n")
+            if progress.elapsed() > limit:
+                progress.close()
                 raise DemoError(f"timeout after {limit:.0f} s: {done} of {total} records read out")
             time.sleep(0.1)
-        if tty:
-            print("\n")
+        progress.close()
         time.sleep(0.5)      # let late duplicates show
         stats.update()
         # the check, register for register
@@ -394,6 +428,10 @@ def run(a):
 
 
 def main(argv=None):
+    args = sys.argv[1:] if argv is None else list(argv)
+    if "--chain" in args:     # relay -> PLCs -> radio -> SCADA (issue 35): plc/demo_chain.py
+        import demo_chain
+        return demo_chain.main(args)
     a = parse_args(argv)
     # Ctrl-C and SIGTERM end the run through the finally clauses (every process stopped)
     signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))

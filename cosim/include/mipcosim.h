@@ -118,6 +118,10 @@ int mipcosim_trace_file(mipcosim *sim, const char *path);
  * the relay next to it). Returns the relay's id (0..), or -1 (mipcosim_errmsg: the
  * configuration's reason, or too many relays). The kernel frees it. */
 int mipcosim_relay_add(mipcosim *sim, const siprotec_config *cfg);
+/* Relay rid restarts (a power cycle): a new core from cfg takes its place at the current virtual
+ * time, its recorder empty and its sequence number 0; PLCs connected to rid talk to the new one.
+ * The old core's entries are gone (our choice: the recorder is not kept over a restart). */
+int mipcosim_relay_restart(mipcosim *sim, int rid, const siprotec_config *cfg);
 /* The relay's core for the siprotec_* API (scripted events, stats, peek); NULL: no such id. */
 siprotec_relay *mipcosim_relay(mipcosim *sim, int rid);
 /* PLC id's device (a Modbus TCP client of the runtime) talks to relay rid in process, as

@@ -2,6 +2,7 @@
 
     python -m mipcosim.cli run  [--records N] [--loss P] [--seed S] [--bidi] [--static] [--polled]
     python -m mipcosim.cli soak [--records 100000] [--loss 0.3] [--restart-every 120] [--warm] ...
+    python -m mipcosim.cli run|soak --chain ...     (issue 35's chain: mipcosim/chaincli.py)
 
 Both print the delivery counts and end with one line `result: ok ...` (exit 0) or
 `result: FAIL ...` (exit 1).
@@ -90,6 +91,10 @@ def link_timeout_ms(baud):
 
 
 def main(argv=None):
+    args = sys.argv[1:] if argv is None else list(argv)
+    if "--chain" in args:            # relay -> PLCs -> radio -> SCADA (mipcosim/chaincli.py)
+        from .chaincli import main as chain_main
+        return chain_main(args)
     a = parse(argv)
     st = Setup(stations=a.stations, static=a.static, polled=a.polled, bidi=a.bidi, loss=a.loss,
                seed=a.seed, records=a.records, per_transfer=a.per_transfer, payload=a.payload,

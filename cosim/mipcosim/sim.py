@@ -87,6 +87,7 @@ def kernel_lib():
         ("mipemu_net_peek", c.c_int, [c.c_void_p, c.c_int, c.c_int, c.c_uint, c.c_uint, u16p]),
         # SIPROTEC relays in the kernel's virtual time (issue 35; mipcosim.relay wraps them)
         ("mipcosim_relay_add", c.c_int, [c.c_void_p, c.c_void_p]),
+        ("mipcosim_relay_restart", c.c_int, [c.c_void_p, c.c_int, c.c_void_p]),
         ("mipcosim_relay", c.c_void_p, [c.c_void_p, c.c_int]),
         ("mipcosim_connect_relay", c.c_int, [c.c_void_p, c.c_int, c.c_void_p, c.c_char_p, c.c_int]),
         ("mipcosim_relay_request", c.c_long, [c.c_void_p, c.c_int, c.c_char_p, c.c_size_t,

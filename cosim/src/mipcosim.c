@@ -527,6 +527,19 @@ int mipcosim_relay_add(mipcosim *sim, const siprotec_config *cfg)
     return sim->nrelays++;
 }
 
+int mipcosim_relay_restart(mipcosim *sim, int rid, const siprotec_config *cfg)
+{
+    if (rid < 0 || rid >= sim->nrelays) return fail(sim, "relay_restart: no relay %d", rid);
+    if (!cfg) return fail(sim, "relay_restart: no configuration");
+    char err[200];
+    siprotec_relay *r = siprotec_new(cfg, err, sizeof err);
+    if (!r) return fail(sim, "relay: %s", err);
+    siprotec_advance(r, sim->now);
+    siprotec_free(sim->relays[rid]);
+    sim->relays[rid] = r; /* the connections look the relay up by rid at each request */
+    return 0;
+}
+
 siprotec_relay *mipcosim_relay(mipcosim *sim, int rid)
 {
     return rid >= 0 && rid < sim->nrelays ? sim->relays[rid] : NULL;

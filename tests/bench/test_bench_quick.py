@@ -16,7 +16,8 @@ FIGURES = ["goodput_0pct", "goodput_10pct", "goodput_30pct", "scan_cost",
            "emu_throughput_vs_pymodbus", "emu_throughput_vs_bare", "cosim_speed", "cosim_scale",
            "translator_speed", "translator_speed_inprocess", "peak_rss_runtime_1st", "peak_rss_runtime_64st", "peak_rss_emulator_1st",
            "peak_rss_emulator_64st", "readout_realistic", "record_reaction", "kit_scenario",
-           "goodput_rtu", "fc23_gain"]
+           "goodput_rtu", "fc23_gain", "chain_goodput", "chain_goodput_push", "chain_latency_0pct",
+           "chain_latency_30pct", "chain_ack_after_handover"]
 STATUS = r"(OK|MISSED|SKIPPED|PENDING|INFO)"
 
 

@@ -20,7 +20,7 @@ def test_chain_generated_programs_are_up_to_date(tmp_path, monkeypatch):
     monkeypatch.setattr(gen_programs, "HERE", tmp_path)
     gen_programs.main()
     for name in ("outstation.st", "central.st", "outstation_bidi.st", "central_bidi.st",
-                 "central_many.st"):
+                 "central_many.st", "outstation_soe.st", "central_soe.st", "central_push.st"):
         assert (tmp_path / name).read_text() == (REPO / "plc" / name).read_text(), \
             f"plc/{name} differs from what plc/gen_programs.py writes: run it and commit"
 

@@ -25,7 +25,7 @@ from stc.diag import Diagnostics  # noqa: E402
 STLIB = sorted(glob.glob(os.path.join(H.ROOT, "st_lib", "*.st")))
 PLC_DIR = os.path.join(H.ROOT, "plc")
 PROGRAMS = sorted(p for p in glob.glob(os.path.join(PLC_DIR, "*.st"))
-                  if os.path.basename(p) != "PLC_Logger.st")
+                  if not os.path.basename(p).startswith("PLC_"))   # PLC_*.st: the programs' helpers
 
 # (file pattern, kind, text the source line contains, reason)
 ALLOWED = [
@@ -85,10 +85,10 @@ ALLOWED = [
 def _divergences():
     """Every divergence site of st_lib and plc/ (each program with the library), once."""
     sites = {}
-    logger = os.path.join(PLC_DIR, "PLC_Logger.st")
+    helpers = sorted(glob.glob(os.path.join(PLC_DIR, "PLC_*.st")))   # PLC_Logger.st first
     sets = [[(f, True) for f in STLIB]]
     for prog in PROGRAMS:
-        sets.append([(f, True) for f in STLIB] + [(logger, False), (prog, False)])
+        sets.append([(f, True) for f in STLIB] + [(h, False) for h in helpers] + [(prog, False)])
     for files in sets:
         texts = []
         for f, lib in files:

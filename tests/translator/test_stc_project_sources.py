@@ -11,7 +11,7 @@ import stc_harness as H
 STLIB = os.path.join(H.ROOT, "st_lib")
 PLC = os.path.join(H.ROOT, "plc")
 PROGRAMS = sorted(p for p in glob.glob(os.path.join(PLC, "*.st"))
-                  if os.path.basename(p) != "PLC_Logger.st")
+                  if not os.path.basename(p).startswith("PLC_"))   # PLC_*.st: the programs' helpers
 
 
 def _compile(outdir):
@@ -34,7 +34,7 @@ def test_st_lib_translates_and_compiles(tmp_path):
 @pytest.mark.parametrize("prog", PROGRAMS, ids=os.path.basename)
 def test_plc_program_translates_and_compiles(prog, tmp_path):
     out = str(tmp_path / "o")
-    extra = [os.path.join(PLC, "PLC_Logger.st")] if os.path.exists(os.path.join(PLC, "PLC_Logger.st")) else []
+    extra = sorted(glob.glob(os.path.join(PLC, "PLC_*.st")))     # the helpers, PLC_Logger.st first
     r = H.run_stc(["-I", STLIB, "-o", out] + extra + [prog])
     assert r.returncode == 0, r.stderr
     _compile(out)

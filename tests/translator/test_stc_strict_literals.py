@@ -75,7 +75,8 @@ def test_input_argument_of_a_block_call(tmp_path):
 
 
 LIB = sorted(glob.glob(os.path.join(H.ROOT, "st_lib", "*.st")))
-PLC = ["central", "central_bidi", "central_many", "outstation", "outstation_bidi"]
+PLC = ["central", "central_bidi", "central_many", "outstation", "outstation_bidi",
+       "central_soe", "outstation_soe", "central_push"]
 
 
 @pytest.mark.parametrize("prog", [None] + PLC)
@@ -83,6 +84,7 @@ def test_st_lib_and_plc_have_only_typed_bit_string_literals(prog, tmp_path):
     files = list(LIB)
     if prog:
         files += [os.path.join(H.ROOT, "plc", "PLC_Logger.st"),
+                  os.path.join(H.ROOT, "plc", "PLC_SoeChain.st"),
                   os.path.join(H.ROOT, "plc", prog + ".st")]
     r = H.run_stc(["--strict-iec", "-o", str(tmp_path / "gen"), *files])
     assert r.returncode == 0, r.stderr[-2000:]

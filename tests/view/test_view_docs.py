@@ -63,7 +63,7 @@ def matches(cmd, p):
 
 def test_every_exercise_has_a_watch_it_line_with_its_presets():
     secs = sections()
-    assert set(secs) == {str(n) for n in range(1, 9)}
+    assert set(secs) == {str(n) for n in range(1, 10)}
     for n, text in secs.items():
         lines = [x for x in text.splitlines() if x.startswith("**Watch it**")]
         assert len(lines) == 1 and "(view.md)" in lines[0], f"exercise {n}: one watch-it line"
