@@ -234,3 +234,31 @@ def test_the_plugins_network_has_the_ends(tmp_path):
     m = re.search(r"_+ test_wrong_device _+\n(.*?)\n(?:-|=)", out, re.S)
     assert m and re.fullmatch(r"outstation: device 'unicos' is not in .*relay\.conf \(it has relay\)",
                               m.group(1).strip()), out
+
+
+@pytest.mark.slow
+def test_the_chains_own_programs_relay_to_scada_over_a_lossy_radio(net):
+    """plc/'s chain programs (outstation_soe.st, central_soe.st, their configs unchanged) as an
+    integrator's programs in the kit: the relay's events reach the SCADA over the realistic
+    radio with 10 % loss each way, the SCADA stopped for 2 s: every event once, in order.
+    Slow: a cold build cache builds both programs (tens of seconds); 5 s wall when cached."""
+    from mipcosim import chainlayout as C
+    lossy = Net(net.workdir / "lossy", 1, radio="realistic", loss_up=0.1, loss_down=0.1, seed=3)
+    try:
+        out = lossy.plc("outstation", C.program_sources("out"), C.L.PLC_DIR / "outstation_soe.conf",
+                        at=1)
+        cen = lossy.plc("central", C.program_sources("cen"), C.L.PLC_DIR / "central_soe.conf",
+                        at="mdp")
+        for kp in (out, cen):
+            for i, w in enumerate(C.SoeParams().words()):
+                kp[f"%MW{i}"] = w
+        events = C.script(40, start_s=0.5, every_s=0.1)
+        relay = lossy.relay("relay", out, "relay", events, origin_ms=C.ORIGIN_MS)
+        scada = lossy.scada("scada", cen, down=[(2.0, 4.0)])
+        assert lossy.run_until(lambda: len(scada.entries()) >= 40, within_s=120, step_s=1)
+        lossy.run_for(2)
+        assert relay.missing(scada) == [] and scada.duplicates() == []
+        assert [tuple(e["regs"]) for e in scada.entries()] == [tuple(e) for e in relay.expected()]
+        assert not any(2.0 <= e["t_s"] < 4.0 for e in scada.entries())
+    finally:
+        lossy.close()
