@@ -228,10 +228,12 @@ class KitPlc:
         self.pid = None
         self.restarts = []      # (virtual ns, mode, RETAIN restored)
         self._taps = None       # the delivery taps of the program's receivers (delivery.py)
+        self._ends = {}         # device -> connect(KitPlc): a relay or UNICOS stand-in (ends.py)
 
     def _start(self, snapshot=None):
         net = self.net
-        plc = Plc(self.result, net.workdir, config=self.config)
+        from .ends import slave_config
+        plc = Plc(self.result, net.workdir, config=slave_config(self.config, net.workdir))
         plc.retain_in_memory(self.retain_period_ns)
         if snapshot is not None:
             plc.retain_load(snapshot)
@@ -249,7 +251,10 @@ class KitPlc:
         ep = 0 if self.at == "mdp" else int(self.at)
         for i in range(plc.library.plcrt_device_count(plc.handle)):
             dev = plc.library.plcrt_device_name(plc.handle, i)
-            net._check(lib.mipcosim_connect_inproc(sim, self.pid, setter, dev, ep))
+            if dev.decode() in self._ends:
+                self._ends[dev.decode()](self)      # the relay or control system (ends.py)
+            else:
+                net._check(lib.mipcosim_connect_inproc(sim, self.pid, setter, dev, ep))
         if self._taps is None:
             self._taps = delivery.Taps(net, self.pid)
         self._taps.bind(plc, restored=snapshot is not None)
@@ -451,6 +456,7 @@ class Net:
             self._check(lib.mipcosim_trace_file(self._handle, str(self.trace_path).encode()))
         self.plcs: dict[str, KitPlc] = {}
         self.peers: dict[str, KitPeer] = {}
+        self.ends: dict = {}        # name -> KitRelay / KitUnicos (ends.py)
         self._losses = []           # [station, up, record or None, times left]
         self._lost = []             # (virtual ns, station, "up"/"down", record)
         self._fate = None
@@ -481,7 +487,7 @@ class Net:
         raise KitError(f"station {at!r}: the network has stations 1..{self.stations} and the mdp")
 
     def _name(self, name):
-        if name in self.plcs or name in self.peers:
+        if name in self.plcs or name in self.peers or name in self.ends:
             raise KitError(f"{name}: already on the network")
         return name
 
@@ -522,13 +528,63 @@ class Net:
         self.peers[name] = p
         return p
 
+    def _plc_of(self, plc, what):
+        if isinstance(plc, KitPlc):
+            return plc
+        if plc in self.plcs:
+            return self.plcs[plc]
+        raise KitError(f"{what}: no PLC {plc!r} on the network (have: "
+                       f"{', '.join(self.plcs) or 'none'})")
+
+    def relay(self, name="relay", plc=None, device="relay", events=(), **kw):
+        """A SIPROTEC relay (the emulator's, in virtual time) as device `device` of PLC `plc`
+        (a KitPlc or its name) instead of a modem: scripted events [(t_s, [type/bit, address,
+        cause/type, value]), ...], rate, burst = (n, every_s), base (600), capacity (200),
+        overflow ("drop-oldest" | "drop-new"), seq_bits, bad_ack, origin_ms (the time stamp
+        of virtual time 0). Give it before the network runs. Returns a KitRelay."""
+        from .ends import KitRelay
+        name = self._name(name)
+        r = KitRelay(self, name, self._plc_of(plc, f"relay {name}"), device, events, **kw)
+        self.ends[name] = r
+        return r
+
+    def unicos(self, name="unicos", plc=None, device="unicos", device_b=None, **kw):
+        """WinCC OA's Modbus driver in UNICOS mode (peers/mippeer/unicos.py) as device
+        `device` of PLC `plc`, with device_b a redundant pair's driver B: marker (16#FFFF),
+        little_endian_register, down / down_b = [(from_s, to_s), ...] virtual seconds without
+        an answer. Give it before the network runs. Returns a KitUnicos."""
+        from .ends import KitUnicos
+        name = self._name(name)
+        try:
+            u = KitUnicos(self, name, self._plc_of(plc, f"unicos {name}"), device, device_b, **kw)
+        except TypeError as e:
+            raise KitError(f"unicos {name}: {e}") from None
+        self.ends[name] = u
+        return u
+
+    def scada(self, name="scada", plc=None, **kw):
+        """A SCADA polling PLC `plc`'s Modbus slave (its config's [slave]; the program's
+        MIP_SoeServer) through the SOE handshake (peers/mippeer/scada.py), in virtual time:
+        base (600), poll_ms (100), reack (1.0 s), down = [(from_s, to_s), ...] without polls.
+        Returns a KitScada."""
+        from .ends import KitScada
+        name = self._name(name)
+        try:
+            s = KitScada(self, name, self._plc_of(plc, f"scada {name}"), **kw)
+        except TypeError as e:
+            raise KitError(f"scada {name}: {e}") from None
+        self.ends[name] = s
+        return s
+
     def __getitem__(self, name):
         if name in self.plcs:
             return self.plcs[name]
         if name in self.peers:
             return self.peers[name]
-        raise KitError(f"{name}: no PLC or peer of that name (have: "
-                       f"{', '.join(list(self.plcs) + list(self.peers)) or 'none'})")
+        if name in self.ends:
+            return self.ends[name]
+        raise KitError(f"{name}: no PLC, peer, relay or control system of that name (have: "
+                       f"{', '.join(list(self.plcs) + list(self.peers) + list(self.ends)) or 'none'})")
 
     # ------------------------------------------------------------------ faults
 
@@ -592,12 +648,22 @@ class Net:
                 if p.error is not None:
                     e, p.error = p.error, None
                     raise KitError(f"peer {p.name} failed: {type(e).__name__}: {e}") from None
+            for p in self.ends.values():
+                if getattr(p, "error", None) is not None:
+                    e, p.error = p.error, None
+                    raise KitError(f"{p.name} failed: {type(e).__name__}: {e}") from None
             failed = self.lib.mipcosim_failed_plc(self.sim)
             for p in self.plcs.values():
                 if p.pid == failed:
                     why = p.plc.library.plcrt_errmsg(p.plc.handle) or b""
                     msg += f": {p.name}: {why.decode()}"
             raise KitError(msg)
+        for e in self.ends.values():
+            if hasattr(e, "check"):
+                try:
+                    e.check()       # a control-system stand-in's own failure, not the program's
+                except Exception as x:  # noqa: BLE001
+                    raise KitError(f"{e.name} failed: {type(x).__name__}: {x}") from None
         self._drain()
 
     def run_until(self, condition, within_s, step_s=0.5):

@@ -6,6 +6,10 @@ Fixtures:
   mip_st_lib    the ST files of the MIP library, in the order to pass them before your own
   mip_compiler  "stc" or "matiec": --mip-compiler (stc; auto: matiec when iec2c is on PATH)
 
+The chain's ends are the network's: net.relay(...) (a SIPROTEC relay for your outstation),
+net.unicos(...) (WinCC OA's UNICOS driver, single or a pair, for your central), net.scada(...)
+(a SCADA polling your central): mipkit/ends.py, docs/test-kit.md "The chain's ends".
+
 On a failing test the report starts with the fault (the first record that went wrong, in the
 test's record numbers), the diagnosis of every MIP block in the PLCs at the fault and at the
 end; sections follow with the radio and Modbus traffic around the fault, and the sequence

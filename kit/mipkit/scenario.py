@@ -25,7 +25,7 @@ from .net import SEC, KitError, KitWarning, Net
 
 # the keys a scenario may have, per table (anything else is a one-line error)
 KEYS = {
-    "": {"name", "network", "plc", "peer", "fault", "judge", "expect"},
+    "": {"name", "network", "plc", "peer", "fault", "judge", "expect", "relay", "unicos", "scada"},
     "network": {"stations", "radio", "bitrate", "slot_gap_ms", "overhead_bytes", "loss_down",
                 "loss_up", "burst", "seed", "seeds", "mode", "static_registers", "compiler",
                 "semantics", "trace"},
@@ -33,9 +33,16 @@ KEYS = {
     "peer": {"name", "station", "unit", "lenient", "layout", "drive", "period_ms",
              "retransmit_s", "request_s", "static_registers"},
     "fault": {"at_s", "restart", "mode", "down_s", "lose"},
+    "relay": {"name", "plc", "device", "events", "rate", "burst", "base", "capacity", "overflow",
+              "seq_bits", "bad_ack", "origin_ms"},
+    "unicos": {"name", "plc", "device", "device_b", "marker", "little_endian_register", "down",
+               "down_b"},
+    "scada": {"name", "plc", "base", "poll_ms", "reack", "down"},
     "fault.lose": {"station", "direction", "record", "times"},
     "judge": {"logged", "delivered", "records"},
-    "expect": {"complete_within_s", "run_s", "no_xerror", "values", "numbered_records", "step_s"},
+    "expect": {"complete_within_s", "run_s", "no_xerror", "values", "numbered_records", "step_s",
+               "reached", "no_duplicates"},
+    "expect.reached": {"relay", "at"},
     "expect.values": {"name", "at", "equals", "at_least", "at_most"},
 }
 
@@ -65,7 +72,7 @@ def load(path: Path):
         raise ScenarioError(f"{path}: not TOML: {e}") from None
     _check_keys(doc, "", path)
     _check_keys(doc.get("network", {}), "network", path)
-    for t in ("plc", "peer", "fault"):
+    for t in ("plc", "peer", "fault", "relay", "unicos", "scada"):
         items = doc.get(t, [])
         if not isinstance(items, list):
             raise ScenarioError(f"{path}: [{t}] must be an array of tables: write [[{t}]]")
@@ -78,6 +85,8 @@ def load(path: Path):
     _check_keys(exp, "expect", path)
     for v in exp.get("values", []):
         _check_keys(v, "expect.values", path)
+    for v in exp.get("reached", []):
+        _check_keys(v, "expect.reached", path)
     if not doc.get("plc") and not doc.get("peer"):
         raise ScenarioError(f"{path}: nothing on the network: give at least one [[plc]]")
     return doc
@@ -108,7 +117,8 @@ class Run:
         self.results = []
 
     FORMS = ("'NAME:%MW20' (a word of PLC NAME), 'NAME:%MW20,%MW21' (two words, low and "
-             "high), 'NAME:%MW20..%MW23' (a list), 'NAME:PROG.var', or a peer's name")
+             "high), 'NAME:%MW20..%MW23' (a list), 'NAME:PROG.var', 'NAME:PROG.arr[0..7]' (a "
+             "list), or the name of a peer, [[unicos]] or [[scada]]")
 
     def _named(self, name, ref, where):
         try:
@@ -126,6 +136,8 @@ class Run:
             raise ScenarioError(f"{where} = {ref!r}: a reference is {self.FORMS}")
         if ":" not in ref:
             peer = self._named(ref, ref, where)
+            if hasattr(peer, "unique"):        # a control-system stand-in: what it took, once each
+                return lambda: len(peer.unique())
             if not hasattr(peer, "records"):
                 raise ScenarioError(f"{where} = {ref!r}: a PLC needs an address: '{ref}:%MW10'")
             return lambda: len(peer.records)
@@ -139,6 +151,14 @@ class Run:
             names = [f"%{area}{size}{i}" for i in range(lo, hi + 1)]
             for n in names:
                 plc[n]
+            return lambda: [plc[n] for n in names]
+        m = re.fullmatch(r"\s*([A-Za-z_]\w*(?:\.[A-Za-z_]\w*)*)\[(\d+)\.\.(\d+)\]\s*", addr)
+        if m:                          # elements of an array variable: their values as a list
+            var, lo, hi = m.group(1), int(m.group(2)), int(m.group(3))
+            if hi < lo or hi - lo > 4095:
+                raise ScenarioError(f"{ref}: a range from low to high, at most 4096 elements")
+            names = [f"{var}[{i}]" for i in range(lo, hi + 1)]
+            plc[names[0]], plc[names[-1]]
             return lambda: [plc[n] for n in names]
         if "," in addr:
             lo, hi = (a.strip() for a in addr.split(",", 1))
@@ -166,6 +186,7 @@ class Run:
         for p in self.doc.get("peer", []):
             kw = {k: v for k, v in p.items() if k not in ("name", "station")}
             self.net.peer(p.get("name", "peer"), p.get("station", "mdp"), **kw)
+        self._ends()
         self.faults = sorted(self.doc.get("fault", []), key=lambda f: f.get("at_s", 0))
         for f in self.faults:
             if "lose" in f:
@@ -189,6 +210,85 @@ class Run:
                     (lambda kp=kp, mode=mode, at=at:
                      f"{mode} restart of {kp.name} at {at:g} s "
                      f"{'fired' if any(m == mode and t >= at * SEC for t, m, _ in kp.restarts) else 'did not fire'}"))
+
+    def _ends(self):
+        """[[relay]], [[unicos]], [[scada]]: the chain's ends as devices of the PLCs."""
+        for r in self.doc.get("relay", []):
+            if "plc" not in r:
+                raise ScenarioError(f"[[relay]] {r.get('name', '')}: 'plc' missing (the PLC that "
+                                    "reads it)")
+            kw = {k: v for k, v in r.items() if k not in ("name", "plc", "device", "events")}
+            if "burst" in kw:
+                b = kw["burst"]
+                if not (isinstance(b, list) and len(b) == 2 and all(
+                        isinstance(x, (int, float)) and x > 0 for x in b)):
+                    raise ScenarioError(f"relay.burst = {b!r}: [n, every_s], both > 0")
+                kw["burst"] = (int(b[0]), float(b[1]))
+            events = []
+            for e in r.get("events", []):
+                if not (isinstance(e, list) and len(e) == 5 and isinstance(e[0], (int, float))):
+                    raise ScenarioError(f"relay.events: {e!r}: [t_s, type/bit, address, "
+                                        "cause/type, value]")
+                events.append((e[0], e[1:]))
+            self.net.relay(r.get("name", "relay"), r["plc"], r.get("device", "relay"), events, **kw)
+        for u in self.doc.get("unicos", []):
+            if "plc" not in u:
+                raise ScenarioError(f"[[unicos]] {u.get('name', '')}: 'plc' missing (the PLC that "
+                                    "writes to it)")
+            kw = {k: v for k, v in u.items() if k not in ("name", "plc", "device", "device_b")}
+            self.net.unicos(u.get("name", "unicos"), u["plc"], u.get("device", "unicos"),
+                            u.get("device_b"), **kw)
+        for c in self.doc.get("scada", []):
+            if "plc" not in c:
+                raise ScenarioError(f"[[scada]] {c.get('name', '')}: 'plc' missing (the PLC it "
+                                    "polls)")
+            kw = {k: v for k, v in c.items() if k not in ("name", "plc")}
+            self.net.scada(c.get("name", "scada"), c["plc"], **kw)
+
+    def _reached(self, exp):
+        """expect.reached: every scripted event of a relay at a control-system stand-in or a
+        peer (its records: 8-word entries back to back); expect.no_duplicates."""
+        from .ends import KitRelay
+        for v in exp.get("reached", []):
+            rname, at = v.get("relay"), v.get("at")
+            relay = self._named(rname, rname, "expect.reached relay") if isinstance(rname, str) \
+                else None
+            if not isinstance(relay, KitRelay):
+                raise ScenarioError(f"expect.reached relay = {rname!r}: no [[relay]] of that name")
+            if isinstance(at, str) and ":" in at:      # a PLC's log: 8-word entries back to back
+                words = self._ref(at, "expect.reached at")()
+                if not isinstance(words, list):
+                    raise ScenarioError(f"expect.reached at = {at!r}: a range of words "
+                                        "('NAME:MAIN.aLog[0..511]', 'NAME:%MW100..%MW163')")
+                far = [words[:len(words) - len(words) % 8]]
+            else:
+                far = self._named(at, at, "expect.reached at") if isinstance(at, str) else None
+                if far is None or not (hasattr(far, "unique") or hasattr(far, "records")):
+                    raise ScenarioError(f"expect.reached at = {at!r}: a [[unicos]], [[scada]] or "
+                                        "[[peer]] name, or a PLC's log ('NAME:MAIN.aLog[0..511]')")
+                far = far if hasattr(far, "unique") else far.records
+            try:
+                lost = relay.missing(far)
+            except KitError as e:
+                lost, msg = None, f"{at}: {e}"
+            else:
+                msg = None if not lost else (
+                    f"{len(lost)} of {len(relay.expected())} events of {rname} did not reach "
+                    f"{at}; the first: {lost[0]}")
+            self.results.append((f"every event of {rname} reached {at}", msg))
+        for name in exp.get("no_duplicates", []):
+            far = self._named(name, name, "expect.no_duplicates") if isinstance(name, str) else None
+            if not hasattr(far, "duplicates"):
+                raise ScenarioError(f"expect.no_duplicates: {name!r}: a [[unicos]] or [[scada]] name")
+            drivers = list(far.drivers) if hasattr(far, "drivers") else [None]
+            dups = [(d, e) for d in drivers for e in (far.duplicates(d) if d else far.duplicates())]
+            msg = None
+            if dups:
+                d, e = dups[0]
+                what = f"offset {e['offset']}" if "offset" in e else f"address {e['address']}"
+                msg = (f"{len(dups)} duplicates at {name}; the first{' (driver ' + d + ')' if d else ''}: "
+                       f"{what}, value {e['value']}, taken again at {e['t_s']:.3f} s")
+            self.results.append((f"no duplicates at {name}", msg))
 
     def run(self):
         exp = self.doc.get("expect", {})
@@ -258,6 +358,7 @@ class Run:
                     msg = f"record {i}: its registers say record {num} (first words {rec[:4]})"
                     break
             self.results.append((f"numbered records at {nr}", msg))
+        self._reached(exp)
         return self.results
 
 
@@ -268,7 +369,8 @@ class Run:
         from .report import fmt_t, observer
         net = self.net
         done = f"complete at {fmt_t(self.done_at)}" if self.done_at is not None else \
-            f"not complete at {fmt_t(net.now)}"
+            f"not complete at {fmt_t(net.now)}" if self.delivered is not None else \
+            f"ran to {fmt_t(net.now)}"          # no judge: nothing to complete
         parts = [done]
         if self.delivered is not None:
             parts.append(f"{self.delivered()} records delivered")
@@ -287,6 +389,9 @@ class Run:
                      f"{st['lost_up']} of {st['tel_up']} up")
         if self.scripted:
             parts.append("scripted: " + ", ".join(f() for f in self.scripted))
+        for e in net.ends.values():
+            if hasattr(e, "report"):
+                parts.append(e.report())
         return "; ".join(parts)
 
 

@@ -85,7 +85,8 @@ def test_delivered_in_the_wrong_form_shows_the_right_one(example):
     assert line == ("FAIL scenario runs: judge.delivered = 'plc:%MW20': no PLC or peer named 'plc' "
                     "(have: outstation, central); a reference is 'NAME:%MW20' (a word of PLC NAME), "
                     "'NAME:%MW20,%MW21' (two words, low and high), 'NAME:%MW20..%MW23' (a list), "
-                    "'NAME:PROG.var', or a peer's name"), line
+                    "'NAME:PROG.var', 'NAME:PROG.arr[0..7]' (a list), or the name of a peer, "
+                    "[[unicos]] or [[scada]]"), line
 
 
 def test_the_documented_delivered_form_works(example):
