@@ -102,6 +102,10 @@ class Checker:
         self.p.semantics = semantics
         self.strict_iec = strict_iec   # --strict-iec: warn where an edition-2 checker is stricter
         self.file = None
+        self.vendor_files = set()   # files in the TwinCAT / CODESYS dialect (vendor_in.py)
+
+    def _vendor(self):
+        return self.file in self.vendor_files
 
     def warn(self, pos, msg):
         """Portability warning: the construct's value differs between matiec and IEC."""
@@ -271,8 +275,21 @@ class Checker:
         return t
 
     def resolve_type(self, spec, member=False, in_array=False):
+        if isinstance(spec, S.PointerRef):
+            if spec.word != "POINTER" or not self._vendor():
+                self.fail(spec.pos, f"{spec.word} TO is not portable (matiec rejects pointers and "
+                          "references); pointers are read in the TwinCAT / CODESYS dialects only "
+                          "(--dialect=twincat|codesys)" if spec.word == "POINTER" else
+                          f"unexpected '{spec.word} TO'")
+            target = self.resolve_type(spec.target, member=True)
+            if target.is_array and not target.name or target.is_fb:
+                self.fail(spec.pos, "POINTER TO an anonymous ARRAY or a function block is not "
+                          "supported: declare an array TYPE")
+            return T.PointerT(target)
         if isinstance(spec, S.NamedType):
             n = spec.name
+            if n == "PVOID" and self._vendor():
+                return T.PointerT(T.ELEMENTARY["BYTE"])
             if n in T.ELEMENTARY:
                 return T.ELEMENTARY[n]
             if n in self.p.types:
@@ -324,6 +341,8 @@ class Checker:
             self.fail(spec.pos, f"subrange types like {spec.base}(0..100) are not portable "
                       f"(matiec rejects them): use plain {spec.base} and LIMIT()")
         if isinstance(spec, S.StringRef):
+            if self._vendor() and spec.base == "STRING" and 0 < int(spec.size) <= T.STR_MAX:
+                return T.STRING       # STRING(15) of the vendor blocks: stc's STRING holds it
             self.fail(spec.pos, f"{spec.base}[{spec.size}] is not portable (matiec drops or "
                       "crashes on it): use an ARRAY OF BYTE")
         if isinstance(spec, S.StructSpec):
@@ -507,7 +526,10 @@ class Checker:
 
     def _located(self, v, loc, pou):
         text, pos = loc
-        if pou is not None and pou.kind != "program":
+        vendor_fb = pou is not None and pou.kind == "function_block" and self._vendor()
+        if pou is not None and pou.kind != "program" and not vendor_fb:
+            # (the vendor dialects: TwinCAT links an FB's AT %I* / %Q* in its I/O mapping; stc
+            # takes full addresses there, one cell for every instance: the stand-ins' channel)
             self.err(pos, f"located variables in a {pou.kind.upper()} are not "
                      "portable (matiec rejects them): declare them in the PROGRAM and pass them "
                      "as inputs/outputs")
@@ -711,7 +733,9 @@ class Checker:
             self.coerce(s.value, vt, tt, "assignment")
         elif isinstance(s, S.CallStmt):
             self.call(s, statement=True)
-            if getattr(s, "kind", "fb") != "fb":
+            if getattr(s, "kind", "fb") == "vendor":
+                pass                  # MEMCPY(...); as the vendor IDEs allow it
+            elif getattr(s, "kind", "fb") != "fb":
                 self.err(s.pos, "a FUNCTION call as a statement is not portable (matiec rejects "
                          "it): assign its result to a variable")
         elif isinstance(s, S.If):
@@ -983,6 +1007,8 @@ class Checker:
             return self.expr(e, None)
         if isinstance(e, S.BitAccess):
             return self.expr(e, None)
+        if isinstance(e, S.Deref):
+            return self.expr(e, None)
         self.fail(e.pos, "the left side of ':=' must be a variable")
 
     def _check_base_assignable(self, e):
@@ -1115,7 +1141,12 @@ class Checker:
                       f"(x AND 16#{1 << min(int(bit) if bit.isdigit() else 0, 63):X}) <> 0 to read; "
                       "OR / AND NOT masks to write")
         if isinstance(e, S.Deref):
-            self.fail(e.pos, "pointer dereference (^) is not portable (matiec rejects POINTER TO)")
+            if not self._vendor():
+                self.fail(e.pos, "pointer dereference (^) is not portable (matiec rejects POINTER TO)")
+            bt = self.expr(e.base, None)
+            if not isinstance(bt, T.PointerT):
+                self.fail(e.pos, f"'^' on a value of type {bt}, which is not a POINTER TO")
+            return bt.target
         if isinstance(e, S.Call):
             return self.call(e, statement=False, expected=expected)
         if isinstance(e, S.UnOp):
@@ -1498,10 +1529,47 @@ class Checker:
             return self.conversion(c, conv)
         if name in T.STD_FUNCS:
             return self.std_func(c, expected)
+        if name in _VENDOR_FUNCS and self._vendor():
+            return self.vendor_func(c)
         if name.startswith("TO_"):
             self.fail(c.pos, f"generic conversion {name} is not portable (matiec rejects it): "
                       "use a typed conversion like INT_TO_UINT")
         self.fail(c.pos, f"unknown function '{name}'")
+
+    def vendor_func(self, c):
+        """ADR(x), SIZEOF(x) and MEMCPY(destAddr, srcAddr, n) of the TwinCAT / CODESYS
+        dialects (Tc2_System MEMCPY; CODESYS SysMemCpy(pDest, pSrc, udiCount))."""
+        n = c.name
+        names = _VENDOR_FUNCS[n]
+        args = [None] * len(names)
+        for i, a in enumerate(c.args):
+            if isinstance(a, S.ArgPos) and all(x is None for x in args[i:]):
+                if i >= len(names):
+                    self.fail(a.pos, f"{n} takes {len(names)} argument(s)")
+                args[i] = a.value
+            elif isinstance(a, S.ArgIn) and a.name in names:
+                args[names.index(a.name)] = a.value
+            else:
+                self.fail(a.pos, f"{n}: arguments are {', '.join(names)}")
+        if any(x is None for x in args):
+            self.fail(c.pos, f"{n} needs {', '.join(names)}")
+        c.kind = "vendor"
+        c.argv = args
+        if n in ("ADR", "SIZEOF"):
+            x = args[0]
+            if not _is_variable(x) and not isinstance(x, S.Deref):
+                self.fail(x.pos, f"{n} takes a variable")
+            t = self.expr(x, None)
+            if t.is_fb:
+                self.fail(x.pos, f"{n} of a function block instance is not supported")
+            return T.PointerT(t) if n == "ADR" else T.ELEMENTARY["UDINT"]
+        for x in args[:2]:
+            t = self.expr(x, None)
+            if not isinstance(t, T.PointerT):
+                self.fail(x.pos, f"{n}: an address (ADR(...) or a POINTER), not {t}")
+        t = self.expr(args[2], T.ELEMENTARY["UDINT"])
+        self.coerce(args[2], t, T.ELEMENTARY["UDINT"], f"{n}'s byte count")
+        return T.ELEMENTARY["UDINT"]
 
     def _warn_std_fb(self, c, pou):
         std = pou.std.name if pou.std is not None else None
@@ -1822,6 +1890,11 @@ class Checker:
             c.kind = "math"
             return t
         self.fail(c.pos, f"standard function {n} is not supported by stc")
+
+
+# the vendor dialects' address functions: argument names in order (Tc2_System / CODESYS)
+_VENDOR_FUNCS = {"ADR": ("IN",), "SIZEOF": ("IN",), "MEMCPY": ("DESTADDR", "SRCADDR", "N"),
+                 "SYSMEMCPY": ("PDEST", "PSRC", "UDICOUNT")}
 
 
 def _is_false(e):

@@ -22,6 +22,9 @@ differs between them get a portability warning (FILE:LINE:COL: warning: MESSAGE)
 mode; --werror-portability makes them errors.
 --strict-iec adds warnings where a strict IEC 61131-3 edition-2 checker rejects what matiec
 accepts (an untyped integer literal stored in an ANY_BIT variable: write WORD#0 or 16#0).
+--dialect=twincat|codesys reads the inputs as the ST of TwinCAT 3 / CODESYS V3 (the vendor
+glue: pragmas, // comments, library namespaces, END_IF without ';', POINTER TO, ADR, SIZEOF,
+p^, MEMCPY; see translator/README.md); FILE.twincat.st / FILE.codesys.st are read so without it.
 Errors are printed as FILE:LINE:COL: error: MESSAGE. Exit status: 0 success, 1 errors in
 the input, 2 bad usage."""
 
@@ -57,6 +60,11 @@ def main(argv=None):
                     help="also list every construct whose value can differ between upstream "
                          "matiec, OpenPLC's fork and IEC (FILE:LINE:COL: note: KIND: ...), "
                          "warned or not")
+    ap.add_argument("--dialect", choices=["st", "twincat", "codesys"], default=None,
+                    help="input language: IEC ST (matiec dialect), or the ST of TwinCAT 3 / "
+                         "CODESYS V3 (pragmas, // comments, library namespaces, POINTER TO, "
+                         "ADR, SIZEOF, MEMCPY); default: by file name (FILE.twincat.st, "
+                         "FILE.codesys.st; anything else ST)")
     ap.add_argument("--version", action="version", version=f"stc {__version__}")
     ap.add_argument("files", nargs="*", metavar="FILE.st")
     args = ap.parse_args(argv)
@@ -69,7 +77,8 @@ def main(argv=None):
     def work():
         try:
             result.append(run(args.files, args.libdirs, args.outdir, args.semantics,
-                              args.werror_portability, args.strict_iec, args.divergences))
+                              args.werror_portability, args.strict_iec, args.divergences,
+                              args.dialect))
         except Exception as e:  # last resort: never show a traceback to the user
             if os.environ.get("STC_DEBUG"):
                 raise
@@ -102,7 +111,7 @@ def run_deep(fn):
 
 
 def run(files, libdirs, outdir, semantics="matiec", werror_portability=False, strict_iec=False,
-        divergences=False):
+        divergences=False, dialect=None):
     from .compiler import compile_files
     sources = []
     seen = set()
@@ -131,7 +140,7 @@ def run(files, libdirs, outdir, semantics="matiec", werror_portability=False, st
             print(f"stc: error: {f}: {e.strerror}", file=sys.stderr)
             return 1
     diags = Diagnostics()
-    project = compile_files(texts, diags, semantics, strict_iec)
+    project = compile_files(texts, diags, semantics, strict_iec, dialect)
     for line in diags.format(warnings=True):
         if werror_portability:   # the warnings are what fails the build: say so
             line = line.replace(": warning: ", ": error: ", 1) + " [--werror-portability]"

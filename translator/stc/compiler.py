@@ -7,16 +7,26 @@ from .check import Checker
 SEMANTICS = ("matiec", "openplc", "iec")
 
 
-def compile_files(texts, diags, semantics="matiec", strict_iec=False):
+def dialect_of(fname, dialect=None):
+    """The dialect of a file: the one given, else "twincat" / "codesys" for FILE.twincat.st /
+    FILE.codesys.st, else "st"."""
+    if dialect:
+        return dialect
+    from .vendor_in import dialect_of_name
+    return dialect_of_name(fname) or "st"
+
+
+def compile_files(texts, diags, semantics="matiec", strict_iec=False, dialect=None):
     """texts: [(filename, text, is_library)]. Returns a Project (valid only without errors).
     semantics: "matiec" (reproduce upstream matiec's run-time values, the default), "openplc"
     (the matiec fork OpenPLC v3 ships) or "iec" (IEC 61131-3 values); portability warnings go
-    to diags.warnings in every mode."""
+    to diags.warnings in every mode. dialect: "st", "twincat", "codesys" or None (by each
+    file's name, dialect_of)."""
     if semantics not in SEMANTICS:
         raise ValueError(f"semantics must be one of {', '.join(SEMANTICS)}, not {semantics!r}")
     parsed = []
     for fname, text, lib in texts:
-        nodes = parser.parse(text, fname, diags)
+        nodes = parser.parse(text, fname, diags, dialect_of(fname, dialect))
         if nodes is None:
             continue
         if lib:
@@ -24,4 +34,7 @@ def compile_files(texts, diags, semantics="matiec", strict_iec=False):
         parsed.append((fname, nodes))
     if diags:
         return None
-    return Checker(diags, semantics, strict_iec).run(parsed)
+    checker = Checker(diags, semantics, strict_iec)
+    checker.vendor_files = {f for f, _t, _l in texts
+                            if dialect_of(f, dialect) in ("twincat", "codesys")}
+    return checker.run(parsed)

@@ -148,6 +148,9 @@ class _Build(Transformer):
     def subrange_ref(self, c):
         return S.SubrangeRef(_pos(c[0]), str(c[0]).upper())
 
+    def pointer_ref(self, c):
+        return S.PointerRef(_pos(c[1]), str(c[0]).upper(), c[2])
+
     def string_ref(self, c):
         return S.StringRef(_pos(c[0]), str(c[0]).upper(), c[2])
 
@@ -654,14 +657,21 @@ def _unexpected_message(e):
     return f"unexpected {what}"
 
 
-def parse(text, filename, diags):
-    """Parse one file; syntax errors go to diags. Returns a list of top-level nodes."""
+def parse(text, filename, diags, dialect="st"):
+    """Parse one file; syntax errors go to diags. Returns a list of top-level nodes.
+    dialect "twincat" / "codesys": the IDE's ST, rewritten to ST in place first (vendor_in.py)."""
     p = _get_parser()
     errors = []
 
     def report(pos, msg):
         diags.error(filename, pos, msg)
         errors.append(msg)
+
+    if dialect in ("twincat", "codesys"):
+        from .vendor_in import to_st
+        text = to_st(text, report)
+        if text is None or errors:
+            return None
 
     rec = _Recovery(report)
     _comment_sink[0] = lambda tok: report(

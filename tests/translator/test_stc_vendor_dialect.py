@@ -1,0 +1,112 @@
+"""stc --dialect=twincat|codesys (issue 36): the ST the vendor glue is written in (pragmas,
+// comments, library namespaces, STRING(n), END_IF without ';', POINTER TO, ADR, SIZEOF, p^,
+MEMCPY) is read, translated and runs; the same constructs stay errors in .st files, with the
+position of the construct."""
+from pathlib import Path
+
+import pytest
+
+from stc_harness import CFLAGS, translate
+
+PROG = """{attribute 'qualified_only'}
+FUNCTION_BLOCK FB_Copy
+VAR_INPUT
+  pDest : POINTER TO BYTE;   // where the words go
+  cb : UDINT;                // room there, in bytes
+  sIP : STRING(15);
+END_VAR
+VAR_OUTPUT
+  n : UDINT;
+END_VAR
+VAR
+  aSrc : ARRAY[0..3] OF WORD := [1, 2, 3, 4];
+  pW : POINTER TO WORD;
+  iLen : INT;
+END_VAR
+n := Tc2_System.MEMCPY(destAddr := pDest, srcAddr := ADR(aSrc), n := MIN(cb, SIZEOF(aSrc)));
+pW := pDest;
+pW^ := pW^ OR 16#100;
+IF n > 0 THEN
+  iLen := LEN(sIP);
+END_IF
+END_FUNCTION_BLOCK
+
+PROGRAM MAIN
+VAR
+  fb : FB_Copy;
+  aDst : ARRAY[0..9] OF WORD;
+  x : UDINT;
+  iLen : INT;
+END_VAR
+fb(pDest := ADR(aDst), cb := 6, sIP := '192.168.0.10');
+x := fb.n;
+END_PROGRAM
+
+CONFIGURATION C
+RESOURCE R ON PLC
+TASK t(INTERVAL := T#10ms, PRIORITY := 0);
+PROGRAM inst WITH t : MAIN;
+END_RESOURCE
+END_CONFIGURATION
+"""
+
+
+@pytest.mark.parametrize("how", ["name", "option"])
+def test_vendor_constructs_translate_and_run(tmp_path, how):
+    from plcharness import Plc
+    src = tmp_path / ("prog.twincat.st" if how == "name" else "prog.st")
+    src.write_text(PROG)
+    if how == "option":
+        r = translate(["--dialect=codesys", "-o", str(tmp_path / "gen"), str(src)])
+        assert r.returncode == 0, r.stderr
+        return
+    plc = Plc.build([src], workdir=tmp_path / "w", compiler="stc")
+    plc.scan(1)
+    # MEMCPY copied 6 bytes (MIN of the room and SIZEOF), the pointer wrote through to aDst[0]
+    assert [plc[f"INST.ADST[{i}]"] for i in range(5)] == [0x101, 2, 3, 0, 0]
+    assert plc["INST.X"] == 6
+
+
+def test_generated_c_compiles_without_warnings(tmp_path):
+    import subprocess
+    src = tmp_path / "prog.twincat.st"
+    src.write_text(PROG)
+    gen = tmp_path / "gen"
+    r = translate(["-o", str(gen), str(src)])
+    assert r.returncode == 0, r.stderr
+    p = subprocess.run(["cc"] + CFLAGS + ["-I", str(gen), "-c", str(gen / "POUS.c"), "-o",
+                                          str(tmp_path / "p.o")], capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+
+
+@pytest.mark.parametrize("body,where,msg", [
+    ("p : POINTER TO INT;", (3, 13), "POINTER TO is not portable"),
+    ("x : INT := ADR(y);", (3, 12), "unknown function 'ADR'"),
+    ("s : STRING(15);", None, "syntax"),
+])
+def test_vendor_constructs_stay_errors_in_st(tmp_path, body, where, msg):
+    src = tmp_path / "p.st"
+    src.write_text(f"PROGRAM Main\nVAR\n{body}\ny : INT;\nEND_VAR\ny := 1;\nEND_PROGRAM\n")
+    r = translate(["-o", str(tmp_path / "gen"), str(src)])
+    assert r.returncode == 1
+    assert "Traceback" not in r.stderr
+    if where:
+        assert f"{src}:{where[0]}:{where[1]}: error: " in r.stderr and msg in r.stderr, r.stderr
+    else:
+        assert f"{src}:3:" in r.stderr, r.stderr
+
+
+@pytest.mark.parametrize("body,where,msg", [
+    ("y := 1;\ny^ := 2;", (7, 2), "'^' on a value of type INT, which is not a POINTER TO"),
+    ("y := UDINT_TO_INT(MEMCPY(destAddr := ADR(y), srcAddr := y, n := 2));", (6, 57),
+     "MEMCPY: an address (ADR(...) or a POINTER), not INT"),
+    ("y := 1; {attribute 'x'", (6, 9), "unclosed pragma"),
+    ("y := UDINT_TO_INT(SIZEOF(1));", (6, 26), "SIZEOF takes a variable"),
+])
+def test_vendor_errors_point_at_the_construct(tmp_path, body, where, msg):
+    src = tmp_path / "p.twincat.st"
+    src.write_text(f"PROGRAM Main\nVAR\np : POINTER TO INT;\ny : INT;\nEND_VAR\n{body}\nEND_PROGRAM\n")
+    r = translate(["-o", str(tmp_path / "gen"), str(src)])
+    assert r.returncode == 1
+    assert "Traceback" not in r.stderr
+    assert f"{src}:{where[0]}:{where[1]}: error: {msg}" in r.stderr, r.stderr
