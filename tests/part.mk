@@ -11,3 +11,23 @@ semantics-iec-tests: all
 	@mkdir -p $(RESULTS)
 	PLCRT_SEMANTICS=iec $(PYTEST) --junitxml=$(RESULTS)/semantics-iec-tests.xml \
 	  $(IEC_TEST_PATHS)
+
+# tests/: the st_lib behaviour tests once more on the TIA SCL that stc.scl_out generates from
+# st_lib (issue 36): under PLCRT_STLIB_DIALECT=scl the bench (tests/st_lib/stlib_sim.py) builds
+# the library from the generated .scl with stc --dialect=scl, so the SCL is checked by running
+# it. make test runs a quick subset (about 26 s of CPU with a cold build cache: the core
+# protocol, the modes, the status decoder, the PLCopen latching, window 2, warm restarts),
+# make check every module that builds through the bench.
+C_TESTS += scl-tests
+# The modules whose PLCs the bench builds (its Uni, Bi, build or lib_sources): the others build
+# their own way and would only run as ST once more. A new bench builds through
+# stlib_sim.lib_sources / lib_type to be run here on the SCL too.
+SCL_TEST_PATHS ?= $(filter-out tests/st_lib/test_lib_scl_status.py,$(shell grep -lE \
+  'from stlib_sim import .*\b(Uni|Bi|build|lib_sources)\b' tests/st_lib/test_lib_*.py))
+QUICK_VARS += SCL_TEST_PATHS="$(addprefix tests/st_lib/test_lib_,protocol.py status.py modes.py \
+  latching.py window.py warm.py)"
+
+.PHONY: scl-tests
+scl-tests: all
+	@mkdir -p $(RESULTS)
+	PLCRT_STLIB_DIALECT=scl $(PYTEST) --junitxml=$(RESULTS)/scl-tests.xml $(SCL_TEST_PATHS)

@@ -44,6 +44,15 @@ def mkdist(*args, cwd=REPO):
                           capture_output=True, text=True, timeout=300)
 
 
+def probe_version(lib, tmp_path):
+    """(MAJOR, MINOR, PATCH, whole) as MIP_Version returns them in a program built with lib."""
+    prog = tmp_path / "probe.st"
+    prog.write_text(PROBE)
+    with Plc.build([lib, prog], workdir=tmp_path / "b", compiler="stc") as plc:
+        plc.scan()
+        return tuple(plc[f"Probe.udi{k}"] for k in ("Major", "Minor", "Patch", "All"))
+
+
 @pytest.fixture(scope="module")
 def archive(tmp_path_factory):
     assert XSD.exists(), f"{XSD.relative_to(REPO)} missing: run `make {XSD.relative_to(REPO)}`"
@@ -71,14 +80,8 @@ def test_archive_name_carries_the_version_that_mip_version_returns(archive, tmp_
     major, minor, patch = map(int, m.groups())
     assert top.name == f"mip-logger-{major}.{minor}.{patch}"
     # the version as a PLC program sees it, built from the archive's one-file library
-    lib = top / f"{top.name}.st"
-    prog = tmp_path / "probe.st"
-    prog.write_text(PROBE)
-    with Plc.build([lib, prog], workdir=tmp_path / "b", compiler="stc") as plc:
-        plc.scan()
-        assert (plc["Probe.udiMajor"], plc["Probe.udiMinor"], plc["Probe.udiPatch"]) == \
-            (major, minor, patch)
-        assert plc["Probe.udiAll"] == major * 10000 + minor * 100 + patch
+    assert probe_version(top / f"{top.name}.st", tmp_path) == \
+        (major, minor, patch, major * 10000 + minor * 100 + patch)
     r = mkdist("--version")
     assert r.returncode == 0 and r.stdout.strip() == f"{major}.{minor}.{patch}"
 
@@ -117,6 +120,31 @@ def test_one_file_library_translates_with_stc(archive, tmp_path):
                        capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "POUS.c").is_file()
+
+
+def test_scl_library_is_generated_complete_and_runs(archive, tmp_path):
+    """scl/*.scl: one file per st_lib file with a block, in import order, exactly what the
+    generator writes from st_lib; the one-file .scl translates as SCL and runs (MIP_Version)."""
+    from stc.scl_out import generate_files
+    _, tgz, top = archive
+    version = top.name.split("-")[-1]
+    with tarfile.open(tgz) as t:
+        names = [n[len(top.name) + 1:] for n in t.getnames()]
+    order = blocks_md_order()
+    fresh = generate_files([str(REPO / f) for f in order], version)
+    want = [f"scl/{Path(f).stem}.scl" for f in order if str(REPO / f) in fresh]
+    assert [n for n in names if n.startswith("scl/")] == want
+    assert len(want) == sum(1 for f in order if re.search(
+        r"^\s*FUNCTION(_BLOCK)?\s", (REPO / f).read_text(), re.M))
+    for f in order:
+        if str(REPO / f) in fresh:
+            assert (top / f"scl/{Path(f).stem}.scl").read_text() == fresh[str(REPO / f)], f
+    one = top / f"{top.name}.scl"
+    major, minor, patch = map(int, version.split("."))
+    assert one.read_text().count(f"VERSION : {major}.{minor}\n") == \
+        one.read_text().count("\nBEGIN\n")
+    assert f"{top.name}.scl" in (top / "README.txt").read_text()
+    assert probe_version(one, tmp_path)[:3] == (major, minor, patch)
 
 
 def test_plcopen_xml_is_valid_and_complete(archive):

@@ -12,6 +12,7 @@ VARIABLES.csv does not list arrays, so this keeps the tests runnable with either
 from __future__ import annotations
 
 import ctypes
+import functools
 import os
 import random
 import shutil
@@ -42,6 +43,53 @@ FFFF = 0xFFFF
 MS = 1_000_000
 
 
+def dialect() -> str:
+    """"st", or "scl" under PLCRT_STLIB_DIALECT=scl (make scl-tests): the bench then builds the
+    library from the TIA SCL that stc.scl_out generates from st_lib (docs/wiring-s7.md), so
+    the behaviour tests run the generated SCL."""
+    d = os.environ.get("PLCRT_STLIB_DIALECT") or "st"
+    if d not in ("st", "scl"):
+        raise ValueError(f"PLCRT_STLIB_DIALECT must be st or scl, not {d!r}")
+    return d
+
+
+def lib_type(name: str) -> str:
+    """How a test program declares a variable of st_lib's type `name`: the name itself, or
+    under the SCL dialect, where the library has no array type names, `ARRAY[..] OF ..`."""
+    if dialect() != "scl":
+        return name
+    return _array_aliases().get(name.upper(), name)
+
+
+@functools.lru_cache(maxsize=None)
+def _array_aliases():
+    from stc.scl_out import array_aliases
+    return array_aliases(LIB_PATHS)      # parses st_lib: once per process
+
+
+def lib_sources(workdir: Path) -> list[str]:
+    """The library files a bench builds its program with: st_lib/*.st, or under the SCL
+    dialect the generated .scl (any bench that builds through this runs on the SCL too)."""
+    if dialect() != "scl":
+        return LIB_PATHS
+    if compiler() != "stc":
+        raise ValueError("PLCRT_STLIB_DIALECT=scl needs stc (matiec reads no SCL)")
+    return scl_library(workdir)
+
+
+def scl_library(workdir: Path) -> list[str]:
+    """The generated .scl files of st_lib, written once per directory, in import order."""
+    from stc.scl_out import generate_files, library_version
+    out = Path(workdir) / "scl"
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for src, text in generate_files(LIB_PATHS, library_version(LIB_PATHS)).items():
+        dst = out / (Path(src).stem + ".scl")
+        dst.write_text(text)
+        paths.append(str(dst))
+    return paths
+
+
 def compiler() -> str:
     """stc unless PLCRT_COMPILER / STLIB_COMPILER says otherwise (CI runs stc)."""
     return os.environ.get("STLIB_COMPILER") or os.environ.get("PLCRT_COMPILER") or "stc"
@@ -50,9 +98,10 @@ def compiler() -> str:
 def gen_program(instances, tick_ms=10):
     """instances: list of (name, fb type). Returns the ST text of PROGRAM MAIN + configuration."""
     decl, pre, post, calls = [], [], [], []
+
     for name, fb in instances:
         decl.append(f"  {name} : {fb};")
-        decl.append(f"  {name}_rd : MIP_T_ReadBlock;")
+        decl.append(f"  {name}_rd : {lib_type('MIP_T_ReadBlock')};")
         decl.append("  " + ", ".join(f"{name}_r{i}" for i in range(125)) + " : WORD;")
         pre += [f"{name}_rd[{i}] := {name}_r{i};" for i in range(125)]
         args = [f"aRead := {name}_rd"]
@@ -60,7 +109,7 @@ def gen_program(instances, tick_ms=10):
             decl.append("  " + ", ".join(f"{name}_w{i}" for i in range(123)) + " : WORD;")
             post += [f"{name}_w{i} := {name}.aWrite[{i}];" for i in range(123)]
         if fb in HAS_CHUNK:
-            decl.append(f"  {name}_ck : MIP_T_Payload;")
+            decl.append(f"  {name}_ck : {lib_type('MIP_T_Payload')};")
             decl.append("  " + ", ".join(f"{name}_c{i}" for i in range(122)) + " : WORD;")
             pre += [f"{name}_ck[{i}] := {name}_c{i};" for i in range(122)]
             args.append(f"aChunk := {name}_ck")
@@ -68,7 +117,7 @@ def gen_program(instances, tick_ms=10):
             decl.append("  " + ", ".join(f"{name}_p{i}" for i in range(122)) + " : WORD;")
             post += [f"{name}_p{i} := {name}.aRecord[{i}];" for i in range(122)]
         if fb == "MIP_BufferSender":
-            decl.append(f"  {name}_buf : MIP_T_Buffer;")
+            decl.append(f"  {name}_buf : {lib_type('MIP_T_Buffer')};")
             decl.append(f"  {name}_fill : BOOL;")
             decl.append(f"  {name}_seed : UINT;")
             decl.append(f"  {name}_i : UINT;")
@@ -93,15 +142,15 @@ def build(instances, workdir: Path, tick_ms=10) -> Plc:
 
 
 def build_text(text, workdir: Path, subdir="build") -> Plc:
-    """The library and one program (its text): built once per text and compiler, then a
-    fresh instance per call (also for tests/st_lib/soe_bench.py)."""
-    key = (text, compiler())
+    """The library and one program (its text): built once per text, compiler and dialect,
+    then a fresh instance per call (also for tests/st_lib/soe_bench.py)."""
+    key = (text, compiler(), dialect())
     if key not in _BUILDS:
         bdir = Path(workdir) / subdir
         bdir.mkdir(parents=True, exist_ok=True)
         prog = bdir / "prog_main.st"
         prog.write_text(text)
-        plc = Plc.build(LIB_PATHS + [str(prog)], workdir=bdir, compiler=compiler())
+        plc = Plc.build(lib_sources(bdir) + [str(prog)], workdir=bdir, compiler=compiler())
         _BUILDS[key] = (plc.build_result, bdir)
         return plc
     result, bdir = _BUILDS[key]

@@ -193,3 +193,33 @@ def find_iec2c():
         cand = os.path.join(os.path.dirname(os.path.realpath(exe)), "lib")
         lib = cand if os.path.isdir(cand) else None
     return exe, lib
+
+
+def check_accept(path, workdir, semantics=None):
+    """A corpus program translates, runs its (* SCANS n *) and gives its (* EXPECT *) values."""
+    with open(path) as f:
+        text = f.read()
+    scans, expects, sets = expectations(text, semantics or "matiec")
+    assert expects, f"{path}: no (* EXPECT ... *) lines"
+    exe = build([path], str(workdir), semantics=semantics)
+    values = run(exe, scans, sets)
+    for sym, want in expects:
+        got = lookup(values, sym)
+        assert got == want.replace(" ", ""), f"{sym}: got {got}, want {want}"
+
+
+def check_reject(path, workdir):
+    """A corpus program fails with exactly located (* ERROR line:col: message *) errors."""
+    with open(path) as f:
+        want = expected_errors(f.read())
+    assert want, f"{path}: no (* ERROR line:col: message *) lines"
+    r = translate(["-o", os.path.join(str(workdir), "out"), path])
+    assert r.returncode == 1, f"accepted (rc={r.returncode}): {r.stderr}"
+    assert "Traceback" not in r.stderr and "internal" not in r.stderr, r.stderr
+    lines = r.stderr.splitlines()
+    for line, col, msg in want:
+        prefix = f"{path}:{line}:{col}: error: "
+        hits = [x for x in lines if x.startswith(prefix)]
+        assert hits, f"no error at {line}:{col}; got:\n{r.stderr}"
+        assert any(msg.lower() in x.lower() for x in hits), \
+            f"error at {line}:{col} does not mention {msg!r}:\n{r.stderr}"

@@ -102,7 +102,8 @@ class Checker:
         self.p.semantics = semantics
         self.strict_iec = strict_iec   # --strict-iec: warn where an edition-2 checker is stricter
         self.file = None
-        self.vendor_files = set()   # files in the TwinCAT / CODESYS dialect (vendor_in.py)
+        self.scl_files = set()         # files read as TIA SCL (compiler.py, scl_in.name_arrays)
+        self.vendor_files = set()      # files in the TwinCAT / CODESYS dialect (vendor_in.py)
 
     def _vendor(self):
         return self.file in self.vendor_files
@@ -1419,6 +1420,9 @@ class Checker:
             return
         if T.same_type(from_t, to_t):
             return
+        if from_t.is_array and to_t.is_array and self.file in self.scl_files:
+            self.fail(e.pos, f"{what}: {from_t} cannot be {to_t}: SCL assigns and passes arrays "
+                      "only between the same bounds and element type")
         if from_t.is_array and to_t.is_array:
             self.fail(e.pos, f"{what}: arrays can only be assigned or passed between variables of "
                       "the same named array TYPE (matiec rejects anonymous ARRAY[..] types here): "
