@@ -19,7 +19,8 @@ STANDINS = {"twincat": [REPO / "standins" / "twincat" / "Tc2_ModbusSrv.twincat.s
 # the glue block's call per family: station s, its MIP block (snd / rcv1 ...), unit id, addresses
 CALL = {"twincat": (
     "io{s}(sIPAddr := '127.0.0.1', nTCPPort := 502, nUnitID := {unit}, nReadAddr := {ra},\n"
-    "    nWriteAddr := {wa}, tTimeout := T#2S, xEnable := xRun, xWriteReq := wrTrig{s},\n"
+    "    nWriteAddr := SEL(pGlueWriteAddr = WORD#0, pGlueWriteAddr, WORD#{wa}), tTimeout := T#2S,\n"
+    "    xEnable := xRun, xWriteReq := wrTrig{s},\n"
     "    aWrite := {blk}.aWrite, uWriteLen := {blk}.uWriteLen);\n"
     "xRdValid{s} := io{s}.xReadValid;\n"
     "IF xRdValid{s} THEN rd{s} := io{s}.aRead; END_IF;\n"
@@ -28,6 +29,11 @@ CALL = {"twincat": (
     "xWrDone{s} := io{s}.xWriteDone;\n"
     "wrErr{s} := io{s}.xWriteError;\n",
     "MIP_TcModbusIo")}
+
+
+# a parameter word of the variant programs: the glue's write address instead of the modem's
+# (0: the modem's), so a test makes every write fail without another build
+WRITE_ADDR_WORD = 40
 
 
 class GlueError(RuntimeError):
@@ -58,7 +64,9 @@ def variant(text: str, family: str, role: str, s: int = 1) -> str:
         raise GlueError(f"station {s}: {k} located data words, expected 248")
     head = re.search(r"^PROGRAM \w+\n", text, re.M)
     text = (text[:head.end()] + "VAR\n  (* the vendor glue (issue 36) *)\n"
-            + f"  io{s} : {fb_type};\n" + "".join(decl) + "END_VAR\n" + text[head.end():])
+            + f"  io{s} : {fb_type};\n" + "".join(decl) + "END_VAR\nVAR\n"
+            + f"  pGlueWriteAddr AT %MW{WRITE_ADDR_WORD} : WORD;   (* the glue's write address (0: the modem's); tests *)\n"
+            + "END_VAR\n" + text[head.end():])
     # the read section (up to the write-done line) -> the glue call
     m = re.search(rf"^\(\* station {s}: read handshake.*?^xWrDone{s} := .*?\n", text, re.M | re.S)
     if not m:
