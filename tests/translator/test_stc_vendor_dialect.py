@@ -110,3 +110,51 @@ def test_vendor_errors_point_at_the_construct(tmp_path, body, where, msg):
     assert r.returncode == 1
     assert "Traceback" not in r.stderr
     assert f"{src}:{where[0]}:{where[1]}: error: {msg}" in r.stderr, r.stderr
+
+
+ENUMS = """{attribute 'qualified_only'}
+TYPE Error : (OK := 0, LicenseMissing := 1, RequestException := 51, RequestParameterError,
+               ReplyTimeout := 56);
+END_TYPE
+
+PROGRAM MAIN
+VAR
+  e : ModbusFB.Error := ModbusFB.Error.ReplyTimeout;
+  w : WORD;
+  n : INT;
+END_VAR
+w := TO_WORD(e);
+e := Error.RequestParameterError;
+CASE e OF
+Error.OK: n := 1;
+ELSE
+  n := WORD_TO_INT(TO_WORD(e));
+END_CASE
+END_PROGRAM
+
+CONFIGURATION C
+RESOURCE R ON PLC
+TASK t(INTERVAL := T#10ms, PRIORITY := 0);
+PROGRAM inst WITH t : MAIN;
+END_RESOURCE
+END_CONFIGURATION
+"""
+
+
+def test_codesys_enumerations_with_values_and_qualified_names(tmp_path):
+    """ModbusFB's enumerations (qualified_only, explicit values, the next one +1), read as
+    Enum.Value, and TO_WORD of one gives its number."""
+    from plcharness import Plc
+    src = tmp_path / "prog.codesys.st"
+    src.write_text(ENUMS)
+    plc = Plc.build([src], workdir=tmp_path / "w", compiler="stc")
+    plc.scan(1)
+    assert plc["INST.W"] == 56
+    assert plc["INST.N"] == 52
+
+
+def test_explicit_enum_values_stay_an_error_in_st(tmp_path):
+    src = tmp_path / "p.st"
+    src.write_text("TYPE E : (A := 0, B := 5); END_TYPE\n")
+    r = translate(["-o", str(tmp_path / "gen"), str(src)])
+    assert r.returncode == 1 and f"{src}:1:11: error: enumerated values with explicit" in r.stderr, r.stderr

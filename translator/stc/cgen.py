@@ -228,7 +228,7 @@ class Gen:
             self.w()
         elif t.is_enum:
             done.add(key)
-            items = ", ".join(f"{t.name}__{v} = {i}" for i, v in enumerate(t.values))
+            items = ", ".join(f"{t.name}__{v} = {t.code(v)}" for v in t.values)
             self.w(f"enum {{ {items} }};  /* {t.name}, stored as int */")
             self.w()
         elif t.is_fb:
@@ -580,9 +580,9 @@ class Gen:
         if isinstance(lab, int):
             return lab
         if isinstance(lab, S.TypedLit):
-            return st.values.index(lab.value)
+            return st.code(lab.value)
         if isinstance(lab, S.Name):
-            return st.values.index(lab.name)
+            return st.code(lab.name)
         return 0
 
     def for_(self, s):
@@ -648,6 +648,8 @@ class Gen:
             return f"((void *)&{self.lv(e.argv[0])})"
         if e.name == "SIZEOF":
             return f"((uint32_t)sizeof {self.lv(e.argv[0])})"
+        if e.name.startswith("TO_"):
+            return f"(({e.ty.ctype}){self.ex(e.argv[0])})"
         d, s_, n = (self.ex(a) for a in e.argv)
         return f"stc_memcpy({d}, {s_}, {n})"
 
@@ -841,7 +843,7 @@ class Gen:
                 et, _ = e.enum_value
                 return f"{et.name}__{e.value}"
             return lit(e.value, t)
-        if isinstance(e, S.Name) and getattr(e, "enum_value", None):
+        if isinstance(e, (S.Name, S.Field)) and getattr(e, "enum_value", None):
             et, _ = e.enum_value
             return f"{et.name}__{e.name}"
         if isinstance(e, (S.Name, S.Field, S.Index, S.Deref)):

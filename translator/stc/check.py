@@ -224,17 +224,24 @@ class Checker:
     def _type_def(self, td):
         spec = td.spec
         if isinstance(spec, S.EnumSpec):
-            vals = []
+            vals, codes = [], []
+            explicit = False
             for vname, vval, vpos in spec.items:
-                if vval is not None:
+                if vval is not None and not self._vendor():
                     self.err(vpos, "enumerated values with explicit values (A := 0) are not "
                              "portable (matiec rejects them): declare (A, B, ...) and convert "
                              "with CASE")
                 self._check_ident(vname, vpos)
                 if vname in vals:
                     self.err(vpos, f"enumerated value '{vname}' is declared twice")
+                # the vendor dialects: A := n, and the next one without a value is n + 1
+                code = vval if vval is not None else (codes[-1] + 1 if codes else 0)
+                explicit = explicit or vval is not None
+                if code in codes:
+                    self.err(vpos, f"enumerated value '{vname}' = {code} repeats another's value")
                 vals.append(vname)
-            t = T.EnumT(td.name, vals)
+                codes.append(code)
+            t = T.EnumT(td.name, vals, codes=codes if explicit else None)
             if spec.default is not None:
                 if spec.default not in vals:
                     self.err(spec.pos, f"'{spec.default}' is not a value of {td.name}")
@@ -416,6 +423,8 @@ class Checker:
             return self.is_constant(e.left) and self.is_constant(e.right)
         if isinstance(e, S.Name):
             return getattr(e, "enum_value", None) is not None or isinstance(e.ty, T.EnumT) and e.name not in self.scope
+        if isinstance(e, S.Field):
+            return getattr(e, "enum_value", None) is not None    # Enum.Value (vendor dialects)
         if isinstance(e, S.Call):
             return _conversion(e.name) is not None and all(
                 self.is_constant(a.value) for a in e.args if isinstance(a, S.ArgPos))
@@ -864,7 +873,7 @@ class Checker:
         if isinstance(lab, S.Name):
             if st is not None and st.is_enum:
                 if lab.name in st.values:
-                    return st.values.index(lab.name)
+                    return st.code(lab.name)
                 self.err(pos, f"'{lab.name}' is not a value of {st.name}")
                 return None
             self.err(pos, f"named constants as case labels ('{lab.name}') are not portable "
@@ -883,7 +892,7 @@ class Checker:
         if st is not None and not (st.is_enum and st.name == et.name):
             self.err(pos, f"label of type {et.name} in CASE on {st}")
             return None
-        return et.values.index(vname)
+        return et.code(vname)
 
     def for_(self, s):
         v = self.lookup(s.var)
@@ -1104,6 +1113,15 @@ class Checker:
             e.var = v
             return v.type
         if isinstance(e, S.Field):
+            if isinstance(e.base, S.Name) and self._vendor() and e.base.name not in self.scope \
+                    and self.p.types.get(e.base.name) is not None \
+                    and self.p.types[e.base.name].is_enum:
+                # Enum.Value (the vendor dialects; CODESYS's qualified_only enumerations)
+                et = self.p.types[e.base.name]
+                if e.name not in et.values:
+                    self.fail(e.pos, f"'{e.name}' is not a value of {et.name}")
+                e.enum_value = (et, et.values.index(e.name))
+                return et
             bt = self.expr(e.base, None)
             if bt.is_fb:
                 return self.fb_member(e, bt)
@@ -1535,6 +1553,17 @@ class Checker:
             return self.std_func(c, expected)
         if name in _VENDOR_FUNCS and self._vendor():
             return self.vendor_func(c)
+        if name.startswith("TO_") and self._vendor() and name[3:] in T.ELEMENTARY \
+                and T.ELEMENTARY[name[3:]].kind in ("sint", "uint", "bit") and len(c.args) == 1 \
+                and isinstance(c.args[0], S.ArgPos):
+            # TO_WORD(eErrorID): the number of an enumerated value (CODESYS)
+            at = self.expr(c.args[0].value, None)
+            if not at.is_enum:
+                self.fail(c.pos, f"{name} of a {at} is not supported: use a typed conversion "
+                          f"({at}_TO_{name[3:]})")
+            c.kind = "vendor"
+            c.argv = [c.args[0].value]
+            return T.ELEMENTARY[name[3:]]
         if name.startswith("TO_"):
             self.fail(c.pos, f"generic conversion {name} is not portable (matiec rejects it): "
                       "use a typed conversion like INT_TO_UINT")

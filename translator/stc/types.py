@@ -76,11 +76,17 @@ class StructT(Type):
 
 
 class EnumT(Type):
-    __slots__ = ("name", "values", "default")
+    __slots__ = ("name", "values", "default", "codes")
     is_enum = True
 
-    def __init__(self, name, values, default=None):
+    def __init__(self, name, values, default=None, codes=None):
         self.name, self.values, self.default = name, values, default
+        self.codes = codes     # explicit values (A := 51) of the vendor dialects, else None
+
+    def code(self, value):
+        """The number of an enumerated value: its position, or its explicit value."""
+        i = self.values.index(value)
+        return self.codes[i] if self.codes else i
 
     def __str__(self):
         return self.name

@@ -10,6 +10,7 @@ line and column, so errors point into the file):
 - `STRING(15)` (TwinCAT / CODESYS length syntax)     -> `STRING[15]`
 - `END_IF` (and END_CASE, END_FOR, END_WHILE, END_REPEAT) without its `;`, as the IDEs write
   them -> the `;` is added in place of the next blank (or right after the keyword).
+- a CASE label `Enum.Value:` (first on its line or after `;`) -> `Enum#Value:`
 The checker then allows, in these files only (types.PointerT): `POINTER TO T`, `PVOID`, `ADR(x)`,
 `SIZEOF(x)` (UDINT), `p^`, `MEMCPY(destAddr, srcAddr, n)` (Tc2_System; CODESYS: SysMemCpy of
 SysMem), a `STRING(n)` up to STRING's length, and `Enum.Value` for an enumeration value.
@@ -30,6 +31,15 @@ _TOKEN = re.compile(
     r"|[A-Za-z_][A-Za-z0-9_]*"
     r"|[0-9][0-9A-Za-z_#.]*"
     r"|\S", re.S)
+
+
+def _case_label_start(toks, i):
+    """Token i starts a line's first element (a CASE label is the first thing on its line
+    or follows ';')."""
+    if i == 0:
+        return True
+    prev = toks[i - 1]
+    return prev[0] == ";" or prev[0].upper() in ("OF", "THEN", "ELSE", "DO")
 
 
 def dialect_of_name(fname):
@@ -85,7 +95,15 @@ def to_st(text, report):
             break
         elif c.isalpha() or c == "_":
             up = tok.upper()
-            if up in NAMESPACES and nxt is not None and nxt[0] == "." and nxt[1] == end:
+            after2 = toks[i + 2] if i + 2 < len(toks) else None
+            after3 = toks[i + 3] if i + 3 < len(toks) else None
+            if up not in NAMESPACES and nxt is not None and nxt[0] == "." and nxt[1] == end \
+                    and after2 is not None and after2[1] == end + 1 \
+                    and (after2[0][0].isalpha() or after2[0][0] == "_") \
+                    and after3 is not None and after3[0] == ":" \
+                    and not text.startswith(":=", after3[1]) and _case_label_start(toks, i):
+                out[end] = "#"     # a CASE label Enum.Value: -> Enum#Value
+            elif up in NAMESPACES and nxt is not None and nxt[0] == "." and nxt[1] == end:
                 after = toks[i + 2] if i + 2 < len(toks) else None
                 if after is not None and (after[0][0].isalpha() or after[0][0] == "_") \
                         and after[1] == end + 1:
