@@ -15,7 +15,8 @@ from . import layout as L
 REPO = L.REPO
 FAMILIES = ("twincat",)
 GLUE = {"twincat": [REPO / "dist" / "glue" / "twincat" / "MIP_TcModbusIo.twincat.st"]}
-STANDINS = {"twincat": [REPO / "standins" / "twincat" / "Tc2_ModbusSrv.twincat.st"]}
+STANDINS = {"twincat": [REPO / "standins" / "StandIn_Channel.twincat.st",
+                        REPO / "standins" / "twincat" / "Tc2_ModbusSrv.twincat.st"]}
 # the glue block's call per family: station s, its MIP block (snd / rcv1 ...), unit id, addresses
 CALL = {"twincat": (
     "io{s}(sIPAddr := '127.0.0.1', nTCPPort := 502, nUnitID := {unit}, nReadAddr := {ra},\n"

@@ -265,5 +265,6 @@ def test_the_vendor_glue_ships_and_compiles_from_the_archive(archive, tmp_path):
         assert (top / n).read_bytes() == (REPO / "dist" / n).read_bytes(), n
     assert "glue/<family>/" in (top / "README.txt").read_text()
     files = [top / f"{top.name}.st", *sorted((top / "glue" / "twincat").glob("*.twincat.st")),
+             REPO / "standins" / "StandIn_Channel.twincat.st",
              REPO / "standins" / "twincat" / "Tc2_ModbusSrv.twincat.st"]
     assert cli.main(["-o", str(tmp_path / "gen")] + [str(f) for f in files]) == 0

@@ -15,7 +15,8 @@ sys.path.insert(0, str(REPO / "tests" / "runtime"))
 from plcharness import Plc  # noqa: E402
 from rt_helpers import ModbusServer  # noqa: E402
 
-STANDIN = REPO / "standins" / "twincat" / "Tc2_ModbusSrv.twincat.st"
+STANDINS = [REPO / "standins" / "StandIn_Channel.twincat.st",
+            REPO / "standins" / "twincat" / "Tc2_ModbusSrv.twincat.st"]
 
 PROG = """
 PROGRAM MAIN
@@ -64,7 +65,7 @@ def build(tmp_path):
         src.write_text(PROG)
         cfg = tmp_path / "plc.conf"
         cfg.write_text(config(port, timeout))
-        return Plc.build([STANDIN, src], workdir=tmp_path / "w", compiler="stc", config=cfg)
+        return Plc.build([*STANDINS, src], workdir=tmp_path / "w", compiler="stc", config=cfg)
     return make
 
 
