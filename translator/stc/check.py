@@ -507,7 +507,7 @@ class Checker:
                     if pou is not None and pou.kind == "function":
                         self.err(npos, "a function block instance inside a FUNCTION is not "
                                  "portable (matiec rejects it): use a FUNCTION_BLOCK")
-                    if kind == "VAR_IN_OUT":
+                    if kind == "VAR_IN_OUT" and not self._vendor():
                         self.err(npos, "VAR_IN_OUT of a function block type is not portable "
                                  "(it crashes matiec)")
                     if kind in ("VAR_INPUT", "VAR_OUTPUT") and pou is not None and pou.kind == "function":
@@ -1438,6 +1438,8 @@ class Checker:
             return
         if T.same_type(from_t, to_t):
             return
+        if self._vendor() and from_t.is_array and to_t.is_array and T.same_type(from_t, to_t, False):
+            return    # the vendor dialects assign arrays of the same bounds and element type
         if from_t.is_array and to_t.is_array and self.file in self.scl_files:
             self.fail(e.pos, f"{what}: {from_t} cannot be {to_t}: SCL assigns and passes arrays "
                       "only between the same bounds and element type")
@@ -1527,6 +1529,11 @@ class Checker:
             c.kind = "fb"
             c.var = v
             self.bind_args(c, v.type.pou, fb=True)
+            for pn, pv in v.type.pou.vars.items():
+                if pv.kind == "VAR_IN_OUT" and pv.type.is_fb and pn not in c.bound:
+                    # (vendor dialects only: an FB in-out is a reference, as CODESYS's rClient)
+                    self.err(c.pos, f"{pn}, a VAR_IN_OUT of {name}'s, must be given in every "
+                             "call (the IDEs require it; unbound it refers to nothing)")
             self._warn_std_fb(c, v.type.pou)
             return None
         if name in T.STD_FBS or (name in self.p.pous and self.p.pous[name].kind == "function_block"):
@@ -1698,7 +1705,11 @@ class Checker:
                         self.err(c.pos, f"VAR_IN_OUT '{p.name}' of {pou.name} must be passed")
                 continue
             try:
-                if p.kind == "VAR_IN_OUT":
+                if p.kind == "VAR_IN_OUT" and p.type.is_fb and isinstance(e, S.Name):
+                    # an FB instance bound to an FB in-out (vendor dialects: CODESYS's rClient)
+                    v = self.lookup(e)
+                    e.var, e.ty, t = v, v.type, v.type
+                elif p.kind == "VAR_IN_OUT":
                     t = self.lvalue(e, "pass as VAR_IN_OUT")
                     if not _is_variable(e):
                         self.fail(e.pos, f"VAR_IN_OUT '{p.name}' needs a variable")
