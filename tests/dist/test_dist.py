@@ -253,7 +253,7 @@ def test_the_wireshark_dissector_ships_and_installs_as_the_readme_says(archive, 
 
 def test_the_vendor_glue_ships_and_compiles_from_the_archive(archive, tmp_path):
     """glue/<family>/ (issue 36) holds dist/glue's files byte for byte, the README names it,
-    and the TwinCAT glue translates from the archive's own files (the one-file library, the
+    and each family's glue translates from the archive's own files (the one-file library, the
     glue, the stand-ins of CI for the vendor's client blocks)."""
     from stc import cli
     out, tgz, top = archive
@@ -264,7 +264,9 @@ def test_the_vendor_glue_ships_and_compiles_from_the_archive(archive, tmp_path):
     for n in shipped:
         assert (top / n).read_bytes() == (REPO / "dist" / n).read_bytes(), n
     assert "glue/<family>/" in (top / "README.txt").read_text()
-    files = [top / f"{top.name}.st", *sorted((top / "glue" / "twincat").glob("*.twincat.st")),
-             REPO / "standins" / "StandIn_Channel.twincat.st",
-             REPO / "standins" / "twincat" / "Tc2_ModbusSrv.twincat.st"]
-    assert cli.main(["-o", str(tmp_path / "gen")] + [str(f) for f in files]) == 0
+    for family, standin in (("twincat", "twincat/Tc2_ModbusSrv.twincat.st"),
+                            ("codesys", "codesys/ModbusFB.codesys.st")):
+        assert f"glue/{family}/README.md" in shipped
+        files = [top / f"{top.name}.st", *sorted((top / "glue" / family).glob(f"*.{family}.st")),
+                 REPO / "standins" / "StandIn_Channel.twincat.st", REPO / "standins" / standin]
+        assert cli.main(["-o", str(tmp_path / family)] + [str(f) for f in files]) == 0, family

@@ -20,8 +20,10 @@ def _blocks():
     return out
 
 
-def test_the_twincat_page_includes_its_glue():
-    assert any(p.values[1] == "dist/glue/twincat/MIP_TcModbusIo.twincat.st" for p in _blocks())
+@pytest.mark.parametrize("path", ["dist/glue/twincat/MIP_TcModbusIo.twincat.st",
+                                  "dist/glue/codesys/MIP_CdsModbusIo.codesys.st"])
+def test_each_family_page_includes_its_glue(path):
+    assert any(p.values[1] == path for p in _blocks()), f"no wiring page includes {path}"
 
 
 @pytest.mark.parametrize("page,path,text", _blocks())

@@ -158,3 +158,35 @@ def test_explicit_enum_values_stay_an_error_in_st(tmp_path):
     src.write_text("TYPE E : (A := 0, B := 5); END_TYPE\n")
     r = translate(["-o", str(tmp_path / "gen"), str(src)])
     assert r.returncode == 1 and f"{src}:1:11: error: enumerated values with explicit" in r.stderr, r.stderr
+
+
+def test_an_fb_in_out_must_be_bound_in_every_call(tmp_path):
+    src = tmp_path / "p.codesys.st"
+    src.write_text("""FUNCTION_BLOCK Cl
+VAR_OUTPUT
+  x : BOOL;
+END_VAR
+x := TRUE;
+END_FUNCTION_BLOCK
+FUNCTION_BLOCK Rq
+VAR_IN_OUT
+  rClient : Cl;
+END_VAR
+VAR_OUTPUT
+  y : BOOL;
+END_VAR
+y := rClient.x;
+END_FUNCTION_BLOCK
+PROGRAM Main
+VAR
+  c : Cl;
+  r : Rq;
+END_VAR
+c();
+r(rClient := c);
+r();
+END_PROGRAM
+""")
+    r = translate(["-o", str(tmp_path / "gen"), str(src)])
+    assert r.returncode == 1
+    assert f"{src}:23:1: error: RCLIENT, a VAR_IN_OUT of RQ, must be given in every call" in r.stderr, r.stderr

@@ -1532,8 +1532,8 @@ class Checker:
             for pn, pv in v.type.pou.vars.items():
                 if pv.kind == "VAR_IN_OUT" and pv.type.is_fb and pn not in c.bound:
                     # (vendor dialects only: an FB in-out is a reference, as CODESYS's rClient)
-                    self.err(c.pos, f"{pn}, a VAR_IN_OUT of {name}'s, must be given in every "
-                             "call (the IDEs require it; unbound it refers to nothing)")
+                    self.err(c.pos, f"{pn}, a VAR_IN_OUT of {v.type.pou.name}, must be given in "
+                             "every call (the IDEs require it; unbound it refers to nothing)")
             self._warn_std_fb(c, v.type.pou)
             return None
         if name in T.STD_FBS or (name in self.p.pous and self.p.pous[name].kind == "function_block"):
