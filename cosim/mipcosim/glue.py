@@ -20,30 +20,27 @@ STANDINS = {"twincat": [REPO / "standins" / "StandIn_Channel.twincat.st",
                         REPO / "standins" / "twincat" / "Tc2_ModbusSrv.twincat.st"],
             "codesys": [REPO / "standins" / "StandIn_Channel.twincat.st",
                         REPO / "standins" / "codesys" / "ModbusFB.codesys.st"]}
+# what the example program takes from the glue block (the same outputs in every family)
+OUTPUTS = ("xRdValid{s} := io{s}.xReadValid;\n"
+           "IF xRdValid{s} THEN rd{s} := io{s}.aRead; END_IF;\n"
+           "rdErr{s} := io{s}.xReadError;\n"
+           "rdSt{s} := io{s}.wReadStatus;\n"
+           "xWrDone{s} := io{s}.xWriteDone;\n"
+           "wrErr{s} := io{s}.xWriteError;\n")
 # the glue block's call per family: station s, its MIP block (snd / rcv1 ...), unit id, addresses
 CALL = {"twincat": (
     "io{s}(sIPAddr := '127.0.0.1', nTCPPort := 502, nUnitID := {unit}, nReadAddr := {ra},\n"
     "    nWriteAddr := SEL(pGlueWriteAddr = WORD#0, pGlueWriteAddr, WORD#{wa}), tTimeout := T#2S,\n"
     "    xEnable := xRun, xWriteReq := wrTrig{s},\n"
     "    aWrite := {blk}.aWrite, uWriteLen := {blk}.uWriteLen);\n"
-    "xRdValid{s} := io{s}.xReadValid;\n"
-    "IF xRdValid{s} THEN rd{s} := io{s}.aRead; END_IF;\n"
-    "rdErr{s} := io{s}.xReadError;\n"
-    "rdSt{s} := io{s}.wReadStatus;\n"
-    "xWrDone{s} := io{s}.xWriteDone;\n"
-    "wrErr{s} := io{s}.xWriteError;\n",
+    + OUTPUTS,
     "MIP_TcModbusIo"),
     "codesys": (
     "io{s}(uiPort := 502, uiUnitId := {unit}, uiReadAddr := {ra},\n"
     "    uiWriteAddr := WORD_TO_UINT(SEL(pGlueWriteAddr = WORD#0, pGlueWriteAddr, WORD#{wa})),\n"
     "    udiTimeOut := 2000000, xEnable := xRun, xWriteReq := wrTrig{s},\n"
     "    aWrite := {blk}.aWrite, uWriteLen := {blk}.uWriteLen);\n"
-    "xRdValid{s} := io{s}.xReadValid;\n"
-    "IF xRdValid{s} THEN rd{s} := io{s}.aRead; END_IF;\n"
-    "rdErr{s} := io{s}.xReadError;\n"
-    "rdSt{s} := io{s}.wReadStatus;\n"
-    "xWrDone{s} := io{s}.xWriteDone;\n"
-    "wrErr{s} := io{s}.xWriteError;\n",
+    + OUTPUTS,
     "MIP_CdsModbusIo")}
 
 

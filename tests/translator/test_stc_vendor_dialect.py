@@ -8,6 +8,16 @@ import pytest
 
 from stc_harness import CFLAGS, translate
 
+# one task running MAIN as instance INST (the programs below end with it)
+CONFIG = """
+CONFIGURATION C
+RESOURCE R ON PLC
+TASK t(INTERVAL := T#10ms, PRIORITY := 0);
+PROGRAM inst WITH t : MAIN;
+END_RESOURCE
+END_CONFIGURATION
+"""
+
 PROG = """{attribute 'qualified_only'}
 FUNCTION_BLOCK FB_Copy
 VAR_INPUT
@@ -41,14 +51,7 @@ END_VAR
 fb(pDest := ADR(aDst), cb := 6, sIP := '192.168.0.10');
 x := fb.n;
 END_PROGRAM
-
-CONFIGURATION C
-RESOURCE R ON PLC
-TASK t(INTERVAL := T#10ms, PRIORITY := 0);
-PROGRAM inst WITH t : MAIN;
-END_RESOURCE
-END_CONFIGURATION
-"""
+""" + CONFIG
 
 
 @pytest.mark.parametrize("how", ["name", "option"])
@@ -131,14 +134,7 @@ ELSE
   n := WORD_TO_INT(TO_WORD(e));
 END_CASE
 END_PROGRAM
-
-CONFIGURATION C
-RESOURCE R ON PLC
-TASK t(INTERVAL := T#10ms, PRIORITY := 0);
-PROGRAM inst WITH t : MAIN;
-END_RESOURCE
-END_CONFIGURATION
-"""
+""" + CONFIG
 
 
 def test_codesys_enumerations_with_values_and_qualified_names(tmp_path):
