@@ -13,13 +13,16 @@ from pathlib import Path
 from . import layout as L
 
 REPO = L.REPO
-FAMILIES = ("twincat", "codesys")
+FAMILIES = ("twincat", "codesys", "s7")
 GLUE = {"twincat": [REPO / "dist" / "glue" / "twincat" / "MIP_TcModbusIo.twincat.st"],
-        "codesys": [REPO / "dist" / "glue" / "codesys" / "MIP_CdsModbusIo.codesys.st"]}
+        "codesys": [REPO / "dist" / "glue" / "codesys" / "MIP_CdsModbusIo.codesys.st"],
+        "s7": [REPO / "dist" / "glue" / "s7" / "MIP_S7ModbusIo.scl"]}
 STANDINS = {"twincat": [REPO / "standins" / "StandIn_Channel.twincat.st",
                         REPO / "standins" / "twincat" / "Tc2_ModbusSrv.twincat.st"],
             "codesys": [REPO / "standins" / "StandIn_Channel.twincat.st",
-                        REPO / "standins" / "codesys" / "ModbusFB.codesys.st"]}
+                        REPO / "standins" / "codesys" / "ModbusFB.codesys.st"],
+            "s7": [REPO / "standins" / "StandIn_Channel.twincat.st",
+                   REPO / "standins" / "s7" / "MB_CLIENT.codesys.st"]}
 # what the example program takes from the glue block (the same outputs in every family)
 OUTPUTS = ("xRdValid{s} := io{s}.xReadValid;\n"
            "IF xRdValid{s} THEN rd{s} := io{s}.aRead; END_IF;\n"
@@ -41,7 +44,20 @@ CALL = {"twincat": (
     "    udiTimeOut := 2000000, xEnable := xRun, xWriteReq := wrTrig{s},\n"
     "    aWrite := {blk}.aWrite, uWriteLen := {blk}.uWriteLen);\n"
     + OUTPUTS,
-    "MIP_CdsModbusIo")}
+    "MIP_CdsModbusIo"),
+    # S7: MB_CLIENT's 4xxxx addresses (40001 + the 0-based register)
+    "s7": (
+    "io{s}(connectId := 1, unitId := {unit}, readAddr := 40001 + {ra},\n"
+    "    writeAddr := SEL(pGlueWriteAddr = WORD#0, WORD_TO_UDINT(pGlueWriteAddr), UDINT#{wa}) + 40001,\n"
+    "    enable := xRun, writeReq := wrTrig{s},\n"
+    "    aWrite := {blk}.aWrite, writeLen := {blk}.uWriteLen);\n"
+    "xRdValid{s} := io{s}.readValid;\n"
+    "IF xRdValid{s} THEN rd{s} := io{s}.aRead; END_IF;\n"
+    "rdErr{s} := io{s}.readError;\n"
+    "rdSt{s} := io{s}.readStatus;\n"
+    "xWrDone{s} := io{s}.writeDone;\n"
+    "wrErr{s} := io{s}.writeError;\n",
+    "MIP_S7ModbusIo")}
 
 
 # a parameter word of the variant programs: the glue's write address instead of the modem's
@@ -102,7 +118,7 @@ def sources(family: str, role: str, workdir: Path) -> list[str]:
         raise GlueError(f"family {family!r}: one of {', '.join(FAMILIES)}")
     base = L.program_sources(role, False)
     main = Path(base[-1])
-    out = Path(workdir) / f"{main.stem}.{family}.st"
+    out = Path(workdir) / f"{main.stem}.{'codesys' if family == 's7' else family}.st"
     out.parent.mkdir(parents=True, exist_ok=True)
     new = variant(main.read_text(), family, role)
     if not out.exists() or out.read_text() != new:

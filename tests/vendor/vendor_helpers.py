@@ -12,7 +12,7 @@ def sources(family, workdir, glue_text=None):
     integrator's mistake)."""
     src = {r: glue.sources(family, r, Path(workdir) / "src") for r in ("outstation", "central")}
     if glue_text is not None:
-        path = Path(workdir) / "src" / f"mistaken.{family}.st"
+        path = Path(workdir) / "src" / ("mistaken.scl" if family == "s7" else f"mistaken.{family}.st")
         path.write_text(glue_text)
         src["outstation"][-2] = str(path)
     return src
@@ -43,9 +43,10 @@ def assert_exact(ch, finished, reps, tot, restart, records=24):
         assert tot["records"] == records
 
 
-def run_outstation(family, workdir, src, seconds, words):
+def run_outstation(family, workdir, src, seconds, words, extra=()):
     """The chain with `src`, the outstation's parameter words set first (%MWn: value); the
-    outstation's logger and glue after `seconds` of virtual time."""
+    outstation's logger counters and the variables `extra` (OUTSTATION.<name>) after `seconds`
+    of virtual time, read while the PLC is still there."""
     st = Setup(seed=7, records=24, per_transfer=7, log_period_ms=50, timeout_ms=300,
                sources=src, channel=True)
     with Chain(st, workdir) as ch:
@@ -54,4 +55,4 @@ def run_outstation(family, workdir, src, seconds, words):
         ch.run_for(seconds * SEC)
         o = ch.plcs[("out", 1)]
         return {n: o[f"OUTSTATION.{n}"] for n in
-                ("SRC.UTRANSFERSFAILED", "SRC.UTRANSFERSDONE", "SRC.WLASTERROR")}, o
+                ("SRC.UTRANSFERSFAILED", "SRC.UTRANSFERSDONE", "SRC.WLASTERROR", *extra)}

@@ -1713,7 +1713,8 @@ class Checker:
                     t = self.lvalue(e, "pass as VAR_IN_OUT")
                     if not _is_variable(e):
                         self.fail(e.pos, f"VAR_IN_OUT '{p.name}' needs a variable")
-                    if not T.same_type(t, p.type):
+                    if not T.same_type(t, p.type) and not (
+                            self._vendor() and t.is_array and T.same_type(t, p.type, False)):
                         self.fail(e.pos, f"VAR_IN_OUT '{p.name}' is {p.type}, got {t}")
                 else:
                     t = self.expr(e, p.type)
