@@ -18,7 +18,7 @@ mip-logger-<version>/:
     mip-logger-<version>.scl        the same SCL in one file, in import order (one import)
     blocks.md                       the block reference (docs/blocks.md, regenerated here)
     wireshark/mipmb.lua             the Wireshark dissector of MIP over Modbus (docs/wireshark.md)
-    glue/<family>/*                 the vendor glue (dist/glue/: TwinCAT, CODESYS), with its import steps
+    glue/<family>/*                 the vendor glue (dist/glue/: TwinCAT, CODESYS, S7), with its import steps
     LICENSE, CHANGELOG.md, README.txt
 
 The import order is the one of docs/blocks.md (every type and block before its first use); it is
@@ -169,8 +169,8 @@ def readme(order: list[str], version: str) -> str:
               f"  tshark -X lua_script:{WIRESHARK} -r CAPTURE",
               "",
               f"{GLUE}/<family>/ holds the glue between the blocks and a vendor's Modbus client",
-              "blocks (TwinCAT 3: Tc2_ModbusSrv; CODESYS V3: ModbusFB), to copy into the IDE;",
-              "its README.md has the import steps.",
+              "blocks (TwinCAT 3: Tc2_ModbusSrv; CODESYS V3: ModbusFB; S7: MB_CLIENT), to copy",
+              "into the IDE; its README.md has the import steps.",
               ""]
     return "\n".join(lines)
 

@@ -1,5 +1,5 @@
 """The example programs (plc/outstation.st, plc/central.st) with a vendor family's glue in place
-of their located I/O (issue 36): station 1's read and write go through the glue block the
+of their located I/O (issue 36; families twincat, codesys, s7): station 1's read and write go through the glue block the
 release ships (dist/glue/<family>/) and the stand-ins of the vendor's client blocks
 (standins/<family>/), which put each request on the wire through the runtime's request channel
 (Setup(channel=True)). Everything else — logger, MIP blocks, parameters, event taps — is the

@@ -270,3 +270,9 @@ def test_the_vendor_glue_ships_and_compiles_from_the_archive(archive, tmp_path):
         files = [top / f"{top.name}.st", *sorted((top / "glue" / family).glob(f"*.{family}.st")),
                  REPO / "standins" / "StandIn_Channel.twincat.st", REPO / "standins" / standin]
         assert cli.main(["-o", str(tmp_path / family)] + [str(f) for f in files]) == 0, family
+    # S7: the archive's SCL library, the glue in SCL, the MB_CLIENT stand-in
+    assert "glue/s7/README.md" in shipped
+    files = [top / f"{top.name}.scl", *sorted((top / "glue" / "s7").glob("*.scl")),
+             REPO / "standins" / "StandIn_Channel.twincat.st",
+             REPO / "standins" / "s7" / "MB_CLIENT.codesys.st"]
+    assert cli.main(["-o", str(tmp_path / "s7")] + [str(f) for f in files]) == 0

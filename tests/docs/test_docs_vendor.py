@@ -21,7 +21,8 @@ def _blocks():
 
 
 @pytest.mark.parametrize("path", ["dist/glue/twincat/MIP_TcModbusIo.twincat.st",
-                                  "dist/glue/codesys/MIP_CdsModbusIo.codesys.st"])
+                                  "dist/glue/codesys/MIP_CdsModbusIo.codesys.st",
+                                  "dist/glue/s7/MIP_S7ModbusIo.scl"])
 def test_each_family_page_includes_its_glue(path):
     assert any(p.values[1] == path for p in _blocks()), f"no wiring page includes {path}"
 
