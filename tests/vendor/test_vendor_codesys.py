@@ -15,9 +15,11 @@ FAMILY = "codesys"
 
 
 def test_codesys_glue_transfers_a_logger_with_loss_and_a_restart(vendor_workdir):
-    """Quick tier: one short run, 10 % loss and a central restart mid read-out; the read and
-    the write requests share one ClientTCP (the stand-in takes them one after the other)."""
-    ch, finished, reps, tot, requests = run(FAMILY, vendor_workdir / "cds-quick", 0.1, "central")
+    """Quick tier: one short run of the outstation with the glue (the central: the example
+    program), 10 % loss and a central restart mid read-out; the read and the write requests
+    share one ClientTCP (the stand-in takes them one after the other)."""
+    ch, finished, reps, tot, requests = run(FAMILY, vendor_workdir / "cds-quick", 0.1, "central",
+                                            roles=("outstation",))
     assert_exact(ch, finished, reps, tot, "central")
     assert requests > 50
 
@@ -44,7 +46,7 @@ def test_codesys_xexecute_held_ends_in_a_named_error(vendor_workdir):
     held = good.replace("  xRdExec := FALSE;               // the next call resets the request block",
                         "  xRdExec := TRUE;")
     assert held != good
-    src = sources(FAMILY, vendor_workdir / "cds-held", held)
+    src = sources(FAMILY, vendor_workdir / "cds-held", held, roles=("outstation",))
     r = run_outstation(FAMILY, vendor_workdir / "cds-held", src, 3, {12: 3},
                        extra=("IO1.FBRD.XDONE",))
     errors = L.enum_values("E_MIP_Error")

@@ -15,9 +15,11 @@ FAMILY = "s7"
 
 
 def test_s7_glue_transfers_a_logger_with_loss_and_a_restart(vendor_workdir):
-    """Quick tier: one short run, 30 % loss and an outstation restart mid read-out; read and
-    write take turns on one MB_CLIENT instance."""
-    ch, finished, reps, tot, requests = run(FAMILY, vendor_workdir / "s7-quick", 0.3, "outstation")
+    """Quick tier: one short run of the outstation with the glue (the central: the example
+    program), 30 % loss and an outstation restart mid read-out; read and write take turns on
+    one MB_CLIENT instance."""
+    ch, finished, reps, tot, requests = run(FAMILY, vendor_workdir / "s7-quick", 0.3, "outstation",
+                                            roles=("outstation",))
     assert_exact(ch, finished, reps, tot, "outstation")
     assert requests > 50
 
@@ -48,7 +50,7 @@ def test_s7_done_taken_as_a_level_leaves_a_named_wait(vendor_workdir):
                        "      #mb(REQ := FALSE, DISCONNECT := FALSE, MB_MODE := 0, MB_DATA_ADDR := #readAddr,\n"
                        "          MB_DATA_LEN := 125, MB_DATA_PTR := #buf, CONNECT := #connect);\n"
                        "      IF #mb.DONE OR #mb.ERROR THEN")
-    src = sources(FAMILY, vendor_workdir / "s7-level", bad)
+    src = sources(FAMILY, vendor_workdir / "s7-level", bad, roles=("outstation",))
     r = run_outstation(FAMILY, vendor_workdir / "s7-level", src, 5, {12: 3},
                        extra=("SND.EWAITREASON", "SND.XWRITEREQ", "IO1.WRITEDONE"))
     waits = L.enum_values("E_MIP_WaitReason")

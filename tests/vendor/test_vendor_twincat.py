@@ -15,8 +15,10 @@ FAMILY = "twincat"
 
 
 def test_twincat_glue_transfers_a_logger_with_loss_and_a_restart(vendor_workdir):
-    """Quick tier: one short run, 10 % loss and an outstation restart mid read-out."""
-    ch, finished, reps, tot, requests = run(FAMILY, vendor_workdir / "quick", 0.1, "outstation")
+    """Quick tier: one short run of the outstation with the glue (the central: the example
+    program), 10 % loss and an outstation restart mid read-out."""
+    ch, finished, reps, tot, requests = run(FAMILY, vendor_workdir / "quick", 0.1, "outstation",
+                                            roles=("outstation",))
     assert_exact(ch, finished, reps, tot, "outstation")
     assert requests > 50         # the reads and writes went through the stand-ins' channel
 
@@ -42,7 +44,7 @@ def _failing_writes(workdir, mistaken):
         text = good.replace("xWriteDone := NOT fbWr.bError;", "xWriteDone := TRUE;") \
                    .replace("xWriteError := fbWr.bError;", "xWriteError := FALSE;")
         assert text != good
-    src = sources(FAMILY, workdir, text)
+    src = sources(FAMILY, workdir, text, roles=("outstation",))
     return run_outstation(FAMILY, workdir, src, 3, {12: 3, glue.WRITE_ADDR_WORD: 4000},
                           extra=("IO1.NWRITEERRID",))
 

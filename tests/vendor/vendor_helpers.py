@@ -7,10 +7,11 @@ from mipcosim.check import check, summary
 from mipcosim.sim import SEC, Chain, Setup
 
 
-def sources(family, workdir, glue_text=None):
-    """The build's files per role; glue_text: the outstation's glue replaced by this text (an
-    integrator's mistake)."""
-    src = {r: glue.sources(family, r, Path(workdir) / "src") for r in ("outstation", "central")}
+def sources(family, workdir, glue_text=None, roles=("outstation", "central")):
+    """The build's files of the roles with the family's glue (the others run the example
+    program as it is); glue_text: the outstation's glue replaced by this text (an integrator's
+    mistake)."""
+    src = {r: glue.sources(family, r, Path(workdir) / "src") for r in roles}
     if glue_text is not None:
         path = Path(workdir) / "src" / ("mistaken.scl" if family == "s7" else f"mistaken.{family}.st")
         path.write_text(glue_text)
@@ -18,9 +19,12 @@ def sources(family, workdir, glue_text=None):
     return src
 
 
-def run(family, workdir, loss, restart, records=24, per_transfer=7, seed=7):
+def run(family, workdir, loss, restart, records=24, per_transfer=7, seed=7,
+        roles=("outstation", "central")):
+    """roles: the sides whose program has the glue (the quick tier: the outstation only, so its
+    central is the example program the chain tests build too)."""
     st = Setup(loss=loss, seed=seed, records=records, per_transfer=per_transfer, log_period_ms=50,
-               sources=sources(family, workdir), channel=True)
+               sources=sources(family, workdir, roles=roles), channel=tuple(roles))
     with Chain(st, workdir) as ch:
         if restart != "none":
             ch.run_for(SEC)          # mid read-out
@@ -48,7 +52,7 @@ def run_outstation(family, workdir, src, seconds, words, extra=()):
     outstation's logger counters and the variables `extra` (OUTSTATION.<name>) after `seconds`
     of virtual time, read while the PLC is still there."""
     st = Setup(seed=7, records=24, per_transfer=7, log_period_ms=50, timeout_ms=300,
-               sources=src, channel=True)
+               sources=src, channel=tuple(src))
     with Chain(st, workdir) as ch:
         for n, v in words.items():
             ch.plcs[("out", 1)][f"%MW{n}"] = v
