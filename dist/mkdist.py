@@ -18,6 +18,7 @@ mip-logger-<version>/:
     mip-logger-<version>.scl        the same SCL in one file, in import order (one import)
     blocks.md                       the block reference (docs/blocks.md, regenerated here)
     wireshark/mipmb.lua             the Wireshark dissector of MIP over Modbus (docs/wireshark.md)
+    glue/<family>/*                 the vendor glue (dist/glue/: TwinCAT, CODESYS, S7), with its import steps
     LICENSE, CHANGELOG.md, README.txt
 
 The import order is the one of docs/blocks.md (every type and block before its first use); it is
@@ -43,6 +44,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 TOOLS = REPO / "docs" / "tools"
 WIRESHARK = "wireshark/mipmb.lua"     # dist/wireshark/mipmb.lua, at the same path in the archive
+GLUE = "glue"                         # dist/glue/<family>/*, at the same paths in the archive
 sys.path.insert(0, str(TOOLS))
 
 from blockref import dependency_order, render  # noqa: E402
@@ -165,8 +167,18 @@ def readme(order: list[str], version: str) -> str:
               "~/.local/lib/wireshark/plugins/ (`tshark -G folders` names it), and restart",
               "Wireshark; or load it for one run:",
               f"  tshark -X lua_script:{WIRESHARK} -r CAPTURE",
+              "",
+              f"{GLUE}/<family>/ holds the glue between the blocks and a vendor's Modbus client",
+              "blocks (TwinCAT 3: Tc2_ModbusSrv; CODESYS V3: ModbusFB; S7: MB_CLIENT), to copy",
+              "into the IDE; its README.md has the import steps.",
               ""]
     return "\n".join(lines)
+
+
+def glue_files(repo: Path = REPO) -> list[str]:
+    """The vendor glue files (dist/glue/<family>/*), as archive paths glue/<family>/NAME."""
+    root = repo / "dist"
+    return sorted(str(p.relative_to(root)) for p in (root / GLUE).glob("*/*") if p.is_file())
 
 
 def build(outdir: Path, xsd: Path | None, repo: Path = REPO) -> list[Path]:
@@ -202,6 +214,7 @@ def build(outdir: Path, xsd: Path | None, repo: Path = REPO) -> list[Path]:
     members += [(f"{top}/{top}.scl", scl_one_file(scl, version).encode()),
                 (f"{top}/blocks.md", blocks.encode()),
                 (f"{top}/{WIRESHARK}", (repo / "dist" / WIRESHARK).read_bytes())]
+    members += [(f"{top}/{f}", (repo / "dist" / f).read_bytes()) for f in glue_files(repo)]
     epoch = int(os.environ.get("SOURCE_DATE_EPOCH", DEFAULT_EPOCH))
     tgz = outdir / f"{top}.tar.gz"
     buf = io.BytesIO()

@@ -171,13 +171,28 @@ class Params:
         return max(1, min(self.payload, room))
 
 
-def _read_write_ranges(dev, s, read_start, write_start, status_first=False):
+# The request channel of the vendor stand-ins (standins/*/): station 1's ranges take their
+# address, quantity and unit id from these %QW words (runtime_shim README, "A request channel";
+# the stand-ins declare the same words)
+CHANNEL_READ_ADDR, CHANNEL_READ_LEN, CHANNEL_WRITE_ADDR, CHANNEL_UNIT = 61, 62, 63, 64
+
+
+def _channel_keys(s, write):
+    """The address / length keys of station s's range when it is the stand-ins' channel."""
+    if write:
+        return f"address = %QW{CHANNEL_WRITE_ADDR}\n"
+    return f"address = %QW{CHANNEL_READ_ADDR}\nlength = %QW{CHANNEL_READ_LEN}\n"
+
+
+def _read_write_ranges(dev, s, read_start, write_start, status_first=False, channel=False):
     """The device's write range, then its read range: requests run in config order, so a
     record or an acknowledgement the program raised in the same scan as the next read reaches
     the modem first (on a serial line a status read in front of it costs 14 ms at 19,200 baud,
     docs/serial.md). status_first: False, True ("yes": status and count alone) or the number
     of registers of the first read (3: an acknowledgement of one register comes in it)."""
     sf = f"status_first = {'yes' if status_first is True else status_first}\n" if status_first else ""
+    cw = _channel_keys(s, True) if channel else ""
+    cr = _channel_keys(s, False) if channel else ""
     return f"""
 [write {dev}_write]
 device = {dev}
@@ -190,7 +205,7 @@ done = %IX{s}.2
 error = %IX{s}.3
 status = %IW{20 + s}
 length = %QW{s}
-
+{cw}
 [read {dev}_read]
 device = {dev}
 start = {read_start}
@@ -201,7 +216,7 @@ trigger = %QX{s}.0
 done = %IX{s}.0
 error = %IX{s}.1
 status = %IW{10 + s}
-"""
+{cr}"""
 
 
 MASTER = """[master]
@@ -239,9 +254,12 @@ def serial_keys(path, baud=19200, parity="even", data_bits=8, stop_bits=1):
 
 
 def outstation_config(trm_port, host="127.0.0.1", comment="", retain="", serial=None, unit=1,
-                      status_first=False, fc23=False):
+                      status_first=False, fc23=False, channel=False):
     """retain: a retain_section(...) or "". serial: serial_keys(...) for an RTU link (then
-    trm_port and host are not used), unit: the TRM's unit id."""
+    trm_port and host are not used), unit: the TRM's unit id. channel: the ranges are the
+    vendor stand-ins' request channel (the program sets address, quantity and unit id)."""
+    if channel:
+        unit = f"%QW{CHANNEL_UNIT}"
     link = serial if serial else f"host = {host}\nport = {trm_port}\n"
     if fc23:
         link += "fc23 = yes\n"
@@ -251,11 +269,11 @@ def outstation_config(trm_port, host="127.0.0.1", comment="", retain="", serial=
 {link}unit_id = {unit}
 errors = %IW30
 online = %IX9.0
-""" + _read_write_ranges("trm", 1, 2198, 2001, status_first) + retain)
+""" + _read_write_ranges("trm", 1, 2198, 2001, status_first, channel) + retain)
 
 
 def central_config(mdp_port, stations, host="127.0.0.1", comment="", retain="", serial=None,
-                   status_first=False, fc23=False):
+                   status_first=False, fc23=False, channel=False):
     """serial: serial_keys(...) for an RTU link to the MDP-810 (the devices share the line);
     status_first: the read ranges read the status word alone until it shows new data
     (runtime_shim README, docs/serial.md)."""
@@ -267,10 +285,10 @@ def central_config(mdp_port, stations, host="127.0.0.1", comment="", retain="", 
     for s in range(1, stations + 1):
         text += f"""
 [device mdp{s}]
-{link}unit_id = {s}
+{link}unit_id = {f"%QW{CHANNEL_UNIT}" if channel and s == 1 else s}
 errors = %IW{30 + s}
 online = %IX9.{s}
-""" + _read_write_ranges(f"mdp{s}", s, 198, 10, status_first)
+""" + _read_write_ranges(f"mdp{s}", s, 198, 10, status_first, channel and s == 1)
     return text
 
 

@@ -229,6 +229,12 @@ class Setup:
     window: int = 1
     # role ("outstation" / "central") -> ST files replacing the example program (tests)
     sources: dict = field(default_factory=dict)
+    # station 1's ranges are the vendor stand-ins' request channel (mipcosim/glue.py): True for
+    # both sides, or the roles ("outstation", "central") whose program has the glue
+    channel: bool | tuple = False
+
+    def channel_of(self, role):
+        return self.channel is True or role in (self.channel or ())
 
     def params(self, station, session, start=0):
         down = (0, 0, 0, 0)
@@ -328,11 +334,13 @@ class Chain(_Kernel):
         self.out_conf = self.workdir / "outstation.conf"
         self.out_conf.write_text(L.outstation_config(15021, retain=L.retain_section(
             self.workdir / "outstation.retain", setup.retain_period_ms), serial=ser("trm"),
-            status_first=setup.status_first, fc23=setup.fc23))
+            status_first=setup.status_first, fc23=setup.fc23,
+            channel=setup.channel_of("outstation")))
         self.cen_conf = self.workdir / "central.conf"
         self.cen_conf.write_text(L.central_config(15020, setup.stations, retain=L.retain_section(
             self.workdir / "central.retain", setup.retain_period_ms), serial=ser("mdp"),
-            status_first=setup.status_first, fc23=setup.fc23))
+            status_first=setup.status_first, fc23=setup.fc23,
+            channel=setup.channel_of("central")))
         self.events: list[Event] = []
         self.boots = {("out", s): 0 for s in range(1, setup.stations + 1)}
         self.boots[("cen", 0)] = 0

@@ -142,9 +142,9 @@ typedef struct range_keys {
     int line;
     char name[PLCRT_NAME_MAX];
     int is_write;
-    int device, table, start, size, image, policy, trigger, done, error, status, length, status_first;
+    int device, table, start, size, image, policy, trigger, done, error, status, length, address, status_first;
     char v_device[PLCRT_NAME_MAX], v_table[32], v_image[32], v_policy[32], v_trigger[32],
-        v_done[32], v_error[32], v_status[32], v_length[32];
+        v_done[32], v_error[32], v_status[32], v_length[32], v_address[32];
     long start_v, size_v;
     int status_first_v;
 } range_keys_t;
@@ -242,7 +242,7 @@ static int finish_range(parser_t *p, range_keys_t *k, uint64_t default_poll)
     snprintf(r->name, sizeof r->name, "%s", k->name);
     r->line = k->line;
     r->is_write = k->is_write;
-    r->trigger = r->done = r->error = r->status = r->length = -1;
+    r->trigger = r->done = r->error = r->status = r->length = r->address = -1;
     r->dev = find_device(m, k->v_device);
     if (r->dev < 0)
         return perr(p, k->device, "device: no [device %s] above this range", k->v_device);
@@ -312,10 +312,20 @@ static int finish_range(parser_t *p, range_keys_t *k, uint64_t default_poll)
             return -1;
     }
     if (k->length) {
-        if (!k->is_write) return perr(p, k->length, "length is a key of write ranges");
-        if (bits) return perr(p, k->length, "length: only for register (holding) writes");
+        /* reads: only with policy trigger (a vendor client block's quantity, set per request) */
+        if (!k->is_write && r->policy != POLICY_TRIGGER)
+            return perr(p, k->length, "length: of a read range needs policy = trigger");
+        if (bits) return perr(p, k->length, "length: only for register ranges");
         if (parse_location(p, k->length, "length", k->v_length, 'Q', 'W', &r->length) ||
             claim(p, k->length, 'Q', 'W', r->length, 1, "length"))
+            return -1;
+    }
+    if (k->address) {
+        /* the request's first address from the image, taken at the rising edge (a vendor
+         * client block's address input); start/size stay the range the program may ask for */
+        if (r->policy != POLICY_TRIGGER) return perr(p, k->address, "address: needs policy = trigger");
+        if (parse_location(p, k->address, "address", k->v_address, 'Q', 'W', &r->address) ||
+            claim(p, k->address, 'Q', 'W', r->address, 1, "address"))
             return -1;
     }
     if (k->status_first && k->status_first_v) {
@@ -657,7 +667,8 @@ static int parse_plcrt(parser_t *p, char *text)
                 RKEY(done, v_done)
                 RKEY(error, v_error)
                 RKEY(status, v_status)
-                if (sec == SEC_WRITE) { RKEY(length, v_length) }
+                RKEY(length, v_length)
+                RKEY(address, v_address)
                 if (sec == SEC_READ && !strcmp(key, "status_first")) {
                     slot = &rk.status_first;
                     char *end;
@@ -678,8 +689,8 @@ static int parse_plcrt(parser_t *p, char *text)
                     if (parse_int(p, lineno, key, val, 0, 65536, &rk.size_v)) return -1;
                     break;
                 }
-                return perr(p, lineno, "unknown key '%s' in [%s] (device, table, start, size, image, policy, trigger, done, error, status%s)",
-                            key, sec == SEC_WRITE ? "write" : "read", sec == SEC_WRITE ? ", length" : ", status_first");
+                return perr(p, lineno, "unknown key '%s' in [%s] (device, table, start, size, image, policy, trigger, done, error, status, length, address%s)",
+                            key, sec == SEC_WRITE ? "write" : "read", sec == SEC_WRITE ? "" : ", status_first");
             } while (0);
 #undef RKEY
             break;

@@ -94,10 +94,9 @@ int plcrt_master_exchange_out(plcrt_t *rt, struct plcrt_master *m)
             r->result = RESULT_NONE;
             if (r->is_write) {
                 take_outputs(rt, r, r->req);
-                r->req_len = r->length >= 0 ? rt->img.qw[r->length] : r->size;
-            } else {
-                r->req_len = r->size;
             }
+            r->req_len = r->length >= 0 ? rt->img.qw[r->length] : r->size;
+            r->req_addr = r->address >= 0 ? rt->img.qw[r->address] : r->start;
             r->req_unit = unit_now(rt, &m->devices[r->dev]);
             wake = 1;
         }
@@ -126,7 +125,9 @@ void plcrt_master_exchange_in(plcrt_t *rt, struct plcrt_master *m)
             }
             if (r->result == RESULT_NONE) continue;
             if (r->result == RESULT_OK && !r->is_write) {
-                for (int j = 0; j < r->size; j++) {
+                /* (a length word: the registers read; the rest of the image stays) */
+                int n = r->req_len >= 1 && r->req_len <= r->size ? r->req_len : r->size;
+                for (int j = 0; j < n; j++) {
                     if (bits) ix_bits(rt)[r->image + j] = (uint8_t)(r->in[j] != 0);
                     else rt->img.iw[r->image + j] = r->in[j];
                 }
@@ -882,7 +883,7 @@ static void step(plcrt_t *rt, struct plcrt_master *m, uint64_t now, int writes_o
                     w->pending && w->req_unit == r->req_unit && w->req_len >= 1 && w->req_len <= 121 &&
                     w->req_len <= w->size) {
                     pair = j;
-                    q->waddr = w->start;
+                    q->waddr = w->req_addr;
                     q->wcount = w->req_len;
                     memcpy(q->wdata, w->req, sizeof q->wdata[0] * (size_t)w->req_len);
                     break;
@@ -891,7 +892,7 @@ static void step(plcrt_t *rt, struct plcrt_master *m, uint64_t now, int writes_o
         munlock(m);
         if (!go) continue;
         q->fc = pair >= 0 ? 23 : function_code(r);
-        q->addr = r->start;
+        q->addr = r->policy == POLICY_TRIGGER ? r->req_addr : r->start;
         q->status_first = r->status_first;
         q->extra_req = q->extra_rsp = 0;
         int status;
@@ -902,6 +903,14 @@ static void step(plcrt_t *rt, struct plcrt_master *m, uint64_t now, int writes_o
             munlock(m);
             log_limited(rt, d, LOG_UNIT, now, "device %s: unit id %d from %%QW%d out of range (0..255): request of range %s not sent",
                         d->name, q->unit, d->unit_word, r->name);
+            status = STATUS_TRANSPORT(EINVAL);
+        } else if (q->addr + q->count > 65536 && q->count <= r->size) {
+            /* the address word puts the request past Modbus address 65535: not sent */
+            mlock(m);
+            d->n_errors++;
+            munlock(m);
+            log_limited(rt, d, LOG_LENGTH, now, "range %s: address %d + %d registers runs past 65535",
+                        r->name, q->addr, q->count);
             status = STATUS_TRANSPORT(EINVAL);
         } else if (q->count < 1 || q->count > r->size) {
             /* the length word asks for more than the range has */

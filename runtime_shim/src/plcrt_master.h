@@ -30,6 +30,7 @@ typedef struct plcrt_range {
     int image;       /* first word index (%IW/%QW), or flat bit index a*8+b (%IX/%QX) */
     int trigger, done, error; /* flat bit indexes, -1 = none */
     int status, length;       /* word indexes, -1 = none */
+    int address;              /* trigger: %QW word index of the request's first address, -1 = start */
     int status_first;         /* reads: registers of the MIP read area's first read (status, count,
                                * maybe data; plcrt_master.c), 0 = the whole range every time */
     int dev;
@@ -45,6 +46,7 @@ typedef struct plcrt_range {
     int fresh;           /* in[] holds new data */
     int have_in;         /* in[] holds a read of this run (status_first: a whole block) */
     int req_len;
+    int req_addr;        /* first Modbus address of the trigger request (sampled at the edge) */
     int req_unit;        /* unit id of the trigger request (sampled at the edge; may be > 255) */
     int out_len;         /* cycle/change: length word as of the last exchange (size without one) */
     int out_unit;        /* unit id as of the last exchange (cycle/change); -1 = none yet */

@@ -249,3 +249,30 @@ def test_the_wireshark_dissector_ships_and_installs_as_the_readme_says(archive, 
     plugins.mkdir(parents=True)
     shutil.copy(lua, plugins)
     assert "\tmipmb.record\t" in fields()
+
+
+def test_the_vendor_glue_ships_and_compiles_from_the_archive(archive, tmp_path):
+    """glue/<family>/ (issue 36) holds dist/glue's files byte for byte, the README names it,
+    and each family's glue translates from the archive's own files (the one-file library, the
+    glue, the stand-ins of CI for the vendor's client blocks)."""
+    from stc import cli
+    out, tgz, top = archive
+    shipped = sorted(str(p.relative_to(top)) for p in (top / "glue").rglob("*") if p.is_file())
+    assert shipped == sorted(str(p.relative_to(REPO / "dist"))
+                             for p in (REPO / "dist" / "glue").rglob("*") if p.is_file())
+    assert "glue/twincat/MIP_TcModbusIo.twincat.st" in shipped
+    for n in shipped:
+        assert (top / n).read_bytes() == (REPO / "dist" / n).read_bytes(), n
+    assert "glue/<family>/" in (top / "README.txt").read_text()
+    for family, standin in (("twincat", "twincat/Tc2_ModbusSrv.twincat.st"),
+                            ("codesys", "codesys/ModbusFB.codesys.st")):
+        assert f"glue/{family}/README.md" in shipped
+        files = [top / f"{top.name}.st", *sorted((top / "glue" / family).glob(f"*.{family}.st")),
+                 REPO / "standins" / "StandIn_Channel.twincat.st", REPO / "standins" / standin]
+        assert cli.main(["-o", str(tmp_path / family)] + [str(f) for f in files]) == 0, family
+    # S7: the archive's SCL library, the glue in SCL, the MB_CLIENT stand-in
+    assert "glue/s7/README.md" in shipped
+    files = [top / f"{top.name}.scl", *sorted((top / "glue" / "s7").glob("*.scl")),
+             REPO / "standins" / "StandIn_Channel.twincat.st",
+             REPO / "standins" / "s7" / "MB_CLIENT.codesys.st"]
+    assert cli.main(["-o", str(tmp_path / "s7")] + [str(f) for f in files]) == 0

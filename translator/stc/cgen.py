@@ -53,6 +53,8 @@ def _c_string(v):
 def lit(v, t):
     if t.is_enum:
         return str(v)
+    if t.kind == "ptr":
+        return "((void *)0)"    # (a POINTER's only literal value: its initial 0)
     if t.kind == "string":
         v = v or ""
         return f"((stc_string){{{len(v)}u, {_c_string(v)}}})" if v else "((stc_string){0u, {0}})"
@@ -226,7 +228,7 @@ class Gen:
             self.w()
         elif t.is_enum:
             done.add(key)
-            items = ", ".join(f"{t.name}__{v} = {i}" for i, v in enumerate(t.values))
+            items = ", ".join(f"{t.name}__{v} = {t.code(v)}" for v in t.values)
             self.w(f"enum {{ {items} }};  /* {t.name}, stored as int */")
             self.w()
         elif t.is_fb:
@@ -578,9 +580,9 @@ class Gen:
         if isinstance(lab, int):
             return lab
         if isinstance(lab, S.TypedLit):
-            return st.values.index(lab.value)
+            return st.code(lab.value)
         if isinstance(lab, S.Name):
-            return st.values.index(lab.name)
+            return st.code(lab.name)
         return 0
 
     def for_(self, s):
@@ -640,9 +642,24 @@ class Gen:
         else:
             self.w(f"{lv} = {self.ex(value)};")
 
+    def vendor_call(self, e):
+        """ADR, SIZEOF, MEMCPY / SysMemCpy of the TwinCAT / CODESYS dialects."""
+        if e.name == "ADR":
+            return f"((void *)&{self.lv(e.argv[0])})"
+        if e.name == "SIZEOF":
+            return f"((uint32_t)sizeof {self.lv(e.argv[0])})"
+        if e.name.startswith("TO_"):
+            return f"(({e.ty.ctype}){self.ex(e.argv[0])})"
+        d, s_, n = (self.ex(a) for a in e.argv)
+        return f"stc_memcpy({d}, {s_}, {n})"
+
     def call_stmt(self, c):
         if getattr(c, "kind", None) == "fb":
             self.fb_call(c)
+        elif getattr(c, "kind", None) == "vendor":
+            e = S.Call(c.pos, c.name, c.args)
+            e.kind, e.argv = c.kind, c.argv
+            self.w(f"(void){self.vendor_call(e)};")
         else:
             e = S.Call(c.pos, c.name, c.args)
             for k in ("kind", "pou", "bound", "outs"):
@@ -774,6 +791,8 @@ class Gen:
             for ix, (lo, hi) in zip(e.indexes, bt.dims):
                 out += f"[{self.index(ix, lo, hi)}]"
             return out
+        if isinstance(e, S.Deref):
+            return f"(*({_c_elem(e.ty)} *)({self.ex(e.base)}))"
         raise AssertionError(f"not an lvalue: {e!r}")
 
     def index(self, ix, lo, hi):
@@ -824,10 +843,10 @@ class Gen:
                 et, _ = e.enum_value
                 return f"{et.name}__{e.value}"
             return lit(e.value, t)
-        if isinstance(e, S.Name) and getattr(e, "enum_value", None):
+        if isinstance(e, (S.Name, S.Field)) and getattr(e, "enum_value", None):
             et, _ = e.enum_value
             return f"{et.name}__{e.name}"
-        if isinstance(e, (S.Name, S.Field, S.Index)):
+        if isinstance(e, (S.Name, S.Field, S.Index, S.Deref)):
             lv = self.lv(e)
             if t.is_elem and t.kind == "time" and not self.matiec:
                 return f"stc_time_ns({lv})"
@@ -846,6 +865,8 @@ class Gen:
                 return call
             if k == "conv":
                 return self.conversion(e)
+            if k == "vendor":
+                return self.vendor_call(e)
             if k == "binop":
                 r = self.binop(e.binop)    # ADD(a, b) ...: a typed function in matiec
                 return f"(({t.ctype}){r})" if getattr(e.binop, "wide", False) else r
@@ -1325,6 +1346,8 @@ class Gen:
                 self.sym_rows(rows, f"{path}.{v.name}", v.type, v.kind, f"{cbase}.{v.name}")
 
     def sym_rows(self, rows, path, t, kind, ref):
+        if t.is_elem and t.kind == "ptr":
+            return                  # an address means nothing outside this process
         if t.is_elem:
             rows.append(f"{path}\t{t.name}\t{kind}\t{ref}")
         elif t.is_enum:

@@ -103,6 +103,10 @@ class Checker:
         self.strict_iec = strict_iec   # --strict-iec: warn where an edition-2 checker is stricter
         self.file = None
         self.scl_files = set()         # files read as TIA SCL (compiler.py, scl_in.name_arrays)
+        self.vendor_files = set()      # files in the TwinCAT / CODESYS dialect (vendor_in.py)
+
+    def _vendor(self):
+        return self.file in self.vendor_files
 
     def warn(self, pos, msg):
         """Portability warning: the construct's value differs between matiec and IEC."""
@@ -220,17 +224,24 @@ class Checker:
     def _type_def(self, td):
         spec = td.spec
         if isinstance(spec, S.EnumSpec):
-            vals = []
+            vals, codes = [], []
+            explicit = False
             for vname, vval, vpos in spec.items:
-                if vval is not None:
+                if vval is not None and not self._vendor():
                     self.err(vpos, "enumerated values with explicit values (A := 0) are not "
                              "portable (matiec rejects them): declare (A, B, ...) and convert "
                              "with CASE")
                 self._check_ident(vname, vpos)
                 if vname in vals:
                     self.err(vpos, f"enumerated value '{vname}' is declared twice")
+                # the vendor dialects: A := n, and the next one without a value is n + 1
+                code = vval if vval is not None else (codes[-1] + 1 if codes else 0)
+                explicit = explicit or vval is not None
+                if code in codes:
+                    self.err(vpos, f"enumerated value '{vname}' = {code} repeats another's value")
                 vals.append(vname)
-            t = T.EnumT(td.name, vals)
+                codes.append(code)
+            t = T.EnumT(td.name, vals, codes=codes if explicit else None)
             if spec.default is not None:
                 if spec.default not in vals:
                     self.err(spec.pos, f"'{spec.default}' is not a value of {td.name}")
@@ -272,8 +283,21 @@ class Checker:
         return t
 
     def resolve_type(self, spec, member=False, in_array=False):
+        if isinstance(spec, S.PointerRef):
+            if spec.word != "POINTER" or not self._vendor():
+                self.fail(spec.pos, f"{spec.word} TO is not portable (matiec rejects pointers and "
+                          "references); pointers are read in the TwinCAT / CODESYS dialects only "
+                          "(--dialect=twincat|codesys)" if spec.word == "POINTER" else
+                          f"unexpected '{spec.word} TO'")
+            target = self.resolve_type(spec.target, member=True)
+            if target.is_array and not target.name or target.is_fb:
+                self.fail(spec.pos, "POINTER TO an anonymous ARRAY or a function block is not "
+                          "supported: declare an array TYPE")
+            return T.PointerT(target)
         if isinstance(spec, S.NamedType):
             n = spec.name
+            if n == "PVOID" and self._vendor():
+                return T.PointerT(T.ELEMENTARY["BYTE"])
             if n in T.ELEMENTARY:
                 return T.ELEMENTARY[n]
             if n in self.p.types:
@@ -325,6 +349,8 @@ class Checker:
             self.fail(spec.pos, f"subrange types like {spec.base}(0..100) are not portable "
                       f"(matiec rejects them): use plain {spec.base} and LIMIT()")
         if isinstance(spec, S.StringRef):
+            if self._vendor() and spec.base == "STRING" and 0 < int(spec.size) <= T.STR_MAX:
+                return T.STRING       # STRING(15) of the vendor blocks: stc's STRING holds it
             self.fail(spec.pos, f"{spec.base}[{spec.size}] is not portable (matiec drops or "
                       "crashes on it): use an ARRAY OF BYTE")
         if isinstance(spec, S.StructSpec):
@@ -397,6 +423,8 @@ class Checker:
             return self.is_constant(e.left) and self.is_constant(e.right)
         if isinstance(e, S.Name):
             return getattr(e, "enum_value", None) is not None or isinstance(e.ty, T.EnumT) and e.name not in self.scope
+        if isinstance(e, S.Field):
+            return getattr(e, "enum_value", None) is not None    # Enum.Value (vendor dialects)
         if isinstance(e, S.Call):
             return _conversion(e.name) is not None and all(
                 self.is_constant(a.value) for a in e.args if isinstance(a, S.ArgPos))
@@ -479,7 +507,7 @@ class Checker:
                     if pou is not None and pou.kind == "function":
                         self.err(npos, "a function block instance inside a FUNCTION is not "
                                  "portable (matiec rejects it): use a FUNCTION_BLOCK")
-                    if kind == "VAR_IN_OUT":
+                    if kind == "VAR_IN_OUT" and not self._vendor():
                         self.err(npos, "VAR_IN_OUT of a function block type is not portable "
                                  "(it crashes matiec)")
                     if kind in ("VAR_INPUT", "VAR_OUTPUT") and pou is not None and pou.kind == "function":
@@ -508,7 +536,10 @@ class Checker:
 
     def _located(self, v, loc, pou):
         text, pos = loc
-        if pou is not None and pou.kind != "program":
+        vendor_fb = pou is not None and pou.kind == "function_block" and self._vendor()
+        if pou is not None and pou.kind != "program" and not vendor_fb:
+            # (the vendor dialects: TwinCAT links an FB's AT %I* / %Q* in its I/O mapping; stc
+            # takes full addresses there, one cell for every instance: the stand-ins' channel)
             self.err(pos, f"located variables in a {pou.kind.upper()} are not "
                      "portable (matiec rejects them): declare them in the PROGRAM and pass them "
                      "as inputs/outputs")
@@ -712,7 +743,9 @@ class Checker:
             self.coerce(s.value, vt, tt, "assignment")
         elif isinstance(s, S.CallStmt):
             self.call(s, statement=True)
-            if getattr(s, "kind", "fb") != "fb":
+            if getattr(s, "kind", "fb") == "vendor":
+                pass                  # MEMCPY(...); as the vendor IDEs allow it
+            elif getattr(s, "kind", "fb") != "fb":
                 self.err(s.pos, "a FUNCTION call as a statement is not portable (matiec rejects "
                          "it): assign its result to a variable")
         elif isinstance(s, S.If):
@@ -840,7 +873,7 @@ class Checker:
         if isinstance(lab, S.Name):
             if st is not None and st.is_enum:
                 if lab.name in st.values:
-                    return st.values.index(lab.name)
+                    return st.code(lab.name)
                 self.err(pos, f"'{lab.name}' is not a value of {st.name}")
                 return None
             self.err(pos, f"named constants as case labels ('{lab.name}') are not portable "
@@ -859,7 +892,7 @@ class Checker:
         if st is not None and not (st.is_enum and st.name == et.name):
             self.err(pos, f"label of type {et.name} in CASE on {st}")
             return None
-        return et.values.index(vname)
+        return et.code(vname)
 
     def for_(self, s):
         v = self.lookup(s.var)
@@ -984,6 +1017,8 @@ class Checker:
             return self.expr(e, None)
         if isinstance(e, S.BitAccess):
             return self.expr(e, None)
+        if isinstance(e, S.Deref):
+            return self.expr(e, None)
         self.fail(e.pos, "the left side of ':=' must be a variable")
 
     def _check_base_assignable(self, e):
@@ -1078,6 +1113,15 @@ class Checker:
             e.var = v
             return v.type
         if isinstance(e, S.Field):
+            if isinstance(e.base, S.Name) and self._vendor() and e.base.name not in self.scope \
+                    and self.p.types.get(e.base.name) is not None \
+                    and self.p.types[e.base.name].is_enum:
+                # Enum.Value (the vendor dialects; CODESYS's qualified_only enumerations)
+                et = self.p.types[e.base.name]
+                if e.name not in et.values:
+                    self.fail(e.pos, f"'{e.name}' is not a value of {et.name}")
+                e.enum_value = (et, et.values.index(e.name))
+                return et
             bt = self.expr(e.base, None)
             if bt.is_fb:
                 return self.fb_member(e, bt)
@@ -1116,7 +1160,12 @@ class Checker:
                       f"(x AND 16#{1 << min(int(bit) if bit.isdigit() else 0, 63):X}) <> 0 to read; "
                       "OR / AND NOT masks to write")
         if isinstance(e, S.Deref):
-            self.fail(e.pos, "pointer dereference (^) is not portable (matiec rejects POINTER TO)")
+            if not self._vendor():
+                self.fail(e.pos, "pointer dereference (^) is not portable (matiec rejects POINTER TO)")
+            bt = self.expr(e.base, None)
+            if not isinstance(bt, T.PointerT):
+                self.fail(e.pos, f"'^' on a value of type {bt}, which is not a POINTER TO")
+            return bt.target
         if isinstance(e, S.Call):
             return self.call(e, statement=False, expected=expected)
         if isinstance(e, S.UnOp):
@@ -1389,6 +1438,8 @@ class Checker:
             return
         if T.same_type(from_t, to_t):
             return
+        if self._vendor() and from_t.is_array and to_t.is_array and T.same_type(from_t, to_t, False):
+            return    # the vendor dialects assign arrays of the same bounds and element type
         if from_t.is_array and to_t.is_array and self.file in self.scl_files:
             self.fail(e.pos, f"{what}: {from_t} cannot be {to_t}: SCL assigns and passes arrays "
                       "only between the same bounds and element type")
@@ -1478,6 +1529,11 @@ class Checker:
             c.kind = "fb"
             c.var = v
             self.bind_args(c, v.type.pou, fb=True)
+            for pn, pv in v.type.pou.vars.items():
+                if pv.kind == "VAR_IN_OUT" and pv.type.is_fb and pn not in c.bound:
+                    # (vendor dialects only: an FB in-out is a reference, as CODESYS's rClient)
+                    self.err(c.pos, f"{pn}, a VAR_IN_OUT of {v.type.pou.name}, must be given in "
+                             "every call (the IDEs require it; unbound it refers to nothing)")
             self._warn_std_fb(c, v.type.pou)
             return None
         if name in T.STD_FBS or (name in self.p.pous and self.p.pous[name].kind == "function_block"):
@@ -1502,10 +1558,58 @@ class Checker:
             return self.conversion(c, conv)
         if name in T.STD_FUNCS:
             return self.std_func(c, expected)
+        if name in _VENDOR_FUNCS and self._vendor():
+            return self.vendor_func(c)
+        if name.startswith("TO_") and self._vendor() and name[3:] in T.ELEMENTARY \
+                and T.ELEMENTARY[name[3:]].kind in ("sint", "uint", "bit") and len(c.args) == 1 \
+                and isinstance(c.args[0], S.ArgPos):
+            # TO_WORD(eErrorID): the number of an enumerated value (CODESYS)
+            at = self.expr(c.args[0].value, None)
+            if not at.is_enum:
+                self.fail(c.pos, f"{name} of a {at} is not supported: use a typed conversion "
+                          f"({at}_TO_{name[3:]})")
+            c.kind = "vendor"
+            c.argv = [c.args[0].value]
+            return T.ELEMENTARY[name[3:]]
         if name.startswith("TO_"):
             self.fail(c.pos, f"generic conversion {name} is not portable (matiec rejects it): "
                       "use a typed conversion like INT_TO_UINT")
         self.fail(c.pos, f"unknown function '{name}'")
+
+    def vendor_func(self, c):
+        """ADR(x), SIZEOF(x) and MEMCPY(destAddr, srcAddr, n) of the TwinCAT / CODESYS
+        dialects (Tc2_System MEMCPY; CODESYS SysMemCpy(pDest, pSrc, udiCount))."""
+        n = c.name
+        names = _VENDOR_FUNCS[n]
+        args = [None] * len(names)
+        for i, a in enumerate(c.args):
+            if isinstance(a, S.ArgPos) and all(x is None for x in args[i:]):
+                if i >= len(names):
+                    self.fail(a.pos, f"{n} takes {len(names)} argument(s)")
+                args[i] = a.value
+            elif isinstance(a, S.ArgIn) and a.name in names:
+                args[names.index(a.name)] = a.value
+            else:
+                self.fail(a.pos, f"{n}: arguments are {', '.join(names)}")
+        if any(x is None for x in args):
+            self.fail(c.pos, f"{n} needs {', '.join(names)}")
+        c.kind = "vendor"
+        c.argv = args
+        if n in ("ADR", "SIZEOF"):
+            x = args[0]
+            if not _is_variable(x) and not isinstance(x, S.Deref):
+                self.fail(x.pos, f"{n} takes a variable")
+            t = self.expr(x, None)
+            if t.is_fb:
+                self.fail(x.pos, f"{n} of a function block instance is not supported")
+            return T.PointerT(t) if n == "ADR" else T.ELEMENTARY["UDINT"]
+        for x in args[:2]:
+            t = self.expr(x, None)
+            if not isinstance(t, T.PointerT):
+                self.fail(x.pos, f"{n}: an address (ADR(...) or a POINTER), not {t}")
+        t = self.expr(args[2], T.ELEMENTARY["UDINT"])
+        self.coerce(args[2], t, T.ELEMENTARY["UDINT"], f"{n}'s byte count")
+        return T.ELEMENTARY["UDINT"]
 
     def _warn_std_fb(self, c, pou):
         std = pou.std.name if pou.std is not None else None
@@ -1601,11 +1705,16 @@ class Checker:
                         self.err(c.pos, f"VAR_IN_OUT '{p.name}' of {pou.name} must be passed")
                 continue
             try:
-                if p.kind == "VAR_IN_OUT":
+                if p.kind == "VAR_IN_OUT" and p.type.is_fb and isinstance(e, S.Name):
+                    # an FB instance bound to an FB in-out (vendor dialects: CODESYS's rClient)
+                    v = self.lookup(e)
+                    e.var, e.ty, t = v, v.type, v.type
+                elif p.kind == "VAR_IN_OUT":
                     t = self.lvalue(e, "pass as VAR_IN_OUT")
                     if not _is_variable(e):
                         self.fail(e.pos, f"VAR_IN_OUT '{p.name}' needs a variable")
-                    if not T.same_type(t, p.type):
+                    if not T.same_type(t, p.type) and not (
+                            self._vendor() and t.is_array and T.same_type(t, p.type, False)):
                         self.fail(e.pos, f"VAR_IN_OUT '{p.name}' is {p.type}, got {t}")
                 else:
                     t = self.expr(e, p.type)
@@ -1826,6 +1935,11 @@ class Checker:
             c.kind = "math"
             return t
         self.fail(c.pos, f"standard function {n} is not supported by stc")
+
+
+# the vendor dialects' address functions: argument names in order (Tc2_System / CODESYS)
+_VENDOR_FUNCS = {"ADR": ("IN",), "SIZEOF": ("IN",), "MEMCPY": ("DESTADDR", "SRCADDR", "N"),
+                 "SYSMEMCPY": ("PDEST", "PSRC", "UDICOUNT")}
 
 
 def _is_false(e):

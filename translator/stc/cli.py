@@ -25,6 +25,9 @@ accepts (an untyped integer literal stored in an ANY_BIT variable: write WORD#0 
 --dialect=scl reads the inputs as TIA Portal SCL external sources (#locals, "quoted" block
 names, REGION, { attributes }, VERSION, BEGIN, // comments, TON_TIME ...; see
 translator/README.md); a FILE.scl is read so without it, and with it -I DIR reads DIR/*.scl.
+--dialect=twincat|codesys reads the inputs as the ST of TwinCAT 3 / CODESYS V3 (the vendor
+glue: pragmas, // comments, library namespaces, END_IF without ';', POINTER TO, ADR, SIZEOF,
+p^, MEMCPY; see translator/README.md); FILE.twincat.st / FILE.codesys.st are read so without it.
 Errors are printed as FILE:LINE:COL: error: MESSAGE. Exit status: 0 success, 1 errors in
 the input, 2 bad usage."""
 
@@ -60,9 +63,11 @@ def main(argv=None):
                     help="also list every construct whose value can differ between upstream "
                          "matiec, OpenPLC's fork and IEC (FILE:LINE:COL: note: KIND: ...), "
                          "warned or not")
-    ap.add_argument("--dialect", choices=["st", "scl"], default=None,
-                    help="input language: IEC ST (matiec dialect) or TIA Portal SCL; default: "
-                         "by file name (*.scl is SCL, anything else ST)")
+    ap.add_argument("--dialect", choices=["st", "scl", "twincat", "codesys"], default=None,
+                    help="input language: IEC ST (matiec dialect), TIA Portal SCL, or the ST of "
+                         "TwinCAT 3 / CODESYS V3 (pragmas, // comments, library namespaces, "
+                         "POINTER TO, ADR, SIZEOF, MEMCPY); default: by file name (*.scl is SCL, "
+                         "FILE.twincat.st / FILE.codesys.st the vendor's ST, anything else ST)")
     ap.add_argument("--version", action="version", version=f"stc {__version__}")
     ap.add_argument("files", nargs="*", metavar="FILE.st")
     args = ap.parse_args(argv)

@@ -8,18 +8,22 @@ SEMANTICS = ("matiec", "openplc", "iec")
 
 
 def dialect_of(fname, dialect=None):
-    """The dialect of a file: the one given, else "scl" for *.scl, else "st"."""
+    """The dialect of a file: the one given, else "scl" for *.scl, "twincat" / "codesys" for
+    FILE.twincat.st / FILE.codesys.st, else "st"."""
     if dialect:
         return dialect
-    return "scl" if fname.lower().endswith(".scl") else "st"
+    if fname.lower().endswith(".scl"):
+        return "scl"
+    from .vendor_in import dialect_of_name
+    return dialect_of_name(fname) or "st"
 
 
 def compile_files(texts, diags, semantics="matiec", strict_iec=False, dialect=None):
     """texts: [(filename, text, is_library)]. Returns a Project (valid only without errors).
     semantics: "matiec" (reproduce upstream matiec's run-time values, the default), "openplc"
     (the matiec fork OpenPLC v3 ships) or "iec" (IEC 61131-3 values); portability warnings go
-    to diags.warnings in every mode. dialect: "st", "scl" (TIA Portal SCL) or None (by each
-    file's name: *.scl is SCL)."""
+    to diags.warnings in every mode. dialect: "st", "scl" (TIA Portal SCL), "twincat",
+    "codesys" or None (by each file's name, dialect_of)."""
     if semantics not in SEMANTICS:
         raise ValueError(f"semantics must be one of {', '.join(SEMANTICS)}, not {semantics!r}")
     parsed = []
@@ -34,6 +38,8 @@ def compile_files(texts, diags, semantics="matiec", strict_iec=False, dialect=No
         return None
     checker = Checker(diags, semantics, strict_iec)
     checker.scl_files = {f for f, _t, _l in texts if dialect_of(f, dialect) == "scl"}
+    checker.vendor_files = {f for f, _t, _l in texts
+                            if dialect_of(f, dialect) in ("twincat", "codesys")}
     if checker.scl_files:
         from .scl_in import name_arrays
         name_arrays(parsed)

@@ -148,6 +148,9 @@ class _Build(Transformer):
     def subrange_ref(self, c):
         return S.SubrangeRef(_pos(c[0]), str(c[0]).upper())
 
+    def pointer_ref(self, c):
+        return S.PointerRef(_pos(c[1]), str(c[0]).upper(), c[2])
+
     def string_ref(self, c):
         return S.StringRef(_pos(c[0]), str(c[0]).upper(), c[2])
 
@@ -656,7 +659,8 @@ def _unexpected_message(e):
 
 def parse(text, filename, diags, dialect="st"):
     """Parse one file; syntax errors go to diags. Returns a list of top-level nodes.
-    dialect "scl": TIA Portal SCL, rewritten to ST in place first (scl_in.py)."""
+    dialect "scl": TIA Portal SCL, rewritten to ST in place first (scl_in.py); "twincat" /
+    "codesys": the IDE's ST, rewritten the same way (vendor_in.py)."""
     p = _get_parser()
     errors = []
 
@@ -664,8 +668,11 @@ def parse(text, filename, diags, dialect="st"):
         diags.error(filename, pos, msg)
         errors.append(msg)
 
-    if dialect == "scl":
-        from .scl_in import to_st
+    if dialect in ("scl", "twincat", "codesys"):
+        if dialect == "scl":
+            from .scl_in import to_st
+        else:
+            from .vendor_in import to_st
         text = to_st(text, report)
         if text is None or errors:
             return None

@@ -25,6 +25,15 @@ typedef struct { long tv_sec; long tv_nsec; } stc_time;
 /* matiec's STRING layout: a length and STR_MAX_LEN (126) characters, no terminating NUL */
 typedef struct { uint8_t len; uint8_t body[126]; } stc_string;
 
+/* MEMCPY / SysMemCpy of the TwinCAT / CODESYS dialects: n bytes (overlap allowed); our choice
+ * for the result: the bytes copied, 0 (nothing copied) when an address is 0 */
+static inline uint32_t stc_memcpy(void *dst, const void *src, uint32_t n)
+{
+    if (!dst || !src) return 0;
+    memmove(dst, src, n);
+    return n;
+}
+
 static inline int stc_str_cmp(const stc_string *a, const stc_string *b)
 {
     size_t n = a->len < b->len ? a->len : b->len;

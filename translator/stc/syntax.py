@@ -27,6 +27,7 @@ ArraySpec = _node("ArraySpec", "dims elem")             # dims: [(lo, hi)] ints 
 ConstBound = _node("ConstBound", "name")
 SubrangeRef = _node("SubrangeRef", "base")
 StringRef = _node("StringRef", "base size")
+PointerRef = _node("PointerRef", "word target")        # POINTER TO T (vendor dialects)
 StructSpec = _node("StructSpec", "members")             # members: [VarDecl]
 EnumSpec = _node("EnumSpec", "items default")           # items: [(name, value_or_None, pos)]
 TypeDef = _node("TypeDef", "name spec init")

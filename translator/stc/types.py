@@ -76,11 +76,17 @@ class StructT(Type):
 
 
 class EnumT(Type):
-    __slots__ = ("name", "values", "default")
+    __slots__ = ("name", "values", "default", "codes")
     is_enum = True
 
-    def __init__(self, name, values, default=None):
+    def __init__(self, name, values, default=None, codes=None):
         self.name, self.values, self.default = name, values, default
+        self.codes = codes     # explicit values (A := 51) of the vendor dialects, else None
+
+    def code(self, value):
+        """The number of an enumerated value: its position, or its explicit value."""
+        i = self.values.index(value)
+        return self.codes[i] if self.codes else i
 
     def __str__(self):
         return self.name
@@ -142,10 +148,26 @@ UNSUPPORTED_TYPES = {"WSTRING", "DATE", "TIME_OF_DAY", "TOD", "DATE_AND_TIME", "
                      "LTIME", "LDATE", "LTOD", "LDT", "CHAR", "WCHAR"}
 
 
+class PointerT(Elem):
+    """POINTER TO target (the TwinCAT / CODESYS dialects only; matiec has no pointers): stored
+    as a C `void *`; kind "ptr" so no arithmetic, conversion or literal rule applies to it."""
+    __slots__ = ("target",)
+
+    def __init__(self, target):
+        super().__init__(f"POINTER TO {target}", "ptr", 64, "void *")
+        self.target = target
+
+    def with_default(self, default):
+        return self
+
+
 def same_type(a, b, array_names=True):
     """IEC type equality. Arrays are equal only when both are of the same named TYPE (matiec
     rejects assigning or passing anonymous ARRAY[..] OF .. even with identical bounds), unless
     array_names is False (structural, used for VAR_EXTERNAL against VAR_GLOBAL)."""
+    if isinstance(a, PointerT) or isinstance(b, PointerT):
+        # as TwinCAT and CODESYS: any pointer takes any pointer (ADR's result, PVOID)
+        return isinstance(a, PointerT) and isinstance(b, PointerT)
     if a.is_elem and b.is_elem:
         return a.name == b.name
     if a.is_array and b.is_array:

@@ -1,0 +1,15 @@
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(REPO / "cosim"))   # mipcosim, also before `make venv` installed it
+
+if not (REPO / "build" / "cosim" / "libmipcosim.so").is_file():
+    pytest.fail("build/cosim/libmipcosim.so not built: run make first", pytrace=False)
+
+
+@pytest.fixture(scope="session")
+def vendor_workdir(tmp_path_factory):
+    return tmp_path_factory.mktemp("vendor")
