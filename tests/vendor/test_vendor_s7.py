@@ -35,14 +35,14 @@ def test_s7_glue_matrix(vendor_workdir, loss, restart):
     assert_exact(ch, finished, reps, tot, restart)
 
 
-def test_s7_done_taken_as_a_level_leaves_a_named_wait(vendor_workdir):
+def test_s7_done_taken_as_a_level_ends_in_a_named_error(vendor_workdir):
     """The integrator's mistake: MB_CLIENT's DONE / ERROR (TRUE for the one call in which a
     request ends) looked at after a second call of the instance in the same cycle, as if they
-    were levels. The glue then never sees a request end; the sender's write never completes.
-    What the blocks show: no transfer done and none failed, and the sender's eWaitReason names
-    the wait, MIP_WAIT_WRITE (the caller's write handshake), for as long as it lasts. The
-    blocks do not turn this wait into an error (no write-handshake timeout: see
-    docs/wiring-s7.md#diagnosis); the glue as shipped takes DONE right after its one call."""
+    were levels. The glue then never sees a request end. The blocks bound that wait: the write
+    handshake ends a request the caller has not ended within 10 s (MIP_WriteChannel's
+    tTimeout) as a failed write (udiWriteErrors), the sender retransmits, and after uMaxRetries
+    the transfer ends with MIP_ERR_NO_ACK, a named error; none is reported done. (Before the
+    bound, the sender waited in MIP_WAIT_WRITE for as long as the run lasted.)"""
     good = glue.GLUE[FAMILY][0].read_text()
     old = "      #pause := FALSE;\n      IF #mb.DONE OR #mb.ERROR THEN"
     assert old in good
@@ -51,9 +51,10 @@ def test_s7_done_taken_as_a_level_leaves_a_named_wait(vendor_workdir):
                        "          MB_DATA_LEN := 125, MB_DATA_PTR := #buf, CONNECT := #connect);\n"
                        "      IF #mb.DONE OR #mb.ERROR THEN")
     src = sources(FAMILY, vendor_workdir / "s7-level", bad, roles=("outstation",))
-    r = run_outstation(FAMILY, vendor_workdir / "s7-level", src, 5, {12: 3},
-                       extra=("SND.EWAITREASON", "SND.XWRITEREQ", "IO1.WRITEDONE"))
-    waits = L.enum_values("E_MIP_WaitReason")
-    assert r["SRC.UTRANSFERSDONE"] == 0 and r["SRC.UTRANSFERSFAILED"] == 0
-    assert r["SND.XWRITEREQ"] and not r["IO1.WRITEDONE"]
-    assert r["SND.EWAITREASON"] == waits["MIP_WAIT_WRITE"]
+    r = run_outstation(FAMILY, vendor_workdir / "s7-level", src, 45, {12: 3},
+                       extra=("SND.UDIWRITEERRORS", "IO1.WRITEDONE"))
+    errors = L.enum_values("E_MIP_Error")
+    assert r["SRC.UTRANSFERSDONE"] == 0
+    assert r["SRC.UTRANSFERSFAILED"] >= 1
+    assert r["SRC.WLASTERROR"] == errors["MIP_ERR_NO_ACK"]
+    assert r["SND.UDIWRITEERRORS"] >= 1 and not r["IO1.WRITEDONE"]
