@@ -52,6 +52,31 @@ def test_every_entry_once_in_order(wd, relay):
 
 
 @pytest.mark.parametrize("relay", RELAYS)
+def test_stored_pulse_hands_over_one_entry_a_scan(wd, relay):
+    """xStoredPulse with a logger that sets xEntryStored anew every call: the three entries of
+    a read are stored in three scans in a row, the first in the scan that takes the read (the
+    default handshake takes two scans an entry); every entry once, in order, acknowledged after
+    its store."""
+    events = script(30, start_s=0.0, every_s=0.001)
+    for pulse, gap in ((True, 1), (False, 2)):
+        b = Bench(wd, make_relay(relay, events), pulse=pulse)
+        at = []                                   # the scan of each store
+        while len(b.logger.stored) < 30 and b.scans < 800:
+            n = len(b.logger.stored)
+            b.step()
+            at += [b.scans] * (len(b.logger.stored) - n)
+        assert b.run_until(lambda: b.fb["xDone"], 100)
+        assert b.logger.stored == expected(events, ORIGIN) and b.fb["udiEntries"] == 30
+        acks_after_stores(b.log)
+        assert [at[i + 1] - at[i] for i in range(0, 30, 3)] == [gap] * 10, (pulse, at)
+        assert [at[i + 2] - at[i + 1] for i in range(0, 30, 3)] == [gap] * 10, (pulse, at)
+        if pulse:
+            fast = at[-1] - at[0]
+        else:
+            assert at[-1] - at[0] >= fast + 2 * 9   # two scans a read more
+
+
+@pytest.mark.parametrize("relay", RELAYS)
 def test_ack_waits_for_a_slow_logger(wd, relay):
     events = script(6, start_s=0.0, every_s=0.001)
     b = Bench(wd, make_relay(relay, events), delay=7)
