@@ -279,6 +279,16 @@ SOE_CONFIGS = [
     ("soe-nogate/warm", dict(_MODEL="soe.pml", WARM=1, NOGATE=1, RST=1, LOSS=0), "known:LOST",
      "warm restarts without the snapshot gate: the PLC comes back with a store older than "
      "the acknowledgement"),
+    ("soe-relay/cold", dict(_MODEL="soe.pml", RRST=2, RST=1, LOSS=2), "holds",
+     "two relay restarts (recorder emptied, number 0) with events right after them: a number 1 "
+     "seen twice the same is taken as a restarted relay; nothing lost but the relay's own"),
+    ("soe-relay/warm", dict(_MODEL="soe.pml", RRST=1, WARM=1, RST=2, LOSS=2), "holds",
+     "a relay restart among warm restarts of the PLC: exactly once, in order, but the relay's own"),
+    ("soe-nodetect/cold", dict(_MODEL="soe.pml", RRST=1, NODETECT=1, LOSS=0, RST=0), "known:STUCK",
+     "without the restart rule the reader rejects a restarted relay's reads for good"),
+    ("soe-relayack1/cold", dict(_MODEL="soe.pml", RRST=1, RR_ANY=1, LOSS=0, RST=0), "known:LOST",
+     "the residual: an open read numbered 1 across a relay restart; its acknowledgement is "
+     "taken by the restarted relay for its own first read and deletes new entries"),
 ]
 CONFIGS += SOE_CONFIGS
 
@@ -289,7 +299,8 @@ def kind_of(text):
     m = re.search(r"assertion violated (.*)", text)
     if not m:
         return None
-    for k in ("GAP", "MIX", "DUP_ORDER", "LOST", "SILENT", "DONE", "WARMFAIL", "DEADLOCK"):
+    for k in ("GAP", "MIX", "DUP_ORDER", "LOST", "SILENT", "DONE", "WARMFAIL", "DEADLOCK",
+              "STUCK"):
         if re.search(r"\b%s\b" % k, m.group(1)):
             return k
     return "assert " + m.group(1)
@@ -517,6 +528,7 @@ QUICK = [
     "win2-pipelast/ours-ours/spont/up",           # must fail: P27 (GAP)
     "warm-split-bit0/ours-ours/spont/up+wrst-rcv",  # must fail: a read in parts with bit 0 alone (issue 38)
     "soe/warm",                                   # the SOE handshake (issue 35), warm restarts
+    "soe-relay/cold",                             # a restarted relay taken up by the reader
     "soe-ackearly/cold",                          # must fail: acknowledge before store (LOST)
     "handover/ack-after/cold",                    # the hand-over at the central (issue 35)
     "handover/ack-first/cold",                    # must fail: acknowledged before the hand-over (LOST)

@@ -15,6 +15,23 @@
  *                acknowledgement and the store loses them (LOST)
  *   NOGATE=1     warm restarts, but the acknowledgement does not wait for a snapshot that
  *                holds the stored entries: the PLC comes back with an older store (LOST)
+ *   NODETECT=1   relay restarts (RRST), and the reader does not take a restarted relay's
+ *                first number: it rejects its reads for good (STUCK)
+ *   RR_ANY=1     the relay may restart while the reader holds an open read numbered 1 (or
+ *                its last snapshot does): the
+ *                reader's acknowledgement of it (1 + 256 n) is taken by the restarted relay for
+ *                its own first read and deletes up to n new entries nobody read (LOST). A
+ *                residual of the handshake ([S5] 5.2.5 carries no restart marker); without
+ *                RR_ANY the model leaves that window out, and says what holds otherwise.
+ *
+ * Relay restarts (RRST of them; docs/chain.md "What restarts do", our choice): the recorder is
+ * emptied and the sequence number goes to 0; what it held is the relay's own loss (events up
+ * to `lo` not stored are excused). The reader judges a read's number as MIP_SoeReader does
+ * (known/lseq: only the open read, its successor or, with none open, the successor of the last
+ * number) and takes a read with blocks and sequence number 1 that it would reject, seen twice
+ * in a row with the same content, as a restarted relay: it drops its open read (what it stored
+ * of it stays) and takes the new one. Every other rejected read stays rejected (the block: a
+ * named error after tRetryTimeout); STUCK bounds the rejected reads in a row.
  *
  * Sizes: N events, BLK message blocks per read (3 in the relay; 2 gives the same cases with
  * fewer states: a read of several, a partial one), sequence numbers of SEQB bits.
@@ -43,16 +60,26 @@
 #ifndef NOGATE
 #define NOGATE 0
 #endif
+#ifndef RRST
+#define RRST 0
+#endif
+#ifndef NODETECT
+#define NODETECT 0
+#endif
+#ifndef RR_ANY
+#define RR_ANY 0
+#endif
 /* the names of the properties, as in env.pml: -DSEEK=K_<name> (model/run.py's search for one
  * documented weakness) switches the others off */
 #define K_GAP 1
 #define K_DUP_ORDER 3
 #define K_LOST 4
+#define K_STUCK 5
 #ifndef SEEK
 #define SEEK 0
 #endif
 bool GAP = (SEEK != 0 && SEEK != K_GAP), DUP_ORDER = (SEEK != 0 && SEEK != K_DUP_ORDER),
-     LOST = (SEEK != 0 && SEEK != K_LOST);
+     LOST = (SEEK != 0 && SEEK != K_LOST), STUCK = (SEEK != 0 && SEEK != K_STUCK);
 #define TOP ((1 << SEQB) - 1)
 #define NEXT(s) ((s) >= TOP -> 1 : (s) + 1)
 
@@ -78,28 +105,39 @@ inline refresh() {
 
 /* ---- the logger's store (durable): the highest id stored in order ---- */
 byte last = 0;
+byte lo = 0;               /* events up to lo were in a relay that restarted: not stored, its loss */
+byte rrst = 0;
+#define FLOOR (last > lo -> last : lo)
 
 /* ---- MIP_SoeReader: the open read and how many of its entries were stored ---- */
 bool open = false;
 byte oseq, ohead, on, stored;
 bool acked_early = false;  /* ACK_EARLY: this open read's acknowledgement is done */
 bool unsaved = false;      /* a change no snapshot holds yet */
+bool known = false;        /* lseq is known (xKnown) */
+byte lseq = 0;             /* the number of the last read (wLastSeq) */
+bool cand = false;         /* the last read was a rejected number 1 with blocks: chead, con */
+byte chead, con;
+byte rej = 0;              /* rejected reads in a row */
+byte rrdet = 0;            /* relay restarts detected (udiRelayRestarts) */
 /* the last snapshot (WARM): the block's state and the logger's store together */
 bool s_open = false;
 byte s_oseq, s_ohead, s_on, s_stored, s_last;
 bool s_acked = false;
+bool s_known = false;
+byte s_lseq = 0;
 
 byte losses = 0, restarts = 0;
 
 inline store_one() {
     /* the logger stores entry ohead + stored (the scan it is shown; xEntryStored) */
     d_step {
-        assert(ohead + stored <= last + 1 || GAP);     /* an entry skipped */
+        assert(ohead + stored <= FLOOR + 1 || GAP);    /* an entry skipped */
 #if WARM || !RST
-        assert(ohead + stored == last + 1 || DUP_ORDER); /* exactly once, in order */
+        assert((ohead + stored > last && ohead + stored <= FLOOR + 1) || DUP_ORDER); /* exactly once, in order */
 #endif
         if
-        :: ohead + stored == last + 1 -> last++
+        :: ohead + stored > last -> last = ohead + stored
         :: else -> skip                                 /* a duplicate after a cold restart */
         fi;
         stored++;
@@ -131,6 +169,11 @@ inline ack() {
     }
 }
 
+inline take_new() {
+    open = true; oseq = seq; ohead = head; on = offer; stored = 0; known = true; lseq = seq;
+    acked_early = false; unsaved = true; printf("@ read: seq %d (%d entries)\n", seq, offer)
+}
+
 inline read_and_judge() {
     /* one FC3 of 40601..40626 and the block's judgement (docs/chain.md "How a read is
      * judged"; the model's reads are never stale: a read follows the write it may decide) */
@@ -140,25 +183,48 @@ inline read_and_judge() {
         :: losses < LOSS -> losses++; printf("@ read: answer lost\n")
         :: true ->
             if
-            :: open && offer > 0 && seq == oseq && head == ohead && offer == on -> skip  /* the open read again */
-            :: open && offer > 0 && seq == NEXT(oseq) ->
-                /* the open read's acknowledgement was taken: close it, take the new one */
-                open = true; oseq = seq; ohead = head; on = offer; stored = 0;
-                acked_early = false; unsaved = true; printf("@ read: seq %d (%d entries)\n", seq, offer)
-            :: open && offer == 0 && seq == oseq -> open = false; unsaved = true
-            :: !open && offer > 0 ->
-                open = true; oseq = seq; ohead = head; on = offer; stored = 0;
-                acked_early = false; unsaved = true; printf("@ read: seq %d (%d entries)\n", seq, offer)
-            :: else -> skip
+            :: offer == 0 && seq == 0 ->
+                open = false; unsaved = true; known = true; lseq = 0; rej = 0; cand = false
+            :: offer == 0 && seq != 0 && open && seq == oseq ->
+                open = false; unsaved = true; rej = 0; cand = false  /* acknowledged, answer lost */
+            :: offer == 0 && seq != 0 && !(open && seq == oseq) && (!known || seq == lseq) ->
+                known = true; lseq = seq; rej = 0; cand = false
+            :: open && offer > 0 && seq == oseq && head == ohead && offer == on ->
+                known = true; lseq = oseq; rej = 0; cand = false      /* the open read again */
+            :: offer > 0 && ((open && seq == NEXT(oseq)) || (!open && (!known || seq == NEXT(lseq)))) ->
+                /* a new read (when one was open: its acknowledgement was taken) */
+                take_new(); rej = 0; cand = false
+            :: else ->
+                /* rejected (out of sequence, changed); a number 1 with blocks twice the same:
+                 * a restarted relay */
+                if
+                :: !NODETECT && offer > 0 && seq == 1 && cand && chead == head && con == offer ->
+                    rrdet++; printf("@ read: relay restart detected\n");
+                    take_new(); rej = 0; cand = false
+                :: else ->
+                    cand = offer > 0 && seq == 1; chead = head; con = offer;
+                    rej++; printf("@ read: rejected (seq %d)\n", seq);
+                    assert(rej < 3 || STUCK)            /* the block: an error it never leaves */
+                fi
             fi
         fi
+    }
+}
+
+inline relay_restart() {
+    /* a power cycle of the relay: its recorder empty, its number 0 (our choice) */
+    atomic {
+        rrst < RRST && (RR_ANY || !((open && oseq == 1) || (WARM && s_open && s_oseq == 1))) ->
+        rrst++; lo = gen; head = gen + 1; offer = 0; offer_read = false; seq = 0;
+        printf("@ relay restart\n")
     }
 }
 
 active proctype Events() {
     do
     :: atomic { gen < N -> gen++; refresh(); printf("@ event %d\n", gen) }
-    :: gen == N -> break
+    :: relay_restart()
+    :: gen == N && rrst == RRST -> break
     od
 }
 
@@ -178,6 +244,7 @@ end:
 #if WARM
     :: atomic { unsaved -> s_open = open; s_oseq = oseq; s_ohead = ohead; s_on = on;
                 s_stored = stored; s_last = last; s_acked = acked_early; unsaved = false;
+                s_known = known; s_lseq = lseq;
                 printf("@ snapshot\n") }
 #endif
     :: atomic { restarts < RST ->
@@ -185,9 +252,11 @@ end:
 #if WARM
         open = s_open; oseq = s_oseq; ohead = s_ohead; on = s_on; stored = s_stored;
         last = s_last; acked_early = s_acked; unsaved = false;
+        known = s_known; lseq = s_lseq; cand = false; rej = 0;
         printf("@ PLC warm restart\n")
 #else
         open = false; stored = 0; acked_early = false;
+        known = false; cand = false; rej = 0;   /* xEnable rises again: any number */
         printf("@ PLC cold restart\n")
 #endif
        }
@@ -198,5 +267,5 @@ end:
  * logger holds them all. */
 active proctype Check() {
 end:
-    atomic { gen == N && head > N && !open -> assert(last == N || LOST) }
+    atomic { gen == N && rrst == RRST && head > N && !open -> assert(last == N || lo == N || LOST) }
 }

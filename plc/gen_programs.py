@@ -693,7 +693,7 @@ def outstation_soe():
              "rdr(xEnable := xRun, xLoggerFull := lgr.xFull, xEntryStored := lgr.xEntryStored,",
              "    aRead := aSoe, xReadValid := soeRdDone, xReadError := soeRdErr, wReadStatus := soeRdSt,",
              "    xWriteDone := soeWrDone, xWriteError := soeWrErr, xRetained := xRetain,",
-             "    wSnapshots := snapSaved);",
+             "    xStoredPulse := TRUE, wSnapshots := snapSaved);",
              "soeRdTrig := xRun AND NOT (soeRdDone OR soeRdErr);",
              "soeWrTrig := rdr.xWriteReq;",
              "soeWrLen := WORD#1;",

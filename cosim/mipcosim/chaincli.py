@@ -42,7 +42,11 @@ def parse(argv):
                    help="virtual seconds between faults, in turn: a warm restart of the "
                         "outstation, of the central (kill -9, every third graceful), a control-"
                         "system outage (the SCADA, or the active UNICOS driver), with "
-                        "--handover push a fail-over of the driver pair (run: none, soak: 30)")
+                        "--handover push a fail-over of the driver pair, a restart of the relay "
+                        "(its recorder emptied; what it held is its own loss, counted apart) "
+                        "(run: none, soak: 30)")
+    p.add_argument("--no-relay-restarts", action="store_true",
+                   help="leave the relay out of the faults")
     p.add_argument("--cold", action="store_true",
                    help="the central restarts cold (nothing retained): lost 0 is demanded, "
                         "duplicates are counted; the outstation stays warm (its logger holds "
@@ -93,7 +97,8 @@ def main(argv=None):
     try:
         with SoeChain(st, workdir, trace=a.trace) as ch:
             faults = (f", a fault every {a.restart_every:g} s ({'central cold' if a.cold else 'warm'}"
-                      f" restarts, {'driver outages and fail-overs' if a.handover == 'push' else 'SCADA outages'})"
+                      f" restarts, {'driver outages and fail-overs' if a.handover == 'push' else 'SCADA outages'}"
+                      f"{'' if a.no_relay_restarts else ', relay restarts'})"
                       if a.restart_every else "")
             print(f"mip-cosim: {a.what} --chain: {a.events} relay events every {a.every_ms:g} ms, "
                   f"{a.per_record} per record, loss {a.loss:.0%}, seed {a.seed}, "
@@ -107,9 +112,11 @@ def main(argv=None):
             while ch.now < limit * SEC:
                 ch.run_for(SEC)
                 if next_fault is not None and ch.now >= next_fault and not ch.finished():
-                    cycle = 4 if a.handover == "push" else 3
+                    cycle = (4 if a.handover == "push" else 3) + (0 if a.no_relay_restarts else 1)
                     step = k % cycle
-                    if step == 2:
+                    if step == cycle - 1 and not a.no_relay_restarts:
+                        ch.restart_relay()
+                    elif step == 2:
                         if a.handover == "push":
                             ch.driver_outage(rnd.randint(1, 5) * SEC)
                         else:
@@ -160,6 +167,7 @@ def main(argv=None):
                     f"failed {failed} changed {rep.changed} out_of_order {rep.out_of_order} "
                     f"restarts {len(kinds)} (graceful {kinds.count('graceful')}, kill -9 "
                     f"{kinds.count('warm')}, cold {kinds.count('cold')}) "
+                    f"relay_restarts {relay_restarts} (its own loss {rep.lost_at_relay}) "
                     f"{'driver_outages' if a.handover == 'push' else 'scada_outages'} "
                     f"{ch.scada_outages}{f' failovers {ch.failovers}' if a.handover == 'push' else ''} snapshots {ch.snapshots()} seconds={wall:.0f}")
             if not finished and not quiet:

@@ -167,10 +167,12 @@ class Client:
 
 class Logger:
     """The caller's store: takes the entry shown with xEntryValid in the scan it sees it (sets
-    xEntryStored for the block's next call), at most `capacity` entries (then xLoggerFull)."""
+    xEntryStored for the block's next call), at most `capacity` entries (then xLoggerFull).
+    pulse: as plc/PLC_SoeChain.st's logger, xEntryStored is TRUE only in the call after a
+    store, and an entry shown while it is TRUE is stored too (the block's xStoredPulse)."""
 
-    def __init__(self, fb, capacity=None, delay=0):
-        self.fb, self.capacity, self.delay = fb, capacity, delay
+    def __init__(self, fb, capacity=None, delay=0, pulse=False):
+        self.fb, self.capacity, self.delay, self.pulse = fb, capacity, delay, pulse
         self.stored: list[Entry] = []
         self.seqs: list[int] = []
         self.log = None
@@ -185,9 +187,10 @@ class Logger:
 
     def after_scan(self):
         fb = self.fb
-        if fb["xEntryValid"] and not fb["xEntryStored"] and not self.full:
+        if fb["xEntryValid"] and (self.pulse or not fb["xEntryStored"]) and not self.full:
             if self._wait < self.delay:
                 self._wait += 1
+                fb["xEntryStored"] = False
                 return
             self._wait = 0
             e = Entry(fb["wTypeBit"], fb["wAddress"], fb["wCauseType"], fb["wValue"],
@@ -216,13 +219,13 @@ class Bench:
     """One PLC with MIP_SoeReader `fb`, its client and logger, a relay, in virtual time."""
 
     def __init__(self, workdir, relay, tick_ms=10, read_every=2, read_mode="trigger",
-                 capacity=None, delay=0, retained=False, follow_req=False, **params):
+                 capacity=None, delay=0, retained=False, follow_req=False, pulse=False, **params):
         self.workdir, self.tick_ms, self.relay = workdir, tick_ms, relay
         self.plc = build(workdir, tick_ms)
         self.fb = Fb(self.plc)
         self.log = []
         self.client = Client(self.fb, relay, read_every, read_mode, follow_req)
-        self.logger = Logger(self.fb, capacity, delay)
+        self.logger = Logger(self.fb, capacity, delay, pulse)
         self.client.log = self.logger.log = self.log
         self.retained = retained
         self.snapshots = 0
@@ -232,6 +235,7 @@ class Bench:
         for k, v in params.items():
             self.fb[k] = v
         self.fb["xRetained"] = retained
+        self.fb["xStoredPulse"] = pulse
         self.fb["xEnable"] = True
 
     def step(self, n=1):
@@ -278,6 +282,7 @@ class Bench:
         self.fb.plc = self.plc
         self.client._done = self.client._err = False
         self.fb["xRetained"] = self.retained
+        self.fb["xStoredPulse"] = self.logger.pulse
         self.fb["xEnable"] = True
 
     def acks(self):

@@ -52,6 +52,31 @@ def test_every_entry_once_in_order(wd, relay):
 
 
 @pytest.mark.parametrize("relay", RELAYS)
+def test_stored_pulse_hands_over_one_entry_a_scan(wd, relay):
+    """xStoredPulse with a logger that sets xEntryStored anew every call: the three entries of
+    a read are stored in three scans in a row, the first in the scan that takes the read (the
+    default handshake takes two scans an entry); every entry once, in order, acknowledged after
+    its store."""
+    events = script(30, start_s=0.0, every_s=0.001)
+    for pulse, gap in ((True, 1), (False, 2)):
+        b = Bench(wd, make_relay(relay, events), pulse=pulse)
+        at = []                                   # the scan of each store
+        while len(b.logger.stored) < 30 and b.scans < 800:
+            n = len(b.logger.stored)
+            b.step()
+            at += [b.scans] * (len(b.logger.stored) - n)
+        assert b.run_until(lambda: b.fb["xDone"], 100)
+        assert b.logger.stored == expected(events, ORIGIN) and b.fb["udiEntries"] == 30
+        acks_after_stores(b.log)
+        assert [at[i + 1] - at[i] for i in range(0, 30, 3)] == [gap] * 10, (pulse, at)
+        assert [at[i + 2] - at[i + 1] for i in range(0, 30, 3)] == [gap] * 10, (pulse, at)
+        if pulse:
+            fast = at[-1] - at[0]
+        else:
+            assert at[-1] - at[0] >= fast + 2 * 9   # two scans a read more
+
+
+@pytest.mark.parametrize("relay", RELAYS)
 def test_ack_waits_for_a_slow_logger(wd, relay):
     events = script(6, start_s=0.0, every_s=0.001)
     b = Bench(wd, make_relay(relay, events), delay=7)
@@ -184,13 +209,71 @@ def test_garbage_once_is_read_again(wd):
 
 
 def test_sequence_backwards_is_a_named_error(wd):
-    """After the first acknowledgement the relay shows the number before it (as a relay that
-    lost its state would, or a garbled register): MIP_SOE_ERR_SEQUENCE, nothing delivered."""
-    b = Bench(wd, make_relay("py", script(8, start_s=0.0, every_s=0.001)), tRetryTimeout=200_000_000)
+    """After the third acknowledgement the relay shows a number before it (a garbled register,
+    or a relay that lost its state other than by a restart, whose first number is 1):
+    MIP_SOE_ERR_SEQUENCE, nothing delivered."""
+    b = Bench(wd, make_relay("py", script(12, start_s=0.0, every_s=0.001)), tRetryTimeout=200_000_000)
+    b.client.tamper = lambda r: [r[0], r[1] - 2] + r[2:] if (r[1] & 0xFF) == 4 else r
+    assert b.run_until(lambda: b.fb["xError"], 300)
+    assert b.fb["eErrorId"] == ERR["MIP_SOE_ERR_SEQUENCE"] and b.fb["udiRelayRestarts"] == 0
+    assert len(b.logger.stored) == 9 and b.fb["udiAcks"] == 3 and b.relay.entries() == 3
+
+
+def test_a_number_1_that_is_no_restart_ends_in_a_named_error(wd):
+    """The price of the restart rule: a relay that shows number 1 for good where 3 is due (a
+    garbled register, two reads the same) is taken for a restarted relay; its entries (the
+    relay's own, each once) are handed over, and the relay refuses their acknowledgement:
+    MIP_SOE_ERR_ACK_REFUSED after tAckTimeout, nothing wrong delivered, nothing twice."""
+    events = script(8, start_s=0.0, every_s=0.001)
+    b = Bench(wd, make_relay("py", events), tAckTimeout=400_000_000, tAckRetry=50_000_000)
     b.client.tamper = lambda r: [r[0], r[1] - 2] + r[2:] if (r[1] & 0xFF) == 3 else r
     assert b.run_until(lambda: b.fb["xError"], 300)
-    assert b.fb["eErrorId"] == ERR["MIP_SOE_ERR_SEQUENCE"]
-    assert len(b.logger.stored) == 6 and b.fb["udiAcks"] == 2 and b.relay.entries() == 2
+    assert b.fb["eErrorId"] == ERR["MIP_SOE_ERR_ACK_REFUSED"] and b.fb["udiRelayRestarts"] == 1
+    assert b.logger.stored == expected(events, ORIGIN) and b.relay.entries() == 2
+
+
+def restart_relay(b, kind, events):
+    """A power cycle of the relay: recorder empty, number 0, `events` to come."""
+    if kind == "py":
+        b.relay = b.client.relay = make_relay("py", events)
+        b.relay.advance(b.now_ns)
+    else:
+        b.relay.restart(events)
+
+
+@pytest.mark.parametrize("relay", RELAYS)
+@pytest.mark.parametrize("at", [4, 6])
+def test_a_relay_restart_with_entries_right_after_it(wd, relay, at):
+    """The relay restarts while the reader holds its second read (4: one of its entries
+    stored; 6: all stored, the acknowledgement due) and records new entries before any read
+    sees its 0: the reader takes its number 1 (twice the same) as a restarted relay, counts it,
+    and goes on; no error, every entry the reader took once, in order, then every new one."""
+    events = script(9, start_s=0.0, every_s=0.001)
+    b = Bench(wd, make_relay(relay, events), tAckRetry=50_000_000)
+    assert b.run_until(lambda: len(b.logger.stored) == at, 300)
+    now_s = b.now_ns / 1e9
+    later = script(10, start_s=now_s + 0.001, every_s=0.002, seed=5)
+    restart_relay(b, relay, later)
+    assert b.run_until(lambda: b.fb["xDone"] and len(b.logger.stored) >= 6 + 10, 800), b.log[-5:]
+    k = len(b.logger.stored) - 10
+    assert k == 6        # the open read (seq 2) is handed over whole; seq 3 went with the relay
+    assert b.logger.stored == expected(events, ORIGIN)[:k] + expected(later, ORIGIN)
+    assert b.fb["udiRelayRestarts"] == 1 and not b.fb["xError"]
+    assert b.fb["eLastErrorId"] == ERR["MIP_SOE_ERR_NONE"] and b.relay.entries() == 0
+
+
+@pytest.mark.parametrize("relay", RELAYS)
+def test_a_relay_restart_seen_as_0_is_counted(wd, relay):
+    """The reader reads the restarted relay's 0 before its next entry: the open read is
+    dropped, the restart counted once, the new entries follow."""
+    events = script(6, start_s=0.0, every_s=0.001)
+    b = Bench(wd, make_relay(relay, events))
+    assert b.run_until(lambda: b.fb["xDone"] and len(b.logger.stored) == 6, 300)
+    later = script(4, start_s=b.now_ns / 1e9 + 0.3, seed=3)
+    restart_relay(b, relay, later)
+    assert b.run_until(lambda: b.fb["xDone"] and len(b.logger.stored) == 10, 300)
+    assert b.logger.stored == expected(events, ORIGIN) + expected(later, ORIGIN)
+    assert b.fb["udiRelayRestarts"] == 1 and not b.fb["xError"]
 
 
 def test_a_relay_that_ignores_the_ack(wd):
