@@ -151,6 +151,9 @@ def test_chain_random_faults_many_seeds(tmp_path, seed):
     assert finished and rep.problems == [], rep.problems
 
 
+# slow: three whole-program matiec builds (~16 s each); the quick tier's matiec check of the
+# library is tests/st_lib/test_lib_compile.py
+@pytest.mark.slow
 @pytest.mark.skipif(not matiec_available(),
                     reason="iec2c not on PATH (set PATH and MATIEC_LIB to compile with matiec)")
 @pytest.mark.parametrize("role,handover", [("out", "pull"), ("cen", "pull"), ("cen", "push")])
