@@ -18,6 +18,7 @@ TRY, GOTO) gets an error at its position from the pass or from the ST checker.
 from __future__ import annotations
 
 import re
+from .textpos import line_col
 
 # TIA multi-instance type names of IEC timers and counters -> IEC names (see scl_out.STANDARD_FB)
 _IEC_FB = {"TON_TIME": "TON", "TOF_TIME": "TOF", "TP_TIME": "TP", "CTU_INT": "CTU",
@@ -45,20 +46,7 @@ def to_st(text, report):
     Returns None when an error makes the rest unreadable."""
     out = list(text)
     regions = []                 # (line, col) of the open REGIONs
-    line_starts = [0]
-    for i, ch in enumerate(text):
-        if ch == "\n":
-            line_starts.append(i + 1)
-
-    def where(off):
-        lo, hi = 0, len(line_starts) - 1
-        while lo < hi:
-            mid = (lo + hi + 1) // 2
-            if line_starts[mid] <= off:
-                lo = mid
-            else:
-                hi = mid - 1
-        return (lo + 1, off - line_starts[lo] + 1)
+    where = line_col(text)       # offset -> (line, column) in the original text
 
     def put(start, s):
         out[start:start + len(s)] = list(s)

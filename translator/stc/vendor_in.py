@@ -18,6 +18,7 @@ SysMem), a `STRING(n)` up to STRING's length, and `Enum.Value` for an enumeratio
 from __future__ import annotations
 
 import re
+from .textpos import line_col
 
 DIALECTS = ("twincat", "codesys")
 # the library namespaces the glue and the stand-ins qualify names with (upper case)
@@ -55,20 +56,7 @@ def to_st(text, report):
     """The ST text of a TwinCAT / CODESYS text, positions kept; report((line, col), msg) for
     each error. Returns None when an error makes the rest unreadable."""
     out = list(text)
-    line_starts = [0]
-    for i, ch in enumerate(text):
-        if ch == "\n":
-            line_starts.append(i + 1)
-
-    def where(off):
-        lo, hi = 0, len(line_starts) - 1
-        while lo < hi:
-            mid = (lo + hi + 1) // 2
-            if line_starts[mid] <= off:
-                lo = mid
-            else:
-                hi = mid - 1
-        return (lo + 1, off - line_starts[lo] + 1)
+    where = line_col(text)       # offset -> (line, column) in the original text
 
     def blank(start, end):
         for k in range(start, end):
