@@ -275,6 +275,20 @@ class Progress:
         if self.tty:
             print("\n")
 
+    def follow(self, poll, limit):
+        """The demos' wait: every 0.1 s shows the lines of `poll()` -> (line1, line2, done,
+        so_far) until done; after `limit` s a DemoError saying `so_far` (how far it got)."""
+        while True:
+            line1, line2, done, so_far = poll()
+            self.show(line1, line2, final=done)
+            if done:
+                break
+            if self.elapsed() > limit:
+                self.close()
+                raise DemoError(f"timeout after {limit:.0f} s: {so_far}")
+            time.sleep(0.1)
+        self.close()
+
 
 def run(a):
     rundir = fresh_rundir(a.rundir)
@@ -361,7 +375,9 @@ def run(a):
                               / (1 - a.loss) ** 2 + a.records * a.log_period_ms / 1000)
         stats = TraceStats(trace)
         progress = Progress()
-        while True:
+        counts = {}          # the last retransmissions= and duplicates= shown (the result's)
+
+        def poll():
             procs.check_alive()
             stats.update()
             # progress: records the central has received (a transfer counts as read out
@@ -374,18 +390,13 @@ def run(a):
             retrans = sum(sl.read(L.peer_base(1) + L.S_RETRANS, 1)[0] for sl in outs)
             dups = sum(central.read(L.peer_base(s) + L.R_DUP, 1)[0]
                        for s in range(1, a.stations + 1))
+            counts.update(retransmissions=retrans, duplicates=dups)
             line1 = f"read-out {bar(done, total)}"
             line2 = (f"link: polls={stats.polls} telegrams={stats.telegrams} lost={stats.lost} "
                      f"blocks={stats.blocks} blocks_lost={stats.blocks_lost} "
                      f"retransmissions={retrans} duplicates={dups} t={progress.elapsed():.1f}s")
-            progress.show(line1, line2, final=finished)
-            if finished:
-                break
-            if progress.elapsed() > limit:
-                progress.close()
-                raise DemoError(f"timeout after {limit:.0f} s: {done} of {total} records read out")
-            time.sleep(0.1)
-        progress.close()
+            return line1, line2, finished, f"{done} of {total} records read out"
+        progress.follow(poll, limit)
         time.sleep(0.5)      # let late duplicates show
         stats.update()
         # the check, register for register
@@ -418,7 +429,7 @@ def run(a):
                 problems.append(f"station {s}: {blk[L.R_FAILED]} failed transfer(s) reported, "
                                 f"last {L.error_name(blk[L.R_ERROR])}")
         return problems, dict(records=total, registers=registers, polls=stats.polls,
-                              retransmissions=retrans, duplicates=dups,
+                              **counts,
                               seconds=round(time.monotonic() - t_start, 1),
                               lost_telegrams=stats.lost, lost_block_telegrams=stats.blocks_lost)
     finally:

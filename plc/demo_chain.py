@@ -177,7 +177,8 @@ def run(a):
                               / (1 - a.loss) ** 2)
         stats = TraceStats(trace)
         progress = Progress()
-        while True:
+
+        def poll():
             if push or scada.poll() is None:
                 procs.check_alive()
             stats.update()
@@ -197,14 +198,8 @@ def run(a):
             line2 = (f"link: polls={stats.polls} telegrams={stats.telegrams} lost={stats.lost} "
                      f"blocks={stats.blocks} retransmissions={ob} duplicates={cb[dup_i]} "
                      f"t={progress.elapsed():.1f}s")
-            progress.show(line1, line2, final=done)
-            if done:
-                break
-            if progress.elapsed() > limit:
-                progress.close()
-                raise DemoError(f"timeout after {limit:.0f} s: {taken} of {a.events} events at the SCADA")
-            time.sleep(0.1)
-        progress.close()
+            return line1, line2, done, f"{taken} of {a.events} events at the SCADA"
+        progress.follow(poll, limit)
         if not push and scada.returncode != 0:
             tail = Path(rundir / "scada.log").read_text().strip().splitlines()[-1:]
             raise DemoError(f"the SCADA stand-in exited with {scada.returncode}: {' | '.join(tail)}")
