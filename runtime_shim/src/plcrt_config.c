@@ -89,9 +89,6 @@ static int parse_location(parser_t *p, int line, const char *key, const char *v,
                     want_size, want_size == 'X' ? "100.0" : "100");
     if (area != want_area || size != want_size)
         return perr(p, line, "%s: '%s' must be a %%%c%c address", key, v, want_area, want_size);
-    char why[200];
-    plcrt_image_t probe; /* only for the bounds check; the pointer is not kept */
-    (void)probe;
     if (size == 'X') {
         if (n != 2 || parts[0] < 0 || parts[0] >= PLCRT_IMAGE_SIZE || parts[1] < 0 || parts[1] > 7)
             return perr(p, line, "%s: '%s' is outside the image (a.b with a < 1024, b < 8)", key, v);
@@ -101,7 +98,6 @@ static int parse_location(parser_t *p, int line, const char *key, const char *v,
             return perr(p, line, "%s: '%s' is outside the image (n < 1024)", key, v);
         *out = (int)parts[0];
     }
-    (void)why;
     return 0;
 }
 
@@ -131,6 +127,14 @@ static int claim(parser_t *p, int line, char area, char size, int first, int cou
     }
     for (int i = first; i < first + count; i++) map[i] = line;
     return 0;
+}
+
+/* a one-cell location key (a handshake bit, a status or counter word): parsed, then claimed */
+static int parse_claim_one(parser_t *p, int line, const char *key, const char *v, char area, char size,
+                           int *out)
+{
+    if (parse_location(p, line, key, v, area, size, out)) return -1;
+    return claim(p, line, area, size, *out, 1, key);
 }
 
 /* ------------------------------------------------------------------ plcrt format */
@@ -294,21 +298,16 @@ static int finish_range(parser_t *p, range_keys_t *k, uint64_t default_poll)
             claim(p, k->done, 'I', 'X', r->done, 1, "done") ||
             claim(p, k->error, 'I', 'X', r->error, 1, "error"))
             return -1;
-        if (k->status) {
-            if (parse_location(p, k->status, "status", k->v_status, 'I', 'W', &r->status) ||
-                claim(p, k->status, 'I', 'W', r->status, 1, "status"))
-                return -1;
-        }
+        if (k->status && parse_claim_one(p, k->status, "status", k->v_status, 'I', 'W', &r->status))
+            return -1;
     } else {
         /* cycle / change: error and status show the last request's result (a poll that keeps
          * failing is seen by the program); trigger and done are the handshake's */
         int bad = k->trigger ? k->trigger : k->done;
         if (bad) return perr(p, bad, "trigger and done need policy = trigger");
-        if (k->error && (parse_location(p, k->error, "error", k->v_error, 'I', 'X', &r->error) ||
-                         claim(p, k->error, 'I', 'X', r->error, 1, "error")))
+        if (k->error && parse_claim_one(p, k->error, "error", k->v_error, 'I', 'X', &r->error))
             return -1;
-        if (k->status && (parse_location(p, k->status, "status", k->v_status, 'I', 'W', &r->status) ||
-                          claim(p, k->status, 'I', 'W', r->status, 1, "status")))
+        if (k->status && parse_claim_one(p, k->status, "status", k->v_status, 'I', 'W', &r->status))
             return -1;
     }
     if (k->length) {
@@ -316,16 +315,14 @@ static int finish_range(parser_t *p, range_keys_t *k, uint64_t default_poll)
         if (!k->is_write && r->policy != POLICY_TRIGGER)
             return perr(p, k->length, "length: of a read range needs policy = trigger");
         if (bits) return perr(p, k->length, "length: only for register ranges");
-        if (parse_location(p, k->length, "length", k->v_length, 'Q', 'W', &r->length) ||
-            claim(p, k->length, 'Q', 'W', r->length, 1, "length"))
+        if (parse_claim_one(p, k->length, "length", k->v_length, 'Q', 'W', &r->length))
             return -1;
     }
     if (k->address) {
         /* the request's first address from the image, taken at the rising edge (a vendor
          * client block's address input); start/size stay the range the program may ask for */
         if (r->policy != POLICY_TRIGGER) return perr(p, k->address, "address: needs policy = trigger");
-        if (parse_location(p, k->address, "address", k->v_address, 'Q', 'W', &r->address) ||
-            claim(p, k->address, 'Q', 'W', r->address, 1, "address"))
+        if (parse_claim_one(p, k->address, "address", k->v_address, 'Q', 'W', &r->address))
             return -1;
     }
     if (k->status_first && k->status_first_v) {
@@ -531,16 +528,12 @@ static int parse_plcrt(parser_t *p, char *text)
             } else if (!strcmp(key, "request")) {
                 /* the program's %QX bit: TRUE after a scan = a snapshot at the end of it */
                 slot = &retain_keys[2];
-                if (!retain_keys[2] &&
-                    (parse_location(p, lineno, key, val, 'Q', 'X', &m->retain_request) ||
-                     claim(p, lineno, 'Q', 'X', m->retain_request, 1, key)))
+                if (!retain_keys[2] && parse_claim_one(p, lineno, key, val, 'Q', 'X', &m->retain_request))
                     return -1;
             } else if (!strcmp(key, "saved")) {
                 /* the runtime's %IW word: snapshots completed since the start, mod 65536 */
                 slot = &retain_keys[3];
-                if (!retain_keys[3] &&
-                    (parse_location(p, lineno, key, val, 'I', 'W', &m->retain_saved) ||
-                     claim(p, lineno, 'I', 'W', m->retain_saved, 1, key)))
+                if (!retain_keys[3] && parse_claim_one(p, lineno, key, val, 'I', 'W', &m->retain_saved))
                     return -1;
             } else
                 return perr(p, lineno, "unknown key '%s' in [retain] (file, period, request, saved)", key);
@@ -574,9 +567,7 @@ static int parse_plcrt(parser_t *p, char *text)
             } else if (!strcmp(key, "watch_count")) {
                 /* the runtime's %IW word: writes to the watched register since the start */
                 slot = &slave_keys[5];
-                if (!slave_keys[5] &&
-                    (parse_location(p, lineno, key, val, 'I', 'W', &m->slave_watch_count) ||
-                     claim(p, lineno, 'I', 'W', m->slave_watch_count, 1, key)))
+                if (!slave_keys[5] && parse_claim_one(p, lineno, key, val, 'I', 'W', &m->slave_watch_count))
                     return -1;
             } else
                 return perr(p, lineno, "unknown key '%s' in [slave] (host, port, idle_timeout, byte_timeout, watch, watch_count)", key);
@@ -622,9 +613,7 @@ static int parse_plcrt(parser_t *p, char *text)
                 slot = &dk.unit_id;
                 if (val[0] == '%' || isalpha((unsigned char)val[0])) {
                     /* unit_id = %QWn: the program chooses the unit id of each request */
-                    if (!dk.unit_id &&
-                        (parse_location(p, lineno, key, val, 'Q', 'W', &dev->unit_word) ||
-                         claim(p, lineno, 'Q', 'W', dev->unit_word, 1, key)))
+                    if (!dk.unit_id && parse_claim_one(p, lineno, key, val, 'Q', 'W', &dev->unit_word))
                         return -1;
                 } else {
                     if (parse_int(p, lineno, key, val, 0, 255, &x)) return -1;
@@ -639,13 +628,11 @@ static int parse_plcrt(parser_t *p, char *text)
                 if (dev->poll_ns == 0) return perr(p, lineno, "polling_period must be > 0");
             } else if (!strcmp(key, "errors")) {
                 slot = &dk.errors;
-                if (parse_location(p, lineno, key, val, 'I', 'W', &dev->errors_word) ||
-                    claim(p, lineno, 'I', 'W', dev->errors_word, 1, key))
+                if (parse_claim_one(p, lineno, key, val, 'I', 'W', &dev->errors_word))
                     return -1;
             } else if (!strcmp(key, "online")) {
                 slot = &dk.online;
-                if (parse_location(p, lineno, key, val, 'I', 'X', &dev->online_bit) ||
-                    claim(p, lineno, 'I', 'X', dev->online_bit, 1, key))
+                if (parse_claim_one(p, lineno, key, val, 'I', 'X', &dev->online_bit))
                     return -1;
             } else
                 return perr(p, lineno, "unknown key '%s' in [device] (host, port, serial, baud, parity, data_bits, stop_bits, pause, fc23, unit_id, timeout, polling_period, errors, online)", key);
