@@ -20,7 +20,7 @@ from pathlib import Path
 
 from mipcosim.layout import enum_values
 from plcharness import Plc  # noqa: F401 (the type build() returns)
-from stlib_sim import build_text, lib_type
+from stlib_sim import Fb, RunUntil, build_text, lib_type
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO / "peers"))
@@ -204,25 +204,14 @@ class Logger:
             fb["xEntryStored"] = False
 
 
-class Fb:
-    def __init__(self, plc):
-        self.plc = plc
-
-    def __getitem__(self, m):
-        return self.plc[f"MAIN.rdr.{m}"]
-
-    def __setitem__(self, m, v):
-        self.plc[f"MAIN.rdr.{m}"] = v
-
-
-class Bench:
+class Bench(RunUntil):
     """One PLC with MIP_SoeReader `fb`, its client and logger, a relay, in virtual time."""
 
     def __init__(self, workdir, relay, tick_ms=10, read_every=2, read_mode="trigger",
                  capacity=None, delay=0, retained=False, follow_req=False, pulse=False, **params):
         self.workdir, self.tick_ms, self.relay = workdir, tick_ms, relay
         self.plc = build(workdir, tick_ms)
-        self.fb = Fb(self.plc)
+        self.fb = Fb(self.plc, "rdr")
         self.log = []
         self.client = Client(self.fb, relay, read_every, read_mode, follow_req)
         self.logger = Logger(self.fb, capacity, delay, pulse)
@@ -257,13 +246,6 @@ class Bench:
                 self.snapshot = (self.plc.retain_save(), len(self.logger.stored))
             self.now_ns += self.tick_ms * MS
             self.relay.advance(self.now_ns)
-
-    def run_until(self, cond, limit):
-        for _ in range(limit):
-            if cond():
-                return True
-            self.step()
-        return cond()
 
     def warm_restart(self):
         """The PLC comes back with its last snapshot: the instance and the logger's store as

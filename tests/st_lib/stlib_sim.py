@@ -499,7 +499,19 @@ class RecordSink:
             self.current = []
 
 
-class Bench:
+class RunUntil:
+    """run_until for a bench with step(): scans until cond() holds, at most `limit` scans;
+    says whether it held (the benches here and in soe_bench / unicos_bench share it)."""
+
+    def run_until(self, cond, limit):
+        for _ in range(limit):
+            if cond():
+                return True
+            self.step()
+        return cond()
+
+
+class Bench(RunUntil):
     """Steps one or more PLCs (an outstation PLC, a central PLC) in lockstep with their ports
     and the radio: after each scan the radio runs one scan tick further in virtual time
     (`radio = None`: the radio stands still, the modems still answer their clients)."""
@@ -528,13 +540,6 @@ class Bench:
                 assert sum(flags) <= 1, f"{fb.n}: more than one of {names} TRUE: {flags}"
             if self.radio:
                 self.radio.advance(self.tick_ns)
-
-    def run_until(self, cond, limit):
-        for _ in range(limit):
-            if cond():
-                return True
-            self.step()
-        return cond()
 
     def restart(self, old_plc, fbs, instances, workdir):
         """A PLC restart: a fresh instance of the same program (all state lost) replaces

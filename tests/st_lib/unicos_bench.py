@@ -13,7 +13,7 @@ from pathlib import Path
 from mipcosim.layout import enum_values
 from mippeer.unicos import UnicosDriver
 import stlib_sim
-from stlib_sim import LIB, MS
+from stlib_sim import LIB, MS, Fb, RunUntil
 from plcharness import Plc
 
 UERR = enum_values("E_MIP_UnicosError", LIB / "MIP_UnicosTypes.st")
@@ -149,24 +149,13 @@ class Source:
             self._gap = True
 
 
-class _Fb:
-    def __init__(self, plc):
-        self.plc = plc
-
-    def __getitem__(self, m):
-        return self.plc[f"MAIN.uni.{m}"]
-
-    def __setitem__(self, m, v):
-        self.plc[f"MAIN.uni.{m}"] = v
-
-
-class UnicosBench:
+class UnicosBench(RunUntil):
     """One PLC with MIP_UnicosEvents `u`, the stand-in drivers `da` (A) and `db` (B) with
     their clients `ca` and `cb`, and the record source `src`."""
 
     def __init__(self, workdir, cfg=None, **settings):
         self.plc = build(workdir)
-        self.u = _Fb(self.plc)
+        self.u = Fb(self.plc, "uni")
         self.scans = 0
         self.da, self.db = UnicosDriver("A", cfg), UnicosDriver("B", cfg)
         self.ca, self.cb = Client(self, "A", self.da), Client(self, "B", self.db)
@@ -185,13 +174,6 @@ class UnicosBench:
             self.src.after_scan()
             assert not (self.u["xBusy"] and self.u["xError"])
 
-    def run_until(self, cond, limit):
-        for _ in range(limit):
-            if cond():
-                return True
-            self.step()
-        return cond()
-
     def offer(self, *records):
         self.src.queue += [list(r) for r in records]
 
@@ -208,7 +190,7 @@ class StatusBench:
     def __init__(self, workdir, cfg=None, **settings):
         self.plc = build(workdir)
         self.scans = 0
-        self.s = _Member(self.plc, "sts")
+        self.s = Fb(self.plc, "sts")
         self.da, self.db = UnicosDriver("A", cfg), UnicosDriver("B", cfg)
         self.ca = Client(self, "A", self.da, fb=self.s, reg=lambda i: self.plc[f"MAIN.sa{i}"])
         self.cb = Client(self, "B", self.db, fb=self.s, reg=lambda i: self.plc[f"MAIN.sb{i}"])
@@ -226,14 +208,3 @@ class StatusBench:
             self.scans += 1
             self.ca.after_scan()
             self.cb.after_scan()
-
-
-class _Member:
-    def __init__(self, plc, name):
-        self.plc, self.n = plc, name
-
-    def __getitem__(self, m):
-        return self.plc[f"MAIN.{self.n}.{m}"]
-
-    def __setitem__(self, m, v):
-        self.plc[f"MAIN.{self.n}.{m}"] = v
