@@ -63,6 +63,39 @@ END_PROGRAM
 """)
 
 
+def read_range(device: str, start: int) -> str:
+    """plcrt's [read rd]: one register at `start` into %IW100, on the handshake xRd %QX1.0 ->
+    xRdDone %IX1.0 / xRdErr %IX1.1, status %IW11 (as the test programs that use it declare)."""
+    return f"""[read rd]
+device = {device}
+start = {start}
+size = 1
+image = %IW100
+policy = trigger
+trigger = %QX1.0
+done = %IX1.0
+error = %IX1.1
+status = %IW11
+"""
+
+
+def read_write_ranges(device: str, start: int) -> str:
+    """read_range and its [write wr]: one register at `start` from %QW41, on the handshake xWr
+    %QX1.1 -> xWrDone %IX1.2 / xWrErr %IX1.3, status %IW21."""
+    return read_range(device, start) + f"""
+[write wr]
+device = {device}
+start = {start}
+size = 1
+image = %QW41
+policy = trigger
+trigger = %QX1.1
+done = %IX1.2
+error = %IX1.3
+status = %IW21
+"""
+
+
 def free_port() -> int:
     import socket
     with socket.socket() as s:

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from plcharness import Plc
-from rt_helpers import REPO, compiler_param, one_task
+from rt_helpers import REPO, compiler_param, one_task, read_write_ranges
 
 sys.path.insert(0, str(REPO / "tests" / "emulator"))
 from emu_support import Emulator, connect  # noqa: E402
@@ -147,28 +147,7 @@ unit_id = {unit}
 timeout = 300ms
 errors = %IW30
 
-[read rd]
-device = trm
-start = 2001
-size = 1
-image = %IW100
-policy = trigger
-trigger = %QX1.0
-done = %IX1.0
-error = %IX1.1
-status = %IW11
-
-[write wr]
-device = trm
-start = 2001
-size = 1
-image = %QW41
-policy = trigger
-trigger = %QX1.1
-done = %IX1.2
-error = %IX1.3
-status = %IW21
-"""
+""" + read_write_ranges("trm", 2001)
 
 
 def handshake(plc, trig, done, err, scans=50):

@@ -16,7 +16,7 @@ import time
 import pytest
 
 from plcharness import Plc, build_program
-from rt_helpers import COUNTER, REPO, TINY, compiler_param, one_task
+from rt_helpers import COUNTER, REPO, TINY, compiler_param, one_task, read_range
 
 sys.path.insert(0, str(REPO / "tests" / "emulator"))
 from emu_support import Emulator  # noqa: E402
@@ -407,19 +407,6 @@ def test_line_settings_rtu_cannot_have_are_refused_in_one_line(check_exe, tmp_pa
     assert p.stderr.startswith(f"{cfg}:{line}: error: {msg}"), p.stderr
 
 
-READ_RANGE = """[read rd]
-device = trm
-start = 2001
-size = 1
-image = %IW100
-policy = trigger
-trigger = %QX1.0
-done = %IX1.0
-error = %IX1.1
-status = %IW11
-"""
-
-
 @pytest.mark.parametrize("keys,cstopb", [
     ("parity = none", True),                      # the spec's 8N2
     ("parity = none\nstop_bits = 1", False),      # 8N1 when asked for (many devices run it)
@@ -433,7 +420,7 @@ def test_no_parity_means_two_stop_bits_unless_told(compiler, tmp_path, keys, cst
         path = os.ttyname(slave)
         cfg = tmp_path / "rtu.conf"
         cfg.write_text(f"[device trm]\nserial = {path}\n{keys}\nunit_id = 5\ntimeout = 50ms\n" +
-                       READ_RANGE)
+                       read_range("trm", 2001))
         plc = Plc.build([_write(tmp_path / "prog.st", TRIGGER)], workdir=tmp_path, compiler=compiler,
                         config=cfg)
         try:

@@ -10,7 +10,7 @@ import subprocess
 import pytest
 
 from plcharness import Plc
-from rt_helpers import REPO, compiler_param, one_task
+from rt_helpers import REPO, compiler_param, one_task, read_write_ranges
 
 EMU = REPO / "build" / "emulator" / "mip-emulator"
 
@@ -77,28 +77,7 @@ unit_id = %QW40
 timeout = 2s
 errors = %IW30
 
-[read rd]
-device = mdp
-start = 10
-size = 1
-image = %IW100
-policy = trigger
-trigger = %QX1.0
-done = %IX1.0
-error = %IX1.1
-status = %IW11
-
-[write wr]
-device = mdp
-start = 10
-size = 1
-image = %QW41
-policy = trigger
-trigger = %QX1.1
-done = %IX1.2
-error = %IX1.3
-status = %IW21
-"""
+""" + read_write_ranges("mdp", 10)
 
 
 @pytest.fixture
