@@ -4,14 +4,24 @@ import pytest
 from rt_helpers import ModbusServer
 
 
-@pytest.fixture
-def st_file(tmp_path):
-    """Write ST text into tmp_path and return the path."""
-    def write(text, name="prog.st"):
+def _writer(tmp_path, default_name):
+    def write(text, name=default_name):
         p = tmp_path / name
         p.write_text(text)
         return p
     return write
+
+
+@pytest.fixture
+def st_file(tmp_path):
+    """Write ST text into tmp_path and return the path."""
+    return _writer(tmp_path, "prog.st")
+
+
+@pytest.fixture
+def conf_file(tmp_path):
+    """Write a runtime config (plcrt or mbconfig.cfg) into tmp_path and return the path."""
+    return _writer(tmp_path, "plc.conf")
 
 
 @pytest.fixture

@@ -27,10 +27,9 @@ def run(exe, *args):
 @pytest.mark.parametrize("compiler", COMPILERS)
 @pytest.mark.parametrize("mode", ["real", "virtual"])
 def test_program_runs_in_both_modes_and_writes_its_outputs(compiler, mode, server, st_file,
-                                                           tmp_path):
+                                                           conf_file, tmp_path):
     res = build_program([st_file(COUNTER)], tmp_path / "out", compiler=compiler)
-    cfg = tmp_path / "plc.conf"
-    cfg.write_text(CONFIG.format(port=server.port))
+    cfg = conf_file(CONFIG.format(port=server.port))
     proc = run(res.executable, "-m", mode, "-n", "20", "-c", str(cfg))
     assert proc.returncode == 0, proc.stderr
     assert "20 scans" in proc.stderr

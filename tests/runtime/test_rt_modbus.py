@@ -71,9 +71,8 @@ policy = cycle
 
 
 @pytest.mark.parametrize("compiler", COMPILERS)
-def test_st_handshake_writes_one_request_per_trigger(compiler, server, st_file, tmp_path):
-    cfg = tmp_path / "plc.conf"
-    cfg.write_text(CONFIG.format(port=server.port))
+def test_st_handshake_writes_one_request_per_trigger(compiler, server, st_file, conf_file, tmp_path):
+    cfg = conf_file(CONFIG.format(port=server.port))
     plc = Plc.build([st_file(HANDSHAKE)], workdir=tmp_path, compiler=compiler, config=cfg)
     plc["MAIN.wOut0"] = 11
     plc["MAIN.wOut1"] = 22
@@ -97,9 +96,8 @@ def test_st_handshake_writes_one_request_per_trigger(compiler, server, st_file, 
 
 
 @pytest.mark.parametrize("compiler", COMPILERS)
-def test_st_handshake_reports_errors_and_status(compiler, server, st_file, tmp_path):
-    cfg = tmp_path / "plc.conf"
-    cfg.write_text(CONFIG.format(port=server.port).replace("start = 10", "start = 999"))
+def test_st_handshake_reports_errors_and_status(compiler, server, st_file, conf_file, tmp_path):
+    cfg = conf_file(CONFIG.format(port=server.port).replace("start = 10", "start = 999"))
     plc = Plc.build([st_file(HANDSHAKE)], workdir=tmp_path, compiler=compiler, config=cfg)
     plc["MAIN.wLen"] = 3
     plc["MAIN.xStart"] = True
@@ -111,10 +109,9 @@ def test_st_handshake_reports_errors_and_status(compiler, server, st_file, tmp_p
 
 
 @pytest.mark.parametrize("compiler", COMPILERS)
-def test_cycle_reads_run_in_virtual_time(compiler, server, st_file, tmp_path):
+def test_cycle_reads_run_in_virtual_time(compiler, server, st_file, conf_file, tmp_path):
     server.input[5] = 4711
-    cfg = tmp_path / "plc.conf"
-    cfg.write_text(CONFIG.format(port=server.port))
+    cfg = conf_file(CONFIG.format(port=server.port))
     plc = Plc.build([st_file(HANDSHAKE)], workdir=tmp_path, compiler=compiler, config=cfg)
     plc.scan()
     assert plc["MAIN.wIn0"] == 4711
@@ -123,9 +120,8 @@ def test_cycle_reads_run_in_virtual_time(compiler, server, st_file, tmp_path):
 
 
 @pytest.mark.parametrize("compiler", [compiler_param("stc")])
-def test_bad_config_is_one_line_naming_file_and_line(compiler, st_file, tmp_path):
-    cfg = tmp_path / "bad.conf"
-    cfg.write_text("[device modem]\nhost = 127.0.0.1\nspeed = 9600\n")
+def test_bad_config_is_one_line_naming_file_and_line(compiler, st_file, conf_file, tmp_path):
+    cfg = conf_file("[device modem]\nhost = 127.0.0.1\nspeed = 9600\n", "bad.conf")
     with pytest.raises(PlcError) as ei:
         Plc.build([st_file(HANDSHAKE)], workdir=tmp_path, compiler=compiler, config=cfg)
     msg = str(ei.value)
@@ -134,7 +130,7 @@ def test_bad_config_is_one_line_naming_file_and_line(compiler, st_file, tmp_path
 
 
 @pytest.mark.parametrize("compiler", [compiler_param("stc")])
-def test_socketpair_seam_answers_in_lockstep(compiler, st_file, tmp_path):
+def test_socketpair_seam_answers_in_lockstep(compiler, st_file, conf_file, tmp_path):
     """A peer in the same thread answers each request in the after_send hook (co-simulation)."""
     import socket
     import struct
@@ -151,8 +147,7 @@ def test_socketpair_seam_answers_in_lockstep(compiler, st_file, tmp_path):
         theirs.sendall(struct.pack(">HHHB", tid, 0, len(reply) + 1, unit) + reply)
         calls.append(plc.time_ns)
 
-    cfg = tmp_path / "plc.conf"
-    cfg.write_text(CONFIG.format(port=1))   # the port is never used
+    cfg = conf_file(CONFIG.format(port=1))   # the port is never used
     plc = Plc.build([st_file(HANDSHAKE)], workdir=tmp_path, compiler=compiler, config=cfg)
     with pytest.raises(PlcError, match="no device 'nosuch'"):
         plc.set_device_fd("nosuch", ours.fileno())

@@ -54,9 +54,8 @@ def server():
 
 
 @pytest.fixture
-def plc(tmp_path, st_file, server):
-    cfg = tmp_path / "plc.conf"
-    cfg.write_text(CONFIG.format(port=server.port))
+def plc(tmp_path, st_file, conf_file, server):
+    cfg = conf_file(CONFIG.format(port=server.port))
 
     def make(extra="", compiler="stc", name="out"):
         res = build_program([st_file(PROG.replace("{extra}", extra), name=f"{name}.st")],

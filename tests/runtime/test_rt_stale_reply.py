@@ -31,15 +31,14 @@ image = %IW510
 
 
 @pytest.mark.parametrize("compiler", COMPILERS)
-def test_duplicated_reply_is_dropped_not_put_into_the_next_range(compiler, st_file, tmp_path):
+def test_duplicated_reply_is_dropped_not_put_into_the_next_range(compiler, st_file, conf_file, tmp_path):
     server = ModbusServer()
     try:
         server.holding[0] = 111
         server.holding[10] = 222
         server.duplicate_replies = 1
-        cfg = tmp_path / "plc.conf"
-        cfg.write_text(CONFIG.format(port=server.port))
-        plc = Plc.build([st_file(PROG)], workdir=tmp_path, compiler=compiler, config=cfg)
+        plc = Plc.build([st_file(PROG)], workdir=tmp_path, compiler=compiler,
+                        config=conf_file(CONFIG.format(port=server.port)))
         plc.scan(1)
         assert plc["MAIN.a"] == 111
         assert plc["MAIN.b"] == 222  # before: 111, the duplicate of a's reply
