@@ -202,6 +202,25 @@ def cosim_available():
     return True, ""
 
 
+def cosim_missing(name, pending):
+    """True, with the figure's line said, when the co-simulation cannot run: PENDING for a
+    figure that waits for it to be built, else an ERROR."""
+    ok, why = cosim_available()
+    if ok:
+        return False
+    if pending:
+        line(name, f"pending: cosim not built ({why})", "PENDING")
+    else:
+        error(name, why)
+    return True
+
+
+def failure(e):
+    """A figure's exception as one line: its type and the last line of its message."""
+    msg = str(e).strip().splitlines()
+    return f"{type(e).__name__}: {msg[-1] if msg else ''}"
+
+
 def goodput_cosim(p, records, seed, workdir):
     """Polls and payload registers of the window from the 5th record (past the start-up: the
     sender's quiet wait before record 1) to the sender's last acknowledgement."""
@@ -245,8 +264,7 @@ def fig_goodput(quick, workdir):
                 how = ("cosim: plc/outstation.st + plc/central.st (st_lib via stc) in the soft-PLC "
                        "over the emulator core, 9600 bit/s, 10 ms scans")
             except Exception as e:  # noqa: BLE001 - report, go on with the other figures
-                msg = str(e).strip().splitlines()
-                why = f"cosim failed: {type(e).__name__}: {msg[-1] if msg else ''}"
+                why = f"cosim failed: {failure(e)}"
         if not how:
             # one model of the chain: no figure without the kernel (no scripted copy of it)
             error(name, why)
@@ -319,9 +337,7 @@ def goodput_pair(stations, p, records, workdir):
 
 def fig_goodput_pipelined(quick, workdir):
     name = "goodput_pipelined"
-    ok, why = cosim_available()
-    if not ok:
-        line(name, f"pending: cosim not built ({why})", "PENDING")
+    if cosim_missing(name, pending=True):
         return
     records = {1: 40, 4: 20, 16: 10} if quick else {1: 150, 4: 80, 16: 80}
     cells, fit = [], []
@@ -333,8 +349,7 @@ def fig_goodput_pipelined(quick, workdir):
                 cells.append((n, p, g[2][0] / g[1][0], g[2][1] / g[1][1]))
                 fit.append(g[2][0] / m)
     except Exception as e:  # noqa: BLE001 - report, go on with the other figures
-        msg = str(e).strip().splitlines()
-        error(name, f"{type(e).__name__}: {msg[-1] if msg else ''}")
+        error(name, failure(e))
         return
     per_poll = "; ".join(f"{n} station{'s' if n > 1 else ''} " + "/".join(
         f"{r:.2f}" for m, _, r, _ in cells if m == n) for n in (1, 4, 16))
@@ -416,9 +431,7 @@ def rtu_cycle_bound_ms(baud, payload=PAYLOAD):
 def fig_goodput_rtu(quick, workdir):
     import mipcosim.layout as L
     name = "goodput_rtu"
-    ok, why = cosim_available()
-    if not ok:
-        error(name, why)
+    if cosim_missing(name, pending=False):
         return
     records = 30 if quick else 120
     seeds = [1] if quick else [1, 2]
@@ -432,8 +445,7 @@ def fig_goodput_rtu(quick, workdir):
                 res[(baud, sf)] = statistics.mean(
                     records_per_s(baud, records, seed, workdir, status_first=sf) for seed in seeds)
     except Exception as e:  # noqa: BLE001 - report, go on with the other figures
-        msg = str(e).strip().splitlines()
-        error(name, f"{type(e).__name__}: {msg[-1] if msg else ''}")
+        error(name, failure(e))
         return
     tcp = res[(0, False)]
     ratio = {k: v / tcp for k, v in res.items() if k[0]}
@@ -456,9 +468,7 @@ def fig_fc23_gain(quick, workdir):
     against FC16 + FC3, on RTU 19200 8E1; records of 121 registers (an FC23 writes at most 121)."""
     import mipcosim.sim as S
     name = "fc23_gain"
-    ok, why = cosim_available()
-    if not ok:
-        error(name, why)
+    if cosim_missing(name, pending=False):
         return
     records = 30 if quick else 120
     seeds = [1] if quick else [1, 2]
@@ -470,8 +480,7 @@ def fig_fc23_gain(quick, workdir):
                     records_per_s(19200, records, seed, workdir, status_first=sf, fc23=f,
                                   payload=PAYLOAD - 2) for seed in seeds)
     except Exception as e:  # noqa: BLE001 - report, go on with the other figures
-        msg = str(e).strip().splitlines()
-        error(name, f"{type(e).__name__}: {msg[-1] if msg else ''}")
+        error(name, failure(e))
         return
     whole = g[(False, True)] / g[(False, False)]
     first = g[(True, True)] / g[(True, False)]
@@ -776,16 +785,13 @@ def cosim_speed_run(virt_s, workdir: Path, stations=8, transport="inproc", tick_
 
 def fig_cosim_speed(quick, workdir):
     name = "cosim_speed"
-    ok, why = cosim_available()
-    if not ok:
-        line(name, f"pending: cosim not built ({why})", "PENDING")
+    if cosim_missing(name, pending=True):
         return
     virt = 60 if quick else 600
     try:
         r = cosim_speed_run(virt, workdir)
     except Exception as e:  # noqa: BLE001 - report, go on with the other figures
-        msg = str(e).strip().splitlines()
-        error(name, f"{type(e).__name__}: {msg[-1] if msg else ''}")
+        error(name, failure(e))
         return
     if r["blocks"] == 0:
         error(name, f"no record went over the radio in {virt} virtual s: the chain is not running")
@@ -808,9 +814,7 @@ def fig_cosim_scale(quick, workdir):
     import resource
 
     name = "cosim_scale"
-    ok, why = cosim_available()
-    if not ok:
-        line(name, f"pending: cosim not built ({why})", "PENDING")
+    if cosim_missing(name, pending=True):
         return
     virt = 10 if quick else 60
     stations = 247
@@ -823,8 +827,7 @@ def fig_cosim_scale(quick, workdir):
             st = net.radio_stats()
             rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     except Exception as e:  # noqa: BLE001 - report, go on with the other figures
-        msg = str(e).strip().splitlines()
-        error(name, f"{type(e).__name__}: {msg[-1] if msg else ''}")
+        error(name, failure(e))
         return
     if st["polls"] == 0:
         error(name, f"no poll in {virt} virtual s: the chain is not running")
@@ -1010,9 +1013,7 @@ def fig_kit_scenario(quick, workdir):
     the central) through mip-kit's Run, as `mip-kit` runs it. The figure is the wall time of
     the run, the program already built (the build is cached, as in an integrator's CI)."""
     name = "kit_scenario"
-    ok, why = cosim_available()
-    if not ok:
-        line(name, f"pending: cosim not built ({why})", "PENDING")
+    if cosim_missing(name, pending=True):
         return
     records = 1000 if quick else 10000
     try:
@@ -1035,8 +1036,7 @@ def fig_kit_scenario(quick, workdir):
         virt = run.net.now / SEC
         run.net.close()
     except Exception as e:  # noqa: BLE001 - report, go on with the other figures
-        msg = str(e).strip().splitlines()
-        error(name, f"{type(e).__name__}: {msg[-1] if msg else ''}")
+        error(name, failure(e))
         return
     failed = [f"{c}: {m}" for c, m in results if m]
     if failed:
