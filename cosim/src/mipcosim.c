@@ -242,6 +242,23 @@ fail:
     return -1;
 }
 
+/* A connect call's PLC, its function (set_fd or set_transport) and device name. */
+static int connect_checks(mipcosim *sim, int id, int have_fn, const char *fn, const char *device)
+{
+    if (id < 0 || id >= sim->nplcs || !sim->plcs[id].rt) return fail(sim, "connect: no PLC %d", id);
+    if (!have_fn || !device) return fail(sim, "connect: no %s function or device", fn);
+    return 0;
+}
+
+static int endpoint_check(mipcosim *sim, const char *what, int ep)
+{
+    if (ep < 0 || ep > mipemu_net_stations(sim->net))
+        return fail(sim, "%s: endpoint %d is not 0 (MDP) or a station 1..%d", what, ep,
+                    mipemu_net_stations(sim->net));
+    return 0;
+}
+
+static conn_t *device_conn(mipcosim *sim, int id, const char *device, int *slot_out);
 static int connect_stream(mipcosim *sim, int id, mipcosim_set_fd_fn set_fd, const char *device,
                           int ep, int tcp);
 
@@ -259,34 +276,22 @@ int mipcosim_connect_tcp(mipcosim *sim, int id, mipcosim_set_fd_fn set_fd, const
 static int connect_stream(mipcosim *sim, int id, mipcosim_set_fd_fn set_fd, const char *device,
                           int ep, int tcp)
 {
-    if (id < 0 || id >= sim->nplcs || !sim->plcs[id].rt) return fail(sim, "connect: no PLC %d", id);
-    if (!set_fd || !device) return fail(sim, "connect: no set_fd function or device");
-    if (ep < 0 || ep > mipemu_net_stations(sim->net))
-        return fail(sim, "connect: endpoint %d is not 0 (MDP) or a station 1..%d", ep,
-                    mipemu_net_stations(sim->net));
-    if (strlen(device) >= NAME_MAX_LEN) return fail(sim, "connect: device name too long");
-    conn_t *c = NULL;
-    int slot = -1;
-    for (int i = 0; i < MAX_CONNS; i++) {
-        conn_t *o = sim->conns[i];
-        if (o && o->plc == id && !strcmp(o->device, device)) { c = o; break; }
-        if (!o && slot < 0) slot = i;
-    }
-    if (!c) {
-        if (slot < 0) return fail(sim, "more than %d connections", MAX_CONNS);
-        c = calloc(1, sizeof *c);
-        if (!c) return fail(sim, "out of memory");
+    if (connect_checks(sim, id, set_fd != NULL, "set_fd", device) || endpoint_check(sim, "connect", ep))
+        return -1;
+    int slot;
+    conn_t *c = device_conn(sim, id, device, &slot);
+    if (!c) return -1;
+    if (slot >= 0) {
+        /* a new connection: its stream pair (device_conn left the fds at -1) */
         int sv[2];
         if (stream_pair(tcp, sv) != 0) {
+            int e = errno;
+            sim->conns[slot] = NULL;
             free(c);
-            return fail(sim, "%s: %s", tcp ? "TCP over 127.0.0.1" : "socketpair", strerror(errno));
+            return fail(sim, "%s: %s", tcp ? "TCP over 127.0.0.1" : "socketpair", strerror(e));
         }
-        c->sim = sim;
-        c->plc = id;
         c->fd_plc = sv[0];
         c->fd_emu = sv[1];
-        snprintf(c->device, sizeof c->device, "%s", device);
-        sim->conns[slot] = c;
     }
     c->ep = ep;
     c->relay = -1;
@@ -308,10 +313,11 @@ static long transact(void *user, const uint8_t *req, size_t req_len, uint8_t *rs
     return n;
 }
 
-/* The in-process connection of PLC id's device: the one it had, or a new one (NULL: the
- * reason is in sim->err). */
-static conn_t *inproc_conn(mipcosim *sim, int id, const char *device)
+/* The connection of PLC id's device: the one it had (*slot = -1), or a new one without fds in
+ * sim->conns[*slot] (NULL: the reason is in sim->err). */
+static conn_t *device_conn(mipcosim *sim, int id, const char *device, int *slot_out)
 {
+    *slot_out = -1;
     if (strlen(device) >= NAME_MAX_LEN) {
         fail(sim, "connect: device name too long");
         return NULL;
@@ -338,6 +344,7 @@ static conn_t *inproc_conn(mipcosim *sim, int id, const char *device)
         c->fd_plc = c->fd_emu = -1;
         snprintf(c->device, sizeof c->device, "%s", device);
         sim->conns[slot] = c;
+        *slot_out = slot;
     }
     return c;
 }
@@ -345,12 +352,11 @@ static conn_t *inproc_conn(mipcosim *sim, int id, const char *device)
 int mipcosim_connect_inproc(mipcosim *sim, int id, mipcosim_set_transport_fn set_transport,
                             const char *device, int ep)
 {
-    if (id < 0 || id >= sim->nplcs || !sim->plcs[id].rt) return fail(sim, "connect: no PLC %d", id);
-    if (!set_transport || !device) return fail(sim, "connect: no set_transport function or device");
-    if (ep < 0 || ep > mipemu_net_stations(sim->net))
-        return fail(sim, "connect: endpoint %d is not 0 (MDP) or a station 1..%d", ep,
-                    mipemu_net_stations(sim->net));
-    conn_t *c = inproc_conn(sim, id, device);
+    if (connect_checks(sim, id, set_transport != NULL, "set_transport", device) ||
+        endpoint_check(sim, "connect", ep))
+        return -1;
+    int slot;
+    conn_t *c = device_conn(sim, id, device, &slot);
     if (!c) return -1;
     c->ep = ep;
     c->relay = -1;
@@ -362,9 +368,7 @@ int mipcosim_connect_inproc(mipcosim *sim, int id, mipcosim_set_transport_fn set
 long mipcosim_request(mipcosim *sim, int ep, const uint8_t *req, size_t req_len, uint8_t *rsp,
                       size_t rsp_cap)
 {
-    if (ep < 0 || ep > mipemu_net_stations(sim->net))
-        return fail(sim, "request: endpoint %d is not 0 (MDP) or a station 1..%d", ep,
-                    mipemu_net_stations(sim->net));
+    if (endpoint_check(sim, "request", ep)) return -1;
     if (!req || !rsp || rsp_cap < MIPEMU_RESPONSE_MAX)
         return fail(sim, "request: no request, or a response buffer under %d bytes",
                     MIPEMU_RESPONSE_MAX);
@@ -577,10 +581,10 @@ static long transact_relay(void *user, const uint8_t *req, size_t req_len, uint8
 int mipcosim_connect_relay(mipcosim *sim, int id, mipcosim_set_transport_fn set_transport,
                            const char *device, int rid)
 {
-    if (id < 0 || id >= sim->nplcs || !sim->plcs[id].rt) return fail(sim, "connect: no PLC %d", id);
-    if (!set_transport || !device) return fail(sim, "connect: no set_transport function or device");
+    if (connect_checks(sim, id, set_transport != NULL, "set_transport", device)) return -1;
     if (!mipcosim_relay(sim, rid)) return fail(sim, "connect: no relay %d", rid);
-    conn_t *c = inproc_conn(sim, id, device);
+    int slot;
+    conn_t *c = device_conn(sim, id, device, &slot);
     if (!c) return -1;
     c->ep = -1;
     c->relay = rid;
