@@ -7,9 +7,9 @@ import time
 import pytest
 
 from plcharness import build_program
-from rt_helpers import ModbusServer, compiler_param
+from rt_helpers import ModbusServer, compiler_param, one_task
 
-PROG = """
+PROG = one_task("""
 FUNCTION_BLOCK ACC
 VAR_INPUT inc : UINT; END_VAR
 VAR_OUTPUT total : UINT; END_VAR
@@ -25,13 +25,7 @@ kept(inc := 1);
 lost(inc := 1);
 out := UINT_TO_WORD(cnt); out2 := UINT_TO_WORD(kept.total); out3 := UINT_TO_WORD(lost.total);
 END_PROGRAM
-CONFIGURATION Config0
-RESOURCE Res0 ON PLC
-TASK task0(INTERVAL := T#10ms, PRIORITY := 0);
-PROGRAM instance0 WITH task0 : MAIN;
-END_RESOURCE
-END_CONFIGURATION
-"""
+""")
 
 CONFIG = """
 [device out]

@@ -168,7 +168,7 @@ def test_the_handshake_with_a_program_that_retains_nothing_is_refused(tmp_path, 
     assert not (tmp_path / "plc.retain").exists()
 
 
-CLOCK_PROG = """
+CLOCK_PROG = one_task("""
 PROGRAM MAIN
 VAR RETAIN
   tmr : TON;
@@ -176,13 +176,7 @@ VAR RETAIN
 END_VAR
 tmr(IN := go, PT := T#5s);
 END_PROGRAM
-CONFIGURATION Config0
-RESOURCE Res0 ON PLC
-TASK task0(INTERVAL := T#10ms, PRIORITY := 0);
-PROGRAM instance0 WITH task0 : MAIN;
-END_RESOURCE
-END_CONFIGURATION
-"""
+""")
 
 
 @pytest.mark.parametrize("compiler", COMPILERS)

@@ -14,6 +14,7 @@ from plcharness import Plc, PlcError, build_program
 
 from mippeer.scada import Client, ScadaError, SoeMaster
 from mipcosim.layout import LIB_FILES, ST_LIB, enum_values
+from rt_helpers import one_task
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -24,7 +25,7 @@ ERRORS = enum_values("E_MIP_SoeSrvError", ST_LIB / "MIP_TypesSoeServer.st")
 
 REGS = "\n".join(f"  r{i} AT %QW{BASE + i} : WORD;" for i in range(26))
 COPY = "\n".join(f"r{i} := srv.aRegs[{i}];" for i in range(26))
-PROG = f"""
+PROG = one_task(f"""
 PROGRAM MAIN
 VAR RETAIN
   srv : MIP_SoeServer;
@@ -61,13 +62,7 @@ IF srv.xTaken THEN uNext := uNext + 1; END_IF;
 xReq := srv.xSnapshotReq;
 {COPY}
 END_PROGRAM
-CONFIGURATION Config0
-RESOURCE Res0 ON PLC
-TASK task0(INTERVAL := T#10ms, PRIORITY := 0);
-PROGRAM instance0 WITH task0 : MAIN;
-END_RESOURCE
-END_CONFIGURATION
-"""
+""")
 CONFIG = """
 [slave]
 port = 0
