@@ -438,23 +438,31 @@ def run(a):
         procs.stop()
 
 
+def run_or_fail(run, a):
+    """A demo's run(a) -> (problems, figures); None after printing `result: FAIL` for a
+    DemoError or an interruption. Ctrl-C and SIGTERM end the run through its finally clauses
+    (every process stopped)."""
+    signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
+    signal.signal(signal.SIGINT, signal.default_int_handler)   # also when started in background
+    try:
+        return run(a)
+    except KeyboardInterrupt:
+        print("\nresult: FAIL interrupted")
+    except DemoError as e:
+        print(f"\nresult: FAIL {e}")
+    return None
+
+
 def main(argv=None):
     args = sys.argv[1:] if argv is None else list(argv)
     if "--chain" in args:     # relay -> PLCs -> radio -> SCADA (issue 35): plc/demo_chain.py
         import demo_chain
         return demo_chain.main(args)
     a = parse_args(argv)
-    # Ctrl-C and SIGTERM end the run through the finally clauses (every process stopped)
-    signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
-    signal.signal(signal.SIGINT, signal.default_int_handler)   # also when started in background
-    try:
-        problems, r = run(a)
-    except KeyboardInterrupt:
-        print("\nresult: FAIL interrupted")
+    outcome = run_or_fail(run, a)
+    if outcome is None:
         return 1
-    except DemoError as e:
-        print(f"\nresult: FAIL {e}")
-        return 1
+    problems, r = outcome
     print(f"demo: radio lost {r['lost_telegrams']} telegrams, {r['lost_block_telegrams']} of "
           f"them carrying a record or an acknowledgement")
     if problems:

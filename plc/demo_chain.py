@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import signal
 import subprocess
 import sys
 import time
@@ -24,7 +23,7 @@ sys.path.insert(0, str(REPO / "cosim"))
 sys.path.insert(0, str(REPO / "plc"))
 
 from demo import (DemoError, Procs, Progress, Slave, TraceStats, bar, free_port,  # noqa: E402
-                  fresh_rundir, radio_args, start_emulator)
+                  fresh_rundir, radio_args, run_or_fail, start_emulator)
 from mipcosim import chain as C                                         # noqa: E402
 
 
@@ -235,16 +234,10 @@ def run(a):
 
 def main(argv=None):
     a = parse_args(sys.argv[1:] if argv is None else argv)
-    signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
-    signal.signal(signal.SIGINT, signal.default_int_handler)
-    try:
-        problems, r = run(a)
-    except KeyboardInterrupt:
-        print("\nresult: FAIL interrupted")
+    outcome = run_or_fail(run, a)
+    if outcome is None:
         return 1
-    except DemoError as e:
-        print(f"\nresult: FAIL {e}")
-        return 1
+    problems, r = outcome
     if problems:
         print("result: FAIL " + "; ".join(problems))
         return 1
