@@ -1,7 +1,9 @@
 """Starting the real mip-emulator server for a test, and a few raw Modbus TCP helpers.
 
 The raw helpers exist only for what a conformant client cannot send (malformed or oversized
-frames, pipelining); everything else in the tests goes through pymodbus or mbpoll."""
+frames, pipelining), and tcp_read, one plain FC3 read for a test that only wants the values
+(the RTU tests, which check the TCP side of the same registers); everything else in the tests
+goes through pymodbus or mbpoll."""
 import json
 import os
 import re
@@ -76,6 +78,21 @@ def connect(port, host="127.0.0.1"):
     s = socket.create_connection((host, port), timeout=10)
     s.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
     return s
+
+
+def tcp_read(port, addr, count, unit=1):
+    """Holding registers addr.. (FC3) over a fresh Modbus TCP connection to port."""
+    s = connect(port)
+    try:
+        s.sendall(struct.pack(">HHHBBHH", 7, 0, 6, unit, 3, addr, count))
+        data = b""
+        while len(data) < 9 + 2 * count:
+            chunk = s.recv(1024)
+            assert chunk, "connection closed"
+            data += chunk
+        return list(struct.unpack(f">{count}H", data[9:9 + 2 * count]))
+    finally:
+        s.close()
 
 
 def frame(tid, unit, pdu, proto=0, length=None):

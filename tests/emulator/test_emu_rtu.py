@@ -8,7 +8,7 @@ import time
 
 import pytest
 
-from emu_support import BINARY, FAST, Emulator, connect
+from emu_support import BINARY, FAST, Emulator, connect, tcp_read
 from rtu_support import RtuLine, char_s, check_frame, crc16, fc3, fc16, frame
 
 
@@ -23,20 +23,6 @@ def start(tmp_path, *rtu_specs, extra=()):
     for spec in rtu_specs:
         args += ["--rtu", spec]
     return Emulator(*args, trace=tmp_path / "trace.jsonl")
-
-
-def tcp_read(port, addr, count, unit=1):
-    s = connect(port)
-    try:
-        s.sendall(struct.pack(">HHHBBHH", 7, 0, 6, unit, 3, addr, count))
-        data = b""
-        while len(data) < 9 + 2 * count:
-            chunk = s.recv(1024)
-            assert chunk, "connection closed"
-            data += chunk
-        return list(struct.unpack(f">{count}H", data[9:9 + 2 * count]))
-    finally:
-        s.close()
 
 
 @pytest.fixture

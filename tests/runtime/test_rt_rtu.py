@@ -5,7 +5,6 @@ unplugged for 5 s (the emulator stopped): timeouts, then the same data again, ne
 import os
 import re
 import signal
-import struct
 import subprocess
 import sys
 import time
@@ -17,7 +16,7 @@ from plcharness import Plc
 from rt_helpers import REPO, compiler_param, one_task, read_write_ranges
 
 sys.path.insert(0, str(REPO / "tests" / "emulator"))
-from emu_support import Emulator, connect  # noqa: E402
+from emu_support import Emulator, tcp_read  # noqa: E402
 
 EMU = REPO / "build" / "emulator" / "mip-emulator"
 
@@ -73,20 +72,6 @@ device1.Holding_Registers_Read_Size = "1"
 device1.Holding_Registers_Start = "2001"
 device1.Holding_Registers_Size = "1"
 """
-
-
-def tcp_read(port, addr, count):
-    s = connect(port)
-    try:
-        s.sendall(struct.pack(">HHHBBHH", 7, 0, 6, 1, 3, addr, count))
-        data = b""
-        while len(data) < 9 + 2 * count:
-            chunk = s.recv(1024)
-            assert chunk
-            data += chunk
-        return list(struct.unpack(f">{count}H", data[9:9 + 2 * count]))
-    finally:
-        s.close()
 
 
 @pytest.fixture

@@ -19,8 +19,8 @@ from plcharness import Plc, build_program
 from rt_helpers import COUNTER, REPO, TINY, compiler_param, one_task, read_range
 
 sys.path.insert(0, str(REPO / "tests" / "emulator"))
-from emu_support import Emulator  # noqa: E402
-from test_rt_rtu import CONF, TRIGGER, handshake, tcp_read  # noqa: E402
+from emu_support import Emulator, tcp_read  # noqa: E402
+from test_rt_rtu import CONF, TRIGGER, handshake  # noqa: E402
 
 
 def emulator(link):
