@@ -98,7 +98,8 @@ def fig_chain(quick, workdir, line, error):
         ceiling = t_rec / (t_rec + -(-PER_RECORD // OFFER) * SCADA_MS / 1000)
         line("chain_goodput", f"{r:.3f} of the middle hop ({chain / REGS:.1f} entries/s = "
              f"{chain:.0f} payload registers/s relay -> SCADA vs {hop:.0f} registers/s "
-             f"outstation -> central alone; {r / ceiling:.2f} of the pull way's ceiling {ceiling:.2f} "
+             f"outstation -> central alone; {r / ceiling:.2f} of the pull way's ceiling "
+             f"{ceiling:.2f} "
              f"= {t_rec * 1000:.0f} ms a record / ({t_rec * 1000:.0f} + {-(-PER_RECORD // OFFER)} "
              f"SCADA polls of {SCADA_MS} ms); {n} events, 15 per record, up to 8 per transfer, "
              f"realistic radio 9600 bit/s, cosim; target >= 0.90 of the ceiling)",

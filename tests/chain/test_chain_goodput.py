@@ -5,8 +5,8 @@ transfer, and the push way delivers at least 0.90 of the middle hop's registers 
 import sys
 from pathlib import Path
 
-from mipcosim.chain import (OUT_DONE, OUT_FAILED, PUSH_RECORDS, ChainSetup, SoeChain, SoeParams, check_chain,
-                            script)
+from mipcosim.chain import (OUT_DONE, OUT_FAILED, PUSH_RECORDS, ChainSetup, SoeChain, SoeParams,
+                            check_chain, script)
 from mipcosim.sim import SEC, Radio
 
 REPO = Path(__file__).resolve().parents[2]
@@ -31,9 +31,9 @@ def test_a_backlog_goes_in_full_records_and_long_transfers(tmp_path):
     """300 entries. The first transfer starts as the first entry is stored and its one record
     takes the few entries stored by the time the sender asks for it. From then on the relay's
     backlog is in the logger: every record is full but the very last (the other 297 or so
-    entries: 19 full records and the rest), in transfers of 4 records (5 transfers). The logger that fixed a
-    transfer's entries when it started sent the entries stored meanwhile in part-filled
-    records (23 records)."""
+    entries: 19 full records and the rest), in transfers of 4 records (5 transfers). The
+    logger that fixed a transfer's entries when it started sent the entries stored meanwhile
+    in part-filled records (23 records)."""
     records, transfers = saturated(tmp_path, 300, 4)
     assert (records, transfers) == (1 + 20, 1 + 5)
 
