@@ -2,10 +2,17 @@
 (cosim/mipcosim/chain.py: relay -> outstation PLC -> realistic radio -> central PLC -> SCADA
 polling every 50 ms, 10 ms scans, virtual time):
 
-- chain_goodput: entries per second relay -> SCADA with the relay always ahead (saturated), as
-  payload registers per second (8 an entry, 15 entries a record), against the middle hop's
-  goodput alone (plc/outstation.st -> plc/central.st, records of 120 registers, the same radio);
-  target: the chain costs at most 10 % of it (ratio >= 0.90).
+- chain_goodput_push: entries per second relay -> WinCC OA's UNICOS drivers with the relay
+  always ahead (saturated), as payload registers per second (8 an entry, 15 entries a record),
+  against the middle hop's goodput alone (plc/outstation.st -> plc/central.st, records of 120
+  registers, the same radio); target (issue 35): the chain costs at most 10 % of it (>= 0.90).
+  The outstation sends up to 8 records per transfer (SoeParams.per_transfer, the chain's
+  default: half the logger's ring).
+- chain_goodput: the same, relay -> SCADA (the pull way). Its acknowledgement waits until the
+  SCADA took the record's entries, 3 an offer (the relay's SOE block), one offer a poll; the
+  radio is idle meanwhile, so a record costs the middle hop's record time plus
+  ceil(15 / 3) polls: its ceiling is T_rec / (T_rec + 5 x 50 ms), about 0.59; target: within
+  10 % of that ceiling (docs/chain.md "Goodput").
 - chain_latency_0pct / _30pct: event -> SCADA, p50 and p99, an event every 2 s (not saturated).
 - chain_ack_after_handover: the extra time per record of acknowledging over the radio only after
   the SCADA took the record's entries against acknowledging once they are queued at the central
@@ -20,6 +27,11 @@ SEC = 1_000_000_000
 REGS = 8            # registers of one relay entry (a message block)
 
 
+SCADA_MS = 50       # the SCADA stand-in's polling period (ChainSetup.scada_period_ms)
+OFFER = 3           # entries of one MIP_SoeServer offer (the relay's 40601..40626 hold 3)
+PER_RECORD = 15     # entries of a full record (120 registers)
+
+
 def chain_run(workdir, events, loss, seed=1, ack_on_receipt=False, limit_s=3600, handover="pull"):
     from mipcosim import chain as C
     from mipcosim.sim import Radio
@@ -27,7 +39,7 @@ def chain_run(workdir, events, loss, seed=1, ack_on_receipt=False, limit_s=3600,
                       params=C.SoeParams(timeout_ms=3000, ack_on_receipt=ack_on_receipt,
                                          retain=True, redundant=handover == "push"),
                       handover=handover,
-                      scada_period_ms=50,
+                      scada_period_ms=SCADA_MS,
                       relay_capacity=max(1000, len(events)))   # saturated: all wait in the relay
     with C.SoeChain(st, workdir) as ch:
         done = ch.run_to_end(limit_s * SEC, settle_ns=0)
@@ -82,10 +94,16 @@ def fig_chain(quick, workdir, line, error):
         hop = middle_hop_regs_per_s(workdir / "hop", 20 if quick else 100)
         chain = saturated_rate(workdir / "sat", n) * REGS
         r = chain / hop
+        t_rec = PER_RECORD * REGS / hop                       # s a record of the middle hop
+        ceiling = t_rec / (t_rec + -(-PER_RECORD // OFFER) * SCADA_MS / 1000)
         line("chain_goodput", f"{r:.3f} of the middle hop ({chain / REGS:.1f} entries/s = "
              f"{chain:.0f} payload registers/s relay -> SCADA vs {hop:.0f} registers/s "
-             f"outstation -> central alone; {n} events, 15 per record, realistic radio 9600 bit/s, "
-             f"SCADA polling every 50 ms, cosim; target >= 0.90)", "OK" if r >= 0.9 else "MISSED")
+             f"outstation -> central alone; {r / ceiling:.2f} of the pull way's ceiling "
+             f"{ceiling:.2f} "
+             f"= {t_rec * 1000:.0f} ms a record / ({t_rec * 1000:.0f} + {-(-PER_RECORD // OFFER)} "
+             f"SCADA polls of {SCADA_MS} ms); {n} events, 15 per record, up to 8 per transfer, "
+             f"realistic radio 9600 bit/s, cosim; target >= 0.90 of the ceiling)",
+             "OK" if r >= 0.9 * ceiling else "MISSED")
     except Exception as e:  # noqa: BLE001 - report, go on with the other figures
         error("chain_goodput", f"{type(e).__name__}: {e}")
     try:
@@ -93,8 +111,8 @@ def fig_chain(quick, workdir, line, error):
         r = push / hop
         line("chain_goodput_push", f"{r:.3f} of the middle hop ({push / REGS:.1f} entries/s = "
              f"{push:.0f} payload registers/s relay -> WinCC OA's UNICOS driver pair vs {hop:.0f} "
-             f"registers/s outstation -> central alone; {n} events, 15 per record, realistic radio "
-             f"9600 bit/s, cosim; target >= 0.90)", "OK" if r >= 0.9 else "MISSED")
+             f"registers/s outstation -> central alone; {n} events, 15 per record, up to 8 per "
+             f"transfer, realistic radio 9600 bit/s, cosim; target >= 0.90)", "OK" if r >= 0.9 else "MISSED")
     except Exception as e:  # noqa: BLE001
         error("chain_goodput_push", f"{type(e).__name__}: {e}")
     from mipcosim import chain as C

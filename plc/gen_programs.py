@@ -706,7 +706,7 @@ def outstation_soe():
              "    wTime1 := rdr.wTime1, wTime2 := rdr.wTime2, wTime3 := rdr.wTime3,",
              "    xChunkRequest := snd.xChunkRequest, udiChunkIndex := snd.udiChunkIndex,",
              "    uChunkMax := snd.uChunkMax, xSendDone := snd.xDone, xSendError := snd.xError,",
-             "    eSendError := snd.eErrorId);",
+             "    eSendError := snd.eErrorId, udiAcked := snd.udiRecords);",
              "snd(xExecute := lgr.xExecute, tTimeout := tTimeout, uMaxRetries := WORD_TO_UINT(pMaxRetries),",
              "    xChunkValid := lgr.xChunkValid, aChunk := lgr.aChunk, uChunkLen := lgr.uChunkLen,",
              "    xChunkLast := lgr.xChunkLast, xWriteDone := xWrDone1, xWriteError := wrErr1,",

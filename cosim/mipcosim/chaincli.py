@@ -31,7 +31,8 @@ def parse(argv):
     p.add_argument("--loss", type=float, help="telegram loss per direction (run: 0.1, soak: 0.3)")
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--per-record", type=int, default=15, help="relay entries per MIP record (1..15)")
-    p.add_argument("--per-transfer", type=int, default=1, help="records per transfer")
+    p.add_argument("--per-transfer", type=int, default=8,
+                   help="records per transfer at most (default 8: half the logger's ring)")
     p.add_argument("--handover", choices=["pull", "push"], default="pull",
                    help="the central's hand-over to the control system: pull (MIP_SoeServer, a "
                         "polling SCADA; default) or push (MIP_UnicosEvents to WinCC OA's "

@@ -120,7 +120,9 @@ def central_soe_config(mdp_port=15020, slave_port=0, retain="", host="127.0.0.1"
 class SoeParams:
     """%MW0..6 of the chain's programs (plc/gen_programs.py SOE_PARAMS)."""
     per_record: int = 15          # relay entries per MIP record (1..15)
-    per_transfer: int = 1         # records per transfer
+    per_transfer: int = 8         # records per transfer at most: 8 x 15 entries fill at most half
+                                  # PLC_SoeLog's ring of 256, so the next transfer's entries are
+                                  # there when one ends (our choice, issue 35 item 8)
     retain: bool = False          # the blocks' xRetained (warm restarts)
     ack_on_receipt: bool = False  # the central acknowledges a record once queued, not after the SCADA (measurement)
     redundant: bool = False       # push: a redundant pair of drivers (both get every frame)
