@@ -30,8 +30,15 @@ def page_block():
     return lines[i + 1:]
 
 
-def wall(line):
-    return re.sub(r"\d+(\.\d+)? s wall", "TIME s wall", line)
+def same(line):
+    """A line without what depends on the blocks' timing rather than on the example (the wall
+    time, the radio's telegram counts, the writes the driver left unanswered): a change of
+    st_lib's timing does not make the page wrong, a lost or repeated event does."""
+    for pat, rep in ((r"\d+(\.\d+)? s wall", "TIME s wall"),
+                     (r"radio lost \d+ of \d+ telegrams down, \d+ of \d+ up", "radio lost N"),
+                     (r"\b\d+ unanswered", "N unanswered")):
+        line = re.sub(pat, rep, line)
+    return line
 
 
 def test_the_examples_chain_scenario(capsys, example, tmp_path):
@@ -42,8 +49,8 @@ def test_the_examples_chain_scenario(capsys, example, tmp_path):
     f = example / "scenarios" / "chain.toml"
     rc, out = kit(capsys, f, tmp_path / "work")
     assert rc == 0, out
-    assert [wall(l) for l in out.splitlines() if not l.startswith("plcrt:")] == \
-        [wall(l) for l in page_block()], out
+    assert [same(l) for l in out.splitlines() if not l.startswith("plcrt:")] == \
+        [same(l) for l in page_block()], out
     assert re.search(r"unicos wincc: driver A: 12 events, 0 duplicates, 0 refused, [1-9]\d* "
                      r"unanswered", out), out           # the central wrote in vain while it was away
     text = f.read_text()
