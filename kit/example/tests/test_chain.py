@@ -13,11 +13,11 @@ ORIGIN_MS = 1767225600000          # the relay's clock at virtual time 0: 2026-0
 EVENTS = [(0.5 + 0.2 * k, [0x0102, 100 + k, 0x0101, k % 2]) for k in range(30)]
 
 
-def chain(net, mip_st_lib):
+def chain(net, mip_st_lib, events=EVENTS):
     out = net.plc("outstation", mip_st_lib + STATION, HERE / "plcrt" / "relay_station.conf", at=1)
     cen = net.plc("central", mip_st_lib + CENTRAL, HERE / "plcrt" / "wincc_central.conf",
                   at="mdp")
-    relay = net.relay("relay", out, "relay", EVENTS, origin_ms=ORIGIN_MS)
+    relay = net.relay("relay", out, "relay", events, origin_ms=ORIGIN_MS)
     wincc = net.unicos("wincc", cen, "wincc", marker=0xFF80, down=[(3.0, 6.0)])  # away 3..6 s
     out["%MW0"] = cen["%MW0"] = 1
     return out, cen, relay, wincc
@@ -41,6 +41,7 @@ def test_every_relay_event_reaches_wincc_once_with_its_time_stamp(mip_network, m
     assert [e["value"] for e in events] == [w[0] << 16 | w[3] for _, w in EVENTS]
     assert not any(3.0 <= e["t_s"] < 6.0 for e in events)     # nothing while WinCC OA was away
     assert relay.stats()["entries"] == 0                        # the relay's recorder is empty
+    assert out["%MW10"] == len(EVENTS)                          # each stored once at the outstation
     assert out["%MW14"] == 0 and cen["%MW14"] & 1 == 0          # no xError of the MIP blocks
 
 
@@ -56,3 +57,18 @@ def test_restarts_of_both_plcs_lose_nothing_and_repeat_nothing(mip_network, mip_
     assert relay.missing(wincc) == []
     assert wincc.duplicates("A") == []
     assert relay.stats()["acknowledged"] == len(EVENTS)
+
+
+def test_a_burst_larger_than_the_log_waits_in_the_relay(mip_network, mip_st_lib):
+    """150 events at once while WinCC OA is away (so nothing is acknowledged over the radio):
+    RelayLog holds 64 (st/RelayLog.st uCapacity); while it is full the reader stops
+    (MIP_SoeReader xLoggerFull) and the rest wait in the relay's recorder."""
+    burst = [(3.2, [0x0103, k, 0x0101, k % 2]) for k in range(150)]
+    net = mip_network(radio="fast", seed=1)
+    out, cen, relay, wincc = chain(net, mip_st_lib, burst)
+    assert net.run_until(lambda: out["RelayStation.lgr.xFull"], within_s=6, step_s=0.05)
+    assert net.now < 6e9                                         # before WinCC OA is back
+    assert relay.stats()["entries"] > 0                         # the rest waits in the relay
+    assert net.run_until(lambda: len(wincc.unique()) == len(burst), within_s=120)
+    assert [e["offset"] for e in wincc.events("A")] == list(range(150))
+    assert relay.stats()["dropped"] == 0 and relay.stats()["entries"] == 0
