@@ -127,3 +127,17 @@ values = [{{ at = "wincc", equals = 40 }}, {{ at = "central:%MW{C.PUSH_EVENTS},%
                   r"driver B: 40 events, 0 duplicates", out)
     assert m and int(m.group(1)) > 0, out        # A was away: the central wrote to it in vain
     assert "40 acknowledged, 0 dropped (overflow), 0 still in the recorder" in out, out
+
+
+@pytest.mark.slow
+def test_matiec_builds_the_examples_chain_when_iec2c_is_on_path(capsys, example, tmp_path):
+    """The example's chain scenario with the reference compiler (iec2c on PATH): its programs
+    stay inside what matiec accepts. Slow: matiec's builds of both programs take about 20 s."""
+    from plcharness.build import matiec_available
+    if not matiec_available():
+        pytest.skip("matiec (iec2c) is not on PATH; it is in no package registry")
+    rc = main([str(example / "scenarios" / "chain.toml"), "--compiler", "matiec",
+               "--workdir", str(tmp_path / "work")])
+    out = capsys.readouterr().out
+    assert rc == 0, out
+    assert "ok   every event of relay reached wincc" in out and "ok   no duplicates at wincc" in out
