@@ -219,27 +219,30 @@ def test_a_file_that_cannot_be_written_is_one_line(tmp_path, monkeypatch, capsys
     sys.modules.pop("glue_under_test")
 
 
-def test_kit_example_glue_is_what_its_command_writes(example):
-    """st/Outstation.st names the command that wrote its copies: run in the example project it
-    changes nothing, --check (the recorded options) passes, and a drifted copy is caught."""
-    f = example / "st" / "Outstation.st"
+@pytest.mark.parametrize("program", ["Outstation.st", "RelayStation.st", "WinccCentral.st"])
+def test_kit_example_glue_is_what_its_command_writes(example, program):
+    """Each program of the example names the command that wrote its copies of the modem's
+    blocks: run in the example project it changes nothing, --check (the recorded options)
+    passes, and a drifted copy is caught."""
+    f = example / "st" / program
     text = f.read_text()
     m = re.search(r"in this folder:\n\s+(mip-glue .*)\n", text)
-    assert m, "st/Outstation.st no longer names the mip-glue command"
+    assert m, f"st/{program} no longer names the mip-glue command"
     words = shlex.split(m.group(1))
     assert "--update" in words
     r = glue(*words[1:], cwd=example)
-    assert r.returncode == 0 and r.stdout == "st/Outstation.st: up to date\n", r.stdout + r.stderr
+    assert r.returncode == 0 and r.stdout == f"st/{program}: up to date\n", r.stdout + r.stderr
     assert f.read_text() == text
-    assert glue("--check", "st/Outstation.st", cwd=example).returncode == 0
+    assert glue("--check", f"st/{program}", cwd=example).returncode == 0
     # every located register variable of the program is generated (none left by hand)
     regions = re.findall(r"\(\* BEGIN mip-glue (\w+)[^\n]*\n(.*?)\(\* END mip-glue \1 \*\)", text, re.S)
     assert [k for k, _ in regions] == ["declarations", "read", "write"]
     body = re.sub(r"\(\* BEGIN mip-glue.*?END mip-glue \w+ \*\)", "", text, flags=re.S)
-    assert not re.search(r"AT %[IQ]W1\d\d\b|aRd\[\d+\] :=|:= snd\.aWrite\[", body)
+    assert not re.search(r"AT %[IQ]W1\d\d\b|aRd\[\d+\] :=|:= \w+\.aWrite\[", body)
     assert len(regions[0][1].splitlines()) == 2 + 125 + 123
+    assert text.count("  aRd[7] := r7;\n") == 1
     f.write_text(text.replace("  aRd[7] := r7;\n", "  aRd[7] := r8;\n"))
-    r = glue("--check", "st/Outstation.st", cwd=example)
+    r = glue("--check", f"st/{program}", cwd=example)
     assert r.returncode == 1 and "the region mip-glue read differs" in r.stderr
 
 
