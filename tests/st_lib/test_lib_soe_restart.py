@@ -7,7 +7,7 @@ import random
 
 import pytest
 
-from soe_bench import WAIT, Bench, expected, script
+from soe_bench import STATE, WAIT, Bench, expected, script
 from test_lib_soe import ORIGIN, make_relay
 
 
@@ -82,3 +82,29 @@ def test_cold_restart_loses_nothing_but_may_duplicate(wd):
     # the open read comes again from its first entry: the two stored before are duplicated
     assert b.logger.stored == exp[:2] + exp
     assert b.relay.entries() == 0
+
+
+@pytest.mark.parametrize("relay", ["py", "c"])
+def test_a_read_numbered_1_back_from_a_snapshot_after_a_relay_restart(wd, relay):
+    """A power dip at the outstation restarts both: the PLC comes back with a snapshot that
+    holds its first read (number 1) stored whole, the acknowledgement not yet written; the relay
+    came back empty and recorded new entries in the meantime. The block reads the read
+    numbered 1 again before acknowledging it (MIP_SOE_VERIFY), sees the restarted relay's
+    blocks and takes them up: its acknowledgement 1 + 3 x 256 never reaches the restarted
+    relay, and every new entry is stored, exactly once."""
+    from test_lib_soe import restart_relay
+    events = script(3, start_s=0.0, every_s=0.001)
+    b = Bench(wd, make_relay(relay, events), retained=True)
+    assert b.run_until(lambda: b.snapshot and b.snapshot[1] == 3, 200)
+    b.warm_restart()
+    assert b.fb["eState"] == STATE["MIP_SOE_VERIFY"] and b.client.writes == []
+    later = script(5, start_s=b.now_ns / 1e9, every_s=0.0, seed=11)
+    restart_relay(b, relay, later)
+    b.relay.advance(b.now_ns)
+    at = len(b.log)
+    assert b.run_until(lambda: b.fb["xDone"] and len(b.logger.stored) >= 3 + 5, 600), b.log[-8:]
+    assert b.logger.stored == expected(events, ORIGIN) + expected(later, ORIGIN)
+    # the first write to the restarted relay comes after its own first entry was stored
+    first_new = [i for i, ev in enumerate(b.log) if ev[0] == "store"][3]
+    assert [ev for ev in b.log[at:first_new] if ev[0] == "write"] == [], b.log[at:]
+    assert b.fb["udiRelayRestarts"] == 1 and b.relay.entries() == 0 and not b.fb["xError"]
