@@ -296,6 +296,10 @@ SOE_CONFIGS = [
     ("soe-verify/warm", dict(_MODEL="soe.pml", RRST=1, RR_ANY=1, WARM=1, LOSS=1, RST=2), "holds",
      "the verify read with warm PLC restarts (the open read numbered 1 back from a snapshot): "
      "exactly once, in order, but the relay's own"),
+    ("soe-verify-inflight/warm", dict(_MODEL="soe.pml", RRST=1, RR_ANY=1, WARM=1, RDETECT=0, LOSS=0,
+                                      RST=1), "known:LOST",
+     "the verify read, but a warm PLC restart from a snapshot taken while the acknowledgement "
+     "was in flight sends it again without a new verify read, after the relay restarted"),
     ("soe-verify-nowin/cold", dict(_MODEL="soe.pml", RRST=1, RR_ANY=1, VWIN=0, LOSS=0, RST=0),
      "known:LOST",
      "the verify read, but the relay restarts and records between its answer and the "
