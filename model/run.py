@@ -286,9 +286,24 @@ SOE_CONFIGS = [
      "a relay restart among warm restarts of the PLC: exactly once, in order, but the relay's own"),
     ("soe-nodetect/cold", dict(_MODEL="soe.pml", RRST=1, NODETECT=1, LOSS=0, RST=0), "known:STUCK",
      "without the restart rule the reader rejects a restarted relay's reads for good"),
-    ("soe-relayack1/cold", dict(_MODEL="soe.pml", RRST=1, RR_ANY=1, LOSS=0, RST=0), "known:LOST",
-     "the residual: an open read numbered 1 across a relay restart; its acknowledgement is "
-     "taken by the restarted relay for its own first read and deletes new entries"),
+    ("soe-relayack1/cold", dict(_MODEL="soe.pml", RRST=1, RR_ANY=1, VERIFY=0, LOSS=0, RST=0),
+     "known:LOST",
+     "without the verify read: an open read numbered 1 across a relay restart; its "
+     "acknowledgement is taken by the restarted relay for its own first read and deletes new entries"),
+    ("soe-verify/cold", dict(_MODEL="soe.pml", RRST=1, RR_ANY=1, LOSS=2, RST=1), "holds",
+     "the verify read before acknowledging a read numbered 1: a relay restart at any point, "
+     "lost answers, a cold PLC restart: nothing lost but the relay's own"),
+    ("soe-verify/warm", dict(_MODEL="soe.pml", RRST=1, RR_ANY=1, WARM=1, LOSS=1, RST=2), "holds",
+     "the verify read with warm PLC restarts (the open read numbered 1 back from a snapshot): "
+     "exactly once, in order, but the relay's own"),
+    ("soe-verify-inflight/warm", dict(_MODEL="soe.pml", RRST=1, RR_ANY=1, WARM=1, RDETECT=0, LOSS=0,
+                                      RST=1), "known:LOST",
+     "the verify read, but a warm PLC restart from a snapshot taken while the acknowledgement "
+     "was in flight sends it again without a new verify read, after the relay restarted"),
+    ("soe-verify-nowin/cold", dict(_MODEL="soe.pml", RRST=1, RR_ANY=1, VWIN=0, LOSS=0, RST=0),
+     "known:LOST",
+     "the verify read, but the relay restarts and records between its answer and the "
+     "acknowledgement's arrival: what the verify read relies on"),
 ]
 CONFIGS += SOE_CONFIGS
 
@@ -529,6 +544,7 @@ QUICK = [
     "warm-split-bit0/ours-ours/spont/up+wrst-rcv",  # must fail: a read in parts with bit 0 alone (issue 38)
     "soe/warm",                                   # the SOE handshake (issue 35), warm restarts
     "soe-relay/cold",                             # a restarted relay taken up by the reader
+    "soe-verify/cold",                            # the verify read before acknowledging a read numbered 1
     "soe-ackearly/cold",                          # must fail: acknowledge before store (LOST)
     "handover/ack-after/cold",                    # the hand-over at the central (issue 35)
     "handover/ack-first/cold",                    # must fail: acknowledged before the hand-over (LOST)

@@ -17,12 +17,37 @@
  *                holds the stored entries: the PLC comes back with an older store (LOST)
  *   NODETECT=1   relay restarts (RRST), and the reader does not take a restarted relay's
  *                first number: it rejects its reads for good (STUCK)
- *   RR_ANY=1     the relay may restart while the reader holds an open read numbered 1 (or
- *                its last snapshot does): the
- *                reader's acknowledgement of it (1 + 256 n) is taken by the restarted relay for
- *                its own first read and deletes up to n new entries nobody read (LOST). A
- *                residual of the handshake ([S5] 5.2.5 carries no restart marker); without
- *                RR_ANY the model leaves that window out, and says what holds otherwise.
+ *   RR_ANY=1 VERIFY=0
+ *                the relay may restart while the reader holds an open read numbered 1 (or
+ *                its last snapshot does), and the reader acknowledges it without reading it
+ *                again first (the block before the verify read): its acknowledgement
+ *                (1 + 256 n) is taken by the restarted relay for its own first read and deletes
+ *                up to n new entries nobody read (LOST). [S5] 5.2.5 carries no restart marker.
+ *   RR_ANY=1 VWIN=0
+ *                the verify read (VERIFY=1), but the relay may restart AND record a new entry
+ *                between the verify read's answer and the acknowledgement's arrival: LOST. The
+ *                verify read closes the window only down to that interval (one Modbus round
+ *                trip and a scan, docs/chain.md "Restarts"): what the fix relies on.
+ *
+ * The verify read (VERIFY=1, default; MIP_SoeReader's state MIP_SOE_VERIFY): before the
+ * acknowledgement of an open read numbered 1 - the only number a restarted relay reaches
+ * without an acknowledgement of ours - the reader reads the recorder again, after every entry
+ * of the read is stored, and writes the acknowledgement only if that read shows the open read
+ * unchanged (number, blocks, entries); else the read is judged as any other (a restarted relay
+ * taken up). Nothing else happens between the verify read and the acknowledgement (the block
+ * starts the write in the call that evaluates the verify read). VWIN=1 (default) is the timing
+ * assumption, encoded: the relay does not restart and then record an entry between the two.
+ * With RR_ANY=1 and both defaults the model holds (configurations soe-verify/*).
+ *
+ * The acknowledgement is two steps: the block raises the write, the relay acts on it when it
+ * arrives. The runtime may take a periodic snapshot in between (WARM). RDETECT=1 (default):
+ * a PLC restored from such a snapshot sees its restart (MIP_SoeReader: wSnapshots goes down,
+ * plcrt's count starts again from 0) and ends that write as failed, so a new read (for a read
+ * numbered 1 the verify read) decides. A PLC restart ends the VWIN interval: the relay may
+ * restart and record before a restored write arrives.
+ *   RR_ANY=1 WARM=1 RDETECT=0
+ *                the restored write goes out after the restart without a new verify read:
+ *                LOST (configuration soe-verify-inflight/warm).
  *
  * Relay restarts (RRST of them; docs/chain.md "What restarts do", our choice): the recorder is
  * emptied and the sequence number goes to 0; what it held is the relay's own loss (events up
@@ -68,6 +93,15 @@
 #endif
 #ifndef RR_ANY
 #define RR_ANY 0
+#endif
+#ifndef VERIFY
+#define VERIFY 1
+#endif
+#ifndef VWIN
+#define VWIN 1
+#endif
+#ifndef RDETECT
+#define RDETECT 1
 #endif
 /* the names of the properties, as in env.pml: -DSEEK=K_<name> (model/run.py's search for one
  * documented weakness) switches the others off */
@@ -120,6 +154,13 @@ bool cand = false;         /* the last read was a rejected number 1 with blocks:
 byte chead, con;
 byte rej = 0;              /* rejected reads in a row */
 byte rrdet = 0;            /* relay restarts detected (udiRelayRestarts) */
+bool verified = false;     /* VERIFY: a read after the last store showed the open read unchanged;
+                              only the acknowledgement follows (not in a snapshot) */
+bool win = false;          /* from that verify read to the acknowledgement's arrival, no PLC
+                              restart in between: the interval VWIN is about */
+bool rr_win = false;       /* the relay restarted in that interval (VWIN) */
+bool inflight = false;     /* the acknowledgement is written (xWriteReq), not yet at the relay */
+bool s_inflight = false;   /* ... as the last snapshot holds it */
 /* the last snapshot (WARM): the block's state and the logger's store together */
 bool s_open = false;
 byte s_oseq, s_ohead, s_on, s_stored, s_last;
@@ -149,6 +190,8 @@ inline store_one() {
 inline ack() {
     /* the write of SOE_Control: seq + 256 n; the relay deletes n and raises the number */
     atomic {
+        verified = false; win = false; rr_win = false; inflight = false;  /* taken, refused or
+                                                 its answer lost: a read decides */
         if
         :: open && oseq == seq && offer > 0 && (ACK_EARLY -> on : stored) <= offer ->
             head = head + (ACK_EARLY -> on : stored);
@@ -169,7 +212,13 @@ inline ack() {
     }
 }
 
+inline ack_send() {
+    /* the block raises the write (the relay acts on it when it arrives: ack()) */
+    atomic { verified = false; inflight = true; printf("@ ack seq %d n %d: written\n", oseq, stored) }
+}
+
 inline take_new() {
+    verified = false;
     open = true; oseq = seq; ohead = head; on = offer; stored = 0; known = true; lseq = seq;
     acked_early = false; unsaved = true; printf("@ read: seq %d (%d entries)\n", seq, offer)
 }
@@ -179,6 +228,7 @@ inline read_and_judge() {
      * judged"; the model's reads are never stale: a read follows the write it may decide) */
     atomic {
         offer_read = offer_read || offer > 0;
+        verified = false;
         if
         :: losses < LOSS -> losses++; printf("@ read: answer lost\n")
         :: true ->
@@ -190,7 +240,11 @@ inline read_and_judge() {
             :: offer == 0 && seq != 0 && !(open && seq == oseq) && (!known || seq == lseq) ->
                 known = true; lseq = seq; rej = 0; cand = false
             :: open && offer > 0 && seq == oseq && head == ohead && offer == on ->
-                known = true; lseq = oseq; rej = 0; cand = false      /* the open read again */
+                known = true; lseq = oseq; rej = 0; cand = false;     /* the open read again */
+                verified = (stored == on && !(WARM && !NOGATE && unsaved))  /* the verify read:
+                    after the last store, with the snapshot that holds it (the block: NOT xUnsaved) */
+                win = verified;
+                printf("@ read: the open read again (seq %d, verified %d)\n", oseq, verified)
             :: offer > 0 && ((open && seq == NEXT(oseq)) || (!open && (!known || seq == NEXT(lseq)))) ->
                 /* a new read (when one was open: its acknowledgement was taken) */
                 take_new(); rej = 0; cand = false
@@ -216,13 +270,14 @@ inline relay_restart() {
     atomic {
         rrst < RRST && (RR_ANY || !((open && oseq == 1) || (WARM && s_open && s_oseq == 1))) ->
         rrst++; lo = gen; head = gen + 1; offer = 0; offer_read = false; seq = 0;
+        rr_win = win;
         printf("@ relay restart\n")
     }
 }
 
 active proctype Events() {
     do
-    :: atomic { gen < N -> gen++; refresh(); printf("@ event %d\n", gen) }
+    :: atomic { gen < N && !(VWIN && rr_win) -> gen++; refresh(); printf("@ event %d\n", gen) }
     :: relay_restart()
     :: gen == N && rrst == RRST -> break
     od
@@ -237,15 +292,19 @@ end:
     :: open && acked_early && stored < on -> store_one()
     :: atomic { open && acked_early && stored == on -> open = false }
 #else
-    :: (!open || stored == on) -> read_and_judge()     /* MIP_SOE_READ, MIP_SOE_RETRY */
+    :: (!open || stored == on) && !verified && !inflight -> read_and_judge()  /* MIP_SOE_READ, _RETRY, _VERIFY */
     :: open && stored < on -> store_one()
-    :: (open && stored == on && on > 0 && (NOGATE || WARM == 0 || !unsaved)) -> ack()
+    :: (open && stored == on && on > 0 && !inflight && (NOGATE || WARM == 0 || !unsaved)
+        && (!VERIFY || oseq != 1 || verified)) -> ack_send()
+    :: inflight -> ack()
 #endif
 #if WARM
-    :: atomic { unsaved -> s_open = open; s_oseq = oseq; s_ohead = ohead; s_on = on;
+    /* asked for (unsaved), or the runtime's periodic one while a write is in flight */
+    :: atomic { (unsaved || (inflight && !s_inflight)) ->
+                s_open = open; s_oseq = oseq; s_ohead = ohead; s_on = on;
                 s_stored = stored; s_last = last; s_acked = acked_early; unsaved = false;
-                s_known = known; s_lseq = lseq;
-                printf("@ snapshot\n") }
+                s_known = known; s_lseq = lseq; s_inflight = inflight;
+                printf("@ snapshot (acknowledgement in flight: %d)\n", inflight) }
 #endif
     :: atomic { restarts < RST ->
         restarts++;
@@ -253,10 +312,13 @@ end:
         open = s_open; oseq = s_oseq; ohead = s_ohead; on = s_on; stored = s_stored;
         last = s_last; acked_early = s_acked; unsaved = false;
         known = s_known; lseq = s_lseq; cand = false; rej = 0;
+        verified = false; win = false; rr_win = false;
+        inflight = s_inflight && !RDETECT;   /* RDETECT: a restored write ends as failed */
         printf("@ PLC warm restart\n")
 #else
         open = false; stored = 0; acked_early = false;
         known = false; cand = false; rej = 0;   /* xEnable rises again: any number */
+        verified = false; win = false; rr_win = false; inflight = false;
         printf("@ PLC cold restart\n")
 #endif
        }

@@ -72,7 +72,7 @@ def make_trace(workdir):
                 add(t, note="outstation", label="MIP_SoeReader -> PLC_SoeLog: stored (RETAIN)")
             if cur[1] > prev[1]:
                 add(t, **{"from": "outstation", "to": "relay"},
-                    label="FC16 SOE_Control := seq + 1*256 (after the store)")
+                    label="FC16 SOE_Control := seq + 1*256 (stored; number 1: read again first)")
                 add(t, note="relay", label="entry deleted, sequence number raised")
             if cur[4] > prev[4]:
                 add(t, **{"from": "mdp", "to": "central"}, label="FC3: record 1 (1 entry)")

@@ -88,7 +88,8 @@ class Client:
     Failures, each for the next n requests: `lose_read_answer` (the relay took the read, the
     answer is lost: xReadError), `lose_write_request` (never reaches the relay: xWriteError),
     `lose_write_answer` (the relay took it, the answer is lost: xWriteError). `tamper(regs)`
-    may change a read's registers (a relay answering garbage)."""
+    may change a read's registers (a relay answering garbage). `hold_writes`: a write request
+    is not sent yet (the runtime's master has not come to it)."""
 
     def __init__(self, fb, relay, read_every=2, read_mode="trigger", follow_req=False):
         self.fb, self.relay = fb, relay
@@ -97,6 +98,7 @@ class Client:
         self.lose_write_request = 0
         self.lose_write_answer = 0
         self.tamper = None
+        self.hold_writes = False
         self.writes: list[tuple[int, int | None]] = []   # (value, exception code or None)
         self.reads = 0
         self.log = None                                  # shared event log (Bench)
@@ -142,7 +144,9 @@ class Client:
     def after_scan(self):
         fb = self.fb
         req = fb["xWriteReq"]
-        if req and not (self._done or self._err):
+        if req and self.hold_writes:
+            pass
+        elif req and not (self._done or self._err):
             value = fb["wWriteValue"]
             if self.lose_write_request > 0:
                 self.lose_write_request -= 1
@@ -240,17 +244,22 @@ class Bench(RunUntil):
             flags = [fb["xDone"], fb["xBusy"], fb["xError"]]
             assert sum(flags) <= 1, f"more than one of xDone, xBusy, xError: {flags}"
             if self.retained and fb["xSnapshotReq"]:
-                # the runtime's snapshot at the end of the scan: the instance (with the
-                # xEntryStored the logger set) and the logger's store together
-                self.snapshots += 1
-                self.snapshot = (self.plc.retain_save(), len(self.logger.stored))
+                self.take_snapshot()
             self.now_ns += self.tick_ms * MS
             self.relay.advance(self.now_ns)
 
+    def take_snapshot(self):
+        """The runtime's snapshot at the end of the scan: the instance (with the xEntryStored
+        the logger set) and the logger's store together; asked for (xSnapshotReq) or periodic."""
+        self.snapshots += 1
+        self.snapshot = (self.plc.retain_save(), len(self.logger.stored))
+
     def warm_restart(self):
         """The PLC comes back with its last snapshot: the instance and the logger's store as
-        they were then (what it stored later is lost with the PLC)."""
+        they were then (what it stored later is lost with the PLC). The count of snapshots
+        starts again from 0, as plcrt's `saved`."""
         image, n = self.snapshot
+        self.snapshots = 0
         self.plc = build(self.workdir, self.tick_ms)
         self.plc.retain_load(image)
         self.fb.plc = self.plc

@@ -323,3 +323,52 @@ def test_small_sequence_numbers_wrap(wd):
     assert b.run_until(lambda: len(b.logger.stored) == 20 and b.fb["xDone"], 1500)
     assert b.logger.stored == expected(events, ORIGIN) and not b.fb["xError"]
     assert set(b.logger.seqs) == {1, 2, 3}
+
+
+@pytest.mark.parametrize("relay", RELAYS)
+@pytest.mark.parametrize("at", [2, 3])
+def test_a_relay_restart_while_a_read_numbered_1_is_open_loses_nothing(wd, relay, at):
+    """The window [S5] 5.2.5 leaves open (model/soe.pml, soe-relayack1): the reader holds its
+    first read (number 1; 2: two of its three entries stored, 3: all stored, the
+    acknowledgement due in the next scan) when the relay restarts and records new entries at
+    once. The acknowledgement 1 + 3 x 256 would be taken by the restarted relay for its own
+    first read and delete three entries nobody read. The verify read before acknowledging a
+    read numbered 1 sees the new blocks instead: the restart is taken up, nothing is written
+    to the restarted relay before its entries are read, and every new entry is stored."""
+    events = script(3, start_s=0.0, every_s=0.001)
+    b = Bench(wd, make_relay(relay, events), tAckRetry=50_000_000)
+    assert b.run_until(lambda: len(b.logger.stored) == at, 300)
+    assert b.fb["wEntrySeq"] == 1 and b.client.writes == []
+    # the new entries are recorded before the block's next call (time now: already due)
+    later = script(6, start_s=b.now_ns / 1e9, every_s=0.0, seed=7)
+    restart_relay(b, relay, later)
+    b.relay.advance(b.now_ns)
+    assert b.relay.entries() == 6
+    at_restart = len(b.log)
+    assert b.run_until(lambda: b.fb["xDone"] and len(b.logger.stored) >= 3 + 6, 800), b.log[-8:]
+    assert b.logger.stored == expected(events, ORIGIN)[:3] + expected(later, ORIGIN)
+    # nothing was written to the restarted relay before its first entry was stored: the old
+    # read's acknowledgement 1 + 3 x 256 never reached it
+    stores = [i for i, ev in enumerate(b.log) if ev[0] == "store"]
+    first_new = stores[3]
+    assert [ev for ev in b.log[at_restart:first_new] if ev[0] == "write"] == [], b.log[at_restart:]
+    assert b.fb["udiRelayRestarts"] == 1 and not b.fb["xError"] and b.relay.entries() == 0
+
+
+def test_only_reads_numbered_1_are_read_again_before_their_acknowledgement(wd):
+    """The verify read costs one read per 2^uSeqBits - 1 reads: with numbers 1, 2, 3, 1, ...
+    (seq-bits 2) the block waits in MIP_SOE_VERIFY before each acknowledgement of a read
+    numbered 1, and before no other."""
+    events = script(20, every_s=0.03)
+    b = Bench(wd, make_relay("py", events, seq_bits=2), uSeqBits=2)
+    episodes, prev = [], None
+    while not (len(b.logger.stored) == 20 and b.fb["xDone"]) and b.scans < 1500:
+        b.step()
+        st = b.fb["eState"]
+        if st == STATE["MIP_SOE_VERIFY"] and prev != st:
+            episodes.append(b.fb["wEntrySeq"])
+            assert b.fb["eWaitReason"] == WAIT["MIP_SOE_WAIT_VERIFY"] and b.fb["xReadReq"]
+        prev = st
+    assert b.logger.stored == expected(events, ORIGIN) and not b.fb["xError"]
+    ones = [v for v in b.acks() if v & 0xFF == 1]
+    assert episodes == [1] * len(ones) and len(ones) >= 2 and len(b.acks()) > len(ones)
