@@ -58,6 +58,9 @@ FULL_TIER = {
         "a matiec build each; the uni programs' builds stay quick",
     "tests/chain/test_chain_cosim.py::test_chain_programs_compiled_by_matiec[bidi":
         "the bidirectional programs built by matiec; the uni case stays quick",
+    "tests/bench/test_bench_tools.py::test_scan_cost_against_matiec_counts_both_fb_bodies":
+        "the bench pair built by matiec and run under callgrind; the stc figure "
+        "(test_scan_cost_without_matiec_says_why) stays quick",
 }
 
 # the second pass under IEC semantics (PLCRT_SEMANTICS=iec, make's semantics-iec-tests): these
