@@ -6,6 +6,12 @@ listed in FULL_TIER below, each with the reason; a parametrised test listed in S
 every n-th case in the quick tier (the same cases on every run: by position) and leaves the
 rest to the full tier. Nothing here skips a test: `make check` runs them all.
 
+With matiec's iec2c on PATH some 400 more tests run (skipped without it, as in CI): its
+cross-checks of the translator's corpus and the programs it builds (about 30 s of CPU for a
+program that holds the library: gcc -O2 on matiec's C). Their quick tier keeps a sample of the
+corpus and one program of each kind; SAME_WORKER runs the tests that build the same program one
+after the other, so the build cache builds it once.
+
 Parallel runs (pytest-xdist, `--dist loadgroup`): a module whose module-scoped fixture is
 expensive (it runs once per worker that gets one of the module's tests) is kept on one worker
 by ONE_WORKER, and so is a module whose session fixture collects results into one file.
@@ -42,6 +48,19 @@ FULL_TIER = {
         "a 2 M-state search of the bidirectional warm model; the runner's other tests stay quick",
     "tests/docs/test_docs_examples.py::test_glue_example_sends_its_data":
         "runs the guide's glue example in real time; its translation stays quick",
+    "tests/st_lib/test_lib_compile.py::test_matiec_compiles_st_lib[openplc-flags]":
+        "OpenPLC's flags only relax matiec's checks; the plain compile stays quick",
+    "tests/chain/test_chain_programs.py::test_chain_programs_compile_with_matiec[outstation-bidi]":
+        "a matiec build each; the uni programs' builds stay quick",
+    "tests/chain/test_chain_programs.py::test_chain_programs_compile_with_matiec[central-bidi]":
+        "a matiec build each; the uni programs' builds stay quick",
+    "tests/chain/test_chain_programs.py::test_chain_programs_compile_with_matiec[central_many]":
+        "a matiec build each; the uni programs' builds stay quick",
+    "tests/chain/test_chain_cosim.py::test_chain_programs_compiled_by_matiec[bidi":
+        "the bidirectional programs built by matiec; the uni case stays quick",
+    "tests/bench/test_bench_tools.py::test_scan_cost_against_matiec_counts_both_fb_bodies":
+        "the bench pair built by matiec and run under callgrind; the stc figure "
+        "(test_scan_cost_without_matiec_says_why) stays quick",
 }
 
 # the second pass under IEC semantics (PLCRT_SEMANTICS=iec, make's semantics-iec-tests): these
@@ -52,14 +71,22 @@ FULL_TIER_IEC = {
     "tests/st_lib/test_lib_counting.py": "the counter's whole number space",
     "tests/st_lib/test_lib_interop.py::test_sender_against_note_central_session_opens_with_record_1":
         "a long session against the note central",
+    "tests/st_lib/test_lib_compile.py::test_matiec_compiles_st_lib":
+        "iec2c's run does not depend on PLCRT_SEMANTICS: the default pass has it",
 }
 
-# test function (node id without the parameters) -> n: every n-th case stays in the quick tier
+# test function (node id without the parameters) -> n, or (n, k): the cases at positions
+# k, k + n, k + 2n, ... stay in the quick tier (k = 0 unless given)
 SAMPLED = {
     "tests/translator/test_stc_corpus.py::test_accept": 4,
     "tests/translator/test_stc_corpus.py::test_reject": 3,
     "tests/interop/test_interop_matrix.py::test_interop_cell": 6,
     "tests/chain/test_chain_cosim.py::test_chain_matrix_exact_delivery": 4,
+    # matiec's cross-checks of the corpus, about 1 s of CPU a file (iec2c, then gcc on its C);
+    # the value check samples other files than the accept check (a value check accepts too)
+    "tests/translator/test_stc_matiec.py::test_matiec_accepts": 4,
+    "tests/translator/test_stc_matiec.py::test_matiec_rejects": 3,
+    "tests/translator/test_stc_matiec_values.py::test_matiec_same_values": (4, 2),
 }
 
 # modules whose tests run on one worker
@@ -69,6 +96,33 @@ ONE_WORKER = (
     "tests/dist/test_dist.py",             # builds the release archive once
     "tests/chain/test_chain_warm_restart.py",
 )
+
+# group -> node id prefixes of tests (in modules not in ONE_WORKER) that build the same
+# programs with matiec: on one worker they run one after the other and the build cache
+# (runtime_shim/README.md) builds each program once; on two workers at once both built it
+SAME_WORKER = {
+    "matiec-chain-programs": (   # plc/outstation.st and central.st (and the bidi ones)
+        "tests/chain/test_chain_programs.py::test_chain_programs_compile_with_matiec",
+        "tests/chain/test_chain_cosim.py::test_chain_programs_compiled_by_matiec",
+        "tests/chain/test_chain_matiec_time.py::test_chain_long_timeout_makes_no_spurious_retransmission[3000-matiec]",
+        "tests/chain/test_chain_matiec_time.py::test_chain_long_timeout_makes_no_spurious_retransmission[60000-matiec]",
+    ),
+    "matiec-kit-example": (      # kit/example's outstation
+        "tests/kit/test_kit_quick.py::test_matiec_builds_the_example_when_iec2c_is_on_path",
+        "tests/kit/test_kit_quick.py::test_restarts_say_whether_retain_was_restored[matiec]",
+    ),
+}
+
+
+def _group(nodeid):
+    """The xdist_group of a test (node id without pytest-xdist's suffix), or None."""
+    module = nodeid.split("::", 1)[0]
+    if module in ONE_WORKER:
+        return module
+    for group, prefixes in SAME_WORKER.items():
+        if nodeid.startswith(prefixes):
+            return group
+    return None
 
 
 def pytest_configure(config):
@@ -83,9 +137,9 @@ def pytest_configure(config):
 def pytest_itemcollected(item):
     # as each test is collected, so the marker is there before any modifyitems hook: the
     # pytest-xdist worker names the groups in its own (_GroupCheck sees that it did)
-    module = item.nodeid.split("::", 1)[0]
-    if module in ONE_WORKER:
-        item.add_marker(pytest.mark.xdist_group(module))
+    group = _group(item.nodeid.split("@", 1)[0])
+    if group:
+        item.add_marker(pytest.mark.xdist_group(group))
 
 
 @pytest.hookimpl(tryfirst=True)   # before -m / -k deselect: every collected test is seen
@@ -101,7 +155,8 @@ def pytest_collection_modifyitems(config, items):
         elif base in SAMPLED:
             i = seen.get(base, 0)
             seen[base] = i + 1
-            if i % SAMPLED[base]:
+            n, k = SAMPLED[base] if isinstance(SAMPLED[base], tuple) else (SAMPLED[base], 0)
+            if i % n != k:
                 item.add_marker(pytest.mark.slow)
     # an entry that names no test any more would silently put its tests back into the quick
     # tier (or keep none of them there): checked for every module collected whole
@@ -109,7 +164,9 @@ def pytest_collection_modifyitems(config, items):
         return
     ids = [i.nodeid.split("@", 1)[0] for i in items]
     modules = {n.split("::", 1)[0] for n in ids}
-    stale = [e for e in list(FULL_TIER) + list(SAMPLED) + list(FULL_TIER_IEC)
+    entries = list(FULL_TIER) + list(SAMPLED) + list(FULL_TIER_IEC) + \
+        [p for prefixes in SAME_WORKER.values() for p in prefixes]
+    stale = [e for e in entries
              if e.split("::", 1)[0] in modules and not any(n.startswith(e) for n in ids)]
     if stale:
         raise pytest.UsageError("tests/conftest.py: tier entries that name no test: "
@@ -129,8 +186,8 @@ class _GroupCheck:
     def pytest_xdist_node_collection_finished(self, node, ids):   # on the controller
         if self.config.getvalue("dist") != "loadgroup":
             return
-        lost = [i for i in ids if i.split("::", 1)[0] in ONE_WORKER and "@" not in i]
+        lost = [i for i in ids if "@" not in i and _group(i)]
         if lost:
-            pytest.exit("tests/conftest.py: pytest-xdist did not group %s (ONE_WORKER); pytest "
-                        "and pytest-xdist as pinned in requirements.txt group them"
-                        % lost[0].split("::", 1)[0], returncode=4)
+            pytest.exit("tests/conftest.py: pytest-xdist did not group %s (ONE_WORKER, "
+                        "SAME_WORKER); pytest and pytest-xdist as pinned in requirements.txt "
+                        "group them" % lost[0], returncode=4)
