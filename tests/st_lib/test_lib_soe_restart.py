@@ -96,22 +96,12 @@ def test_a_read_numbered_1_back_from_a_snapshot_after_a_relay_restart(wd, relay)
     numbered 1 again before acknowledging it (MIP_SOE_VERIFY), sees the restarted relay's
     blocks and takes them up: its acknowledgement 1 + 3 x 256 never reaches the restarted
     relay, and every new entry is stored, exactly once."""
-    from test_lib_soe import restart_relay
     events = script(3, start_s=0.0, every_s=0.001)
     b = Bench(wd, make_relay(relay, events), retained=True)
     assert b.run_until(lambda: b.snapshot and b.snapshot[1] == 3, 200)
     b.warm_restart()
     assert b.fb["eState"] == STATE["MIP_SOE_VERIFY"] and b.client.writes == []
-    later = script(5, start_s=b.now_ns / 1e9, every_s=0.0, seed=11)
-    restart_relay(b, relay, later)
-    b.relay.advance(b.now_ns)
-    at = len(b.log)
-    assert b.run_until(lambda: b.fb["xDone"] and len(b.logger.stored) >= 3 + 5, 600), b.log[-8:]
-    assert b.logger.stored == expected(events, ORIGIN) + expected(later, ORIGIN)
-    # the first write to the restarted relay comes after its own first entry was stored
-    first_new = [i for i, ev in enumerate(b.log) if ev[0] == "store"][3]
-    assert [ev for ev in b.log[at:first_new] if ev[0] == "write"] == [], b.log[at:]
-    assert b.fb["udiRelayRestarts"] == 1 and b.relay.entries() == 0 and not b.fb["xError"]
+    _relay_restarts_and_every_entry_is_stored(b, relay, events, seed=11)
 
 
 @pytest.mark.parametrize("relay", ["py", "c"])
@@ -121,7 +111,6 @@ def test_an_acknowledgement_in_flight_in_the_snapshot_is_not_written_after_the_r
     recorded new entries meanwhile (one power dip). The block sees its restart (the runtime's
     count of snapshots starts again from 0), ends that write as failed instead of sending it,
     and a new read decides: the restarted relay's entries are stored, none deleted unread."""
-    from test_lib_soe import restart_relay
     events = script(3, start_s=0.0, every_s=0.001)
     b = Bench(wd, make_relay(relay, events), retained=True, tAckRetry=50_000_000)
     b.client.hold_writes = True
@@ -130,7 +119,15 @@ def test_an_acknowledgement_in_flight_in_the_snapshot_is_not_written_after_the_r
     b.take_snapshot()                          # periodic: the write is in it, raised
     b.warm_restart()
     b.client.hold_writes = False
-    later = script(5, start_s=b.now_ns / 1e9, every_s=0.0, seed=13)
+    _relay_restarts_and_every_entry_is_stored(b, relay, events, seed=13)
+
+
+def _relay_restarts_and_every_entry_is_stored(b, relay, events, seed):
+    """The relay restarts with 5 new entries while the block holds its first read (3 entries):
+    every entry of both is stored once, in order, and nothing is written to the restarted relay
+    before its own first entry was stored (no acknowledgement of the old read reaches it)."""
+    from test_lib_soe import restart_relay
+    later = script(5, start_s=b.now_ns / 1e9, every_s=0.0, seed=seed)
     restart_relay(b, relay, later)
     b.relay.advance(b.now_ns)
     at = len(b.log)
