@@ -711,7 +711,8 @@ def outstation_soe():
              "    xChunkValid := lgr.xChunkValid, aChunk := lgr.aChunk, uChunkLen := lgr.uChunkLen,",
              "    xChunkLast := lgr.xChunkLast, xWriteDone := xWrDone1, xWriteError := wrErr1,",
              "    aRead := rd1, xReadValid := xRdValid1, xReadError := rdErr1, wReadStatus := rdSt1,",
-             "    xRetained := xRetain, wSnapshots := snapSaved);",
+             "    xRetained := xRetain, wSnapshots := snapSaved,",
+             "    uWindow := 2);   (* pipelined (P27): the next record travels while the central hands one over *)",
              "snapReq := rdr.xSnapshotReq OR snd.xSnapshotReq;"]
     code += udint_words("mStoredLo", "mStoredHi", "lgr.udiStored")
     code += udint_words("mSentLo", "mSentHi", "lgr.udiSent")

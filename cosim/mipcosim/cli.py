@@ -35,7 +35,7 @@ def parse(argv):
     p.add_argument("--realistic", action="store_true", help="9600 bit/s, 20 ms gaps")
     p.add_argument("--window", type=int, choices=[1, 2], default=1,
                    help="the senders' uWindow (MIP_Sender, MIP_Link): 2 pipelines the records "
-                        "(st_lib/PROTOCOL.md P27); with --bidi (MIP_Link) or --warm-restarts the "
+                        "(st_lib/PROTOCOL.md P27); with --bidi (MIP_Link) the "
                         "senders run window 1 (the result line says which window they ran)")
     p.add_argument("--restart-every", type=float,
                    help="virtual seconds between PLC restarts, alternating outstation / central "
@@ -160,8 +160,8 @@ def main(argv=None):
             print(f"  retain: {rs['snapshots']} snapshots, {rs['warm_restarts']} warm restarts "
                   f"({rs['restored']} restored a snapshot, the others had nothing retained)")
             failed = tot.get('failed_reported', 0) + tot.get('cut_by_restart', 0)
-            # the window the senders ran, from their own state (a retained MIP_Sender runs
-            # window 1 whatever uWindow says, P27)
+            # the window the senders ran, from their own state (MIP_Link runs window 1
+            # whatever uWindow says, P27)
             ran = sorted(ch.sender_windows())
             window = ""
             if a.window != 1 or ran != [1]:

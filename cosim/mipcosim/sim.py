@@ -524,7 +524,7 @@ class Chain(_Kernel):
 
     def sender_windows(self):
         """{1, 2}: the windows the senders of the running PLCs run (MIP_Sender's xPipe: uWindow
-        2 applies only where P27 allows it, e.g. not with xRetained)."""
+        2 applies only where P27 allows it, e.g. not in MIP_Link)."""
         out = set()
         for (role, _), plc in self.plcs.items():
             names = (["OUT0.LINK.SND.XPIPE"] if self.s.bidi else ["OUT0.SND.XPIPE"]) if role == "out" \

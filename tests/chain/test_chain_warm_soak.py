@@ -40,6 +40,18 @@ def test_warm_restarts_with_the_gate_lose_and_duplicate_nothing(tmp_path, seed, 
     assert tot["failed_reported"] == 0 and tot["receiver_reports"] == 0 and tot["cut_by_restart"] == 0
 
 
+def test_retained_pipelined_sender_warm_restarts_lose_and_duplicate_nothing(tmp_path):
+    """MIP_Sender with uWindow 2 and xRetained (P27 with W1: the pipelined record waits for its
+    own snapshot): the same warm restarts, the sender pipelines, nothing lost or doubled."""
+    finished, k, rs, tot, problems, windows = run(tmp_path, True, 7, window=2)
+    assert finished and k >= 4      # it ends sooner than window 1: fewer restarts on the way
+    assert rs["restored"] == k
+    assert windows == {2}
+    assert problems == []
+    assert tot["records"] == 600 and tot["lost"] == 0 and tot["duplicated"] == 0
+    assert tot["failed_reported"] == 0 and tot["receiver_reports"] == 0 and tot["cut_by_restart"] == 0
+
+
 def test_warm_restarts_without_the_gate_lose_or_duplicate(tmp_path):
     """PROTOCOL.md W0: periodic snapshots alone (the blocks do not wait for one) roll a side
     back behind what its peer saw."""
@@ -52,7 +64,7 @@ def test_warm_restarts_without_the_gate_lose_or_duplicate(tmp_path):
 def test_bidirectional_warm_restarts_with_the_gate_lose_and_duplicate_nothing(tmp_path, seed,
                                                                                polled, window):
     """MIP_Link (W4): both streams, warm restarts of either side, kill -9 and graceful. uWindow 2
-    is configured in the third case: retained senders run window 1 (P27)."""
+    is configured in the third case: MIP_Link runs window 1 (P27)."""
     finished, k, rs, tot, problems, windows = run(tmp_path, True, seed, polled, bidi=True,
                                                   window=window)
     assert finished and k >= 5
