@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from stlib_sim import Uni, build_text, gen_program, pattern
+from test_lib_warm import first_writes_follow_a_snapshot
 from test_lib_window import pipelined
 
 
@@ -113,15 +114,9 @@ def test_window_2_retained_pipelines_each_record_after_its_snapshot(wd):
     u, rt = retained_sender(wd, data, random.Random(1))
     assert u.send(20000) == "done"
     assert u.sink.transfers == [data]
-    snap_since, firsts = False, []
-    for kind, number in rt.log:
-        if kind == "snapshot":
-            snap_since = True
-        elif number not in firsts:
-            assert snap_since, f"record {number} written before a snapshot held it: {rt.log}"
-            firsts.append(number)
-            snap_since = False
-    assert firsts == list(range(1, 10)) + [0xFFFF]
+    firsts = first_writes_follow_a_snapshot([("snd",) + ev for ev in rt.log], "snd")
+    order = list(dict.fromkeys(number for kind, number in rt.log if kind != "snapshot"))
+    assert order == list(range(1, 10)) + [0xFFFF] and set(order) == firsts
     assert pipelined(u.radio) == list(range(3, 10))   # from record 3 on, the last one waits
     assert rt.count == 10                             # one snapshot per record, none more
 
