@@ -63,37 +63,34 @@ END_PROGRAM
 """)
 
 
-def read_range(device: str, start: int) -> str:
-    """plcrt's [read rd]: one register at `start` into %IW100, on the handshake xRd %QX1.0 ->
-    xRdDone %IX1.0 / xRdErr %IX1.1, status %IW11 (as the test programs that use it declare)."""
-    return f"""[read rd]
+def _trigger_range(kind: str, device: str, start: int, image: str, bits: tuple, status: str):
+    """One plcrt trigger range of one register: [read rd] or [write wr]."""
+    trigger, done, error = bits
+    return f"""[{kind}]
 device = {device}
 start = {start}
 size = 1
-image = %IW100
+image = {image}
 policy = trigger
-trigger = %QX1.0
-done = %IX1.0
-error = %IX1.1
-status = %IW11
+trigger = {trigger}
+done = {done}
+error = {error}
+status = {status}
 """
+
+
+def read_range(device: str, start: int) -> str:
+    """plcrt's [read rd]: one register at `start` into %IW100, on the handshake xRd %QX1.0 ->
+    xRdDone %IX1.0 / xRdErr %IX1.1, status %IW11 (as the test programs that use it declare)."""
+    return _trigger_range("read rd", device, start, "%IW100", ("%QX1.0", "%IX1.0", "%IX1.1"),
+                          "%IW11")
 
 
 def read_write_ranges(device: str, start: int) -> str:
     """read_range and its [write wr]: one register at `start` from %QW41, on the handshake xWr
     %QX1.1 -> xWrDone %IX1.2 / xWrErr %IX1.3, status %IW21."""
-    return read_range(device, start) + f"""
-[write wr]
-device = {device}
-start = {start}
-size = 1
-image = %QW41
-policy = trigger
-trigger = %QX1.1
-done = %IX1.2
-error = %IX1.3
-status = %IW21
-"""
+    return read_range(device, start) + "\n" + _trigger_range(
+        "write wr", device, start, "%QW41", ("%QX1.1", "%IX1.2", "%IX1.3"), "%IW21")
 
 
 def free_port() -> int:
