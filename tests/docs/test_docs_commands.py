@@ -7,14 +7,18 @@ time, training runs) are in the slow tier; the rule checks below are quick.
 """
 from __future__ import annotations
 
+import os
 import re
 import secrets
+import shutil
 import subprocess
+import tempfile
 from pathlib import Path
 
 import pytest
 
-from docrun import LANGS, REPO, blocks, not_run_reason, run_page
+import docrun
+from docrun import LANGS, REPO, Sandbox, blocks, not_run_reason, run_page
 
 PAGES = sorted([REPO / "README.md", REPO / "plc" / "README.md", REPO / "st_lib" / "README.md"]
                + [p for p in (REPO / "docs").rglob("*.md") if "tools" not in p.parts])
@@ -120,6 +124,62 @@ def test_the_sandbox_keeps_the_checkout_and_tmp_clean(tmp_path):
     assert (tmp_path / "s" / "sandbox" / "tmp" / marker).exists()     # the page's /tmp
     left = subprocess.run(["pgrep", "-f", f"^sleep {naptime}$"], capture_output=True, text=True)
     assert left.returncode == 1 and not left.stdout.strip(), "a process outlived its page"
+
+
+def test_a_checkout_under_tmp_stays_visible_in_its_sandbox(tmp_path):
+    """A clone under /tmp (what many try first; some CI runners check out there) keeps its
+    path inside the sandbox, behind the page's private /tmp, and its writes stay in the
+    sandbox."""
+    checkout = Path(tempfile.mkdtemp(prefix="docs-clone-", dir="/tmp"))
+    try:
+        (checkout / "docs").mkdir()
+        (checkout / "docs" / "page.txt").write_text("from the checkout\n")
+        sb = Sandbox(tmp_path / "sb", repo=checkout)
+        try:
+            out, status = sb.run("pwd; cat docs/page.txt; touch docs/new; ls /tmp")
+        finally:
+            sb.close()
+        assert status == 0, out
+        lines = out.split("\n")
+        assert lines[:2] == [str(checkout), "from the checkout"], out
+        assert not (checkout / "docs" / "new").exists(), "a page wrote into the checkout"
+    finally:
+        shutil.rmtree(checkout)
+
+
+def _fake_unshare(tmp_path, monkeypatch):
+    bin_dir = tmp_path / "bin"
+    bin_dir.mkdir()
+    fake = bin_dir / "unshare"
+    fake.write_text("#!/bin/sh\necho 'unshare: write failed /proc/self/uid_map: "
+                    "Operation not permitted' >&2\nexit 1\n")
+    fake.chmod(0o755)
+    monkeypatch.setenv("PATH", f"{bin_dir}:{os.environ['PATH']}")
+
+
+def test_restricted_user_namespaces_skip_the_page_with_the_reason(tmp_path, monkeypatch):
+    """Where unprivileged user namespaces are restricted (Ubuntu 24.04's AppArmor default,
+    many containers) a page is skipped with one line saying why, not failed."""
+    _fake_unshare(tmp_path, monkeypatch)
+    page = tmp_path / "page.md"
+    page.write_text("```sh\ntrue\n```\n")
+    with pytest.raises(pytest.skip.Exception) as skipped:
+        run_page(page, tmp_path / "run")
+    msg = str(skipped.value)
+    assert "\n" not in msg.strip()
+    assert msg.startswith("the docs' pages cannot run here: unprivileged user namespaces")
+    assert "uid_map: Operation not permitted" in msg
+
+
+def test_a_sandbox_that_breaks_where_namespaces_work_is_a_failure(tmp_path, monkeypatch):
+    """The skip is for the machine's limit only: a sandbox of ours that does not start where
+    the namespaces work fails the test (the /tmp checkout bug was such a failure)."""
+    assert docrun.namespaces_missing(tmp_path / "probe") is None
+    monkeypatch.setattr(Sandbox, "_keep_visible", staticmethod(lambda repo, tmp: ["false"]))
+    page = tmp_path / "page.md"
+    page.write_text("```sh\ntrue\n```\n")
+    with pytest.raises(AssertionError, match="the docs' sandbox did not start"):
+        run_page(page, tmp_path / "run")
 
 
 def test_slow_pages_exist():
