@@ -4,8 +4,8 @@ PY_PACKAGES += runtime_shim/harness
 
 RT_BUILD    := $(BUILD)/runtime_shim
 RT_SRC      := runtime_shim/src
-RT_CORE     := plcrt_core plcrt_image plcrt_config plcrt_master plcrt_slave plcrt_retain
-RT_HEADERS  := runtime_shim/include/plcrt.h $(RT_SRC)/plcrt_internal.h $(RT_SRC)/plcrt_master.h
+RT_CORE     := plcrt_core plcrt_image plcrt_config plcrt_master plcrt_transport plcrt_serial_line plcrt_slave plcrt_retain
+RT_HEADERS  := runtime_shim/include/plcrt.h $(RT_SRC)/plcrt_internal.h $(RT_SRC)/plcrt_master.h $(RT_SRC)/plcrt_transport.h $(RT_SRC)/plcrt_serial_line.h
 RT_CFLAGS   := -std=gnu11 -Wall -Wextra -O2 -g -fPIC -Iruntime_shim/include $(shell pkg-config --cflags libmodbus)
 RT_LIBS     := $(shell pkg-config --libs libmodbus) -lpthread -lm
 

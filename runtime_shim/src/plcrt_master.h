@@ -1,5 +1,5 @@
 /* Internal: the Modbus master's configuration and state (plcrt_config.c builds it,
- * plcrt_master.c runs it). */
+ * plcrt_master.c runs it, through plcrt_transport.c and plcrt_serial_line.c). */
 #ifndef PLCRT_MASTER_H
 #define PLCRT_MASTER_H
 
@@ -79,7 +79,7 @@ typedef struct plcrt_device {
     uint64_t next_connect_ns, backoff_ns;
     uint16_t tid;     /* transaction id of the last request */
     int failing;     /* last request failed: log only transitions */
-    /* rate limit of the transition lines (LOG_* in plcrt_master.c): one per kind and
+    /* rate limit of the transition lines (LOG_* in plcrt_transport.h): one per kind and
      * PLCRT_LOG_INTERVAL_NS, the others counted and reported with the next one */
     uint64_t log_last_ns[5], log_suppressed[5];
     unsigned char log_seen[5];
@@ -104,7 +104,7 @@ typedef struct plcrt_device {
     int bus;               /* index of the device that owns the line's context (itself or an earlier one) */
     uint64_t bus_free_ns;  /* owner: monotonic time the line's last exchange ended */
     /* virtual time (owner of the line): the exchange on the wire, modelled from the character
-     * time, so a co-simulation pays the line's time (plcrt_master.c, "serial line in virtual
+     * time, so a co-simulation pays the line's time (plcrt_serial_line.c, "serial line in virtual
      * time"); line_range < 0 = the line is idle */
     struct request *line_req; /* the request on the line (allocated at the first use) */
     int line_range;        /* its range */
@@ -158,5 +158,15 @@ struct plcrt_master {
     pthread_cond_t wake;
     pthread_t thread;
 };
+
+/* m->lock guards what the real-time master thread shares with the scan; in virtual mode there
+ * is no such thread and no locking (plcrt_lock). */
+static inline void mlock(struct plcrt_master *m) { plcrt_lock(m->rt, &m->lock); }
+static inline void munlock(struct plcrt_master *m) { plcrt_unlock(m->rt, &m->lock); }
+
+/* plcrt_master.c: range r's request q at time now (the status, 0 = ok; -1: no request, the
+ * device waits for its reconnect backoff), and its result into the range for the next exchange */
+int plcrt_range_request(plcrt_t *rt, struct plcrt_master *m, plcrt_range_t *r, request_t *q, uint64_t now);
+void plcrt_range_publish(struct plcrt_master *m, plcrt_range_t *r, const request_t *q, int status);
 
 #endif

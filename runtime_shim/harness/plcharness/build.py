@@ -28,8 +28,8 @@ INSTALLED = (HERE / "_runtime" / "src").is_dir()
 if INSTALLED:
     RUNTIME_DIR = HERE / "_runtime"
     REPO_ROOT = None
-CORE_SOURCES = ["plcrt_core.c", "plcrt_image.c", "plcrt_config.c", "plcrt_master.c", "plcrt_slave.c",
-                "plcrt_retain.c"]
+CORE_SOURCES = ["plcrt_core.c", "plcrt_image.c", "plcrt_config.c", "plcrt_master.c", "plcrt_transport.c",
+                "plcrt_serial_line.c", "plcrt_slave.c", "plcrt_retain.c"]
 GCSE_LIMIT = 512 * 1024  # bytes of a generated C file compiled without -fgcse (see _build_into)
 BUILD_FORMAT = "4"  # bump when the generated files change, to invalidate the cache
 
