@@ -1,0 +1,166 @@
+"""A capture of the Modbus/TCP traffic between the PLCs and the emulated modems, as a pcapng file
+that Wireshark (and tshark) open with dist/wireshark/mipmb.lua (docs/wireshark.md).
+
+The kit's network runs in virtual time without sockets: each request ADU goes from the PLC's
+runtime to the emulator core in-process. With a capture on (Net(capture_s=...), or the pytest
+option --mip-capture), every request and its response are kept for the last `capture_s`
+virtual seconds and written on demand as TCP segments of one connection per PLC device (or
+peer) and modem, each opened with a handshake at its first kept exchange. Each modem has an
+address of its own and Modbus's port 502, as on a site (so Wireshark's Modbus/TCP dissector
+and mipmb.lua take the frames with their default preferences): the MDP-810 127.0.2.1, the
+TRM-810 of station s 127.0.1.s; the PLCs (and the kit's peers) are 127.0.0.1. Our choice: the
+kit has no sockets, these addresses are only names in the file. Timestamps are the network's
+virtual time (nanosecond resolution) from 1970-01-01, the start of the run.
+
+pcapng (the IETF draft "PCAP Next Generation Dump File Format", sections 4.1 Section Header
+Block, 4.2 Interface Description Block, 4.3 Enhanced Packet Block) with one Ethernet interface;
+gzip-compressed when the name ends in .gz (Wireshark reads such files as they are).
+"""
+from __future__ import annotations
+
+import collections
+import ctypes
+import gzip
+import struct
+from pathlib import Path
+
+MODBUS_PORT = 502
+PLC_ADDRESS = bytes([127, 0, 0, 1])
+CLIENT_PORT = 40000         # first client port: one per connection
+_SYN, _ACK, _PSH_ACK = 0x02, 0x10, 0x18
+
+
+def modem_address(ep: int) -> bytes:
+    """The address a modem has in the file: 127.0.2.1 the MDP-810 (ep 0), 127.0.1.s the TRM-810
+    of station s."""
+    return bytes([127, 0, 2, 1]) if ep == 0 else bytes([127, 0, 1, ep])
+
+
+def describe_addresses() -> str:
+    return "the MDP-810 127.0.2.1, the TRM-810 of station s 127.0.1.s, port 502; PLCs 127.0.0.1"
+
+
+def _csum(data: bytes) -> int:
+    if len(data) % 2:
+        data += b"\0"
+    s = sum(struct.unpack(f"!{len(data) // 2}H", data))
+    while s >> 16:
+        s = (s & 0xFFFF) + (s >> 16)
+    return ~s & 0xFFFF
+
+
+def tcp_frame(sport: int, dport: int, seq: int, ack: int, payload: bytes = b"",
+              flags: int = _PSH_ACK, src: bytes = PLC_ADDRESS, dst: bytes = PLC_ADDRESS) -> bytes:
+    """An Ethernet frame of one IPv4 TCP segment (the IP header's checksum right; the TCP
+    checksum left 0, which Wireshark does not check by default)."""
+    tcp = struct.pack("!HHIIBBHHH", sport, dport, seq & 0xFFFFFFFF, ack & 0xFFFFFFFF, 5 << 4,
+                      flags, 65535, 0, 0) + payload
+    ip = struct.pack("!BBHHHBBH4s4s", 0x45, 0, 20 + len(tcp), 0, 0x4000, 64, 6, 0,
+                     src, dst)
+    ip = ip[:10] + struct.pack("!H", _csum(ip)) + ip[12:]
+    return b"\0" * 12 + b"\x08\x00" + ip + tcp
+
+
+def _option(code: int, value: bytes) -> bytes:
+    return struct.pack("<HH", code, len(value)) + value + b"\0" * (-len(value) % 4)
+
+
+def _block(btype: int, body: bytes) -> bytes:
+    n = 12 + len(body)
+    return struct.pack("<II", btype, n) + body + struct.pack("<I", n)
+
+
+def pcapng(frames, comment: str = "") -> bytes:
+    """The bytes of a pcapng file of Ethernet frames [(t_ns, frame)], nanosecond timestamps."""
+    shb_opts = (_option(1, comment.encode()) if comment else b"") + _option(0, b"")
+    out = [_block(0x0A0D0D0A, struct.pack("<IHHq", 0x1A2B3C4D, 1, 0, -1) + shb_opts),
+           _block(1, struct.pack("<HHI", 1, 0, 0) + _option(9, bytes([9])) + _option(0, b""))]
+    for t_ns, frame in frames:
+        body = struct.pack("<IIIII", 0, t_ns >> 32, t_ns & 0xFFFFFFFF, len(frame), len(frame))
+        out.append(_block(6, body + frame + b"\0" * (-len(frame) % 4)))
+    return b"".join(out)
+
+
+class ModbusCapture:
+    """Request/response pairs of the last `seconds` virtual seconds, per connection."""
+
+    def __init__(self, seconds: float):
+        self.window_ns = int(seconds * 1e9)
+        self.exchanges = collections.deque()     # (t_ns, conn, ep, request, response or None)
+        self.conns: dict = {}                    # a connection's key -> its number
+
+    def record(self, t_ns: int, key, ep: int, request: bytes, response: bytes | None):
+        conn = self.conns.setdefault(key, len(self.conns))
+        self.exchanges.append((t_ns, conn, ep, bytes(request),
+                               None if response is None else bytes(response)))
+        while self.exchanges and self.exchanges[0][0] < t_ns - self.window_ns:
+            self.exchanges.popleft()
+
+    def frames(self):
+        """[(t_ns, Ethernet frame)]: each connection's handshake, requests and responses."""
+        state = {}          # conn -> [client port, client seq, server seq]
+        out = []
+        for t, conn, ep, req, rsp in self.exchanges:
+            m, sp = modem_address(ep), MODBUS_PORT
+            if conn not in state:
+                c = [CLIENT_PORT + conn, 1000, 5000]
+                out += [(t, tcp_frame(c[0], sp, c[1] - 1, 0, flags=_SYN, dst=m)),
+                        (t, tcp_frame(sp, c[0], c[2] - 1, c[1], flags=_SYN | _ACK, src=m)),
+                        (t, tcp_frame(c[0], sp, c[1], c[2], flags=_ACK, dst=m))]
+                state[conn] = c
+            c = state[conn]
+            out.append((t, tcp_frame(c[0], sp, c[1], c[2], req, dst=m)))
+            c[1] += len(req)
+            if rsp is not None:
+                out.append((t, tcp_frame(sp, c[0], c[2], c[1], rsp, src=m)))
+                c[2] += len(rsp)
+        return out
+
+    def save(self, path: Path, comment: str = "") -> Path:
+        """Writes the pcapng file (gzip-compressed for a name ending in .gz); returns path."""
+        data = pcapng(self.frames(), comment)
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if path.suffix == ".gz":
+            data = gzip.compress(data, mtime=0)
+        path.write_bytes(data)
+        return path
+
+
+def wire_device(net, kit_plc, plc, device: str, ep: int):
+    """The modem device of a user's PLC, wired to the emulator core as mipcosim_connect_inproc
+    would, through Python so that each exchange is recorded (net.capture). Kept on kit_plc
+    (the runtime holds the callback)."""
+    from mipcosim.pydevice import PyDevice
+    lib, rsp = net.lib, ctypes.create_string_buffer(512)
+
+    def handle(adu):
+        n = lib.mipcosim_request(net.sim, ep, adu, len(adu), rsp, len(rsp))
+        out = rsp.raw[:n] if n >= 0 else None        # no answer: the runtime sees a timeout
+        net.capture.record(net.now, (kit_plc.name, device), ep, adu, out)
+        return out
+
+    kit_plc.capture_devices[device] = PyDevice(plc, device, handle)
+
+
+def recording(net, name: str, ep: int, transact):
+    """A peer's transact(adu) -> response, recorded in net.capture."""
+    def run(adu):
+        out = transact(adu)
+        net.capture.record(net.now, (name, "modem"), ep, adu, out)
+        return out
+    return run
+
+
+def save_for_report(net, outdir: Path, name: str = "modbus.pcapng.gz"):
+    """A failed test's capture: (section title, text, JUnit property) after writing
+    outdir/name."""
+    cap = net.capture
+    path = cap.save(Path(outdir) / name,
+                    comment=f"mip-logger kit: Modbus/TCP of the PLCs and peers with the emulated "
+                            f"modems, the last {cap.window_ns / 1e9:g} virtual seconds; "
+                            f"{describe_addresses()}")
+    text = (f"{path} ({len(cap.exchanges)} exchanges, {path.stat().st_size} bytes, the last "
+            f"{cap.window_ns / 1e9:g} virtual seconds; {describe_addresses()}): Wireshark "
+            f"opens it with the dissector mipmb.lua, docs/wireshark.md")
+    return "Modbus capture", text, ("mip_capture", str(path))
