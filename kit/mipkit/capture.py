@@ -152,6 +152,13 @@ def recording(net, name: str, ep: int, transact):
     return run
 
 
+def dissector() -> Path:
+    """mipmb.lua: in the installed kit beside this module, else the checkout's."""
+    here = Path(__file__).resolve()
+    packaged = here.with_name("mipmb.lua")
+    return packaged if packaged.is_file() else here.parents[2] / "dist" / "wireshark" / "mipmb.lua"
+
+
 def save_for_report(net, outdir: Path, name: str = "modbus.pcapng.gz"):
     """A failed test's capture: (section title, text, JUnit property) after writing
     outdir/name."""
@@ -161,6 +168,6 @@ def save_for_report(net, outdir: Path, name: str = "modbus.pcapng.gz"):
                             f"modems, the last {cap.window_ns / 1e9:g} virtual seconds; "
                             f"{describe_addresses()}")
     text = (f"{path} ({len(cap.exchanges)} exchanges, {path.stat().st_size} bytes, the last "
-            f"{cap.window_ns / 1e9:g} virtual seconds; {describe_addresses()}): Wireshark "
-            f"opens it with the dissector mipmb.lua, docs/wireshark.md")
+            f"{cap.window_ns / 1e9:g} virtual seconds; {describe_addresses()}): "
+            f"wireshark -X lua_script:{dissector()} {path} (docs/wireshark.md)")
     return "Modbus capture", text, ("mip_capture", str(path))

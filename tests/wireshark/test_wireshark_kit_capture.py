@@ -100,10 +100,31 @@ def test_a_failed_kit_test_leaves_its_capture(tmp_path):
     assert r.returncode == 1, r.stdout + r.stderr
     found = list((tmp_path / "results").rglob("modbus.pcapng.gz"))
     assert len(found) == 1, r.stdout
-    assert f"{found[0]} (" in r.stdout and "opens it with the dissector mipmb.lua" in r.stdout
+    # the command it prints names the dissector of this checkout
+    assert f"{found[0]} (" in r.stdout, r.stdout
+    assert f"wireshark -X lua_script:{REPO / 'dist/wireshark/mipmb.lua'} {found[0]}" in r.stdout
     assert ("outstation PLC -> TRM-810", "65535") in writes(found[0])
     assert found[0].stat().st_size < 20_000
     r = run_inner(tmp_path)
     assert r.returncode == 1, r.stdout + r.stderr
     assert not list((tmp_path / "results").rglob("*.pcapng*"))
     assert (tmp_path / "results").is_dir()           # the rest of the report is there
+
+
+@pytest.mark.slow
+def test_the_kits_wheel_carries_the_dissector(tmp_path):
+    """An integrator's kit (pip install of kit/) has mipmb.lua beside capture.py, and the report's
+    command names that copy: no checkout needed to open a capture."""
+    import zipfile
+    r = subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps",
+                        "--no-build-isolation", "--no-index", "-w", str(tmp_path),
+                        str(REPO / "kit")], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    (whl,) = tmp_path.glob("mip_logger_kit-*.whl")
+    z = zipfile.ZipFile(whl)
+    assert z.read("mipkit/mipmb.lua") == (REPO / "dist" / "wireshark" / "mipmb.lua").read_bytes()
+    z.extract("mipkit/capture.py", tmp_path / "site")
+    z.extract("mipkit/mipmb.lua", tmp_path / "site")
+    out = subprocess.run([sys.executable, "-c", "import capture; print(capture.dissector())"],
+                         cwd=tmp_path / "site" / "mipkit", capture_output=True, text=True)
+    assert out.stdout.strip() == str(tmp_path / "site" / "mipkit" / "mipmb.lua"), out.stderr
