@@ -2,10 +2,12 @@
 that Wireshark (and tshark) open with dist/wireshark/mipmb.lua (docs/wireshark.md).
 
 The kit's network runs in virtual time without sockets: each request ADU goes from the PLC's
-runtime to the emulator core in-process. With a capture on (Net(capture_s=...), or the pytest
-option --mip-capture), every request and its response are kept for the last `capture_s`
-virtual seconds and written on demand as TCP segments of one connection per PLC device (or
-peer) and modem, each opened with a handshake at its first kept exchange. Each modem has an
+runtime to the emulator core in-process. With a capture on (Net(capture_s=...), the pytest
+option --mip-capture, mip-kit --capture), every request and its response are kept (the last
+MAX_EXCHANGES of them: our choice, about 40 MB at most) and a failure writes the `capture_s`
+virtual seconds around its fault (the failure report's fault, as its sequence diagram; else
+the last seconds) as TCP segments of one connection per PLC device (or peer) and modem, each
+opened with a handshake at its first exchange in the file. Each modem has an
 address of its own and Modbus's port 502, as on a site (so Wireshark's Modbus/TCP dissector
 and mipmb.lua take the frames with their default preferences): the MDP-810 127.0.2.1, the
 TRM-810 of station s 127.0.1.s; the PLCs (and the kit's peers) are 127.0.0.1. Our choice: the
@@ -27,6 +29,7 @@ from pathlib import Path
 MODBUS_PORT = 502
 PLC_ADDRESS = bytes([127, 0, 0, 1])
 CLIENT_PORT = 40000         # first client port: one per connection
+MAX_EXCHANGES = 100_000     # kept in memory (our choice): a realistic radio's hour at one PLC
 _SYN, _ACK, _PSH_ACK = 0x02, 0x10, 0x18
 
 
@@ -82,25 +85,37 @@ def pcapng(frames, comment: str = "") -> bytes:
 
 
 class ModbusCapture:
-    """Request/response pairs of the last `seconds` virtual seconds, per connection."""
+    """Request/response pairs, per connection; a file holds `seconds` virtual seconds."""
 
-    def __init__(self, seconds: float):
+    def __init__(self, seconds: float, max_exchanges: int = MAX_EXCHANGES):
         self.window_ns = int(seconds * 1e9)
-        self.exchanges = collections.deque()     # (t_ns, conn, ep, request, response or None)
+        self.exchanges = collections.deque(maxlen=max_exchanges)  # (t_ns, conn, ep, req, rsp)
         self.conns: dict = {}                    # a connection's key -> its number
 
     def record(self, t_ns: int, key, ep: int, request: bytes, response: bytes | None):
         conn = self.conns.setdefault(key, len(self.conns))
         self.exchanges.append((t_ns, conn, ep, bytes(request),
                                None if response is None else bytes(response)))
-        while self.exchanges and self.exchanges[0][0] < t_ns - self.window_ns:
-            self.exchanges.popleft()
 
-    def frames(self):
-        """[(t_ns, Ethernet frame)]: each connection's handshake, requests and responses."""
+    def window(self, centre_ns=None):
+        """(from, to) in virtual ns: `seconds` centred on centre_ns (near the start or the end
+        of the run, the whole window on the run's side, as the failure's diagram), or the last
+        `seconds` of the capture."""
+        last = self.exchanges[-1][0] if self.exchanges else 0
+        if centre_ns is None:
+            return max(0, last - self.window_ns), last
+        t_from = max(0, min(centre_ns - self.window_ns // 2, last - self.window_ns))
+        return t_from, t_from + self.window_ns
+
+    def frames(self, window=None):
+        """[(t_ns, Ethernet frame)]: each connection's handshake, requests and responses, of
+        the exchanges in window (from, to) (default: all kept)."""
         state = {}          # conn -> [client port, client seq, server seq]
         out = []
+        lo, hi = window or (0, float("inf"))
         for t, conn, ep, req, rsp in self.exchanges:
+            if not lo <= t <= hi:
+                continue
             m, sp = modem_address(ep), MODBUS_PORT
             if conn not in state:
                 c = [CLIENT_PORT + conn, 1000, 5000]
@@ -116,9 +131,10 @@ class ModbusCapture:
                 c[2] += len(rsp)
         return out
 
-    def save(self, path: Path, comment: str = "") -> Path:
-        """Writes the pcapng file (gzip-compressed for a name ending in .gz); returns path."""
-        data = pcapng(self.frames(), comment)
+    def save(self, path: Path, comment: str = "", window=None) -> Path:
+        """Writes the pcapng file of window (from, to) (gzip-compressed for a name ending in
+        .gz); returns path."""
+        data = pcapng(self.frames(window), comment)
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         if path.suffix == ".gz":
@@ -159,15 +175,27 @@ def dissector() -> Path:
     return packaged if packaged.is_file() else here.parents[2] / "dist" / "wireshark" / "mipmb.lua"
 
 
-def save_for_report(net, outdir: Path, name: str = "modbus.pcapng.gz"):
-    """A failed test's capture: (section title, text, JUnit property) after writing
-    outdir/name."""
+def save_for_report(net, outdir: Path, message: str = "", t_hint=None,
+                    name: str = "modbus.pcapng.gz"):
+    """A failed test's capture, centred on the failure report's fault (report.find_fault, from
+    the failure's message): (section title, text, JUnit property) after writing outdir/name."""
     cap = net.capture
-    path = cap.save(Path(outdir) / name,
+    centre = None
+    if net._handle is not None:
+        try:
+            from .report import find_fault
+            centre = find_fault(net, message, t_hint).t
+        except Exception:  # noqa: BLE001 - without a fault, the last seconds
+            centre = None
+    lo, hi = cap.window(centre)
+    what = (f"{lo / 1e9:.3f} s .. {hi / 1e9:.3f} s of virtual time, around the fault at "
+            f"{centre / 1e9:.3f} s" if centre is not None else
+            f"the last {cap.window_ns / 1e9:g} virtual seconds, {lo / 1e9:.3f} s .. {hi / 1e9:.3f} s")
+    n = sum(1 for e in cap.exchanges if lo <= e[0] <= hi)
+    path = cap.save(Path(outdir) / name, window=(lo, hi),
                     comment=f"mip-logger kit: Modbus/TCP of the PLCs and peers with the emulated "
-                            f"modems, the last {cap.window_ns / 1e9:g} virtual seconds; "
-                            f"{describe_addresses()}")
-    text = (f"{path} ({len(cap.exchanges)} exchanges, {path.stat().st_size} bytes, the last "
-            f"{cap.window_ns / 1e9:g} virtual seconds; {describe_addresses()}): "
+                            f"modems, {what}; {describe_addresses()}")
+    text = (f"{path} ({n} exchanges, {path.stat().st_size} bytes, {what}; "
+            f"{describe_addresses()}): "
             f"wireshark -X lua_script:{dissector()} {path} (docs/wireshark.md)")
     return "Modbus capture", text, ("mip_capture", str(path))

@@ -116,7 +116,7 @@ def pytest_runtest_makereport(item, call):
     for k, net in enumerate(nets, 1):
         if net.capture is not None:
             from .capture import save_for_report
-            title, text, prop = save_for_report(net, outdir / f"net{k}")
+            title, text, prop = save_for_report(net, outdir / f"net{k}", message)
             report.sections.append((f"mip-kit network {k}: {title}", text))
             report.user_properties.append(prop)
             item.user_properties.append(prop)

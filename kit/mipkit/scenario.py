@@ -561,7 +561,8 @@ def _run_one(doc, path, work, results_dir, a, name, seed, tag, say_warnings=lamb
             head = [f"mip-kit: no report: {type(e).__name__}: {e}"]
         if run.net.capture is not None:
             from .capture import save_for_report
-            title, text, prop = save_for_report(run.net, results_dir)   # per seed already
+            title, text, prop = save_for_report(run.net, results_dir, msg,  # per seed already
+                                                t_hint=run.when.get(case))
             sections.append((title, text))
             props.append((prop[0] + tag, prop[1]))
     summary = None

@@ -55,18 +55,24 @@ def test_kit_capture_opens_with_the_dissector(tmp_path):
     assert 0 < float(t[-1]) < 30
 
 
-def test_kit_capture_keeps_only_the_last_seconds(tmp_path):
-    with Net(tmp_path / "net", 1, radio="fast", seed=9, capture_s=0.1) as net:
+def test_kit_capture_is_centred_on_the_fault(tmp_path):
+    """capture_s seconds around the failure report's fault (here the central's last delivery),
+    not the idle seconds after it; without a fault, the last seconds."""
+    with Net(tmp_path / "net", 1, radio="fast", seed=9, capture_s=0.4) as net:
         peer = central_and_peer(net, tmp_path)
         assert net.run_until(lambda: peer.done, within_s=120)
-        net.run_for(1)
+        net.run_for(5)
         end = net.now / 1e9
-        _, _, prop = save_for_report(net, tmp_path / "out")
-    t = [float(x) for x in tshark(Path(prop[1]), *PORTS, "-T", "fields",
-                                  "-e", "frame.time_epoch").split()]
-    # the 0.1 s up to the last exchange, which is at the end of the run
-    assert t and end - 0.1 < max(t) <= end and max(t) - min(t) <= 0.1 + 1e-6, (t[0], t[-1], end)
-    assert not writes(Path(prop[1]))        # the transfer ended a second before: only reads
+        _, text, prop = save_for_report(net, tmp_path / "out", "central: 7 records, want 8")
+        last = net.capture.save(tmp_path / "last.pcapng", window=net.capture.window())
+    assert "around the fault at " in text, text
+    pcap = Path(prop[1])
+    t = [float(x) for x in tshark(pcap, *PORTS, "-T", "fields", "-e", "frame.time_epoch").split()]
+    assert t and max(t) - min(t) <= 0.4 + 1e-6 and max(t) < end - 4, (t[0], t[-1], end)
+    assert ("outstation PLC -> TRM-810", "65535") in writes(pcap)
+    t = [float(x) for x in tshark(last, *PORTS, "-T", "fields", "-e", "frame.time_epoch").split()]
+    assert t and end - 0.4 - 0.05 <= min(t) and max(t) <= end, (t[0], t[-1], end)
+    assert not writes(last)                 # the transfer ended 5 s before: only reads
 
 
 INNER = '''
