@@ -46,7 +46,7 @@ def pytest_addoption(parser):
     g.addoption("--mip-capture", type=float, default=0, metavar="SECONDS",
                 help="keep the Modbus/TCP traffic of the last SECONDS virtual seconds; a "
                      "failed test leaves it as modbus.pcapng.gz beside its diagram, for "
-                     "Wireshark with dist/wireshark/mipmb.lua (default 0: off; "
+                     "Wireshark with the dissector mipmb.lua (default 0: off; "
                      "docs/wireshark.md)")
     g.addoption("--mip-results", default="results/mip-kit",
                 help="where a failed test's sequence diagram and trace go, one folder per test "
