@@ -44,8 +44,8 @@ def pytest_addoption(parser):
                 help="lines of the readable trace around the fault in a failure's report "
                      "(default 40)")
     g.addoption("--mip-capture", type=float, default=0, metavar="SECONDS",
-                help="keep the Modbus/TCP traffic of the last SECONDS virtual seconds; a "
-                     "failed test leaves it as modbus.pcapng.gz beside its diagram, for "
+                help="keep the Modbus/TCP traffic: a failed test leaves SECONDS virtual "
+                     "seconds of it around the fault as modbus.pcapng.gz beside its diagram, for "
                      "Wireshark with the dissector mipmb.lua (default 0: off; "
                      "docs/wireshark.md)")
     g.addoption("--mip-results", default="results/mip-kit",

@@ -462,8 +462,8 @@ def main(argv=None):
     ap.add_argument("--trace-lines", type=int, default=40,
                     help="lines of the readable trace around the fault (default 40)")
     ap.add_argument("--capture", type=float, default=0, metavar="SECONDS",
-                    help="keep the Modbus/TCP traffic of the last SECONDS virtual seconds; a "
-                         "failure leaves it beside the diagram as modbus.pcapng.gz, for "
+                    help="keep the Modbus/TCP traffic: a failure leaves SECONDS virtual "
+                         "seconds of it around the fault beside the diagram as modbus.pcapng.gz, for "
                          "Wireshark with mipmb.lua (default 0: off; docs/wireshark.md)")
     a = ap.parse_args(argv)
     path = Path(a.scenario)
