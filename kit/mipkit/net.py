@@ -457,7 +457,7 @@ class Net:
         if not self._handle:
             raise KitError(err.value.decode())
         self.trace_path = self.workdir / "emulator-trace.jsonl" if trace else None
-        # the Modbus traffic of the last capture_s virtual seconds, for a pcapng (capture.py)
+        # the Modbus traffic; a failure's pcapng holds capture_s seconds of it (capture.py)
         self.capture = capture.ModbusCapture(capture_s) if capture_s else None
         if trace:
             self._check(lib.mipcosim_trace_file(self._handle, str(self.trace_path).encode()))

@@ -15,10 +15,11 @@ test's record numbers), the diagnosis of every MIP block in the PLCs at the faul
 end; sections follow with the radio and Modbus traffic around the fault, and the sequence
 diagram (SVG, the docs' generator) centred on it and the trace around it (gzip) land in
 --mip-results (default results/mip-kit); their paths are properties in JUnit XML
-(mip_fault, mip_diagram, mip_trace). With --mip-capture SECONDS the Modbus/TCP traffic of the
-last SECONDS lands there too, as modbus.pcapng.gz for Wireshark (property mip_capture). A KitError (a program that does
-not compile, a config mapping an address the program does not declare, an unknown station)
-fails the test with its one line instead of a traceback.
+(mip_fault, mip_diagram, mip_trace). With --mip-capture SECONDS, SECONDS of the Modbus/TCP
+traffic around the fault land there too, as modbus.pcapng.gz for Wireshark (property
+mip_capture). A KitError (a program that does not compile, a config mapping an address the
+program does not declare, an unknown station) fails the test with its one line instead of a
+traceback.
 """
 from __future__ import annotations
 
@@ -116,10 +117,13 @@ def pytest_runtest_makereport(item, call):
     for k, net in enumerate(nets, 1):
         if net.capture is not None:
             from .capture import save_for_report
-            title, text, prop = save_for_report(net, outdir / f"net{k}", message)
+            try:
+                title, text, prop = save_for_report(net, outdir / f"net{k}", message)
+                report.user_properties.append(prop)
+                item.user_properties.append(prop)
+            except Exception as e:  # noqa: BLE001 - the capture must not hide the failure
+                title, text = "Modbus capture", f"none: {type(e).__name__}: {e}"
             report.sections.append((f"mip-kit network {k}: {title}", text))
-            report.user_properties.append(prop)
-            item.user_properties.append(prop)
         if net._handle is None:
             continue
         try:
