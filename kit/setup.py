@@ -30,6 +30,7 @@ NEEDED = ["translator/stc", "runtime_shim/harness/plcharness", "runtime_shim/src
           "runtime_shim/include", "cosim/mipcosim", "cosim/src/mipcosim.c", "cosim/include",
           "emulator/src/mipemu.c", "emulator/src/siprotec.c", "emulator/include", "peers/mippeer", "st_lib",
           "docs/tools/seqdiag.py", "plc/openplc_limits.py", "LICENSE"]
+NEEDED += ["dist/wireshark/mipmb.lua"]      # the dissector, for the kit's captures (capture.py)
 PACKAGES = {"stc": "translator/stc", "plcharness": "runtime_shim/harness/plcharness",
             "mipcosim": "cosim/mipcosim", "mippeer": "peers/mippeer"}
 
@@ -69,6 +70,7 @@ class BuildKit(build_py):
         _tree(REPO / "st_lib", out / "mipcosim" / "_st_lib", ("*.st",))
         shutil.copyfile(REPO / "docs" / "tools" / "seqdiag.py", out / "mipkit" / "_seqdiag.py")
         shutil.copyfile(REPO / "plc" / "openplc_limits.py", out / "mipkit" / "_openplc_limits.py")
+        shutil.copyfile(REPO / "dist" / "wireshark" / "mipmb.lua", out / "mipkit" / "mipmb.lua")
         lib = out / "mipcosim" / "_lib"
         lib.mkdir(parents=True, exist_ok=True)
         tmp = Path(tempfile.mkdtemp(prefix="obj-", dir=_TMP))    # not in the wheel

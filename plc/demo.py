@@ -54,6 +54,10 @@ def parse_args(argv):
                         "per modem, e.g. rtu:19200; docs/serial.md)")
     p.add_argument("--timeout", type=float, default=0,
                    help="give up after this many seconds (default: from the radio timing)")
+    p.add_argument("--fixed-ports", action="store_true",
+                   help="the emulator on its own default ports (MDP-810 15020, the TRM-810 of "
+                        "station s 15020+s) instead of free ones: a capture filter and "
+                        "Wireshark's dissector know them (docs/wireshark.md)")
     p.add_argument("--rundir", default=str(REPO / "build" / "plc" / "run"),
                    help="the programs, configs, logs and the emulator trace go here (default build/plc/run)")
     a = p.parse_args(argv)
@@ -243,6 +247,12 @@ def start_emulator(procs, rundir, args):
     return line, dict(kv.split("=", 1) for kv in line.split()[2:])
 
 
+def modem_port_args(fixed):
+    """The emulator's ports: free ones (two demos side by side), or with --fixed-ports its
+    defaults, 15020 and 15021.. (emulator/README.md), which a capture can filter on."""
+    return [] if fixed else ["--mdp-port", "0", "--trm-base-port", "0"]
+
+
 def radio_args(realistic):
     """The emulator's radio: the realistic one (9600 bit/s, 20 ms gaps) or a fast one."""
     return (["--bitrate", "9600", "--slot-gap-ms", "20"] if realistic
@@ -312,7 +322,7 @@ def run(a):
     try:
         trace = rundir / "emulator-trace.jsonl"
         line, fields = start_emulator(
-            procs, rundir, ["--mdp-port", "0", "--trm-base-port", "0",
+            procs, rundir, modem_port_args(a.fixed_ports) + [
                             "--stations", str(a.stations), "--loss-up", str(a.loss),
                             "--loss-down", str(a.loss), "--seed", str(a.seed), "--trace", str(trace),
                             "--lose-record", str(a.lose_record)] + radio + rtu_args)

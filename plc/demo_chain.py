@@ -22,6 +22,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "cosim"))
 sys.path.insert(0, str(REPO / "plc"))
 
+from demo import modem_port_args  # noqa: E402
 from demo import (DemoError, Procs, Progress, Slave, TraceStats, bar, free_port,  # noqa: E402
                   fresh_rundir, radio_args, run_or_fail, start_emulator)
 from mipcosim import chain as C                                         # noqa: E402
@@ -42,6 +43,9 @@ def parse_args(argv):
     p.add_argument("--scada-interval", type=float, default=0.1,
                    help="seconds between the SCADA's polls (default 0.1)")
     p.add_argument("--timeout", type=float, default=0, help="give up after this many seconds")
+    p.add_argument("--fixed-ports", action="store_true",
+                   help="the modems on the emulator's default ports (MDP-810 15020, TRM-810 "
+                        "15021) instead of free ones, for a capture (docs/wireshark.md)")
     p.add_argument("--rundir", default=str(REPO / "build" / "plc" / "run-chain"),
                    help="programs, configs, logs, the events and the SCADA's file (default build/plc/run-chain)")
     a = p.parse_args(argv)
@@ -103,7 +107,7 @@ def run(a):
     try:
         trace = rundir / "emulator-trace.jsonl"
         line, fields = start_emulator(
-            procs, rundir, ["--mdp-port", "0", "--trm-base-port", "0", "--stations", "1",
+            procs, rundir, modem_port_args(a.fixed_ports) + ["--stations", "1",
                             "--loss-up", str(a.loss), "--loss-down", str(a.loss),
                             "--seed", str(a.seed), "--trace", str(trace), "--lose-record", "0",
                             "--relay", f"0:origin={C.ORIGIN_MS},cap=1000,script={script}"] + radio)

@@ -2,10 +2,12 @@
 --
 -- Labels the PLC <-> modem link of a TRM-810 (outstation) or MDP-810 (central) in MIP mode:
 -- the registers of the Piciorgros note "SPS-Kopplung über MODBUS/IP im Zeitschlitzfunk"
--- (section 3.1 MDP-810, 3.2 TRM-810: register maps; 3.1.1 / 3.2.1: read-status bits) and the
--- logger protocol's counters of its section 2.1 (record counter 1, 2, ... 0xFFFF last, 0
--- undefined; the acknowledgement mirrors the last record received) and 2.2 (bidirectional:
--- two counters). Wireshark's own Modbus/TCP dissector (mbtcp, modbus) cuts the TCP stream
+-- (section 3.1 MDP-810, 3.2 TRM-810: register maps; 3.1.1 / 3.2.1, pages 12 and 14: the
+-- read-status bits, bit 0 "Neue Lesedaten" set when a new block arrived and cleared by any
+-- read of the read area) and the logger protocol's counters of its section 2.1 (record
+-- counter 1, 2, ... 16#FFFF last; 0 before anything was received; the acknowledgement mirrors
+-- the last record received) and 2.2 (bidirectional: two counters). Wireshark's own
+-- Modbus/TCP dissector (mbtcp, modbus) cuts the TCP stream
 -- into Modbus frames; this script reads each frame's bytes and labels what it knows.
 --
 -- Install: copy this file to ~/.local/lib/wireshark/plugins/ (Wireshark's personal Lua
@@ -15,7 +17,7 @@
 --
 -- Registers it does not know are left alone; a malformed frame is skipped, never an error.
 
-local VERSION = "1.0"
+local VERSION = "1.1"
 
 local p = Proto("mipmb", "Piciorgros MIP over Modbus")
 
@@ -36,15 +38,20 @@ p.prefs.one_based = Pref.bool("Modem counts from 1", false,
     "The note's numbers are 1-based register numbers: the address on the wire is the " ..
     "number - 1 (off: the numbers are the 0-based addresses on the wire)")
 p.prefs.bidi = Pref.bool("Bidirectional layout (note 2.2)", false,
-    "two counters in every block: register 0 the outstation->central stream, " ..
-    "register 1 the central->outstation stream")
+    "two counters in every block: register 0 for the outstation's records, " ..
+    "register 1 for the central's records")
 
 -- fields ----------------------------------------------------------------------------------
-local COUNTER = { [0] = "0: undefined (nothing received yet)", [65535] = "0xFFFF: last record" }
+-- Counters are plain numbers (a filter `mipmb.record == 3` works); the two values the note
+-- names get their name appended to the item (note 2.1): 0 and 16#FFFF.
+local COUNTER_NAME = { [0] = "start: no record received yet", [65535] = "16#FFFF: the last record" }
 local F = {
     device = ProtoField.string("mipmb.device", "Modem"),
     station = ProtoField.uint8("mipmb.station", "Station (MDP unit id)"),
     kind = ProtoField.string("mipmb.kind", "Access"),
+    hop = ProtoField.string("mipmb.hop", "Direction"),
+    no_new = ProtoField.string("mipmb.no_new_data", "Read without new data"),
+    old = ProtoField.uint16("mipmb.old_counter", "Counter still in the read area (read before)"),
     reg = ProtoField.string("mipmb.register", "Register"),
     status = ProtoField.uint16("mipmb.read_status", "Read status", base.HEX),
     st_new = ProtoField.bool("mipmb.read_status.new_data", "Bit 0 new read data", 16, nil, 0x0001),
@@ -55,10 +62,9 @@ local F = {
     field_st = ProtoField.uint8("mipmb.field.station_hears", "Station hears the MDP at -dBm"),
     field_mdp = ProtoField.uint8("mipmb.field.mdp_hears", "MDP hears the station at -dBm"),
     ststat = ProtoField.uint16("mipmb.station_status", "Station status", base.HEX),
-    record = ProtoField.uint16("mipmb.record", "Record counter", base.DEC, COUNTER),
-    ack = ProtoField.uint16("mipmb.ack", "Acknowledgement counter", base.DEC, COUNTER),
+    record = ProtoField.uint16("mipmb.record", "Record counter", base.DEC),
+    ack = ProtoField.uint16("mipmb.ack", "Acknowledgement counter", base.DEC),
     len = ProtoField.uint16("mipmb.len", "Block length (registers)"),
-    stream = ProtoField.string("mipmb.stream", "Stream"),
 }
 p.fields = {}
 for _, f in pairs(F) do table.insert(p.fields, f) end
@@ -150,17 +156,41 @@ local function device_of(m, addr)
     return nil
 end
 
--- What register 0 / 1 of a block carries. Written at the TRM and read at the MDP: the
--- outstation's block (record o->c, in bidi also ack c->o); the other way round: the central's.
+-- What register 0 / 1 of a block carries, and whose records that counter counts. Written at
+-- the TRM and read at the MDP: the outstation's block, which the radio carries
+-- outstation->central (its record counter; bidirectional also its acknowledgement of the
+-- central's records); the other way round the central's block, carried central->outstation.
 local function block_slots(outstation_block)
     if p.prefs.bidi then
         if outstation_block then
-            return { { "record", "outstation->central" }, { "ack", "central->outstation" } }
+            return { { "record", "outstation" }, { "ack", "central" } }
         end
-        return { { "ack", "outstation->central" }, { "record", "central->outstation" } }
+        return { { "ack", "outstation" }, { "record", "central" } }
     end
-    if outstation_block then return { { "record", "outstation->central" } } end
-    return { { "ack", "outstation->central" } }
+    if outstation_block then return { { "record", "outstation" } } end
+    return { { "ack", "outstation" } }
+end
+
+local OTHER = { outstation = "central", central = "outstation" }
+
+-- The counter's meaning in words a field engineer reads in the packet details: whose record
+-- (or whose acknowledgement of whose records), with the names of note 2.1 for 0 and 16#FFFF,
+-- and the way its block goes over the radio.
+local function counter_text(what, v, owner)
+    local text
+    if what == "record" then
+        if v == 0 then text = COUNTER_NAME[0] .. " (0 is no record number, note 2.1)"
+        elseif v == 65535 then text = COUNTER_NAME[65535] .. " of the " .. owner
+        else text = "the " .. owner .. "'s record " .. v end
+    else
+        local by = OTHER[owner]
+        if v == 0 then text = COUNTER_NAME[0] .. " by the " .. by .. " from the " .. owner
+        elseif v == 65535 then text = "the " .. by .. " acknowledges the " .. owner ..
+            "'s last record (16#FFFF)"
+        else text = "the " .. by .. " acknowledges the " .. owner .. "'s record " .. v end
+    end
+    local sender = what == "record" and owner or OTHER[owner]
+    return text .. "; radio " .. sender .. "->" .. OTHER[sender]
 end
 
 -- The checks: per link (a TRM's address and port, or an MDP's and the unit id) and stream.
@@ -212,10 +242,10 @@ local function u16(r, o) return r:range(o, 2):uint() end
 
 local info = {}   -- the Info column's additions of the frame being dissected
 
-local function add_counter(sub, rng, what, v, stream, vkey, verdict)
-    table.insert(info, (what == "record" and "record " or "ack ") .. (v == 65535 and "0xFFFF" or v))
+local function add_counter(sub, rng, what, v, owner, vkey, verdict)
+    table.insert(info, (what == "record" and "record " or "ack ") .. (v == 65535 and "16#FFFF" or v))
     local item = sub:add(what == "record" and F.record or F.ack, rng, v)
-    item:append_text(" (" .. stream .. ")")
+    item:append_text(" (" .. counter_text(what, v, owner) .. ")")
     if verdict then
         local e = E[verdict]
         local msg = verdict == "never_sent" and
@@ -226,10 +256,22 @@ local function add_counter(sub, rng, what, v, stream, vkey, verdict)
     end
 end
 
--- One block's counters (registers at rng, the block's first register), with the checks.
+-- One block's counters (registers at rng, the block's first register), with the checks. A
+-- block read without new data (status bit 0 clear) is the one read before: its counters are
+-- shown as such (mipmb.old_counter), never as a record or an acknowledgement that arrived.
 local function counters(sub, rng, n, dev, unit_key, written, fresh, frame_key, first_pass)
     local outstation_block = (dev == "trm") == written
     local slots = block_slots(outstation_block)
+    if not written and not fresh then
+        sub:add(F.no_new, rng:range(0, math.min(n, #slots) * 2),
+            "status bit 0 clear: nothing arrived since the last read (note 3.1.1 / 3.2.1)")
+        for i = 1, math.min(n, #slots) do
+            sub:add(F.old, rng:range((i - 1) * 2, 2)):append_text(
+                " (" .. slots[i][1] .. " counter of the block read before)")
+        end
+        table.insert(info, "read, no new data")
+        return
+    end
     for i, slot in ipairs(slots) do
         if i <= n then
             local what, stream = slot[1], slot[2]
@@ -345,7 +387,13 @@ local function dissect_pdu(rng, pinfo, tree, idx, first_pass, sport, dport, tcps
         sub:add(F.station, rng:range(6, 1))
         key = key .. ":" .. unit
     end
-    sub:append_text(": " .. (dev == "trm" and "TRM-810" or "MDP-810, station " .. unit))
+    -- the Modbus hop: a request goes from the PLC to its modem, a response back
+    local modem = dev == "trm" and "TRM-810" or "MDP-810"
+    local plc = dev == "trm" and "outstation PLC" or "central PLC"
+    local hop = is_request and (plc .. " -> " .. modem) or (modem .. " -> " .. plc)
+    sub:add(F.hop, hop)
+    sub:append_text(": " .. (dev == "trm" and "TRM-810" or "MDP-810, station " .. unit) ..
+        ", " .. hop)
     if wa and wdata then
         sub:add(F.kind, fc == 23 and "write and read request" or "write request")
         if wa == m[dev].write and wq and fc ~= 6 then

@@ -14,7 +14,7 @@ import re
 from pathlib import Path
 
 from mipcosim import sim as S
-from . import delivery
+from . import capture, delivery
 from plcharness import Plc
 from plcharness.build import BuildError, build_program
 
@@ -229,6 +229,7 @@ class KitPlc:
         self.restarts = []      # (virtual ns, mode, RETAIN restored)
         self._taps = None       # the delivery taps of the program's receivers (delivery.py)
         self._ends = {}         # device -> connect(KitPlc): a relay or UNICOS stand-in (ends.py)
+        self.capture_devices = {}   # device -> its recording transport (capture.py)
 
     def _start(self, snapshot=None):
         net = self.net
@@ -253,6 +254,8 @@ class KitPlc:
             dev = plc.library.plcrt_device_name(plc.handle, i)
             if dev.decode() in self._ends:
                 self._ends[dev.decode()](self)      # the relay or control system (ends.py)
+            elif net.capture is not None:
+                capture.wire_device(net, self, plc, dev.decode(), ep)
             else:
                 net._check(lib.mipcosim_connect_inproc(sim, self.pid, setter, dev, ep))
         if self._taps is None:
@@ -376,6 +379,8 @@ class KitPeer:
                         static_registers=static_registers)
         except ValueError as e:
             raise KitError(f"peer {name}: {e}") from None
+        if net.capture is not None:
+            transact = capture.recording(net, name, ep, transact)
         modem = Modem.in_process(transact, "mdp" if at == "mdp" else "trm", unit=unit)
         modem.connect()
         self.peer = peer
@@ -422,7 +427,7 @@ class Net:
     def __init__(self, workdir, stations=1, *, radio="fast", bitrate=None, slot_gap_ms=None,
                  overhead_bytes=None, loss_down=0.0, loss_up=0.0, burst=0.0, seed=1,
                  static=False, static_registers=123, compiler="stc", trace=True,
-                 semantics=None):
+                 semantics=None, capture_s=None):
         self.workdir = Path(workdir)
         self.workdir.mkdir(parents=True, exist_ok=True)
         base = {"fast": FAST, "realistic": REALISTIC}.get(radio)
@@ -452,6 +457,8 @@ class Net:
         if not self._handle:
             raise KitError(err.value.decode())
         self.trace_path = self.workdir / "emulator-trace.jsonl" if trace else None
+        # the Modbus traffic; a failure's pcapng holds capture_s seconds of it (capture.py)
+        self.capture = capture.ModbusCapture(capture_s) if capture_s else None
         if trace:
             self._check(lib.mipcosim_trace_file(self._handle, str(self.trace_path).encode()))
         self.plcs: dict[str, KitPlc] = {}

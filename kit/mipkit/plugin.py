@@ -15,9 +15,11 @@ test's record numbers), the diagnosis of every MIP block in the PLCs at the faul
 end; sections follow with the radio and Modbus traffic around the fault, and the sequence
 diagram (SVG, the docs' generator) centred on it and the trace around it (gzip) land in
 --mip-results (default results/mip-kit); their paths are properties in JUnit XML
-(mip_fault, mip_diagram, mip_trace). A KitError (a program that does
-not compile, a config mapping an address the program does not declare, an unknown station)
-fails the test with its one line instead of a traceback.
+(mip_fault, mip_diagram, mip_trace). With --mip-capture SECONDS, SECONDS of the Modbus/TCP
+traffic around the fault land there too, as modbus.pcapng.gz for Wireshark (property
+mip_capture). A KitError (a program that does not compile, a config mapping an address the
+program does not declare, an unknown station) fails the test with its one line instead of a
+traceback.
 """
 from __future__ import annotations
 
@@ -42,6 +44,11 @@ def pytest_addoption(parser):
     g.addoption("--mip-trace-lines", type=int, default=40,
                 help="lines of the readable trace around the fault in a failure's report "
                      "(default 40)")
+    g.addoption("--mip-capture", type=float, default=0, metavar="SECONDS",
+                help="keep the Modbus/TCP traffic: a failed test leaves SECONDS virtual "
+                     "seconds of it around the fault as modbus.pcapng.gz beside its diagram, for "
+                     "Wireshark with the dissector mipmb.lua (default 0: off; "
+                     "docs/wireshark.md)")
     g.addoption("--mip-results", default="results/mip-kit",
                 help="where a failed test's sequence diagram and trace go, one folder per test "
                      "(default results/mip-kit, relative to the rootdir: the CI templates' "
@@ -71,6 +78,7 @@ def mip_network(request, tmp_path, mip_compiler):
     def make(stations=1, **kw):
         kw.setdefault("compiler", mip_compiler)
         kw.setdefault("semantics", request.config.getoption("--mip-semantics"))
+        kw.setdefault("capture_s", request.config.getoption("--mip-capture") or None)
         net = Net(tmp_path / f"net{len(nets) + 1}", stations, **kw)
         nets.append(net)
         return net
@@ -107,6 +115,15 @@ def pytest_runtest_makereport(item, call):
     message = str(call.excinfo.value) if call.excinfo is not None else ""
     heads = []
     for k, net in enumerate(nets, 1):
+        if net.capture is not None:
+            from .capture import save_for_report
+            try:
+                title, text, prop = save_for_report(net, outdir / f"net{k}", message)
+                report.user_properties.append(prop)
+                item.user_properties.append(prop)
+            except Exception as e:  # noqa: BLE001 - the capture must not hide the failure
+                title, text = "Modbus capture", f"none: {type(e).__name__}: {e}"
+            report.sections.append((f"mip-kit network {k}: {title}", text))
         if net._handle is None:
             continue
         try:

@@ -436,7 +436,7 @@ class _Parser(argparse.ArgumentParser):
 def _clear(results: Path):
     """An earlier run's report files in results (and its seed-N folders); nothing else."""
     for d in [results] + (sorted(results.glob("seed-*")) if results.is_dir() else []):
-        for pattern in ("sequence-diagram.svg", "emulator-trace-*.jsonl.gz"):
+        for pattern in ("sequence-diagram.svg", "emulator-trace-*.jsonl.gz", "modbus.pcapng.gz"):
             for f in d.glob(pattern):
                 f.unlink()
 
@@ -461,6 +461,10 @@ def main(argv=None):
                          "fault (default 6)")
     ap.add_argument("--trace-lines", type=int, default=40,
                     help="lines of the readable trace around the fault (default 40)")
+    ap.add_argument("--capture", type=float, default=0, metavar="SECONDS",
+                    help="keep the Modbus/TCP traffic: a failure leaves SECONDS virtual "
+                         "seconds of it around the fault beside the diagram as modbus.pcapng.gz, for "
+                         "Wireshark with mipmb.lua (default 0: off; docs/wireshark.md)")
     a = ap.parse_args(argv)
     path = Path(a.scenario)
     name = path.stem
@@ -535,6 +539,9 @@ def _run_one(doc, path, work, results_dir, a, name, seed, tag, say_warnings=lamb
     head, sections = [], []
     try:
         run = Run(doc, path.resolve().parent, work, a.compiler, seed, a.semantics)
+        if getattr(a, "capture", 0) > 0:          # before setup: the PLCs are wired there
+            from .capture import ModbusCapture
+            run.net.capture = ModbusCapture(a.capture)
         run.setup()
         ran = True
         results = run.run()
@@ -552,6 +559,12 @@ def _run_one(doc, path, work, results_dir, a, name, seed, tag, say_warnings=lamb
             props += [(k + tag, v) for k, v in pr]
         except Exception as e:  # noqa: BLE001 - the failure itself is what matters
             head = [f"mip-kit: no report: {type(e).__name__}: {e}"]
+        if run.net.capture is not None:
+            from .capture import save_for_report
+            title, text, prop = save_for_report(run.net, results_dir, msg,  # per seed already
+                                                t_hint=run.when.get(case))
+            sections.append((title, text))
+            props.append((prop[0] + tag, prop[1]))
     summary = None
     if ran:
         try:

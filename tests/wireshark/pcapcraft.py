@@ -10,25 +10,9 @@ from __future__ import annotations
 import struct
 from pathlib import Path
 
+from mipkit.capture import tcp_frame as _frame   # the kit's capture builds the same frames
+
 CLIENT = 40000          # first client port; each server port gets its own connection
-
-
-def _csum(data: bytes) -> int:
-    if len(data) % 2:
-        data += b"\0"
-    s = sum(struct.unpack(f"!{len(data) // 2}H", data))
-    while s >> 16:
-        s = (s & 0xFFFF) + (s >> 16)
-    return ~s & 0xFFFF
-
-
-def _frame(sport, dport, seq, ack, payload: bytes) -> bytes:
-    tcp = struct.pack("!HHIIBBHHH", sport, dport, seq, ack, 5 << 4, 0x18, 65535, 0, 0) + payload
-    ip = struct.pack("!BBHHHBBH4s4s", 0x45, 0, 20 + len(tcp), 0, 0x4000, 64, 6, 0,
-                     bytes([127, 0, 0, 1]), bytes([127, 0, 0, 1]))
-    ip = ip[:10] + struct.pack("!H", _csum(ip)) + ip[12:]
-    eth = b"\0" * 12 + b"\x08\x00"
-    return eth + ip + tcp
 
 
 class Capture:
