@@ -465,16 +465,24 @@ def failure_report(net, message, outdir: Path, window_s=6.0, t_hint=None, title=
                    trace_lines=40):
     """(first lines, [(section title, text)], [(property, value)]) for a failed test or
     scenario on `net`; writes the diagram and the trace around the fault into outdir."""
-    fault = find_fault(net, message, t_hint)
-    head = [f"mip-kit: fault: {fault.text}",
-            f"mip-kit: the blocks at the fault ({fmt_t(fault.t)}):"]
-    at_fault = diagnosis_lines(net, fault.t, hints=True)
-    head += at_fault or ["  (no MIP_Sender, MIP_Receiver, MIP_Link or MIP_BufferSender in the PLCs)"]
+    from .chainreport import chain_fault
+    chain = chain_fault(net)
+    if chain is not None:
+        # a chain (relay to control system): the events and the hop where they stopped, from
+        # what each hop saw; no record of the radio's numbering is the fault here
+        fault = Fault(None, chain.t, chain.line, chain.station)
+        head = [f"mip-kit: fault: {fault.text}"]
+    else:
+        fault = find_fault(net, message, t_hint)
+        head = [f"mip-kit: fault: {fault.text}",
+                f"mip-kit: the blocks at the fault ({fmt_t(fault.t)}):"]
+        at_fault = diagnosis_lines(net, fault.t, hints=True)
+        head += at_fault or ["  (no MIP_Sender, MIP_Receiver, MIP_Link or MIP_BufferSender in the PLCs)"]
     at_end = diagnosis_lines(net, None)
     if at_end:
         head.append(f"mip-kit: the blocks at the end ({fmt_t(net.now)}):")
         head += at_end
-    sections, props = [], []
+    sections, props = [], [("mip_fault_kind", "chain")] if chain is not None else []
     if net.trace_path is None or not net.trace_path.is_file():
         return head, sections, props
     net.flush_trace()
