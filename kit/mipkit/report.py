@@ -30,7 +30,8 @@ _ORDER = ("STATE", "WAITREASON", "WAITFOR", "ERRORID")
 OBSERVE_MS = 100
 # the output that counts the records a receiving block delivered to its program
 RECORDS_DELIVERED = {"MIP_Receiver": "UDIRECORDS", "MIP_Link": "UDIRECORDSRECEIVED"}
-TRACE_KEEP_S = 60.0        # virtual seconds of the trace kept each side of the fault
+TRACE_KEEP_S = 30.0        # virtual seconds of the trace kept each side of the fault (a
+                           # failure's artifacts stay under 200 KB)
 _SCAN = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_uint64)
 
 
