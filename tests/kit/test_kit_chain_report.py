@@ -90,6 +90,8 @@ def test_the_plugin_starts_with_the_hop_and_says_what_differs(example, tmp_path)
                             "at the logger: address 101 value 1 (0.700 s); the reader took them"), out
     assert "E       AssertionError: WinCC OA took 29 of 30 events; the first not taken" in out, out
     assert not any(b in head for b in BOGUS), out
+    assert "assert False" not in out and "E       assert <not within 120 s: the condition was " \
+        "still false at 120.000 s of virtual time>" in out, out
     arts = example / "results" / "mip-kit"
     assert size(arts) < 200_000, f"{arts} holds {size(arts)} bytes"
     assert size(tmp_path / "bt") < 5 * MB, f"pytest's temporary folders keep {size(tmp_path / 'bt')} bytes"
