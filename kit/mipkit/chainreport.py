@@ -99,15 +99,23 @@ def chain_fault(net):
         rest = [e for e in missing if e not in at_relay and e not in delivered]
         n, total = len(missing), len(want)
         head = f"{n} of {total} events of {relay.name} did not reach {far.name}"
+        groups = {"relay": at_relay, "hand-over": delivered, "reader": rest}
+
+        def fault(group, text):
+            """The line of the first event's group; the other groups' counts after it."""
+            where = {"relay": "at the relay", "hand-over": "at the hand-over",
+                     "reader": "after the reader"}
+            others = [f"{len(v)} {where[k]}" for k, v in groups.items() if k != group and v]
+            more = f" (of the others: {', '.join(others)})" if others else ""
+            return ChainFault(f"{head}, {text}{more}", t_of(first), station)
+
         if at_relay and first in at_relay:
-            return ChainFault(
-                f"{head}, stopped at the relay: {_list(at_relay, origin)}; its reader never took "
-                f"them ({relay.report().split(': ', 1)[1]})", t_of(first), station)
+            return fault("relay", f"stopped at the relay: {_list(at_relay, origin)}; its reader "
+                                  f"never took them ({relay.report().split(': ', 1)[1]})")
         if delivered and first in delivered:
-            whom = who[tuple(first)]
-            return ChainFault(
-                f"{head}, stopped at the hand-over: {_list(delivered, origin)}; {whom} "
-                f"(MIP_Receiver) delivered them, {far.name} never took them", t_of(first), station)
+            return fault("hand-over", f"stopped at the hand-over: {_list(delivered, origin)}; "
+                                      f"{who[tuple(first)]} (MIP_Receiver) delivered them, "
+                                      f"{far.name} never took them")
         # the reader took them (the relay let them go) and no receiver delivered them
         senders = [(p, sh) for p, typ, sh in _blocks_at_end(net, relay.plc.name)
                    if typ in ("MIP_Sender", "MIP_BufferSender", "MIP_Link")]
@@ -116,22 +124,20 @@ def chain_fault(net):
                 or any(str(v) not in ("MIP_ERR_NONE", "0") for k, v in sh.items()
                        if k.upper().endswith("ERRORID"))]
         if senders and not busy:
-            return ChainFault(
-                f"{head}, stopped at the logger: {_list(rest, origin)}; the reader took them from "
-                f"the relay ({taken} acknowledged), but no record the sender carried holds them "
-                f"and the sender ended idle with nothing in flight", t_of(first), station)
+            return fault("reader", f"stopped at the logger: {_list(rest, origin)}; the reader took "
+                                   f"them from the relay ({taken} acknowledged), but no record the "
+                                   "sender carried holds them and the sender ended idle with "
+                                   "nothing in flight")
         if busy:
             p, sh = busy[0]
             wait = next((str(v) for k, v in sh.items() if k.upper().endswith("WAITREASON")), "")
             hop = "the radio" if wait in _ON_THE_RADIO else "the sender"
             diag = " ".join(f"{k}={v}" for k, v in sh.items())
-            return ChainFault(
-                f"{head}, stopped at {hop}: {_list(rest, origin)}; the reader took them from the "
-                f"relay, no receiver delivered them, and {p.rsplit('.', 1)[-1]} ended with {diag}",
-                t_of(first), station)
-        return ChainFault(
-            f"{head}, stopped after the reader: {_list(rest, origin)}; the reader took them from "
-            "the relay, no receiver delivered them", t_of(first), station)
+            return fault("reader", f"stopped at {hop}: {_list(rest, origin)}; the reader took them "
+                                   f"from the relay, no receiver delivered them, and "
+                                   f"{p.rsplit('.', 1)[-1]} ended with {diag}")
+        return fault("reader", f"stopped after the reader: {_list(rest, origin)}; the reader took "
+                               "them from the relay, no receiver delivered them")
     # doubled at the control system
     d = dups[0]
     key = next((e for e in want if (e[1] == d.get("offset", d.get("address"))
