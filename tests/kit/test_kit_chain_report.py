@@ -7,9 +7,10 @@ artifacts stay under 200 KB, pytest's temporary folders under 5 MB."""
 import re
 import sys
 
-from kit_helpers import kit_env, mipkit_cli, run
+from kit_helpers import REPO, kit_env, mipkit_cli, run
 
 MB = 1_000_000
+PAGE = (REPO / "docs" / "test-kit.md").read_text()
 
 
 def ack_on_receipt(project):
@@ -52,10 +53,12 @@ def test_acknowledged_before_wincc_took_them_stops_at_the_hand_over(example, tmp
     ack_on_receipt(example)
     lines = scenario(example, tmp_path)
     # WinCC OA is away from 2 s to 5 s: the events of the records the central took meanwhile
-    assert re.fullmatch(r"mip-kit: fault: (\d+) of 12 events of relay did not reach wincc, stopped "
-                        r"at the hand-over: address 17 value 0 \(3\.000 s\), .*; central "
-                        r"WINCCCENTRAL\.RCV \(MIP_Receiver\) delivered them, wincc never took them",
-                        lines[0]), "\n".join(lines)
+    first = ("mip-kit: fault: 4 of 12 events of relay did not reach wincc, stopped at the "
+             "hand-over: address 17 value 0 (3.000 s), address 202 value 1 (3.500 s), address 202 "
+             "value 0 (4.000 s) and 1 more; central WINCCCENTRAL.RCV (MIP_Receiver) delivered "
+             "them, wincc never took them")
+    assert lines[0] == first, "\n".join(lines)
+    assert first in PAGE.splitlines(), "docs/test-kit.md shows another line"
     assert lines[1].startswith("FAIL "), "\n".join(lines)
     assert not any(b in l for l in lines for b in BOGUS), "\n".join(lines)
     results = example / "results" / "mip-kit-chain"
@@ -72,6 +75,8 @@ def test_a_log_that_drops_an_address_stops_at_the_logger(example, tmp_path):
                         "sender carried holds them and the sender ended idle with nothing in "
                         "flight"), "\n".join(lines)
     assert not any(b in l for l in lines for b in BOGUS), "\n".join(lines)
+    shown = "stopped " + lines[0].split(", stopped ", 1)[1]
+    assert f"`{shown}`" in " ".join(PAGE.split()), "docs/test-kit.md shows another line"
     assert size(example / "results") < 200_000, f"results/ holds {size(example / 'results')} bytes"
 
 
