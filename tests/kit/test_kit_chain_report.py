@@ -100,3 +100,17 @@ def test_the_plugin_starts_with_the_hop_and_says_what_differs(example, tmp_path)
     arts = example / "results" / "mip-kit"
     assert size(arts) < 200_000, f"{arts} holds {size(arts)} bytes"
     assert size(tmp_path / "bt") < 5 * MB, f"pytest's temporary folders keep {size(tmp_path / 'bt')} bytes"
+
+
+def test_a_radio_that_loses_every_record_stops_at_the_radio(example, tmp_path):
+    """The same programs, unbroken, over a radio that loses 99.9 % of the telegrams up: the
+    reader took every event, the sender waits for the acknowledgement of its first record."""
+    f = example / "scenarios" / "chain.toml"
+    text = f.read_text()
+    assert text.count("loss_up = 0.1\n") == 1
+    f.write_text(text.replace("loss_up = 0.1\n", "loss_up = 0.999\n"))
+    lines = scenario(example, tmp_path)
+    assert lines[0].startswith("mip-kit: fault: 12 of 12 events of relay did not reach wincc, "
+                               "stopped at the radio: address 200 value 1 (0.500 s), "), lines[0]
+    assert lines[0].endswith(" SND ended with eState=MIP_SND_WAIT_ACK eWaitReason=MIP_WAIT_ACK "
+                             "wWaitFor=1 eErrorId=MIP_ERR_NONE"), lines[0]
