@@ -114,3 +114,18 @@ def test_a_radio_that_loses_every_record_stops_at_the_radio(example, tmp_path):
                                "stopped at the radio: address 200 value 1 (0.500 s), "), lines[0]
     assert lines[0].endswith(" SND ended with eState=MIP_SND_WAIT_ACK eWaitReason=MIP_WAIT_ACK "
                              "wWaitFor=1 eErrorId=MIP_ERR_NONE"), lines[0]
+
+
+def test_an_outstation_that_never_starts_stops_at_the_relay(example, tmp_path):
+    """The outstation left unstarted (%MW0 = 0): its reader never reads, the relay keeps all."""
+    f = example / "scenarios" / "chain.toml"
+    text = f.read_text()
+    old = 'station = 1\nset = { "%MW0" = 1 }'
+    assert text.count(old) == 1
+    f.write_text(text.replace(old, 'station = 1\nset = { "%MW0" = 0 }'))
+    lines = scenario(example, tmp_path)
+    assert lines[0] == ("mip-kit: fault: 12 of 12 events of relay did not reach wincc, stopped at "
+                        "the relay: address 200 value 1 (0.500 s), address 201 value 0 (0.750 s), "
+                        "address 17 value 1 (1.000 s) and 9 more; its reader never took them (12 "
+                        "events (12 scripted), 0 acknowledged, 0 dropped (overflow), 12 still in "
+                        "the recorder)"), lines[0]
