@@ -12,7 +12,9 @@ from __future__ import annotations
 import collections
 from dataclasses import dataclass
 
-from .report import SEC, display_path, enum_name, observer
+import json
+
+from .report import SEC, _window_lines, display_path, enum_name, observer
 
 # the sender's waits that mean its record is out on the radio (no acknowledgement yet)
 _ON_THE_RADIO = {"MIP_WAIT_ACK", "MIP_WAIT_REQUEST", "MIP_WAIT_CONFIRM", "MIP_WAIT_OUT_OF_STEP"}
@@ -58,6 +60,23 @@ def _blocks_at_end(net, plc_name):
                  for (n, t), v in zip(diag, vals)}
         out.append((path, typ, shown))
     return out
+
+
+def _carried_up(net, station, last_s=10):
+    """(telegrams up from `station` carrying a block in the last `last_s` virtual seconds, how
+    many of them the radio delivered), or None without a trace."""
+    if net.trace_path is None or not net.trace_path.is_file():
+        return None
+    net.flush_trace()
+    sent = arrived = 0
+    for line in _window_lines(net.trace_path, max(0, net.now - last_s * SEC), net.now):
+        if '"ev":"radio"' not in line:
+            continue
+        d = json.loads(line)
+        if d.get("st") == station and d.get("dir") != "down" and d.get("regs", 0) >= 1:
+            sent += 1
+            arrived += not d.get("lost")
+    return sent, arrived
 
 
 def _describe(e, origin_ms):
@@ -133,6 +152,18 @@ def chain_fault(net):
             wait = next((str(v) for k, v in sh.items() if k.upper().endswith("WAITREASON")), "")
             hop = "the radio" if wait in _ON_THE_RADIO else "the sender"
             diag = " ".join(f"{k}={v}" for k, v in sh.items())
+            seen = _carried_up(net, station) if hop == "the radio" else None
+            if seen and seen[1]:
+                # the radio delivered the sender's telegrams: the receiving side did not take them
+                rcv = [(q, sq) for pl in net.plcs for q, typ, sq in _blocks_at_end(net, pl)
+                       if typ in ("MIP_Receiver", "MIP_Link") and pl != relay.plc.name]
+                tail = "".join(f", {q.rsplit('.', 1)[-1]} with " + " ".join(f"{k}={v}" for k, v in sq.items())
+                               for q, sq in rcv[:1])
+                return fault("reader", f"stopped at the receiver: {_list(rest, origin)}; the reader "
+                                       f"took them from the relay, the radio delivered {seen[1]} of "
+                                       f"the sender's {seen[0]} telegrams up in the last 10 s, no "
+                                       f"receiver delivered them; {p.rsplit('.', 1)[-1]} ended with "
+                                       f"{diag}{tail}")
             return fault("reader", f"stopped at {hop}: {_list(rest, origin)}; the reader took them "
                                    f"from the relay, no receiver delivered them, and "
                                    f"{p.rsplit('.', 1)[-1]} ended with {diag}")

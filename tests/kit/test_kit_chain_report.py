@@ -129,3 +129,19 @@ def test_an_outstation_that_never_starts_stops_at_the_relay(example, tmp_path):
                         "address 17 value 1 (1.000 s) and 9 more; its reader never took them (12 "
                         "events (12 scripted), 0 acknowledged, 0 dropped (overflow), 12 still in "
                         "the recorder)"), lines[0]
+
+
+def test_a_central_restarted_cold_stops_at_the_receiver(example, tmp_path):
+    """The central restarted cold at 5.3 s (its %MW0 start word gone: MIP_Receiver disabled):
+    the radio still delivers the sender's telegrams, no receiver takes them."""
+    f = example / "scenarios" / "chain.toml"
+    text = f.read_text()
+    old = 'at_s = 4\nrestart = "outstation"\nmode = "kill9"'
+    assert text.count(old) == 1
+    f.write_text(text.replace(old, 'at_s = 5.3\nrestart = "central"\nmode = "cold"'))
+    lines = scenario(example, tmp_path)
+    assert re.fullmatch(r"mip-kit: fault: 7 of 12 events of relay did not reach wincc, stopped at "
+                        r"the receiver: address 17 value 0 \(3\.000 s\), .*; the reader took them "
+                        r"from the relay, the radio delivered (\d+) of the sender's \1 telegrams up "
+                        r"in the last 10 s, no receiver delivered them; SND ended with .*, RCV with "
+                        r"eState=MIP_RCV_DISABLED .*", lines[0]), lines[0]
