@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The whole chain in real time (make run RUN_ARGS=--chain): relay to control system, issue 35.
+"""The whole chain in real time (make run RUN_ARGS=--chain): relay to control system (docs/chain.md).
 
 mip-emulator with a relay (`--relay`, scripted events) -> the outstation soft-PLC
 (plc/outstation_soe.st: MIP_SoeReader -> PLC_SoeLog -> MIP_Sender) -> the emulated radio -> the
