@@ -13,25 +13,27 @@ MB = 1_000_000
 PAGE = (REPO / "docs" / "test-kit.md").read_text()
 
 
+def edit(project, old, new, rel="scenarios/chain.toml"):
+    """A file of the example project with `old` (there once) replaced by `new`."""
+    f = project / rel
+    text = f.read_text()
+    assert text.count(old) == 1, f"{rel} changed: a new anchor for {old!r}"
+    f.write_text(text.replace(old, new))
+
+
 def ack_on_receipt(project):
     """The central acknowledges a record over the radio as soon as MIP_Receiver delivered it,
     before WinCC OA took its events (xAckByCaller := FALSE)."""
-    f = project / "st" / "WinccCentral.st"
-    text = f.read_text()
-    assert text.count("xAckByCaller := TRUE,") == 1, "WinccCentral.st changed: a new anchor"
-    f.write_text(text.replace("xAckByCaller := TRUE,", "xAckByCaller := FALSE,"))
+    edit(project, "xAckByCaller := TRUE,", "xAckByCaller := FALSE,", "st/WinccCentral.st")
 
 
 def drop_address(project):
     """RelayLog says it stored the entries of the addresses ending in 01 (201 of
     scenarios/chain.toml, 101 of tests/test_chain.py) so the reader acknowledges them to the
     relay, but does not keep them. One variant for both: one build."""
-    f = project / "st" / "RelayLog.st"
-    text = f.read_text()
     anchor = "IF xEntryValid AND udiStored - udiSent < UINT_TO_UDINT(uCapacity) THEN\n"
-    assert text.count(anchor) == 1, "RelayLog.st changed: a new anchor"
-    f.write_text(text.replace(anchor, "IF xEntryValid AND WORD_TO_UINT(aEntry[1]) MOD 100 = 1 THEN\n"
-                              "  xStored := TRUE;   (* the deliberate bug *)\nELS" + anchor))
+    edit(project, anchor, "IF xEntryValid AND WORD_TO_UINT(aEntry[1]) MOD 100 = 1 THEN\n"
+                          "  xStored := TRUE;   (* the deliberate bug *)\nELS" + anchor, "st/RelayLog.st")
 
 
 def size(path):
@@ -105,10 +107,7 @@ def test_the_plugin_starts_with_the_hop_and_says_what_differs(example, tmp_path)
 def test_a_radio_that_loses_every_record_stops_at_the_radio(example, tmp_path):
     """The same programs, unbroken, over a radio that loses 99.9 % of the telegrams up: the
     reader took every event, the sender waits for the acknowledgement of its first record."""
-    f = example / "scenarios" / "chain.toml"
-    text = f.read_text()
-    assert text.count("loss_up = 0.1\n") == 1
-    f.write_text(text.replace("loss_up = 0.1\n", "loss_up = 0.999\n"))
+    edit(example, "loss_up = 0.1\n", "loss_up = 0.999\n")
     lines = scenario(example, tmp_path)
     assert lines[0].startswith("mip-kit: fault: 12 of 12 events of relay did not reach wincc, "
                                "stopped at the radio: address 200 value 1 (0.500 s), "), lines[0]
@@ -118,11 +117,7 @@ def test_a_radio_that_loses_every_record_stops_at_the_radio(example, tmp_path):
 
 def test_an_outstation_that_never_starts_stops_at_the_relay(example, tmp_path):
     """The outstation left unstarted (%MW0 = 0): its reader never reads, the relay keeps all."""
-    f = example / "scenarios" / "chain.toml"
-    text = f.read_text()
-    old = 'station = 1\nset = { "%MW0" = 1 }'
-    assert text.count(old) == 1
-    f.write_text(text.replace(old, 'station = 1\nset = { "%MW0" = 0 }'))
+    edit(example, 'station = 1\nset = { "%MW0" = 1 }', 'station = 1\nset = { "%MW0" = 0 }')
     lines = scenario(example, tmp_path)
     assert lines[0] == ("mip-kit: fault: 12 of 12 events of relay did not reach wincc, stopped at "
                         "the relay: address 200 value 1 (0.500 s), address 201 value 0 (0.750 s), "
@@ -134,11 +129,8 @@ def test_an_outstation_that_never_starts_stops_at_the_relay(example, tmp_path):
 def test_a_central_restarted_cold_stops_at_the_receiver(example, tmp_path):
     """The central restarted cold at 5.3 s (its %MW0 start word gone: MIP_Receiver disabled):
     the radio still delivers the sender's telegrams, no receiver takes them."""
-    f = example / "scenarios" / "chain.toml"
-    text = f.read_text()
-    old = 'at_s = 4\nrestart = "outstation"\nmode = "kill9"'
-    assert text.count(old) == 1
-    f.write_text(text.replace(old, 'at_s = 5.3\nrestart = "central"\nmode = "cold"'))
+    edit(example, 'at_s = 4\nrestart = "outstation"\nmode = "kill9"',
+         'at_s = 5.3\nrestart = "central"\nmode = "cold"')
     lines = scenario(example, tmp_path)
     assert re.fullmatch(r"mip-kit: fault: 7 of 12 events of relay did not reach wincc, stopped at "
                         r"the receiver: address 17 value 0 \(3\.000 s\), .*; the reader took them "
