@@ -31,6 +31,9 @@ class DemoError(Exception):
 
 def parse_args(argv):
     p = argparse.ArgumentParser(prog="demo", description=__doc__.splitlines()[0])
+    p.add_argument("--chain", action="store_true",
+                   help="the whole chain instead (docs/chain.md): a relay's events over "
+                        "both PLCs and the radio to a SCADA; `--chain --help` lists its options")
     p.add_argument("--records", type=int, default=5, help="logger records per station (default 5)")
     p.add_argument("--stations", type=int, default=1, help=f"outstations, 1..{L.MAX_STATIONS}")
     p.add_argument("--loss", type=float, default=0.0,

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The whole chain in real time (make run RUN_ARGS=--chain): relay to control system, issue 35.
+"""The whole chain in real time (make run RUN_ARGS=--chain): relay to control system (docs/chain.md).
 
 mip-emulator with a relay (`--relay`, scripted events) -> the outstation soft-PLC
 (plc/outstation_soe.st: MIP_SoeReader -> PLC_SoeLog -> MIP_Sender) -> the emulated radio -> the
@@ -26,6 +26,7 @@ from demo import modem_port_args  # noqa: E402
 from demo import (DemoError, Procs, Progress, Slave, TraceStats, bar, free_port,  # noqa: E402
                   fresh_rundir, radio_args, run_or_fail, start_emulator)
 from mipcosim import chain as C                                         # noqa: E402
+from mipcosim.linetime import handover_polls, handover_timeout_ms       # noqa: E402
 
 
 def parse_args(argv):
@@ -75,6 +76,25 @@ def build_programs(outdir, handover="pull"):
     return res
 
 
+def blocks_timeout(a):
+    """(the MIP blocks' tTimeout in ms, one line saying how it was sized): the radio's 300 ms
+    (3000 ms on the realistic radio) and, the pull way, what the hand-over adds: the central
+    acknowledges a record over the radio only once the SCADA took its last entry, 3 entries a
+    poll (docs/serial.md's rule: mipcosim.linetime)."""
+    from mippeer.scada import BLOCKS
+    radio_ms = 3000 if a.realistic else 300
+    if a.handover == "push":
+        return radio_ms, (f"the MIP blocks' timeout {radio_ms} ms: the radio's; the push way's "
+                          "hand-over adds no wait (the central writes each record to WinCC OA at once)")
+    polls = handover_polls(a.per_record, BLOCKS)
+    add = handover_timeout_ms(a.per_record, BLOCKS, a.scada_interval)
+    return radio_ms + add, (
+        f"the MIP blocks' timeout {radio_ms + add} ms: the radio's {radio_ms} ms + {add} ms for "
+        f"the hand-over ({polls} SCADA polls every {a.scada_interval:g} s: a record of "
+        f"{a.per_record} entries, {BLOCKS} a poll, and the poll it just missed; the central "
+        f"acknowledges a record only once the SCADA took it)")
+
+
 def relay_left(port):
     """The relay's count of entries not yet acknowledged (40601)."""
     from pymodbus.client import ModbusTcpClient
@@ -115,8 +135,9 @@ def run(a):
         trm_port = int(fields["trm"].split(",")[0])
         relay_port = int(fields["relay"].rsplit(":", 1)[-1])
         print(f"demo: {line}", flush=True)
-        params = C.SoeParams(per_record=a.per_record, timeout_ms=3000 if a.realistic else 300,
-                             redundant=push)
+        timeout_ms, sized = blocks_timeout(a)
+        print(f"demo: {sized}", flush=True)
+        params = C.SoeParams(per_record=a.per_record, timeout_ms=timeout_ms, redundant=push)
         cen_port = free_port()
         events_file = rundir / "unicos-events.jsonl"
         if push:
@@ -152,6 +173,15 @@ def run(a):
             slaves.append(sl)
         central.write(0, params.words())
         outst.write(0, params.words())
+        # free ports, chosen at each start (the committed plc/*_soe.conf name fixed ones)
+        cen_use = ("status words" if push else
+                   "the SCADA polls it, the demo reads the status words")
+        print(f"demo: ports (free ones): relay 127.0.0.1:{relay_port}, TRM-810 "
+              f"127.0.0.1:{trm_port}, MDP-810 127.0.0.1:{mdp_port}, "
+              + (f"UNICOS drivers A 127.0.0.1:{uports['A']} and B 127.0.0.1:{uports['B']}, "
+                 if push else "")
+              + f"the central soft-PLC's Modbus slave 127.0.0.1:{cen_port} ({cen_use}), the "
+              f"outstation's 127.0.0.1:{out_port} (status words)", flush=True)
         entries = rundir / "scada-entries.jsonl"
         want = C.expected(events)
         dup_i = (C.PUSH_DUP if push else C.CEN_DUP) - C.CEN_RECORDS   # the receiver's duplicates

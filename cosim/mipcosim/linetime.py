@@ -1,6 +1,8 @@
 """The time a Modbus RTU line takes, and what a serial link adds to the blocks' repeat timeout
 tTimeout: one arithmetic for the tables of docs/serial.md (tests/docs/test_docs_serial.py
-compares them with this module) and the demo's rule (cli.link_timeout_ms, plc/demo.py).
+compares them with this module) and the demo's rule (cli.link_timeout_ms, plc/demo.py). The
+same rule sizes what the chain's hand-over to a polling SCADA adds (handover_timeout_ms,
+plc/demo_chain.py): the steps a round trip waits for in series, times their duration.
 
     python -m mipcosim.linetime      # prints the tTimeout table of docs/serial.md
 
@@ -45,13 +47,33 @@ def record_exchange_chars(registers: int) -> int:
     return 17 + 2 * registers
 
 
+def added_ms(steps: int, step_s: float) -> int:
+    """docs/serial.md's rule: what `steps` steps of step_s seconds, waited for one after the
+    other within a round trip, add to the tTimeout of the link without them; ms, rounded up
+    to 10 ms"""
+    return int(math.ceil(steps * step_s * 100 - 1e-9)) * 10
+
+
 def link_timeout_ms(baud: int, registers: int = 123, frame: str = "8E1",
                     exchanges: int = TIMEOUT_EXCHANGES) -> int:
     """what a serial link at baud adds to tTimeout for records of `registers` registers, ms
     (rounded up to 10 ms)"""
-    chars = record_exchange_chars(registers)
-    s = exchanges * exchange_s(baud, chars, 0, frame)
-    return int(math.ceil(s * 100 - 1e-9)) * 10
+    return added_ms(exchanges, exchange_s(baud, record_exchange_chars(registers), 0, frame))
+
+
+def handover_polls(entries: int, per_poll: int) -> int:
+    """SCADA polls a record of `entries` relay entries waits for at a central that acknowledges
+    it over the radio only once the SCADA took its last entry (plc/central_soe.st,
+    docs/chain.md), the SCADA taking at most `per_poll` entries a poll (3 in the SOE handshake:
+    mippeer.scada.BLOCKS): one poll per `per_poll` entries in series, and one more, the poll the
+    record arrived just after (our choice, the analogue of the exchange in progress)"""
+    return -(-entries // per_poll) + 1
+
+
+def handover_timeout_ms(entries: int, per_poll: int, poll_s: float) -> int:
+    """what that hand-over adds to tTimeout with a poll every poll_s seconds, ms (rounded up to
+    10 ms)"""
+    return added_ms(handover_polls(entries, per_poll), poll_s)
 
 
 def timeout_table(bauds=BAUDS, registers=RECORD_REGISTERS, frame: str = "8E1") -> str:

@@ -675,13 +675,14 @@ class Net:
 
     def run_until(self, condition, within_s, step_s=0.5):
         """Run until condition() is true (checked every step_s of virtual time) or within_s
-        have passed; returns whether it became true."""
+        have passed; returns whether it became true (an until.Until: false, it says so)."""
+        from .until import Until
         end = self.now + int(within_s * SEC)
         while self.now < end:
             self.run_until_time(min(end, self.now + int(step_s * SEC)))
             if condition():
-                return True
-        return False
+                return Until(True, within_s, self.now / SEC)
+        return Until(False, within_s, self.now / SEC)
 
     def stats(self, station=1):
         return S.radio_stats(self.lib, self.sim, [station])

@@ -17,7 +17,8 @@ diagram (SVG, the docs' generator) centred on it and the trace around it (gzip) 
 --mip-results (default results/mip-kit); their paths are properties in JUnit XML
 (mip_fault, mip_diagram, mip_trace). With --mip-capture SECONDS, SECONDS of the Modbus/TCP
 traffic around the fault land there too, as modbus.pcapng.gz for Wireshark (property
-mip_capture). A KitError (a program that does not compile, a config mapping an address the
+mip_capture). After each test its network's folder (the builds, the whole trace) is removed
+from tmp_path. A KitError (a program that does not compile, a config mapping an address the
 program does not declare, an unknown station) fails the test with its one line instead of a
 traceback.
 """
@@ -84,8 +85,13 @@ def mip_network(request, tmp_path, mip_compiler):
         return net
 
     yield make
+    import shutil
     for net in nets:
         net.close()
+        # the builds (the harness's cache keeps them) and the whole trace: megabytes per test
+        # that pytest would keep for its last three runs; a failure's report has copied the
+        # trace around the fault to --mip-results already (pytest_runtest_makereport)
+        shutil.rmtree(net.workdir, ignore_errors=True)
 
 
 @pytest.hookimpl(hookwrapper=True)

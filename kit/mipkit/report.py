@@ -30,7 +30,8 @@ _ORDER = ("STATE", "WAITREASON", "WAITFOR", "ERRORID")
 OBSERVE_MS = 100
 # the output that counts the records a receiving block delivered to its program
 RECORDS_DELIVERED = {"MIP_Receiver": "UDIRECORDS", "MIP_Link": "UDIRECORDSRECEIVED"}
-TRACE_KEEP_S = 60.0        # virtual seconds of the trace kept each side of the fault
+TRACE_KEEP_S = 30.0        # virtual seconds of the trace kept each side of the fault (a
+                           # failure's artifacts stay under 200 KB)
 _SCAN = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_uint64)
 
 
@@ -465,16 +466,24 @@ def failure_report(net, message, outdir: Path, window_s=6.0, t_hint=None, title=
                    trace_lines=40):
     """(first lines, [(section title, text)], [(property, value)]) for a failed test or
     scenario on `net`; writes the diagram and the trace around the fault into outdir."""
-    fault = find_fault(net, message, t_hint)
-    head = [f"mip-kit: fault: {fault.text}",
-            f"mip-kit: the blocks at the fault ({fmt_t(fault.t)}):"]
-    at_fault = diagnosis_lines(net, fault.t, hints=True)
-    head += at_fault or ["  (no MIP_Sender, MIP_Receiver, MIP_Link or MIP_BufferSender in the PLCs)"]
+    from .chainreport import chain_fault
+    chain = chain_fault(net)
+    if chain is not None:
+        # a chain (relay to control system): the events and the hop where they stopped, from
+        # what each hop saw; no record of the radio's numbering is the fault here
+        fault = Fault(None, chain.t, chain.line, chain.station)
+        head = [f"mip-kit: fault: {fault.text}"]
+    else:
+        fault = find_fault(net, message, t_hint)
+        head = [f"mip-kit: fault: {fault.text}",
+                f"mip-kit: the blocks at the fault ({fmt_t(fault.t)}):"]
+        at_fault = diagnosis_lines(net, fault.t, hints=True)
+        head += at_fault or ["  (no MIP_Sender, MIP_Receiver, MIP_Link or MIP_BufferSender in the PLCs)"]
     at_end = diagnosis_lines(net, None)
     if at_end:
         head.append(f"mip-kit: the blocks at the end ({fmt_t(net.now)}):")
         head += at_end
-    sections, props = [], []
+    sections, props = [], [("mip_fault_kind", "chain")] if chain is not None else []
     if net.trace_path is None or not net.trace_path.is_file():
         return head, sections, props
     net.flush_trace()

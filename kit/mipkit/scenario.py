@@ -573,10 +573,14 @@ def _run_one(doc, path, work, results_dir, a, name, seed, tag, say_warnings=lamb
             summary = f"summary: {name}{tag}: none ({type(e).__name__}: {e})"
     if run is not None:
         run.net.close()
+    under = head
+    if ("mip_fault_kind" + tag, "chain") in props and head:
+        print(head[0])          # the chain's fault (the events, the hop) is the first line
+        under = head[1:]
     for k, (c, m) in enumerate(failed):
         print(f"FAIL {c}{tag}: {m}")
         if k == 0:              # the fault and the blocks' diagnosis right under the first
-            for line in head:
+            for line in under:
                 print(line)
     for c, m in results:
         if not m:

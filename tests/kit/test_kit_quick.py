@@ -308,17 +308,22 @@ def test_plugin_green_red_and_one_line_errors(example, tmp_path):
     assert not list((example / "results").rglob("*.so"))
 
 
-def test_passing_run_leaves_only_the_junit_files_in_results(example):
+def test_passing_run_leaves_only_the_junit_files_in_results(example, tmp_path):
     """The templates' commands (the project's tests, a scenario) on a passing project: results/
-    (what CI uploads) holds the JUnit files and nothing else: no build products, no trace."""
+    (what CI uploads) holds the JUnit files and nothing else: no build products, no trace,
+    under 50 KB; pytest's temporary folders keep under 5 MB (each test's network folder, its
+    builds and whole trace, is removed after it)."""
     r = run([sys.executable, "-m", "pytest", "-p", "mipkit.plugin", "-p", "no:cacheprovider", "-q",
-             "--junitxml=results/pytest.xml"], example, kit_env())
+             "--junitxml=results/pytest.xml", f"--basetemp={tmp_path / 'bt'}"], example, kit_env())
     assert r.returncode == 0, r.stdout + r.stderr
     r = mipkit_cli([scenario(example), "--junit", "results/scenario.xml"], example)
     assert r.returncode == 0, r.stdout + r.stderr
     files = [p for p in (example / "results").rglob("*") if p.is_file()]
     assert sorted(p.name for p in files) == ["pytest.xml", "scenario.xml"], files
-    assert sum(p.stat().st_size for p in files) < 1_000_000
+    size = sum(p.stat().st_size for p in files)
+    assert size < 50_000, f"results/ holds {size} bytes"
+    left = sum(p.stat().st_size for p in (tmp_path / "bt").rglob("*") if p.is_file())
+    assert left < 5_000_000, f"pytest's temporary folders keep {left} bytes"
 
 
 def test_ci_templates_run_the_same_commands():

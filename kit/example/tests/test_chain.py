@@ -23,6 +23,12 @@ def chain(net, mip_st_lib, events=EVENTS):
     return out, cen, relay, wincc
 
 
+def short_of(wincc, relay, n):
+    """An assertion's message: what WinCC OA took, and the first events it did not."""
+    return (f"WinCC OA took {len(wincc.unique())} of {n} events; the first not taken "
+            f"(type/bit, address, cause/type, value, time stamp): {relay.missing(wincc)[:2]}")
+
+
 def utc(t_s):
     """WinCC OA's time stamp of an event the relay recorded at virtual time t_s (10 ms)."""
     t = datetime(1970, 1, 1, tzinfo=timezone.utc) + timedelta(milliseconds=ORIGIN_MS + round(t_s * 1000))
@@ -32,14 +38,16 @@ def utc(t_s):
 def test_every_relay_event_reaches_wincc_once_with_its_time_stamp(mip_network, mip_st_lib):
     net = mip_network(radio="realistic", loss_down=0.1, loss_up=0.1, seed=3)
     out, cen, relay, wincc = chain(net, mip_st_lib)
-    assert net.run_until(lambda: len(wincc.unique()) == len(EVENTS), within_s=120)
+    assert net.run_until(lambda: len(wincc.unique()) == len(EVENTS), within_s=120), \
+        short_of(wincc, relay, len(EVENTS))
     net.run_for(2)
     events = wincc.events("A")
     # each event once, in the relay's order, with the relay's time stamp and value
     assert [e["offset"] for e in events] == [w[1] for _, w in EVENTS]
     assert [e["utc"] for e in events] == [utc(t) for t, _ in EVENTS]
     assert [e["value"] for e in events] == [w[0] << 16 | w[3] for _, w in EVENTS]
-    assert not any(3.0 <= e["t_s"] < 6.0 for e in events)     # nothing while WinCC OA was away
+    away = [e["offset"] for e in events if 3.0 <= e["t_s"] < 6.0]
+    assert away == [], f"WinCC OA took events while it was away (3..6 s): offsets {away}"
     assert relay.stats()["entries"] == 0                        # the relay's recorder is empty
     assert out["%MW10"] == len(EVENTS)                          # each stored once at the outstation
     assert out["%MW14"] == 0 and cen["%MW14"] & 1 == 0          # no xError of the MIP blocks
@@ -52,7 +60,8 @@ def test_restarts_of_both_plcs_lose_nothing_and_repeat_nothing(mip_network, mip_
     out.restart("kill9")                   # back with its last RETAIN snapshot
     net.run_for(2.0)
     cen.restart("warm")                    # SIGTERM: a snapshot at the stop
-    assert net.run_until(lambda: len(wincc.unique()) == len(EVENTS), within_s=120)
+    assert net.run_until(lambda: len(wincc.unique()) == len(EVENTS), within_s=120), \
+        short_of(wincc, relay, len(EVENTS))
     net.run_for(2)
     assert relay.missing(wincc) == []
     assert wincc.duplicates("A") == []
@@ -66,9 +75,11 @@ def test_a_burst_larger_than_the_log_waits_in_the_relay(mip_network, mip_st_lib)
     burst = [(3.2, [0x0103, k, 0x0101, k % 2]) for k in range(150)]
     net = mip_network(radio="fast", seed=1)
     out, cen, relay, wincc = chain(net, mip_st_lib, burst)
-    assert net.run_until(lambda: out["RelayStation.lgr.xFull"], within_s=6, step_s=0.05)
+    assert net.run_until(lambda: out["RelayStation.lgr.xFull"], within_s=6, step_s=0.05), \
+        f"RelayLog not full by 6 s: it stored {out['%MW10']} of the burst's 150"
     assert net.now < 6e9                                         # before WinCC OA is back
     assert relay.stats()["entries"] > 0                         # the rest waits in the relay
-    assert net.run_until(lambda: len(wincc.unique()) == len(burst), within_s=120)
+    assert net.run_until(lambda: len(wincc.unique()) == len(burst), within_s=120), \
+        short_of(wincc, relay, len(burst))
     assert [e["offset"] for e in wincc.events("A")] == list(range(150))
     assert relay.stats()["dropped"] == 0 and relay.stats()["entries"] == 0

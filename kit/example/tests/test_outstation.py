@@ -46,7 +46,9 @@ def test_kill9_and_lost_answers(mip_network, mip_st_lib):
     net.lose(1, "up", record=5, times=3)    # record 5 lost three times on the way up
     net.run_for(3)
     out.restart("kill9")                    # kill -9: back to the last periodic snapshot
-    assert net.run_until(lambda: len(central.records) == logged(out) == 150, within_s=300)
+    assert net.run_until(lambda: len(central.records) == logged(out) == 150, within_s=300), \
+        f"central accepted {len(central.records)} records, the outstation logged {logged(out)}, want 150"
     assert [x[3] for x in net.lost] == [5, 5, 5]
-    assert not out["FieldStation.snd.xError"]
+    assert not out["FieldStation.snd.xError"], \
+        "MIP_Sender reported xError (its eErrorId: the report's first lines)"
     assert_records(central.records, expected)
