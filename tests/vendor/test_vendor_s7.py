@@ -4,6 +4,7 @@ programs' place of the located I/O (mipcosim/glue.py), over the emulator in co-s
 record-for-record check of the demo (mipcosim/check.py), and the handshake mistake of the
 family (DONE taken as a level)."""
 import itertools
+import re
 
 import pytest
 
@@ -150,3 +151,30 @@ def test_s7_each_error_once_and_the_transfer_recovers(vendor_workdir, realistic)
         tot = summary(reps)
         assert seen == [s for _n, _f, s in INJECTED]
         assert_exact(ch, finished, reps, tot, "errors")
+
+
+def _buffer_area_optimized(text):
+    """What TIA knows and the stand-in cannot see: MB_DATA_PTR (the glue's buf) lies in an
+    optimized area when the block that declares it has S7_Optimized_Access 'TRUE'."""
+    m = re.search(r"^FUNCTION_BLOCK \"MIP_S7ModbusIo\"\n\{ S7_Optimized_Access := '(\w+)' \}",
+                  text, re.M)
+    assert m, "MIP_S7ModbusIo's attribute line"
+    return m.group(1) == "TRUE"
+
+
+def test_s7_glue_buffer_in_an_optimized_block_fails_with_818c(vendor_workdir):
+    """MB_DATA_PTR must be a standard area: the shipped MIP_S7ModbusIo has standard access;
+    made optimized, every request fails with 16#818C, the sender shows it and ends in
+    MIP_ERR_NO_ACK."""
+    good = glue.GLUE[FAMILY][0].read_text()
+    assert not _buffer_area_optimized(good)
+    bad = good.replace("{ S7_Optimized_Access := 'FALSE' }", "{ S7_Optimized_Access := 'TRUE' }")
+    assert _buffer_area_optimized(bad)
+    wd = vendor_workdir / "s7-optimized"
+    src = sources(FAMILY, wd, bad, roles=("outstation",))
+    r = run_outstation(FAMILY, wd, src, 10, {12: 3, "IO1.MB.SI_AREAOPTIMIZED": True},
+                       extra=("SND.WLINKERROR", "IO1.LASTSTATUS"))
+    errors = L.enum_values("E_MIP_Error")
+    assert r["IO1.LASTSTATUS"] == 0x818C and r["SND.WLINKERROR"] == 0x818C
+    assert r["SRC.UTRANSFERSDONE"] == 0
+    assert r["SRC.WLASTERROR"] == errors["MIP_ERR_NO_ACK"]
