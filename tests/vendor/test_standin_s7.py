@@ -314,3 +314,18 @@ def test_two_instances_on_one_connection_id_get_8200(tmp_path, server):
     plc["INST.REQ"] = False                         # (the stand-ins share one channel: REQ
     plc.scan(8)                                     #  held would keep it; our glue drops it)
     assert plc["INST.NDONE"] >= 1 and plc["INST.NDONE2"] >= 1 and plc["INST.NERROR2"] == 0
+
+
+def test_fault_injection_ends_requests_without_the_wire(tmp_path, server):
+    """SI_Fail (tests only, docs/wiring-s7.md): the next SI_FailCount requests end as if the
+    runtime had reported that status, mapped the way a real one is; then the wire again."""
+    plc = build(tmp_path, server.port)
+    assert request(plc, 6) == (0, 0)
+    n = len(server.log)
+    for fail, status in [(1110, 0x80C8), (1111, 0x80C8), (2, 0x8383), (0x8200, 0x8200)]:
+        plc["INST.MB.SI_FAIL"] = fail
+        plc["INST.MB.SI_FAILCOUNT"] = 1
+        assert request(plc, 6) == (1, status), fail
+        assert plc["INST.MB.SI_FAILCOUNT"] == 0
+    assert len(server.log) == n
+    assert request(plc, 6) == (0, 0) and len(server.log) == n + 1
