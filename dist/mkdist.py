@@ -144,7 +144,25 @@ def scl_one_file(scl: list[tuple[str, str]], version: str) -> str:
     return "".join(out)
 
 
-def readme(order: list[str], version: str) -> str:
+def s7_import_order(scl_names: list[str], repo: Path = REPO) -> list[str]:
+    """The TIA Portal import order of the archive's SCL: the library's blocks as scl_sources
+    gives them (each after the ones it uses), then the S7 glue: MIP_S7ModbusIo before the
+    blocks that hold it (the rest of glue/s7/*.scl by name)."""
+    glue = sorted(p.name for p in (repo / "dist" / GLUE / "s7").glob("*.scl"))
+    first = [n for n in glue if n == "MIP_S7ModbusIo.scl"]
+    return list(scl_names) + [f"{GLUE}/s7/{n}" for n in first + [n for n in glue if n not in first]]
+
+
+def glue_bytes(path: Path) -> bytes:
+    """A glue file's bytes in the archive: the S7 .scl sources as TIA imports them
+    (stc.scl_out.tia_bytes: a BOM when they hold non-ASCII), the others as they are."""
+    from stc.scl_out import tia_bytes
+    if path.suffix == ".scl":
+        return tia_bytes(path.read_text(encoding="utf-8-sig"))
+    return path.read_bytes()
+
+
+def readme(order: list[str], version: str, scl_names: list[str] = ()) -> str:
     lines = [f"{PRODUCT} {version}: MIP chunked transfer blocks in IEC 61131-3 Structured Text",
              "",
              f"Import either the single file {PRODUCT}-{version}.st, or the files of st_lib/",
@@ -159,8 +177,11 @@ def readme(order: list[str], version: str) -> str:
               f"{PRODUCT}-{version}.scl (or the files of scl/, same order) is the library as",
               "TIA Portal SCL external sources for S7-1200/1500: add it under External source",
               "files, then Generate blocks from source (docs/wiring-s7.md). Generated from",
-              "st_lib; never compiled in TIA Portal by this project.",
-              "",
+              "st_lib; never compiled in TIA Portal by this project. TIA Portal import order",
+              "of the separate .scl files (types, then the blocks each after the ones it uses,",
+              "then the S7 glue; Generate blocks from source in this order):", ""]
+    lines += [f"  {i}. {n}" for i, n in enumerate(s7_import_order(scl_names), 1)]
+    lines += ["",
               f"{WIRESHARK} is a Wireshark dissector (Lua) that labels the MIP",
               "registers and counters in a capture of the PLC-modem link (Modbus/TCP).",
               "Install: copy it into Wireshark's personal Lua plugins folder,",
@@ -203,18 +224,19 @@ def build(outdir: Path, xsd: Path | None, repo: Path = REPO) -> list[Path]:
         blocks = render(units, "`st_lib/*.st`")
     finally:
         os.chdir(cwd)
-    members = [(f"{top}/README.txt", readme(order, version).encode()),
+    from stc.scl_out import tia_bytes
+    scl = scl_sources(order, version, repo)
+    members = [(f"{top}/README.txt", readme(order, version, [n for n, _ in scl]).encode()),
                (f"{top}/LICENSE", (repo / "LICENSE").read_bytes()),
                (f"{top}/CHANGELOG.md", (repo / "CHANGELOG.md").read_bytes())]
     members += [(f"{top}/{f}", (repo / f).read_bytes()) for f in order]
-    scl = scl_sources(order, version, repo)
     members += [(f"{top}/{top}.st", concatenated(order, version, repo).encode()),
                 (f"{top}/{top}.xml", xml.encode())]
-    members += [(f"{top}/{name}", text.encode()) for name, text in scl]
-    members += [(f"{top}/{top}.scl", scl_one_file(scl, version).encode()),
+    members += [(f"{top}/{name}", tia_bytes(text)) for name, text in scl]
+    members += [(f"{top}/{top}.scl", tia_bytes(scl_one_file(scl, version))),
                 (f"{top}/blocks.md", blocks.encode()),
                 (f"{top}/{WIRESHARK}", (repo / "dist" / WIRESHARK).read_bytes())]
-    members += [(f"{top}/{f}", (repo / "dist" / f).read_bytes()) for f in glue_files(repo)]
+    members += [(f"{top}/{f}", glue_bytes(repo / "dist" / f)) for f in glue_files(repo)]
     epoch = int(os.environ.get("SOURCE_DATE_EPOCH", DEFAULT_EPOCH))
     tgz = outdir / f"{top}.tar.gz"
     buf = io.BytesIO()

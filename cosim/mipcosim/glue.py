@@ -47,6 +47,7 @@ CALL = {"twincat": (
     "MIP_CdsModbusIo"),
     # S7: MB_CLIENT's 4xxxx addresses (40001 + the 0-based register)
     "s7": (
+    "io{s}.ipAddress[0] := 127;\nio{s}.ipAddress[3] := 1;\n"
     "io{s}(connectId := 1, unitId := {unit}, readAddr := 40001 + {ra},\n"
     "    writeAddr := SEL(pGlueWriteAddr = WORD#0, WORD_TO_UDINT(pGlueWriteAddr), UDINT#{wa}) + 40001,\n"
     "    enable := xRun, writeReq := wrTrig{s},\n"

@@ -20,11 +20,12 @@ def sources(family, workdir, glue_text=None, roles=("outstation", "central")):
 
 
 def run(family, workdir, loss, restart, records=24, per_transfer=7, seed=7,
-        roles=("outstation", "central")):
+        roles=("outstation", "central"), **setup):
     """roles: the sides whose program has the glue (the quick tier: the outstation only, so its
-    central is the example program the chain tests build too)."""
+    central is the example program the chain tests build too); setup: more Setup fields (radio,
+    timeout_ms)."""
     st = Setup(loss=loss, seed=seed, records=records, per_transfer=per_transfer, log_period_ms=50,
-               sources=sources(family, workdir, roles=roles), channel=tuple(roles))
+               sources=sources(family, workdir, roles=roles), channel=tuple(roles), **setup)
     with Chain(st, workdir) as ch:
         if restart != "none":
             ch.run_for(SEC)          # mid read-out
@@ -48,14 +49,15 @@ def assert_exact(ch, finished, reps, tot, restart, records=24):
 
 
 def run_outstation(family, workdir, src, seconds, words, extra=()):
-    """The chain with `src`, the outstation's parameter words set first (%MWn: value); the
+    """The chain with `src`, the outstation's parameter words set first (%MWn: value; a name:
+    the outstation's variable OUTSTATION.<name>); the
     outstation's logger counters and the variables `extra` (OUTSTATION.<name>) after `seconds`
     of virtual time, read while the PLC is still there."""
     st = Setup(seed=7, records=24, per_transfer=7, log_period_ms=50, timeout_ms=300,
                sources=src, channel=tuple(src))
     with Chain(st, workdir) as ch:
         for n, v in words.items():
-            ch.plcs[("out", 1)][f"%MW{n}"] = v
+            ch.plcs[("out", 1)][f"OUTSTATION.{n}" if isinstance(n, str) else f"%MW{n}"] = v
         ch.run_for(seconds * SEC)
         o = ch.plcs[("out", 1)]
         return {n: o[f"OUTSTATION.{n}"] for n in

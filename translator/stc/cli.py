@@ -137,7 +137,7 @@ def run(files, libdirs, outdir, semantics="matiec", werror_portability=False, st
     texts = []
     for f, lib in sources:
         try:
-            with open(f, encoding="utf-8", errors="replace") as fh:
+            with open(f, encoding="utf-8-sig", errors="replace") as fh:   # -sig: a BOM (TIA) is read
                 texts.append((f, fh.read(), lib))
         except OSError as e:
             print(f"stc: error: {f}: {e.strerror}", file=sys.stderr)

@@ -598,6 +598,13 @@ def block_version(version_text):
     return f"{int(major)}.{int(minor)}"
 
 
+def tia_bytes(text):
+    """The bytes of an external source as TIA Portal imports it: UTF-8, with a byte order mark
+    when the text has a character outside ASCII (without one TIA reads the file in the Windows
+    code page and garbles it: issue 47, reported from real imports); ASCII text as it is."""
+    return ("\ufeff" + text).encode("utf-8") if not text.isascii() else text.encode("ascii")
+
+
 def _parsed(paths):
     g = Generator("0.0")
     for p in paths:
@@ -663,8 +670,8 @@ def main(argv=None):
     os.makedirs(a.outdir, exist_ok=True)
     for p, text in out.items():
         dst = os.path.join(a.outdir, os.path.splitext(os.path.basename(p))[0] + ".scl")
-        with open(dst, "w", encoding="utf-8") as f:
-            f.write(text)
+        with open(dst, "wb") as f:
+            f.write(tia_bytes(text))
     return 0
 
 
