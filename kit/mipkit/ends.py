@@ -13,7 +13,7 @@ import hashlib
 import socket
 from pathlib import Path
 
-from .net import MS, SEC, KitError
+from .base import MS, SCAN_FN, SEC, KitError
 
 
 def _device_of(kp, device):
@@ -285,7 +285,6 @@ class KitScada:
 
     def __init__(self, net, name, kp, base=600, poll_ms=100, reack=1.0, down=()):
         from mippeer.scada import Client, SoeMaster
-        from .net import _SCAN
         if kp.plc.slave_port <= 0:
             raise KitError(f"scada {name}: {kp.name}'s config {kp.config} has no [slave] "
                            "section: the SCADA polls the PLC's Modbus slave")
@@ -335,7 +334,7 @@ class KitScada:
         self._seen = set()
         self.master = SoeMaster(self._client, base, sink, reack)
         self.error = None
-        self._scan = _SCAN(self._poll)
+        self._scan = SCAN_FN(self._poll)
         self.pid = net.lib.mipcosim_plc_add(net.sim, ctypes.cast(self._scan, ctypes.c_void_p), 1,
                                             int(poll_ms * MS))
         net._check(0 if self.pid >= 0 else -1)

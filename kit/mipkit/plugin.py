@@ -26,7 +26,8 @@ from __future__ import annotations
 
 import pytest
 
-from .net import KitError, KitWarning, Net
+from .base import KitError, KitWarning
+from .net import Net
 
 _KEY = "_mipkit_nets"
 

@@ -22,8 +22,8 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
-SEC = 1_000_000_000
-MS = 1_000_000
+from .base import MS, SCAN_FN, SEC
+
 BLOCK_TYPES = ("MIP_Sender", "MIP_Receiver", "MIP_Link", "MIP_BufferSender")
 _DIAG = re.compile(r"e\w*State|e\w*WaitReason|w\w*WaitFor|e\w*ErrorId", re.I)
 _ORDER = ("STATE", "WAITREASON", "WAITFOR", "ERRORID")
@@ -32,7 +32,6 @@ OBSERVE_MS = 100
 RECORDS_DELIVERED = {"MIP_Receiver": "UDIRECORDS", "MIP_Link": "UDIRECORDSRECEIVED"}
 TRACE_KEEP_S = 30.0        # virtual seconds of the trace kept each side of the fault (a
                            # failure's artifacts stay under 200 KB)
-_SCAN = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_uint64)
 
 
 def fmt_t(ns):
@@ -135,7 +134,7 @@ class Observer:
         self.accepted = {}      # peer name or "plc PATH" -> [(t, records accepted)]
         self._vars = {}         # plc name -> (plc object, [(path, type, diag, [_Var])])
         self.failed = None
-        self._fn = _SCAN(self._tick)
+        self._fn = SCAN_FN(self._tick)
         lib = net.lib
         self.pid = lib.mipcosim_plc_add(net.sim, ctypes.cast(self._fn, ctypes.c_void_p), 1,
                                         int(period_ms * MS))

@@ -21,7 +21,8 @@ import tomllib
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
-from .net import SEC, KitError, KitWarning, Net
+from .base import SEC, KitError, KitWarning
+from .net import Net
 
 # the keys a scenario may have, per table (anything else is a one-line error)
 KEYS = {
