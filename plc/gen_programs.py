@@ -81,7 +81,7 @@ PARAMS = """\
   pPayload AT %MW4 : WORD;        (* payload registers per record (0: 16) *)
   pSession AT %MW5 : WORD;        (* session number, part of the data *)
   pStation AT %MW6 : WORD;        (* outstation: its address (0: 1) *)
-  pFlags AT %MW7 : WORD;          (* bit 0 polled, bit 1 static mode, bit 2 cyclic I/O (OpenPLC), bit 3 retain, bit 4 window 2 *)
+  pFlags AT %MW7 : WORD;          (* bit 0 polled, bit 1 static mode, bit 2 cyclic I/O (OpenPLC), bit 3 retain, bit 4 window 2, bit 5 hand-over (central, central_bidi) *)
   pLogPeriod AT %MW8 : WORD;      (* ms between logged records (0: all at once) *)
   pTimeout AT %MW9 : WORD;        (* ms, tTimeout of the blocks (0: 2000) *)
   pChunkSize AT %MW10 : WORD;     (* registers per write block incl. header (0: 123); static: the static size *)
