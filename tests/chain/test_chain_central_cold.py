@@ -29,12 +29,19 @@ SEEDS = (11, 12)               # the peer's logger data of transfer 1 and 2
 
 
 @pytest.fixture(scope="module")
-def central_exe(tmp_path_factory):
+def builds(tmp_path_factory):
     if not EMU.is_file():
         pytest.fail(f"{EMU} not built: run make first", pytrace=False)
     from plcharness.build import build_program
     out = tmp_path_factory.mktemp("central-cold-build")
-    return build_program(L.program_sources("central", False), out / "central").executable
+    cache = {}
+
+    def exe(bidi):
+        if bidi not in cache:
+            cache[bidi] = build_program(L.program_sources("central", bidi),
+                                        out / f"central{'_bidi' if bidi else ''}").executable
+        return cache[bidi]
+    return exe
 
 
 class ControlSystem:
@@ -58,8 +65,8 @@ class ControlSystem:
 
 
 class Run:
-    def __init__(self, tmp, exe, handover):
-        self.tmp, self.exe, self.handover = tmp, exe, handover
+    def __init__(self, tmp, exe, handover, layout="uni"):
+        self.tmp, self.exe, self.handover, self.layout = tmp, exe, handover, layout
         self.procs = demo.Procs()
         self.mdp, self.trm = start_emulator(self.procs, tmp, seed=5, radio=FAST_RADIO)
         self.cs = ControlSystem()
@@ -90,6 +97,7 @@ class Run:
         """One `mip-peer outstation` run: a transfer of RECORDS records, until the peer saw its
         16#FFFF acknowledged (it exits 0 then)."""
         peer = subprocess.Popen(PEER + ["outstation", "--port", str(self.trm), "--unit", "1",
+                                        "--layout", self.layout,
                                         "--records", str(RECORDS), "--record-size", str(SIZE),
                                         "--seed", str(seed), "--period", "0.02",
                                         "--retransmit", "0.5", "--linger", "0.2",
@@ -115,8 +123,11 @@ def want(seed):
     return logger_records(RECORDS, SIZE, seed)
 
 
-def test_central_handover_cold_restart_after_a_transfer_loses_nothing(central_exe, tmp_path):
-    run = Run(tmp_path, central_exe, handover=True)
+@pytest.mark.parametrize("layout", ["uni", "bi"])
+def test_central_handover_cold_restart_after_a_transfer_loses_nothing(builds, tmp_path, layout):
+    """plc/central.st (MIP_Receiver) and, in the note's layout 2.2, plc/central_bidi.st
+    (MIP_Link; its own stream down to the station runs beside)."""
+    run = Run(tmp_path, builds(layout == "bi"), handover=True, layout=layout)
     try:
         run.transfer(SEEDS[0])
         run.restart_cold()
@@ -134,12 +145,11 @@ def test_central_handover_cold_restart_after_a_transfer_loses_nothing(central_ex
     assert (w[L.R_TRANSFERS], w[L.R_FAILED]) == (1, 0)
 
 
-def test_central_without_handover_cold_restart_loses_the_acknowledged_transfer(central_exe,
-                                                                              tmp_path):
+def test_central_without_handover_cold_restart_loses_the_acknowledged_transfer(builds, tmp_path):
     """docs/protocol.md: without the hand-over (acknowledged on receipt, volatile store) a cold
     restart after the acknowledgement loses what the central held, with no error anywhere. When
     this test fails, the limitation is gone: change the guarantee table."""
-    run = Run(tmp_path, central_exe, handover=False)
+    run = Run(tmp_path, builds(False), handover=False)
     try:
         run.transfer(SEEDS[0])
         before = run.words()
