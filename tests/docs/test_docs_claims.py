@@ -151,3 +151,103 @@ def test_guarantee_table_cold_restart_row_names_what_the_caller_must_do():
     assert "xAckByCaller := xHandOver" in gen and "(pFlags AND 16#0020)" in gen, \
         "plc/central.st no longer hands over with flags bit 5: change the guarantee table's row"
     assert (REPO / "tests" / "chain" / "test_chain_central_cold.py").is_file()
+
+
+def test_plc_readme_names_every_program():
+    """plc/README.md said gen_programs.py "writes the five programs" when it wrote eight: its
+    file table names every plc/*.st, and no count of programs."""
+    text = (REPO / "plc" / "README.md").read_text()
+    cells = " ".join(table_first_column(text, "file"))
+    missing = [p.name for p in sorted((REPO / "plc").glob("*.st")) if f"`{p.name}`" not in cells]
+    assert not missing, f"plc/README.md's file table does not name {missing}"
+    for word in re.findall(r"\bthe (\w+) programs\b", text):
+        assert word.lower() not in NUMBERS, f"plc/README.md counts 'the {word} programs'"
+
+
+def test_translator_not_supported_list_is_the_reject_corpus():
+    """translator/README.md's "Not supported:" list: each construct has a file in
+    tests/translator/reject/ (run by test_stc_corpus.py::test_reject, which fails once stc
+    accepts it: then take it off the list)."""
+    corpus = {
+        "WSTRING": ["unsupported_wstring.st"],
+        "`STRING[n]`": ["string_20.st"],
+        "TIME_TO_STRING / STRING_TO_TIME": ["unsupported_time_to_string.st",
+                                            "unsupported_string_to_time.st"],
+        "DATE/TOD/DT": ["unsupported_date.st", "unsupported_tod.st", "unsupported_dt.st"],
+        "SINGLE tasks": ["unsupported_single_task.st"],
+        "program instance arguments": ["unsupported_program_arguments.st"],
+        "FB instances as VAR_GLOBAL": ["unsupported_fb_global.st"],
+    }
+    text = (REPO / "translator" / "README.md").read_text()
+    listed = re.search(r"^Not supported: (.*)\.$", text, re.M).group(1).split(", ")
+    assert listed == list(corpus), f"translator/README.md's Not supported list changed: {listed}"
+    assert "A FUNCTION returning a STRUCT is\nnot implemented by stc" in text
+    corpus["FUNCTION returning a STRUCT"] = ["function_returns_struct.st"]
+    for what, files in corpus.items():
+        for f in files:
+            assert (REPO / "tests" / "translator" / "reject" / f).is_file(), f"{what}: {f}"
+
+
+def test_kit_openplc_configs_get_no_address_check(tmp_path):
+    """docs/test-kit.md: an OpenPLC mbconfig.cfg is loaded, but the address check applies to
+    plcrt configs only: a .cfg whose devices land where the program declares nothing passes."""
+    from types import SimpleNamespace
+
+    from mipkit.net import check_config
+    gen = tmp_path / "build" / "gen"
+    gen.mkdir(parents=True)
+    (gen / "LOCATED_VARIABLES.h").write_text("__LOCATED_VAR(INT,__MW0,M,W,0)\n")
+    cfg = tmp_path / "mbconfig.cfg"
+    cfg.write_text((REPO / "plc" / "openplc" / "central-mbconfig.cfg").read_text())
+    conf = tmp_path / "plcrt.conf"
+    conf.write_text("[device mdp]\nhost = 127.0.0.1\nport = 1502\n[read]\ndevice = mdp\n"
+                    "address = 198\nsize = 125\nimage = %IW100\ntrigger = %QX1.0\n")
+    build = SimpleNamespace(outdir=tmp_path / "build")
+    with pytest.raises(Exception, match="the program declares none of %IW100"):
+        check_config(build, conf)          # the check works on a plcrt config ...
+    check_config(build, cfg)               # ... and does not look into an mbconfig.cfg
+
+
+def test_kit_stand_ins_have_no_answer_delay():
+    """docs/test-kit.md: the chain's stand-ins answer at once. Their kit classes take no delay
+    (a parameter named like one would end the limitation: change that page)."""
+    import inspect
+
+    from mipkit import ends
+    for cls in (ends.KitUnicos, ends.KitScada, ends.KitRelay):
+        params = [p for p in inspect.signature(cls.__init__).parameters
+                  if re.search(r"delay|latency|answer_ms|response", p)]
+        assert not params, f"{cls.__name__} takes {params}: docs/test-kit.md says they answer at once"
+
+
+# Each item of docs/test-kit.md's "Not (yet) in the kit", with what keeps it true: a test that
+# fails when the limitation goes away, or why none can.
+KIT_LIMITS = {
+    "does not carry the kit": "tests/dist/test_dist.py::test_archive_carries_no_kit",
+    "the address check above applies":
+        "tests/docs/test_docs_claims.py::test_kit_openplc_configs_get_no_address_check",
+    "`no_xerror` samples a located address":
+        "why: the kit looks at the PLC between its steps; a sampler cannot see what rose and "
+        "fell between two looks (the program's latch is the remedy the page gives)",
+    "The chain's stand-ins answer at once": "tests/docs/test_docs_claims.py::test_kit_stand_ins_have_no_answer_delay",
+    "`relay.missing(...)` and `expect.reached` check the scripted events":
+        "why: generated events (rate, burst) are drawn inside the emulator's relay, which keeps "
+        "no list of them for the kit to compare one by one; only its counters are read",
+    "A relay or control system is given before the network runs":
+        "tests/kit/test_kit_ends.py::test_relay_bad_input_is_one_line",
+}
+
+
+def test_every_kit_limitation_is_tied_to_a_test_or_says_why():
+    limits = section((REPO / "docs" / "test-kit.md").read_text(), "Not (yet) in the kit")
+    items = [re.sub(r"\s+", " ", i) for i in re.split(r"\n- ", "\n" + limits.strip())[1:]]
+    for item in items:
+        keys = [k for k in KIT_LIMITS if k in item]
+        assert len(keys) == 1, (f"docs/test-kit.md, Not (yet) in the kit: {item[:90]!r} is tied "
+                                f"to no test here (add it to KIT_LIMITS)")
+    for key, tie in KIT_LIMITS.items():
+        assert any(key in i for i in items), f"KIT_LIMITS: {key!r} is no longer on the page"
+        if tie.startswith("why: "):
+            continue
+        path, name = tie.split("::")
+        assert re.search(rf"^def {name}\(", (REPO / path).read_text(), re.M), tie
