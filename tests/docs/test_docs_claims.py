@@ -251,3 +251,53 @@ def test_every_kit_limitation_is_tied_to_a_test_or_says_why():
             continue
         path, name = tie.split("::")
         assert re.search(rf"^def {name}\(", (REPO / path).read_text(), re.M), tie
+
+
+def test_central_many_is_not_retain_as_plc_readme_says():
+    """plc/README.md: "This program is not RETAIN (warm restarts are covered by central.st)"."""
+    text = re.sub(r"\s+", " ", (REPO / "plc" / "README.md").read_text())
+    assert "This program is not RETAIN" in text
+    assert "VAR RETAIN" not in (REPO / "plc" / "central_many.st").read_text(), \
+        "plc/central_many.st is RETAIN now: change plc/README.md"
+    assert "VAR RETAIN" in (REPO / "plc" / "central.st").read_text()
+
+
+# The other limitations the pages state (the sweep of issue 44: "not supported / not yet / needs
+# X / only / cannot" in docs/ and the READMEs), each with the test that fails when it goes away,
+# or why no test here can. Statements about the vendors' products (stock OpenPLC's 400 registers,
+# its fixed slave_id, Modbus frame sizes) are facts of those products, checked where they are
+# stated (openplc_limits.py, the runtime's config errors), and are not listed.
+OTHER_LIMITS = [
+    ("translator/README.md", "Not supported: WSTRING",
+     "tests/docs/test_docs_claims.py::test_translator_not_supported_list_is_the_reject_corpus"),
+    ("docs/protocol.md", "| `uWindow` = 2 | pipelined",
+     "tests/docs/test_docs_claims.py::test_guarantee_table_window_row_matches_mip_sender"),
+    ("docs/protocol.md", "A caller that acknowledges on receipt into volatile memory",
+     "tests/chain/test_chain_central_cold.py::test_central_without_handover_cold_restart_loses_the_acknowledged_transfer"),
+    ("plc/README.md", "This program is not RETAIN",
+     "tests/docs/test_docs_claims.py::test_central_many_is_not_retain_as_plc_readme_says"),
+    ("docs/chain.md", "Not tried on a PLC other than plcrt.",
+     "why: no other PLC runtime is on the project's machines or CI's (vendor runtimes are commercial)"),
+    ("docs/chain.md", "**Not tried against WinCC OA.**",
+     "why: WinCC OA is a commercial product, on no machine of the project"),
+    ("peers/README.md", "Not tried against WinCC OA.",
+     "why: WinCC OA is a commercial product, on no machine of the project"),
+    ("docs/plcopen.md", "Not tested: an import into a particular vendor IDE.",
+     "why: the vendor IDEs are commercial Windows programs, on no machine of the project"),
+    ("docs/wiring-codesys.md", "CI cannot run CODESYS.", "why: CODESYS is commercial; its stand-in is tested"),
+    ("docs/wiring-twincat.md", "CI cannot run TwinCAT.", "why: TwinCAT is commercial; its stand-in is tested"),
+    ("docs/wiring-s7.md", "CI cannot run an S7.", "why: an S7 is hardware; its stand-in is tested"),
+    ("README.md", "run where `iec2c` is on `PATH` and are skipped with that reason where it is not",
+     "why: matiec is in no package registry (the README says how to build it); tests/conftest.py skips with the reason"),
+]
+
+
+@pytest.mark.parametrize("page,words,tie", OTHER_LIMITS, ids=[f"{p}:{w[:30]}" for p, w, _ in OTHER_LIMITS])
+def test_stated_limitation_is_still_stated_and_tied(page, words, tie):
+    """The registry above stays true: the statement is still on its page (else it went away:
+    take it off the list), and its test exists."""
+    text = re.sub(r"\s+", " ", (REPO / page).read_text())
+    assert words in text, f"{page} no longer says {words!r}: update OTHER_LIMITS"
+    if not tie.startswith("why: "):
+        path, name = tie.split("::")
+        assert re.search(rf"^def {name}\(", (REPO / path).read_text(), re.M), tie
