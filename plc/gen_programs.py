@@ -81,7 +81,7 @@ PARAMS = """\
   pPayload AT %MW4 : WORD;        (* payload registers per record (0: 16) *)
   pSession AT %MW5 : WORD;        (* session number, part of the data *)
   pStation AT %MW6 : WORD;        (* outstation: its address (0: 1) *)
-  pFlags AT %MW7 : WORD;          (* bit 0 polled, bit 1 static mode, bit 2 cyclic I/O (OpenPLC), bit 3 retain, bit 4 window 2 *)
+  pFlags AT %MW7 : WORD;          (* bit 0 polled, bit 1 static mode, bit 2 cyclic I/O (OpenPLC), bit 3 retain, bit 4 window 2, bit 5 hand-over (central, central_bidi) *)
   pLogPeriod AT %MW8 : WORD;      (* ms between logged records (0: all at once) *)
   pTimeout AT %MW9 : WORD;        (* ms, tTimeout of the blocks (0: 2000) *)
   pChunkSize AT %MW10 : WORD;     (* registers per write block incl. header (0: 123); static: the static size *)
@@ -347,10 +347,31 @@ def outstation(bidi):
     return (HEADER.format(doc=doc) + f"PROGRAM {prog}\n" + var_blocks(decl) + "\n".join(code) + "\nEND_PROGRAM\n" + config(prog, "out0"))
 
 
+HANDOVER_VARS = """\
+  xHandOver : BOOL;   (* flags bit 5: a record is acknowledged only once the control system took it *)
+"""
+
+HANDOVER_CODE = """\
+(* flags bit 5, sampled with the other parameters (before xRun is set): the hand-over to the
+   control system (PLC_HandOver) before the acknowledgement *)
+IF NOT xRun THEN
+  xHandOver := (pFlags AND 16#0020) <> 0;
+END_IF;
+"""
+
+
+def handover_vars(s):
+    """The hand-over registers of station s (B+17, B+18) and its PLC_HandOver."""
+    b = peer_base(s)
+    return [f"  ho{s} : PLC_HandOver;",
+            f"  mR{s}Offered AT %MW{b + 17} : WORD;   (* records offered to the control system (hand-over) *)",
+            f"  mR{s}Taken AT %MW{b + 18} : WORD;     (* the control system writes the offered number back once it took the record *)"]
+
+
 def central(bidi):
     prog = "CentralBidi" if bidi else "Central"
-    decl = [PARAMS, PARAM_VARS]
-    code = [PARAM_CODE]
+    decl = [PARAMS, PARAM_VARS, HANDOVER_VARS]
+    code = [HANDOVER_CODE, PARAM_CODE]
     for s in range(1, MAX_STATIONS + 1):
         decl.append(f"  (* ---- station {s} (MDP-810 unit id {s}) *)")
         decl.append(f"  store{s} : PLC_RecordStore;")
@@ -358,6 +379,7 @@ def central(bidi):
             decl += [f"  link{s} : MIP_Link;", f"  src{s} : PLC_LogSource;"]
         else:
             decl.append(f"  rcv{s} : MIP_Receiver;")
+        decl += handover_vars(s)
         decl += located_io(s, f"MDP-810 unit {s}")
         decl += status_vars(s, receiver=True, sender=bidi)
         code += io_before(s)
@@ -381,12 +403,15 @@ def central(bidi):
                 f"     xChunkLast := src{s}.xChunkLast, aRead := rd{s}, xReadValid := xRdValid{s},\n"
                 f"     xReadError := rdErr{s}, wReadStatus := rdSt{s},\n"
                 f"     xWriteDone := xWrDone{s}, xWriteError := wrErr{s}, xRetained := xRetain,\n"
-                f"     wSnapshots := snapSaved);")
-            code.append(f"store{s}(xRecordValid := link{s}.xRecordValid, aRecord := link{s}.aRecord,\n"
+                f"     wSnapshots := snapSaved, xAckByCaller := xHandOver,\n"
+                f"     xRecordProcessed := ho{s}.xProcessed);")
+            code.append(f"ho{s}(xWait := xHandOver, xRecordValid := link{s}.xRecordValid, wTaken := mR{s}Taken);")
+            code.append(f"store{s}(xRecordValid := ho{s}.xStore, aRecord := link{s}.aRecord,\n"
                         f"      uRecordLen := link{s}.uRecordLen, wRecordNumber := link{s}.wRecordNumber,\n"
                         f"      xTransferEnd := link{s}.xRecvTransferEnd,\n"
                         f"      udiFailed := link{s}.udiFailedTransfers, eLastError := link{s}.eRecvErrorId);")
             code += store_out(s, f"store{s}")
+            code.append(f"mR{s}Offered := ho{s}.wOffered;")
             code.append(f"mR{s}Dup := UDINT_TO_WORD(link{s}.udiDuplicates MOD 65536);")
             code.append(f"mR{s}Unexp := UDINT_TO_WORD(link{s}.udiUnexpected MOD 65536);")
             code += source_out(s, f"src{s}", f"link{s}.udiRetransmissions")
@@ -397,12 +422,15 @@ def central(bidi):
                 f"     tTransferTimeout := tTransferTimeout, aRead := rd{s}, xReadValid := xRdValid{s},\n"
                 f"     xReadError := rdErr{s}, wReadStatus := rdSt{s},\n"
                 f"     xWriteDone := xWrDone{s}, xWriteError := wrErr{s}, xRetained := xRetain,\n"
-                f"     wSnapshots := snapSaved);")
-            code.append(f"store{s}(xRecordValid := rcv{s}.xRecordValid, aRecord := rcv{s}.aRecord,\n"
+                f"     wSnapshots := snapSaved, xAckByCaller := xHandOver,\n"
+                f"     xRecordProcessed := ho{s}.xProcessed);")
+            code.append(f"ho{s}(xWait := xHandOver, xRecordValid := rcv{s}.xRecordValid, wTaken := mR{s}Taken);")
+            code.append(f"store{s}(xRecordValid := ho{s}.xStore, aRecord := rcv{s}.aRecord,\n"
                         f"      uRecordLen := rcv{s}.uRecordLen, wRecordNumber := rcv{s}.wRecordNumber,\n"
                         f"      xTransferEnd := rcv{s}.xTransferEnd,\n"
                         f"      udiFailed := rcv{s}.udiFailedTransfers, eLastError := rcv{s}.eLastErrorId);")
             code += store_out(s, f"store{s}")
+            code.append(f"mR{s}Offered := ho{s}.wOffered;")
             code.append(f"mR{s}Dup := UDINT_TO_WORD(rcv{s}.udiDuplicates MOD 65536);")
             code.append(f"mR{s}Unexp := UDINT_TO_WORD(rcv{s}.udiUnexpected MOD 65536);")
             code += io_after(s, f"rcv{s}")
@@ -410,7 +438,10 @@ def central(bidi):
     code.append("snapReq := " + " OR ".join(f"{fb}{s}.xSnapshotReq" for s in range(1, MAX_STATIONS + 1)) + ";")
     doc = (f"    The central: one {'MIP_Link' if bidi else 'MIP_Receiver'} per outstation "
            f"(MDP-810 unit ids 1..{MAX_STATIONS}),\n    each with a PLC_RecordStore"
-           + (" and a logger of its own sent down to the station." if bidi else "."))
+           + (" and a logger of its own sent down to the station." if bidi else ".")
+           + "\n    Flags bit 5: a record is acknowledged only once the control system took it"
+             " (PLC_HandOver,\n    %MW B+17 offered, B+18 taken), so a cold restart after the"
+             " acknowledgement loses nothing.")
     return (HEADER.format(doc=doc) + f"PROGRAM {prog}\n" + var_blocks(decl) + "\n".join(code) + "\nEND_PROGRAM\n" + config(prog, "cen0"))
 
 

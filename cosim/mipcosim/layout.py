@@ -28,12 +28,15 @@ FFFF = 0xFFFF
 P_START, P_TOTAL_LO, P_TOTAL_HI, P_PER_TRANSFER, P_PAYLOAD, P_SESSION, P_STATION, P_FLAGS, \
     P_LOG_PERIOD, P_TIMEOUT, P_CHUNK, P_TRANSFER_TIMEOUT, P_MAX_RETRIES, P_CYCLIC_WRITE, \
     P_START_LO, P_START_HI = range(16)
-F_POLLED, F_STATIC, F_CYCLIC, F_RETAIN, F_WINDOW2 = 1, 2, 4, 8, 16
-# F_RETAIN: the blocks' xRetained (W1, W2); F_WINDOW2: MIP_Sender's uWindow 2 (P27)
+F_POLLED, F_STATIC, F_CYCLIC, F_RETAIN, F_WINDOW2, F_HANDOVER = 1, 2, 4, 8, 16, 32
+# F_RETAIN: the blocks' xRetained (W1, W2); F_WINDOW2: MIP_Sender's uWindow 2 (P27);
+# F_HANDOVER: the central acknowledges a record only once the control system took it
+# (PLC_HandOver: R_OFFERED / R_TAKEN)
 
 # offsets in a peer block (%MW 100 + 200 (s-1))
 R_SEQ, R_FLAGS, R_NUMBER, R_LEN, R_ERROR, R_REC_LO, R_REC_HI, R_COM_LO, R_COM_HI, R_SUM_A, \
-    R_SUM_B, R_TRANSFERS, R_FAILED, R_DUP, R_UNEXP, R_OPEN_LO, R_OPEN_HI = range(17)
+    R_SUM_B, R_TRANSFERS, R_FAILED, R_DUP, R_UNEXP, R_OPEN_LO, R_OPEN_HI, R_OFFERED, \
+    R_TAKEN = range(19)
 S_BASE = 20
 S_SEQ, S_FLAGS, S_ERROR, S_LOG_LO, S_LOG_HI, S_OUT_LO, S_OUT_HI, S_DONE, S_FAILED, S_RETRANS, \
     S_ALL = range(S_BASE, S_BASE + 11)
@@ -148,6 +151,7 @@ class Params:
     cyclic: bool = False
     retain: bool = False    # the blocks wait for a snapshot before each new record / acknowledgement
     window: int = 1         # MIP_Sender's uWindow: 2 pipelines (P27)
+    handover: bool = False  # the central: acknowledge a record once the control system took it
     log_period_ms: int = 0
     timeout_ms: int = 2000
     chunk: int = 123
@@ -159,7 +163,7 @@ class Params:
     def words(self, start=True):
         flags = (F_POLLED if self.polled else 0) | (F_STATIC if self.static else 0) | \
                 (F_CYCLIC if self.cyclic else 0) | (F_RETAIN if self.retain else 0) | \
-                (F_WINDOW2 if self.window >= 2 else 0)
+                (F_WINDOW2 if self.window >= 2 else 0) | (F_HANDOVER if self.handover else 0)
         return [1 if start else 0, self.records % 65536, self.records // 65536, self.per_transfer,
                 self.payload, self.session, self.station, flags, self.log_period_ms,
                 self.timeout_ms, self.chunk, self.transfer_timeout_s, self.max_retries, 0,
