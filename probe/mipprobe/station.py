@@ -129,7 +129,7 @@ class StationProbe:
 
     def answers(self):
         errs, counts = [], {}
-        for ep, reg in ((self.trm, TRM810.write_count), (self.mdp, MDP810.write_count)):
+        for ep, reg in ((self.mdp, MDP810.write_count), (self.trm, TRM810.write_count)):
             try:
                 counts[ep.ep] = ep.read(reg, 1)[0]
             except ModbusExc as e:
@@ -212,25 +212,36 @@ class StationProbe:
         t0 = time.monotonic()
         span = L + 4
 
+        polls = [0]
+
+        def elsewhere():
+            for s2, trm2 in self.others:
+                try:
+                    if find(trm2.read(TRM810.read_status, span), b) is not None:
+                        return s2, trm2
+                except (NoLink, ModbusExc):
+                    continue
+            return None
+
         def arrived():
             d = self.trm.read(TRM810.read_status, span)
             i = find(d, b)
+            polls[0] += 1
+            if i is None and polls[0] % 10 == 0 and elsewhere():   # another TRM got it
+                return "elsewhere"
             return (i, d) if i is not None else None
         got = self.wait(arrived)
-        if got is None:
-            for s2, trm2 in self.others:
-                try:
-                    d2 = trm2.read(TRM810.read_status, span)
-                except (NoLink, ModbusExc):
-                    continue
-                if find(d2, b) is not None:
-                    self.set("unit id", False,
-                             f"the block written to the MDP under unit id {self.s} arrived at "
-                             f"the TRM given for station {s2} ({trm2.text}), not at "
-                             f"{self.trm.text}: the TRMs' station addresses do not match the "
-                             f"unit ids (unit id = station address, docs/protocol.md §4, our "
-                             f"reading of note §1.1); set the station address of each TRM, or "
-                             f"the unit id of each request of the central PLC")
+        if got is None or got == "elsewhere":
+            found = elsewhere()        # by its content: what was read stays in the registers
+            if found:
+                s2, trm2 = found
+                self.set("unit id", False,
+                         f"the block written to the MDP under unit id {self.s} arrived at "
+                         f"the TRM given for station {s2} ({trm2.text}), not at "
+                         f"{self.trm.text}: the TRMs' station addresses do not match the "
+                         f"unit ids (unit id = station address, docs/protocol.md §4, our "
+                         f"reading of note §1.1); set the station address of each TRM, or "
+                         f"the unit id of each request of the central PLC")
             self.diagnose_silent(b)
         i, d = got
         self.set("unit id", True, f"the block for unit id {self.s} arrived at this TRM")
