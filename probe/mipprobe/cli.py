@@ -164,7 +164,7 @@ def main(argv=None):
         print(f"result: FAIL {len(failed)} of {len(eps)} stations: "
               + ", ".join(f"station {r.station} ({r.verdict().name})" for r in failed) + where)
         return 1
-    print(f"result: ok {len(eps)} stations{where}")
+    print(f"result: ok {len(eps)} station{'s' if len(eps) > 1 else ''}{where}")
     return 0
 
 

@@ -72,7 +72,20 @@ def parse_spec(spec: str, default_unit: int | None):
 def spec_text(s):
     if s["kind"] == "tcp":
         return f"{s['host']}:{s['port']}"
-    return f"rtu:{s['device']}:{s['baud']}:{s['frame']}@{s['unit']}"
+    return f"rtu:{s['device']}:{s['baud']}:{s['frame']}" + (f"@{s['unit']}" if s["unit"] else "")
+
+
+def _serial_reason(s):
+    """why pyserial cannot open the device as pymodbus asks (pymodbus only says it failed)"""
+    import serial
+    try:
+        serial.serial_for_url(s["device"], baudrate=s["baud"], bytesize=int(s["frame"][0]),
+                              parity=s["frame"][1], stopbits=int(s["frame"][2])).close()
+    except Exception as e:      # pyserial raises termios and OS errors as they come
+        return str(getattr(e, "strerror", None) or e)
+    return (f"pymodbus could not open it as {s['frame']}: another program has it open, or it "
+            f"is a pty (the emulator's line), where pymodbus takes only 8N1 (docs/serial.md, "
+            f"parity on a pty)")
 
 
 class Tracer:
@@ -146,7 +159,8 @@ class Endpoint:
                                    bytesize=int(s["frame"][0]), parity=s["frame"][1],
                                    stopbits=int(s["frame"][2]), timeout=self.timeout, retries=0)
             if not c.connect():
-                raise NoLink(f"{self.name} {self.text}: cannot open the serial device")
+                raise NoLink(f"{self.name} {self.text}: cannot open the serial device: "
+                             f"{_serial_reason(s)}")
             _SERIAL[key] = c
         self.client = _SERIAL[key]
 

@@ -142,7 +142,9 @@ class StationProbe:
                 else:
                     errs.append(str(e))
             except NoLink as e:
-                errs.append(str(e))
+                errs.append(str(e) + (f" (over RTU the MDP is silent for a unit id without a "
+                                       f"station: is station {self.s} configured at the MDP?)"
+                                       if ep.ep == "mdp" and ep.spec["kind"] == "rtu" else ""))
         if errs:
             self.set("answers", False, "; ".join(errs))
         self.set("answers", True, f"TRM {self.trm.text} and MDP {self.mdp.text} unit "
