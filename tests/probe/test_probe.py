@@ -267,3 +267,12 @@ def test_ctrl_c_writes_what_it_has(emu, tmp_path):
     assert out.rstrip().splitlines()[-1].startswith("result: INTERRUPTED after 2 of 2 stations; wrote")
     rep = json.loads((tmp_path / "r.json").read_text())
     assert rep["interrupted"] and [s["result"] for s in rep["stations"]] == ["ok", "interrupted"]
+
+
+def test_a_second_run_takes_the_first_runs_blocks_for_nothing(emu):
+    """The read areas keep the last blocks; a run looks for its own (its nonce), so a second
+    probe of the same network is ok again (it once called them damaged)."""
+    e = emu("--stations", 1)
+    for _ in range(2):
+        r = probe("--mdp", f"127.0.0.1:{e.mdp_port}", *trms(e), *QUICK)
+        assert r.returncode == 0 and firsts(r.stdout) == {1: "station 1: ok: every check passed"}, r.stdout
