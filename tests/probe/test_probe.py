@@ -276,3 +276,25 @@ def test_a_second_run_takes_the_first_runs_blocks_for_nothing(emu):
     for _ in range(2):
         r = probe("--mdp", f"127.0.0.1:{e.mdp_port}", *trms(e), *QUICK)
         assert r.returncode == 0 and firsts(r.stdout) == {1: "station 1: ok: every check passed"}, r.stdout
+
+
+@pytest.mark.slow
+def test_three_stations_on_the_realistic_radio_within_three_minutes(tmp_path):
+    """Full tier (about 1.5 minutes): the default 9600 bit/s radio, 20 ms gaps, the defaults of
+    the probe (2 s watch, 10 blocks of 123 registers per station and direction)."""
+    e = Emulator("--stations", 3)
+    try:
+        t0 = time.monotonic()
+        r = probe("--mdp", f"127.0.0.1:{e.mdp_port}", *trms(e), "--report", tmp_path / "r.json",
+                  timeout=400)
+        took = time.monotonic() - t0
+    finally:
+        assert e.stop() == 0
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert took < 180, took
+    assert firsts(r.stdout) == {s: f"station {s}: ok: every check passed" for s in (1, 2, 3)}
+    p = json.loads((tmp_path / "r.json").read_text())["recommended"]
+    # a 123-register block each way plus the ack: 500 ms a slot (emulator/README.md); the
+    # deliveries of three stations' blocks take up to a poll cycle or two
+    assert 250 <= p["poll_cycle_ms"] <= 3000, p
+    assert p["tTimeout_ms"] >= 2 * p["round_trip_ms"], p
