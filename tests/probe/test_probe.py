@@ -244,16 +244,18 @@ def test_unreachable_and_silent_are_one_line_each_and_the_probe_goes_on(emu, tmp
 
 
 def test_ctrl_c_writes_what_it_has(emu, tmp_path):
-    # the realistic radio's slots: station 2's checks are still running when Ctrl-C comes
-    e = Emulator("--stations", 2, "--bitrate", 9600, "--slot-gap-ms", 20)
+    # Ctrl-C comes while station 2 is watched for PLCs (a second after its first check)
+    e = Emulator(*FAST, "--stations", 2)
     try:
         p = subprocess.Popen([str(PROBE), "--mdp", f"127.0.0.1:{e.mdp_port}", *trms(e),
-                              "--watch", "0.2", "--blocks", "2", "--report", tmp_path / "r.json",
+                              "--watch", "1", "--blocks", "2", "--report", tmp_path / "r.json",
                               "--trace", tmp_path / "t.jsonl"],
                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         deadline = time.monotonic() + 60
         while time.monotonic() < deadline:
-            if (tmp_path / "t.jsonl").exists() and '"st": 2' in (tmp_path / "t.jsonl").read_text():
+            # station 2's first check result (station 1 reads station 2's TRM too)
+            if (tmp_path / "t.jsonl").exists() and \
+                    '"ev": "probe", "st": 2' in (tmp_path / "t.jsonl").read_text():
                 break
             time.sleep(0.05)
         p.send_signal(signal.SIGINT)

@@ -124,7 +124,11 @@ def recommend(down_s, up_s, answer_s, baud=None, frame="8E1", registers=123,
     p = {"tTimeout_ms": t_timeout, "uMaxRetries": 0, "uMaxRetries_finite": retries,
          "tTransferTimeout_ms": TRANSFER_TIMEOUTS * t_timeout, "read_period_ms": read_ms,
          "reply_timeout_ms": reply_ms, "round_trip_ms": round(rt_ms, 1),
-         "poll_cycle_ms": round(cycle_ms, 1), "line_ms": line_ms}
+         "poll_cycle_ms": round(cycle_ms, 1), "line_ms": line_ms,
+         # the prediction: a tTimeout below the slowest round trip seen retransmits records
+         # needlessly; an upper bound (the test blocks are full both ways, an acknowledgement
+         # is shorter than a record)
+         "retransmits_below_ms": int(math.ceil(rt_ms)) + line_ms}
     p["why"] = {
         "tTimeout_ms": f"{TIMEOUT_MARGIN:g} x the slowest record round trip (p99 down "
                        f"{percentile(down_s, 99) * 1000:.0f} ms + p99 up "
@@ -135,6 +139,9 @@ def recommend(down_s, up_s, answer_s, baud=None, frame="8E1", registers=123,
         "uMaxRetries": "0 = unlimited: a logger must arrive eventually (wiring.md); "
                        f"{retries} if the application wants xError: fails less than once in "
                        f"{1 / FAIL_RATE:,.0f} records at {design_loss:.0%} loss",
+        "retransmits_below_ms": "a tTimeout below it retransmits records needlessly (at most "
+                                "there: the test blocks are full both ways, acknowledgements "
+                                "are shorter)",
         "tTransferTimeout_ms": f"{TRANSFER_TIMEOUTS} x tTimeout (wiring.md: a few times tTimeout)",
         "read_period_ms": f"half the slowest delivery ({cycle_ms:.0f} ms, about a poll cycle), "
                           f"{READ_PERIOD_MIN_MS}..{READ_PERIOD_MAX_MS} ms: each side reads at "

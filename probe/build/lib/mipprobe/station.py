@@ -65,13 +65,14 @@ class StationResult:
 
 
 def find(data, block):
-    """index of block in data, or -(index + 1) of a damaged copy (its magic and station), or None"""
+    """index of block in data, or -(index + 1) of a damaged copy (its header, station, sequence
+    number and this run's nonce, but not the rest), or None"""
     n = len(block)
     for i in range(len(data) - n + 1):
         if data[i:i + n] == list(block):
             return i
-    for i in range(len(data) - 4):
-        if data[i + 2:i + 5] == [MAGIC[0], MAGIC[1], block[4]] and data[i:i + 2] == [0, 0]:
+    for i in range(len(data) - 6):
+        if data[i:i + 7] == list(block[:7]):
             return -(i + 1)
     return None
 
