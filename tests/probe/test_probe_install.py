@@ -2,6 +2,7 @@
 (py3-none-any, no compiled file), and a fresh venv gets a working `mip-probe --help` from it;
 the kit's wheel carries it too (tests/kit/test_kit_quick.py checks that wheel's contents)."""
 import os
+import shutil
 import subprocess
 import sys
 import zipfile
@@ -15,8 +16,13 @@ NO_INDEX = ("Failed to establish a new connection", "Temporary failure in name r
 
 
 def build_wheel(out):
+    """pip's build of a copy of probe/ (setuptools writes build/ and *.egg-info beside the
+    sources: not into the checkout), offline with this venv's setuptools"""
+    src = Path(out) / "src"
+    shutil.copytree(REPO / "probe", src, ignore=shutil.ignore_patterns("__pycache__", "build",
+                                                                       "*.egg-info"))
     r = subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps",
-                        "--no-build-isolation", "--no-index", "-w", str(out), str(REPO / "probe")],
+                        "--no-build-isolation", "--no-index", "-w", str(out), str(src)],
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
     (whl,) = Path(out).glob("mip_probe-*.whl")
