@@ -16,6 +16,7 @@ from pathlib import Path
 import pytest
 
 from emu_support import FAST, Emulator
+from rt_helpers import free_port
 from wrongnet import FaultProxy, WritingPlc
 
 PROBE = Path(sys.executable).parent / "mip-probe"
@@ -86,6 +87,9 @@ def test_a_correct_network_passes_every_check_and_leaves_its_evidence(emu, tmp_p
     assert f.bad is None and f.events
     assert {d["ev"] for d in f.events} == {"modbus", "probe"}
     assert any(d["ev"] == "modbus" and d.get("wa") == 10 and d["st"] == 2 for d in f.events)
+    f.station = 2
+    state = f.state()                       # the page's diagram of station 2, from the probe's requests
+    assert state["bad"] is None and state["svg"].startswith("<svg") and state["lines"] == len(f.events)
 
 
 def test_a_static_network_passes_with_its_count(emu):
@@ -136,9 +140,7 @@ def test_a_static_trm_with_a_dynamic_mdp_is_named(emu):
 
 def test_a_missing_station_is_named_and_the_probe_goes_on(emu):
     e = emu("--stations", 2)
-    with socket.socket() as sock:           # a port nothing listens on
-        sock.bind(("127.0.0.1", 0))
-        port = sock.getsockname()[1]
+    port = free_port()                      # a port nothing listens on
     r = probe("--mdp", f"127.0.0.1:{e.mdp_port}", "--trm", f"3=127.0.0.1:{port}", *trms(e), *QUICK)
     assert r.returncode == 1
     first = firsts(r.stdout)
