@@ -15,7 +15,7 @@ import time
 from . import __version__
 from .link import Endpoint, SpecError, Tracer, close_serial, parse_spec
 from .report import junit, measured, params_lines, report_json, station_lines
-from .sizing import recommend, st_snippet
+from .sizing import plcrt_master, recommend, st_snippet
 from .station import Options, StationProbe
 
 
@@ -54,6 +54,8 @@ def parse(argv):
                    help="the trace (JSON lines, the emulator's format: mip-view --follow FILE)")
     p.add_argument("--junit", metavar="FILE", help="JUnit XML: one test case per station and check")
     p.add_argument("--st", metavar="FILE", help="the recommended parameters as ST constants")
+    p.add_argument("--plcrt", metavar="FILE",
+                   help="the recommended read period and reply timeout as a plcrt [master] section")
     p.add_argument("--version", action="version", version=f"mip-probe {__version__}")
     a = p.parse_args(argv)
     try:
@@ -151,6 +153,10 @@ def main(argv=None):
                 f.write(st_snippet(params, f"mip-probe {meta['date']}: stations "
                                            f"{', '.join(str(r.station) for r in results)}"))
             written.append(a.st)
+        if a.plcrt and params:
+            with open(a.plcrt, "w", encoding="utf-8") as f:
+                f.write(plcrt_master(params, f"mip-probe {meta['date']}"))
+            written.append(a.plcrt)
     except OSError as e:
         sys.stderr.write(f"mip-probe: error: {e.filename}: {e.strerror}\n")
         return 2

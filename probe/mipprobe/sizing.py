@@ -164,5 +164,17 @@ def st_snippet(p, header=""):
         "END_VAR\n")
 
 
+def plcrt_master(p, header=""):
+    """The parameters for this project's soft-PLC (runtime_shim/README.md, config): its Modbus
+    master's polling period (the read period) and response timeout (the reply timeout); the
+    blocks' own parameters are the program's (comments here, the ST constants in st_snippet)."""
+    return ((f"# {header}\n" if header else "")
+            + f"# the blocks: tTimeout {p['tTimeout_ms']} ms, uMaxRetries {p['uMaxRetries']}, "
+              f"tTransferTimeout {p['tTransferTimeout_ms']} ms (docs/commissioning.md)\n"
+            + "[master]\n"
+            f"polling_period = {p['read_period_ms']}ms\n"
+            f"timeout = {p['reply_timeout_ms']}ms\n")
+
+
 if __name__ == "__main__":
     sys.stdout.write(timeout_table())

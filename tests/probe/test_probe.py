@@ -61,7 +61,7 @@ def test_a_correct_network_passes_every_check_and_leaves_its_evidence(emu, tmp_p
     t0 = time.monotonic()
     r = probe("--mdp", f"127.0.0.1:{e.mdp_port}", *trms(e), "--report", tmp_path / "r.json",
               "--trace", tmp_path / "t.jsonl", "--junit", tmp_path / "j.xml",
-              "--st", tmp_path / "p.st")
+              "--st", tmp_path / "p.st", "--plcrt", tmp_path / "p.conf")
     took = time.monotonic() - t0
     assert r.returncode == 0, r.stdout + r.stderr
     assert took < 30, took
@@ -79,6 +79,7 @@ def test_a_correct_network_passes_every_check_and_leaves_its_evidence(emu, tmp_p
     p = rep["recommended"]
     assert p["tTimeout_ms"] >= 2 * p["round_trip_ms"] and p["tTransferTimeout_ms"] == 5 * p["tTimeout_ms"]
     assert f"MIP_tTimeout : TIME := T#{p['tTimeout_ms']}ms;" in (tmp_path / "p.st").read_text()
+    assert f"[master]\npolling_period = {p['read_period_ms']}ms\n" in (tmp_path / "p.conf").read_text()
     suite = ET.parse(tmp_path / "j.xml").getroot()
     assert suite.get("tests") == "30" and suite.get("failures") == "0"
     # the trace: mip-view --follow reads it without complaint, and it has the probe's requests

@@ -2,7 +2,8 @@
 (tests/docs/test_docs_serial.py) and the parameters mip-probe recommends from its round trips."""
 import pytest
 
-from mipprobe.sizing import link_timeout_ms, percentile, recommend, st_snippet, stats_ms
+from mipprobe.sizing import (link_timeout_ms, percentile, plcrt_master, recommend, st_snippet,
+                             stats_ms)
 
 
 def test_percentiles_are_nearest_rank():
@@ -44,3 +45,21 @@ def test_the_st_snippet_holds_the_values():
     text = st_snippet(p, "site A")
     assert text.splitlines()[0] == "(* site A *)"
     assert "    MIP_tTimeout : TIME := T#300ms;" in text and text.rstrip().endswith("END_VAR")
+
+
+def test_the_plcrt_section_is_what_plcrt_loads(tmp_path):
+    """plcrt's own --check loads the [master] section with a device of the example's kind."""
+    import subprocess
+    from plcharness import build_program
+    from rt_helpers import TINY
+    src = tmp_path / "p.st"
+    src.write_text(TINY)
+    exe = build_program([src], tmp_path / "out", compiler="stc").executable
+    p = recommend([0.3] * 5, [0.3] * 5, [0.002])
+    text = plcrt_master(p, "site A")
+    assert "[master]\npolling_period = 150ms\ntimeout = 1000ms\n" in text
+    cfg = tmp_path / "c.conf"
+    cfg.write_text(text + "[device trm]\nhost = 127.0.0.1\nport = 15021\n")
+    r = subprocess.run([str(exe), "--check", "-c", str(cfg)], capture_output=True, text=True,
+                       timeout=30)
+    assert r.returncode == 0, r.stderr
