@@ -217,13 +217,17 @@ class StationProbe:
 
         polls = [0]
 
+        dead = set()          # other TRMs that did not answer: not asked again (each costs a timeout)
+
         def elsewhere():
             for s2, trm2 in self.others:
+                if s2 in dead:
+                    continue
                 try:
                     if find(trm2.read(TRM810.read_status, span), b) is not None:
                         return s2, trm2
                 except (NoLink, ModbusExc):
-                    continue
+                    dead.add(s2)
             return None
 
         def arrived():
@@ -264,7 +268,9 @@ class StationProbe:
     def diagnose_silent(self, b):
         why = []
         try:
-            fs, status = self.mdp.read(MDP810.field_strength - self.mdp_base, 2)
+            if self.mdp_base:             # the note's register 0 is not addressable then
+                raise ModbusExc(2, "MDP")
+            fs, status = self.mdp.read(MDP810.field_strength, 2)
             why.append("the MDP never heard station %d (field strengths register 0 = 0, note "
                        "§3.1)" % self.s if fs == 0 else
                        f"field strengths -{fs >> 8} / -{fs & 0xFF} dBm (note §3.1)")
