@@ -88,6 +88,19 @@ def test_a_correct_network_passes_every_check_and_leaves_its_evidence(emu, tmp_p
     assert f.bad is None and f.events
     assert {d["ev"] for d in f.events} == {"modbus", "probe"}
     assert any(d["ev"] == "modbus" and d.get("wa") == 10 and d["st"] == 2 for d in f.events)
+    # it writes only where the checklist writes: the first write registers (FC16)
+    assert {(d["fc"], d["wa"]) for d in f.events if "wa" in d} == {(16, 10), (16, 2001)}
+    # and leaves nothing pending: no block waiting, no new data unread, counts back to 0
+    from pymodbus.client import ModbusTcpClient
+    for s in (1, 2, 3):
+        for port, unit, at in ((e.trm_port(s), 1, 2198), (e.mdp_port, s, 198)):
+            c = ModbusTcpClient("127.0.0.1", port=port, timeout=2, retries=0)
+            assert c.connect()
+            status, count = c.read_holding_registers(at, count=2, device_id=unit).registers
+            wcount = c.read_holding_registers(2000 if at == 2198 else 9, count=1,
+                                              device_id=unit).registers[0]
+            c.close()
+            assert (status, wcount) == (0, 0), (s, at, status, wcount)
     f.station = 2
     state = f.state()                       # the page's diagram of station 2, from the probe's requests
     assert state["bad"] is None and state["svg"].startswith("<svg") and state["lines"] == len(f.events)
@@ -189,6 +202,18 @@ def test_a_plc_writing_stops_the_probe_of_its_station(emu):
     assert r.returncode == 1
     assert firsts(r.stdout)[1].startswith("station 1: FAIL quiet: a PLC writes to station 1: TRM ("), r.stdout
     assert "--force" in firsts(r.stdout)[1]
+
+
+def test_force_probes_a_station_a_plc_writes_to(emu):
+    e = emu("--stations", 1)
+    plc = WritingPlc(e.trm_port(1), cycle=0.02)
+    try:
+        r = probe("--mdp", f"127.0.0.1:{e.mdp_port}", *trms(e), "--watch", "0.5", "--blocks", "1",
+                  "--timeout", "1", "--force")
+    finally:
+        plc.stop()
+    assert re.search(r"^  ok   quiet         a PLC writes \(TRM \(\d+ changes in 0.5 s\)\): probing "
+                     r"anyway \(--force\)$", r.stdout, re.M), r.stdout
 
 
 def test_bit_4_that_never_clears_is_named(emu):
