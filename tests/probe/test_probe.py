@@ -152,6 +152,17 @@ def test_a_static_trm_with_a_dynamic_mdp_is_named(emu):
     assert first[2] == "station 2: ok: every check passed"
 
 
+def test_static_counts_that_differ_are_named(emu):
+    """Static modems, 100 registers at the MDP (the emulator), 123 at the TRM (the wrapper)."""
+    e = emu("--stations", 1, "--mode", "static", "--static-registers", 100)
+    px = FaultProxy(e.trm_port(1), static=123)
+    r = probe("--mdp", f"127.0.0.1:{e.mdp_port}", *trms(e, [px.port]), *QUICK)
+    px.close()
+    assert r.returncode == 1
+    assert firsts(r.stdout)[1].startswith("station 1: FAIL transfer mode: static on both, but the "
+                                          "counts differ: MDP 100, TRM 123"), r.stdout
+
+
 def test_a_missing_station_is_named_and_the_probe_goes_on(emu):
     e = emu("--stations", 2)
     port = free_port()                      # a port nothing listens on
