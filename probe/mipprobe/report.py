@@ -74,8 +74,8 @@ def junit(path, results, seconds):
             c = r.checks.get(name)
             tc = ET.Element("testcase", classname=f"mip-probe.station{r.station}", name=name)
             if c is None or c.ok is None:
-                ET.SubElement(tc, "skipped", message="not run: an earlier check failed"
-                              if not r.interrupted else "interrupted")
+                ET.SubElement(tc, "skipped", message=c.text if c is not None else
+                              "interrupted" if r.interrupted else "not run: an earlier check failed")
             elif not c.ok:
                 ET.SubElement(tc, "failure", message=c.text)
             cases.append(tc)

@@ -418,6 +418,9 @@ class StationProbe:
 
     def measure(self):
         n = self.static or self.o.registers
+        if not self.o.blocks:
+            self.r.checks["round trips"] = Check("round trips", None, "not measured (--blocks 0)")
+            return
         res = {"registers": n, "blocks": self.o.blocks}
         for d, send, recv, wreg, sstat, rstat in (
                 ("down", self.mdp, self.trm, MDP810.write_data, MDP810.read_status,

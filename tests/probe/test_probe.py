@@ -339,3 +339,14 @@ def test_three_stations_on_the_realistic_radio_within_three_minutes(tmp_path):
     # deliveries of three stations' blocks take up to a poll cycle or two
     assert 250 <= p["poll_cycle_ms"] <= 3000, p
     assert p["tTimeout_ms"] >= 2 * p["round_trip_ms"], p
+
+
+def test_blocks_0_checks_without_measuring(emu, tmp_path):
+    e = emu("--stations", 1)
+    r = probe("--mdp", f"127.0.0.1:{e.mdp_port}", *trms(e), "--watch", "0.2", "--blocks", "0",
+              "--junit", tmp_path / "j.xml", "--st", tmp_path / "p.st")
+    assert r.returncode == 0, r.stdout
+    assert "  -    round trips   not measured (--blocks 0)" in r.stdout
+    assert "recommended" not in r.stdout and not (tmp_path / "p.st").exists()
+    suite = ET.parse(tmp_path / "j.xml").getroot()
+    assert (suite.get("failures"), suite.get("skipped")) == ("0", "1")
