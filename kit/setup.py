@@ -1,6 +1,7 @@
 """Builds the test kit's wheel from a checkout of mip-logger (docs/test-kit.md).
 
-The wheel holds the repository's own packages as they are (stc, plcharness, mipcosim, mippeer:
+The wheel holds the repository's own packages as they are (stc, plcharness, mipcosim, mippeer,
+mipprobe:
 one model of each thing, nothing copied into kit/) plus what they find in a checkout:
 the runtime's C sources and headers (plcharness/_runtime: every user program is compiled
 against them), libmipcosim.so (mipcosim/_lib: the emulator core and the co-simulation kernel,
@@ -28,11 +29,12 @@ REPO = HERE.parent if (HERE.parent / "translator" / "stc").is_dir() else HERE / 
 # what the wheel is made of, relative to REPO (the source archive carries exactly these)
 NEEDED = ["translator/stc", "runtime_shim/harness/plcharness", "runtime_shim/src",
           "runtime_shim/include", "cosim/mipcosim", "cosim/src/mipcosim.c", "cosim/include",
-          "emulator/src/mipemu.c", "emulator/src/siprotec.c", "emulator/include", "peers/mippeer", "st_lib",
+          "emulator/src/mipemu.c", "emulator/src/siprotec.c", "emulator/include", "peers/mippeer", "probe/mipprobe", "st_lib",
           "docs/tools/seqdiag.py", "plc/openplc_limits.py", "LICENSE"]
 NEEDED += ["dist/wireshark/mipmb.lua"]      # the dissector, for the kit's captures (capture.py)
 PACKAGES = {"stc": "translator/stc", "plcharness": "runtime_shim/harness/plcharness",
-            "mipcosim": "cosim/mipcosim", "mippeer": "peers/mippeer"}
+            "mipcosim": "cosim/mipcosim", "mippeer": "peers/mippeer",
+            "mipprobe": "probe/mipprobe"}
 
 
 def _tree(src: Path, dst: Path, patterns=None):

@@ -26,7 +26,7 @@ from demo import modem_port_args  # noqa: E402
 from demo import (DemoError, Procs, Progress, Slave, TraceStats, bar, free_port,  # noqa: E402
                   fresh_rundir, radio_args, run_or_fail, start_emulator)
 from mipcosim import chain as C                                         # noqa: E402
-from mipcosim.linetime import handover_polls, handover_timeout_ms       # noqa: E402
+from mipprobe.sizing import handover_polls, handover_timeout_ms       # noqa: E402
 
 
 def parse_args(argv):
@@ -80,7 +80,7 @@ def blocks_timeout(a):
     """(the MIP blocks' tTimeout in ms, one line saying how it was sized): the radio's 300 ms
     (3000 ms on the realistic radio) and, the pull way, what the hand-over adds: the central
     acknowledges a record over the radio only once the SCADA took its last entry, 3 entries a
-    poll (docs/serial.md's rule: mipcosim.linetime)."""
+    poll (docs/serial.md's rule: mipprobe.sizing)."""
     from mippeer.scada import BLOCKS
     radio_ms = 3000 if a.realistic else 300
     if a.handover == "push":

@@ -1,4 +1,4 @@
-"""Register maps of the TRM-810 and MDP-810 in MIP mode, and block I/O through pymodbus.
+"""Register maps of the TRM-810 and MDP-810 in MIP mode (from mipprobe.regmap), and block I/O through pymodbus.
 
 Transports: Modbus TCP to the modem (pymodbus's ModbusTcpClient; the command), or a function that
 takes one request ADU and returns the response ADU (`Modem.in_process`; e.g. a simulation that
@@ -8,7 +8,6 @@ requests in a simulation as over TCP.
 """
 
 import logging
-from dataclasses import dataclass
 
 from pymodbus.client import ModbusTcpClient
 from pymodbus.client.base import ModbusBaseSyncClient
@@ -16,19 +15,8 @@ from pymodbus.exceptions import ModbusException
 from pymodbus.framer import FramerType
 from pymodbus.transport import CommParams, CommType
 
-READ_SPAN = 125  # read status + count + a whole 123-register chunk in one consistent FC3
-
-
-@dataclass(frozen=True)
-class RegisterMap:
-    write_count: int   # number of write registers (read only)
-    write_data: int    # first write register: dynamic writes must start here
-    read_status: int   # read status, then count, then the read data
-    capacity: int = 148
-
-
-TRM810 = RegisterMap(write_count=2000, write_data=2001, read_status=2198)
-MDP810 = RegisterMap(write_count=9, write_data=10, read_status=198)
+# the register maps: one definition, in mip-probe's package (pure Python, pymodbus only)
+from mipprobe.regmap import MDP810, READ_SPAN, TRM810, RegisterMap  # noqa: F401
 
 
 # pymodbus logs connection failures itself; we report them once, in our own words.

@@ -50,9 +50,9 @@ def test_make_run_chain_lossless_full_records_are_not_sent_twice(tmp_path):
 
 
 def test_the_handover_timeout_is_serial_mds_rule_over_the_scadas_polls():
-    """What the hand-over adds to the demo's timeout (mipcosim.linetime, the rule of
+    """What the hand-over adds to the demo's timeout (mipprobe.sizing, the rule of
     docs/serial.md): a poll per 3 entries and the one the record just missed, every interval."""
-    from mipcosim.linetime import added_ms, handover_polls, handover_timeout_ms
+    from mipprobe.sizing import added_ms, handover_polls, handover_timeout_ms
     from mippeer.scada import BLOCKS
     assert BLOCKS == 3
     assert [handover_polls(n, BLOCKS) for n in (1, 3, 4, 15)] == [2, 2, 3, 6]

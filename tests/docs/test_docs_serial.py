@@ -1,4 +1,4 @@
-"""docs/serial.md's numbers come from one arithmetic (cosim/mipcosim/linetime.py): the cost of an
+"""docs/serial.md's numbers come from one arithmetic (probe/mipprobe/sizing.py): the cost of an
 exchange and the tTimeout table are compared with it, the table's rule with the demo's, and the
 table's effect is run in the co-simulation (issue 38, item 7)."""
 import math
@@ -10,7 +10,7 @@ from docs_helpers import REPO
 
 from mipcosim import layout as L
 from mipcosim.cli import link_timeout_ms as demo_link_timeout_ms
-from mipcosim.linetime import exchange_s, link_timeout_ms, timeout_table
+from mipprobe.sizing import exchange_s, link_timeout_ms, timeout_table
 
 PAGE = REPO / "docs" / "serial.md"
 
@@ -26,7 +26,7 @@ def test_the_ttimeout_table_is_the_generated_one():
     text = section("Sizing tTimeout on a serial link")
     rows = [ln for ln in text.splitlines() if ln.startswith("|")]
     assert "\n".join(rows) + "\n" == timeout_table(), \
-        "docs/serial.md's tTimeout table is stale: `.venv/bin/python -m mipcosim.linetime` prints it"
+        "docs/serial.md's tTimeout table is stale: `.venv/bin/python -m mipprobe.sizing` prints it"
 
 
 def test_the_123_register_column_is_the_demos_rule():

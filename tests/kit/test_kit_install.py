@@ -58,6 +58,9 @@ def test_example_project_installs_and_runs_outside_the_checkout(tmp_path_factory
     assert scen.get("failures") == "0" and scen.get("tests") == "5"
     suite = ET.parse(project / "results" / "pytest.xml").getroot().find("testsuite")
     assert suite.get("failures") == "0" and int(suite.get("tests")) >= 2
+    # the commissioning tool comes with the kit (issue 48)
+    r = sh(".venv/bin/mip-probe --help", project, env)
+    assert r.returncode == 0 and r.stdout.startswith("usage: mip-probe"), r.stdout + r.stderr
     # nothing of the checkout on the installed packages' path
     r = sh(".venv/bin/python -c 'import stc, plcharness.build as b, mipcosim.sim as s, mippeer, mipkit;"
            "print(stc.__file__, b.RUNTIME_DIR, s.LIBDIR, mipkit.__file__)'", project, env)

@@ -497,12 +497,14 @@ def test_wheel_carries_what_the_kit_needs_and_the_checkout_stays_clean(tmp_path)
     for want in ["stc/cli.py", "stc/st.lark", "plcharness/build.py",
                  "plcharness/_runtime/src/plcrt_main.c", "plcharness/_runtime/include/plcrt.h",
                  "mipcosim/_lib/libmipcosim.so", "mipcosim/_st_lib/MIP_Sender.st",
-                 "mippeer/peer.py", "mipkit/plugin.py", "mipkit/_seqdiag.py"]:
+                 "mippeer/peer.py", "mipprobe/cli.py", "mipprobe/regmap.py", "mipkit/plugin.py",
+                 "mipkit/_seqdiag.py"]:
         assert want in names, want
     assert not [n for n in names if n.endswith((".o", ".pyc"))]
     ep = next(n for n in names if n.endswith("entry_points.txt"))
     text = zipfile.ZipFile(whl).read(ep).decode()
     assert "[pytest11]\nmipkit = mipkit.plugin" in text and "mip-kit = mipkit.scenario:main" in text
+    assert "mip-probe = mipprobe.cli:main" in text      # issue 48: the commissioning tool
 
 
 def test_one_record_at_a_time_passes_assert_records_against_the_note_peer(tmp_path):
