@@ -2,6 +2,7 @@
 (write, then read, as the Modbus spec orders it) and a scripted exception reply, so that every
 documented error of the vendor blocks can be reached."""
 import struct
+import time
 
 from rt_helpers import ModbusServer
 
@@ -10,8 +11,11 @@ class ScriptedServer(ModbusServer):
     def __init__(self, size=3000):
         super().__init__(size=size)
         self.exception = 0          # answer every request with this exception code (0: none)
+        self.delay = 0.0            # seconds before each reply (a slow line behind the server)
 
     def _handle(self, pdu):
+        if self.delay:
+            time.sleep(self.delay)
         fc = pdu[0]
         with self.lock:
             if self.exception:
