@@ -12,12 +12,16 @@ class ScriptedServer(ModbusServer):
         super().__init__(size=size)
         self.exception = 0          # answer every request with this exception code (0: none)
         self.delay = 0.0            # seconds before each reply (a slow line behind the server)
+        self.malformed = False      # answer reads with a byte count that does not fit the request
 
     def _handle(self, pdu):
         if self.delay:
             time.sleep(self.delay)
         fc = pdu[0]
         with self.lock:
+            if self.malformed and fc == 3:
+                self.log.append((fc, "malformed"))
+                return bytes([fc, 2]) + b"\x00\x01"
             if self.exception:
                 self.log.append((fc, "exception", self.exception))
                 return bytes([fc | 0x80, self.exception])

@@ -25,6 +25,7 @@ ERRORS = {
     50: "test_a_request_while_not_connected_ends_request_not_processed",
     51: "test_exception_replies_are_request_exception_with_the_code",
     52: "test_the_modbus_limits_are_a_parameter_error_without_a_request",
+    57: "test_a_reply_that_does_not_fit_is_an_invalid_reply",
     56: "test_a_late_reply_is_a_reply_timeout_after_the_retries (real time, about 2 s)",
     101: "test_a_refused_connection_is_a_socket_error",
     103: "test_clienttcp_reads_its_settings_at_the_rising_edge",
@@ -265,3 +266,18 @@ def test_a_refused_connection_is_a_socket_error(build):
     _connected(plc)
     _edge(plc, "XB", 10)
     assert plc["INST.FBB.XERROR"] and plc["INST.FBB.EERRORID"] == 101
+
+
+def test_a_reply_that_does_not_fit_is_an_invalid_reply(build):
+    """A read of 3 registers answered with 1: the runtime's master refuses the reply (status
+    1071); the stand-in gives InvalidReply (57) (the mapping is our choice; the help names the
+    error "invalid / incomplete reply")."""
+    srv = ScriptedServer()
+    try:
+        plc = build(srv.port)
+        _connected(plc)
+        srv.malformed = True
+        _edge(plc, "XA", 10)
+        assert plc["INST.FBA.XERROR"] and plc["INST.FBA.EERRORID"] == 57
+    finally:
+        srv.close()

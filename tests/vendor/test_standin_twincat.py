@@ -25,7 +25,8 @@ ERRIDS = {
             "test_buffer_too_small_is_8002_without_a_request",
     0x8003: "test_a_read_starts_on_the_edge_and_ends_when_bbusy_falls (nQuantity 0), "
             "test_the_modbus_limits_are_8003_without_a_request",
-    0x8004: "test_exception_replies_are_8000_plus_the_code",
+    0x8004: "test_exception_replies_are_8000_plus_the_code, "
+            "test_a_reply_that_does_not_fit_is_8004 (our choice)",
     0x8006: "test_exception_replies_are_8000_plus_the_code (busy, our choice)",
     0x745: "test_no_answer_is_ads_timeout, test_ttimeout_left_at_zero_fails_at_once",
     0x80070000 + 111: "test_a_refused_connection_is_a_win32_error",
@@ -273,3 +274,16 @@ def test_a_refused_connection_is_a_win32_error(build):
     _edge(plc, "BRD", 10)
     assert plc["INST.FBRD.BERROR"] and not plc["INST.FBRD.BBUSY"]
     assert plc["INST.FBRD.NERRID"] == 0x80070000 + 111
+
+
+def test_a_reply_that_does_not_fit_is_8004(build):
+    """A read of 3 registers answered with 1: the runtime refuses the reply (status 1071); the
+    stand-in gives 16#8004 "Modbus server error" (our choice: the manual has no code for it)."""
+    srv = ScriptedServer()
+    try:
+        plc = build(srv.port)
+        srv.malformed = True
+        _edge(plc, "BRD", 10)
+        assert plc["INST.FBRD.BERROR"] and plc["INST.FBRD.NERRID"] == 0x8004
+    finally:
+        srv.close()
