@@ -1,0 +1,89 @@
+"""`make dist`'s TwinCAT objects (issue 47): twincat/DUTs/*.TcDUT and twincat/POUs/*.TcPOU in
+the archive, one per type and POU of st_lib and of the TwinCAT glue, in TwinCAT's XML; blark
+(the independent TwinCAT parser pinned in requirements.txt) parses every one with 0 errors, and
+each object holds its source's text as it is (declaration + implementation = the .st POU)."""
+import re
+import subprocess
+import sys
+import tarfile
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import blark.parse as blark_parse
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+MKDIST = REPO / "dist" / "mkdist.py"
+
+
+@pytest.fixture(scope="module")
+def twincat(tmp_path_factory):
+    out = tmp_path_factory.mktemp("dist-tc")
+    r = subprocess.run([sys.executable, str(MKDIST), "-o", str(out)], capture_output=True,
+                       text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    (tgz,) = out.glob("*.tar.gz")
+    with tarfile.open(tgz) as t:
+        t.extractall(out / "x", filter="data")
+    (top,) = (out / "x").iterdir()
+    return top / "twincat"
+
+
+def _names(pattern, files):
+    return {m.group(1) for f in files for m in re.finditer(pattern, f.read_text(), re.M)}
+
+
+def _blark_errors(files):
+    errors, parts = [], 0
+    for f in files:
+        root = ET.parse(f).getroot()
+        assert root.tag == "TcPlcObject"
+        (obj,) = list(root)
+        assert obj.tag == ("DUT" if f.suffix == ".TcDUT" else "POU") and obj.get("Name") == f.stem
+        assert re.fullmatch(r"\{[0-9a-f-]{36}\}", obj.get("Id"))
+        for r in blark_parse.parse(f):
+            parts += 1
+            if r.exception is not None:
+                errors.append(f"{f.name}: {str(r.exception).strip().splitlines()[0]}")
+    return errors, parts
+
+
+def test_every_type_and_pou_is_an_object(twincat):
+    duts = sorted((twincat / "DUTs").glob("*.TcDUT"))
+    pous = sorted((twincat / "POUs").glob("*.TcPOU"))
+    srcs = sorted((REPO / "st_lib").glob("*.st")) + sorted(
+        (REPO / "dist" / "glue" / "twincat").glob("*.twincat.st"))
+    want_pous = _names(r"^(?:FUNCTION_BLOCK|FUNCTION|PROGRAM)\s+(\w+)", srcs)
+    assert {p.stem for p in pous} == want_pous
+    assert {"MIP_TcModbusIo", "MAIN_Outstation", "MAIN_Central", "MIP_Sender"} <= want_pous
+    assert {"MIP_T_Block", "MIP_T_ReadBlock", "E_MIP_Error"} <= {d.stem for d in duts}
+    assert (twincat / "README.txt").read_text().count("Add > Existing Item") == 1
+
+
+def test_blark_parses_the_glue_objects_and_their_types(twincat):
+    """Quick tier: the glue's three POUs and the two array types it uses."""
+    files = [twincat / "POUs" / f"{n}.TcPOU" for n in ("MIP_TcModbusIo", "MAIN_Outstation",
+                                                       "MAIN_Central")]
+    files += [twincat / "DUTs" / f"{n}.TcDUT" for n in ("MIP_T_Block", "MIP_T_ReadBlock")]
+    errors, parts = _blark_errors(files)
+    assert errors == [] and parts == 2 * 3 + 2
+
+
+@pytest.mark.slow
+def test_blark_parses_every_object(twincat):
+    """Full tier: st_lib's objects too (blark takes minutes on them on a busy machine)."""
+    files = sorted(twincat.rglob("*.TcDUT")) + sorted(twincat.rglob("*.TcPOU"))
+    errors, parts = _blark_errors(files)
+    assert errors == []
+    assert parts >= len(files)
+
+
+def test_the_glue_object_is_the_glue_file(twincat):
+    """Declaration + implementation + END_FUNCTION_BLOCK = the shipped .st, so the object
+    cannot drift from the file CI runs."""
+    src = (REPO / "dist/glue/twincat/MIP_TcModbusIo.twincat.st").read_text()
+    pou = ET.parse(twincat / "POUs" / "MIP_TcModbusIo.TcPOU").getroot().find("POU")
+    decl = pou.find("Declaration").text
+    impl = pou.find("Implementation/ST").text
+    assert decl.startswith("(* MIP_TcModbusIo:") and decl.rstrip().endswith("END_VAR")
+    assert (decl + "\n" + impl + "END_FUNCTION_BLOCK\n").replace("\n\n\n", "\n\n") == src
