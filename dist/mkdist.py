@@ -19,6 +19,8 @@ mip-logger-<version>/:
     blocks.md                       the block reference (docs/blocks.md, regenerated here)
     wireshark/mipmb.lua             the Wireshark dissector of MIP over Modbus (docs/wireshark.md)
     glue/<family>/*                 the vendor glue (dist/glue/: TwinCAT, CODESYS, S7), with its import steps
+    mip-logger-<version>-<family>.xml  PLCopen XML of the library with the family's glue (twincat,
+                                    codesys), validated against TC6 like the library's
     twincat/DUTs/*.TcDUT,           the library and the TwinCAT glue as the XML objects a TwinCAT 3 PLC
     twincat/POUs/*.TcPOU            project adds (Add > Existing Item...), one type or POU a file,
                                     generated from the .st files (twincat_objects); twincat/README.txt
@@ -291,6 +293,65 @@ def twincat_objects(order: list[str], repo: Path = REPO) -> list[tuple[str, str]
     return out
 
 
+# ---- PLCopen XML of the library with a family's glue (CODESYS, TwinCAT import it)
+PLCOPEN_GLUE = {"codesys": "*.codesys.st", "twincat": "*.twincat.st"}
+
+
+def _iec_comments(text: str) -> str:
+    """The text with each // comment written as (* ... *) (what the declaration reader takes;
+    the POU bodies go into the XML as they are)."""
+    out = []
+    for line in text.split("\n"):
+        quoted, cut = False, None
+        for i, c in enumerate(line):
+            if c == "'":
+                quoted = not quoted
+            elif not quoted and line.startswith("//", i):
+                cut = i
+                break
+        if cut is not None:
+            line = line[:cut] + "(*" + line[cut + 2:].replace("*)", "* )").replace("(*", "( *") + " *)"
+        out.append(line)
+    return "\n".join(out)
+
+
+def plcopen_with_glue(units, order, version, xsd, repo: Path = REPO) -> list[tuple[str, str]]:
+    """[(family, PLCopen XML)]: the library and the family's glue files (dist/glue/<family>/)
+    in one TC6 project, each glue POU's body as in its file; validated when xsd is given."""
+    out = []
+    for fam, pattern in PLCOPEN_GLUE.items():
+        files = sorted((repo / "dist" / GLUE / fam).glob(pattern))
+        with tempfile.TemporaryDirectory() as tmp:
+            glue_units = []
+            # the glue block before the programs that use it
+            for path in sorted(files, key=lambda p: not p.name.startswith("MIP_")):
+                text = path.read_text(encoding="utf-8")
+                where = os.path.relpath(path, repo)
+                copy = Path(tmp) / path.name
+                copy.write_text(_iec_comments(text), encoding="utf-8")
+                try:
+                    unit = parse_file(str(copy))
+                except StError as e:
+                    raise DistError(str(e).replace(str(copy), where)) from None
+                bodies = {name: impl for kind, name, _d, impl in _tc_items(text, where) if impl}
+                for pou in unit.pous:
+                    pou.body = bodies[pou.name].rstrip("\n")
+                unit.file = where
+                for pou in unit.pous:
+                    pou.file = where
+                glue_units.append(unit)
+            xml = export(list(units) + glue_units, f"{PRODUCT}-st_lib-{fam}", "2026-01-01T00:00:00",
+                         order=list(order) + [u.file for u in glue_units], version=version)
+            if xsd is not None:
+                xml_path = Path(tmp) / f"{fam}.xml"
+                xml_path.write_text(xml, encoding="utf-8")
+                errors = validate(str(xsd), str(xml_path))
+                if errors:
+                    raise DistError(errors[0])
+        out.append((fam, xml))
+    return out
+
+
 def build(outdir: Path, xsd: Path | None, repo: Path = REPO) -> list[Path]:
     version = read_version(repo)
     check_changelog(version, repo)
@@ -326,6 +387,8 @@ def build(outdir: Path, xsd: Path | None, repo: Path = REPO) -> list[Path]:
                 (f"{top}/{WIRESHARK}", (repo / "dist" / WIRESHARK).read_bytes())]
     members += [(f"{top}/{f}", (repo / "dist" / f).read_bytes()) for f in glue_files(repo)]
     members += [(f"{top}/{name}", text.encode()) for name, text in twincat_objects(order, repo)]
+    members += [(f"{top}/{top}-{fam}.xml", text.encode())
+                for fam, text in plcopen_with_glue(units, order, version, xsd, repo)]
     epoch = int(os.environ.get("SOURCE_DATE_EPOCH", DEFAULT_EPOCH))
     tgz = outdir / f"{top}.tar.gz"
     buf = io.BytesIO()

@@ -1,4 +1,5 @@
-"""`make dist`'s TwinCAT objects (issue 47): twincat/DUTs/*.TcDUT and twincat/POUs/*.TcPOU in
+"""`make dist`'s files for TwinCAT and CODESYS (issue 47): the PLCopen XML of the library with
+each family's glue, valid against TC6 v2.01 (mkdist validates it); and the TwinCAT objects: twincat/DUTs/*.TcDUT and twincat/POUs/*.TcPOU in
 the archive, one per type and POU of st_lib and of the TwinCAT glue, in TwinCAT's XML; blark
 (the independent TwinCAT parser pinned in requirements.txt) parses every one with 0 errors, and
 each object holds its source's text as it is (declaration + implementation = the .st POU)."""
@@ -14,13 +15,16 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[2]
 MKDIST = REPO / "dist" / "mkdist.py"
+XSD = REPO / "build" / "docs" / "tc6_xml_v201.xsd"
+NS = {"p": "http://www.plcopen.org/xml/tc6_0201"}
 
 
 @pytest.fixture(scope="module")
 def twincat(tmp_path_factory):
+    assert XSD.exists(), f"{XSD.relative_to(REPO)} missing: run `make {XSD.relative_to(REPO)}`"
     out = tmp_path_factory.mktemp("dist-tc")
-    r = subprocess.run([sys.executable, str(MKDIST), "-o", str(out)], capture_output=True,
-                       text=True, timeout=300)
+    r = subprocess.run([sys.executable, str(MKDIST), "--xsd", str(XSD), "-o", str(out)],
+                       capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
     (tgz,) = out.glob("*.tar.gz")
     with tarfile.open(tgz) as t:
@@ -87,3 +91,21 @@ def test_the_glue_object_is_the_glue_file(twincat):
     impl = pou.find("Implementation/ST").text
     assert decl.startswith("(* MIP_TcModbusIo:") and decl.rstrip().endswith("END_VAR")
     assert (decl + "\n" + impl + "END_FUNCTION_BLOCK\n").replace("\n\n\n", "\n\n") == src
+
+
+@pytest.mark.parametrize("family,pous", [
+    ("codesys", ("MIP_CdsModbusIo", "PLC_Outstation", "PLC_Central")),
+    ("twincat", ("MIP_TcModbusIo", "MAIN_Outstation", "MAIN_Central"))])
+def test_plcopen_xml_with_the_glue(twincat, family, pous):
+    """mkdist validated it against the TC6 schema (else no archive); here: the library's blocks
+    and the family's glue POUs are in it, the glue's body as in its file."""
+    (xml,) = twincat.parent.glob(f"*-{family}.xml")
+    root = ET.parse(xml).getroot()
+    names = {p.get("name") for p in root.iterfind(".//p:pou", NS)}
+    assert {"MIP_Sender", "MIP_Receiver", *pous} <= names
+    glue = next(p for p in root.iterfind(".//p:pou", NS) if p.get("name") == pous[0])
+    body = "".join(glue.find("p:body/p:ST", NS).itertext()).strip()
+    src = next((REPO / "dist" / "glue" / family).glob(f"{pous[0]}.*.st")).read_text()
+    assert body and body in src
+    types = {d.get("name") for d in root.iterfind(".//p:derived", NS)}
+    assert any(t.endswith("ModbusFB.ClientTCP") or t.endswith("FB_MBReadRegs") for t in types)
