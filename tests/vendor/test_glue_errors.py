@@ -6,18 +6,16 @@ code in nReadErrId / eReadError, within a bounded number of cycles, and the read
 themselves when the server answers again: never a silent wait. In virtual time, except where a
 real socket has to stay silent."""
 import socket
-import sys
 import threading
 from pathlib import Path
 
 import pytest
 
 REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO / "tests" / "runtime"))
 
-from mipcosim import glue  # noqa: E402
-from plcharness import Plc  # noqa: E402
-from standin_server import ScriptedServer  # noqa: E402
+from mipcosim import glue
+from plcharness import Plc
+from standin_server import ScriptedServer
 
 TYPES = REPO / "st_lib" / "MIP_Types.st"
 
@@ -65,8 +63,6 @@ END_CONFIGURATION
 
 @pytest.fixture
 def build(tmp_path):
-    sys.path.insert(0, str(REPO / "cosim"))
-
     def make(family, port):
         from mipcosim import layout as L
         src = tmp_path / f"main.{family}.st"

@@ -5,17 +5,15 @@ udiTimeOut, first come first served, eErrorID / eException). Every eErrorID of t
 docs/wiring-codesys.md#the-stand-ins that the stand-in produces is reached here; ERRORS says
 which test reaches which."""
 import socket
-import sys
 from pathlib import Path
 
 import pytest
 
 REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO / "tests" / "runtime"))
 
-from plcharness import Plc  # noqa: E402
-from rt_helpers import ModbusServer  # noqa: E402
-from standin_server import ScriptedServer  # noqa: E402
+from plcharness import Plc
+from rt_helpers import ModbusServer
+from standin_server import ScriptedServer
 
 STANDINS = [REPO / "standins" / "StandIn_Channel.twincat.st",
             REPO / "standins" / "codesys" / "ModbusFB.codesys.st"]
@@ -71,8 +69,6 @@ END_CONFIGURATION
 
 @pytest.fixture
 def build(tmp_path):
-    sys.path.insert(0, str(REPO / "cosim"))
-
     def make(port, timeout="1s", fc23=False):
         from mipcosim import layout as L
         src = tmp_path / "main.codesys.st"
