@@ -47,8 +47,9 @@ VAR
   udiReply : UDINT := 50000;
   uiRetries : UINT := 0;
   udiTo : UDINT := 2000000;
+  uiPort : UINT := 502;
 END_VAR
-cli(xConnect := xConn, aIPaddr := ip);
+cli(xConnect := xConn, aIPaddr := ip, uiPort := uiPort);
 fbA(rClient := cli, xExecute := xA, uiStartItem := 5, uiQuantity := uiQtyA, pData := ADR(aA),
     udiReplyTimeout := udiReply, uiMaxRetries := uiRetries, udiTimeOut := udiTo);
 fbB(rClient := cli, xExecute := xB, uiStartItem := 8, uiQuantity := 2, pData := ADR(aB));
@@ -131,6 +132,9 @@ def test_clienttcp_reads_its_settings_at_the_rising_edge(build):
         assert not plc["INST.CLI.XCONNECTED"]        # no edge, no new settings
         _edge(plc, "XCONN", 2)
         assert plc["INST.CLI.XCONNECTED"] and not plc["INST.CLI.XERROR"]
+        plc["INST.UIPORT"] = 0                        # port 0: no server either
+        _edge(plc, "XCONN", 105)
+        assert not plc["INST.CLI.XCONNECTED"] and plc["INST.CLI.EERRORID"] == 103
     finally:
         srv.close()
 
