@@ -24,7 +24,7 @@ CALL = {
                "   tTimeout := T#500MS, xEnable := TRUE, xWriteReq := xWr, aWrite := aW,\n"
                "   uWriteLen := 3);\n",
     "codesys": "io(aIPaddr := ip, uiUnitId := 255, uiReadAddr := 5, uiWriteAddr := 200,\n"
-               "   udiReplyTimeout := 300000, uiMaxRetries := 0, xEnable := TRUE,\n"
+               "   xEnable := TRUE,\n"
                "   xWriteReq := xWr, aWrite := aW, uWriteLen := 3);\n",
 }
 FB = {"twincat": "MIP_TcModbusIo", "codesys": "MIP_CdsModbusIo"}
