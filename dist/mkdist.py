@@ -19,6 +19,11 @@ mip-logger-<version>/:
     blocks.md                       the block reference (docs/blocks.md, regenerated here)
     wireshark/mipmb.lua             the Wireshark dissector of MIP over Modbus (docs/wireshark.md)
     glue/<family>/*                 the vendor glue (dist/glue/: TwinCAT, CODESYS, S7), with its import steps
+    mip-logger-<version>-<family>.xml  PLCopen XML of the library with the family's glue (twincat,
+                                    codesys), validated against TC6 like the library's
+    twincat/DUTs/*.TcDUT,           the library and the TwinCAT glue as the XML objects a TwinCAT 3 PLC
+    twincat/POUs/*.TcPOU            project adds (Add > Existing Item...), one type or POU a file,
+                                    generated from the .st files (twincat_objects); twincat/README.txt
     LICENSE, CHANGELOG.md, README.txt
 
 The import order is the one of docs/blocks.md (every type and block before its first use); it is
@@ -202,6 +207,172 @@ def glue_files(repo: Path = REPO) -> list[str]:
     return sorted(str(p.relative_to(root)) for p in (root / GLUE).glob("*/*") if p.is_file())
 
 
+# ---- TwinCAT 3 XML objects (.TcDUT / .TcPOU): what a TwinCAT PLC project adds as a file
+TC_HEAD = '<?xml version="1.0" encoding="utf-8"?>\n<TcPlcObject Version="1.1.0.1" ProductVersion="3.1.4024.12">\n'
+_TC_MASK = re.compile(r"\(\*.*?\*\)|//[^\n]*|'[^']*'", re.S)
+_TC_ITEM = re.compile(r"^(TYPE|FUNCTION_BLOCK|FUNCTION|PROGRAM)\b", re.M)
+_TC_END = {"TYPE": "END_TYPE", "FUNCTION_BLOCK": "END_FUNCTION_BLOCK", "FUNCTION": "END_FUNCTION",
+           "PROGRAM": "END_PROGRAM"}
+
+
+def _tc_guid(name: str) -> str:
+    """A fixed object id per name (the archive is reproducible)."""
+    import uuid
+    return "{" + str(uuid.uuid5(uuid.NAMESPACE_URL, f"mip-logger/twincat/{name}")) + "}"
+
+
+def _tc_cdata(text: str, where: str) -> str:
+    if "]]>" in text:
+        raise DistError(f"{where}: error: ']]>' cannot go into a TwinCAT object's CDATA")
+    return f"<![CDATA[{text}]]>"
+
+
+def _tc_items(text: str, where: str):
+    """[(kind, name, declaration, implementation)] of one ST file: every TYPE declaration as its
+    own item (a DUT holds one type), every POU split after its last VAR section; the comment
+    right before an item goes into its declaration."""
+    masked = _TC_MASK.sub(lambda m: re.sub(r"[^\n]", " ", m.group()), text)
+    out, prev_end = [], 0
+    for m in _TC_ITEM.finditer(masked):
+        if m.start() < prev_end:
+            continue
+        kind = m.group(1)
+        end = re.compile(rf"^{_TC_END[kind]}\b[^\n]*\n?", re.M).search(masked, m.end())
+        if not end:
+            line = text.count("\n", 0, m.start()) + 1
+            raise DistError(f"{where}:{line}: error: {kind} without {_TC_END[kind]}")
+        gap = text[prev_end:m.start()]
+        lead = gap[gap.rfind("(*"):] if gap.rstrip().endswith("*)") and "(*" in gap else ""
+        lead = lead.lstrip("\n")
+        prev_end = end.end()
+        if kind == "TYPE":
+            body, body_m = text[m.end():end.start()], masked[m.end():end.start()]
+            depth, last = 0, 0
+            for t in re.finditer(r"\bEND_STRUCT\b|\bSTRUCT\b|;", body_m, re.I):
+                w = t.group().upper()
+                depth += (w == "STRUCT") - (w == "END_STRUCT")
+                if w == ";" and depth == 0:
+                    decl = body[last:t.end()].strip("\n")
+                    name = re.match(r"\s*(\w+)", body_m[last:t.end()]).group(1)
+                    first = lead if not out or out[-1][0] != "TYPE" or last == 0 else ""
+                    out.append(("TYPE", name, f"{first}TYPE\n{decl}\nEND_TYPE\n", None))
+                    last = t.end()
+            continue
+        name = re.match(r"\w+\s+(\w+)", masked[m.start():]).group(1)
+        pos = masked.index("\n", m.start()) + 1
+        while True:
+            nxt = re.compile(r"\s*(VAR\w*)\b").match(masked, pos)
+            if not nxt:
+                break
+            ev = re.compile(r"^\s*END_VAR\b[^\n]*\n?", re.M).search(masked, nxt.end())
+            if not ev:
+                break
+            pos = ev.end()
+        out.append((kind, name, lead + text[m.start():pos], text[pos:end.start()].strip("\n") + "\n"))
+    return out
+
+
+def _tc_object(kind: str, name: str, decl: str, impl: str | None, where: str) -> str:
+    ident = f'Name="{name}" Id="{_tc_guid(name)}"'
+    if kind == "TYPE":
+        return (TC_HEAD + f"  <DUT {ident}>\n    <Declaration>{_tc_cdata(decl, where)}</Declaration>\n"
+                "  </DUT>\n</TcPlcObject>\n")
+    return (TC_HEAD + f'  <POU {ident} SpecialFunc="None">\n'
+            f"    <Declaration>{_tc_cdata(decl, where)}</Declaration>\n"
+            f"    <Implementation>\n      <ST>{_tc_cdata(impl, where)}</ST>\n    </Implementation>\n"
+            "  </POU>\n</TcPlcObject>\n")
+
+
+TC_README = """The MIP blocks and the TwinCAT glue as TwinCAT 3 objects (docs/wiring-twincat.md, Import)
+
+DUTs/*.TcDUT   one type a file (the library's types)
+POUs/*.TcPOU   one function, function block or program a file: the library, then the glue
+               MIP_TcModbusIo and the example programs MAIN_Outstation / MAIN_Central
+
+In TwinCAT 3 XAE, in the PLC project: References > Add library > Tc2_ModbusSrv; then
+right-click the folder DUTs > Add > Existing Item... and select every file of DUTs/, the same
+with the folder POUs and every file of POUs/ (TwinCAT copies them into the project). Then set
+the modem's IP address in the program you use and call it from the PLC task. Generated from
+the .st files of this archive (glue/twincat/, st_lib/); never opened in TwinCAT by the project.
+"""
+
+
+def twincat_objects(order: list[str], repo: Path = REPO) -> list[tuple[str, str]]:
+    """[(twincat/DUTs|POUs/<name>.TcDUT|.TcPOU, XML)]: st_lib in import order, then the TwinCAT
+    glue files (dist/glue/twincat/*.twincat.st), and twincat/README.txt."""
+    srcs = [repo / f for f in order] + sorted((repo / "dist" / GLUE / "twincat").glob("*.twincat.st"))
+    out, seen = [], set()
+    for path in srcs:
+        where = os.path.relpath(path, repo)
+        for kind, name, decl, impl in _tc_items(path.read_text(encoding="utf-8"), where):
+            if name in seen:
+                raise DistError(f"{where}: error: {name} is declared twice (one TwinCAT object a name)")
+            seen.add(name)
+            folder, ext = ("DUTs", "TcDUT") if kind == "TYPE" else ("POUs", "TcPOU")
+            out.append((f"twincat/{folder}/{name}.{ext}", _tc_object(kind, name, decl, impl, where)))
+    out.append(("twincat/README.txt", TC_README))
+    return out
+
+
+# ---- PLCopen XML of the library with a family's glue (CODESYS, TwinCAT import it)
+PLCOPEN_GLUE = {"codesys": "*.codesys.st", "twincat": "*.twincat.st"}
+
+
+def _iec_comments(text: str) -> str:
+    """The text with each // comment written as (* ... *) (what the declaration reader takes;
+    the POU bodies go into the XML as they are)."""
+    out = []
+    for line in text.split("\n"):
+        quoted, cut = False, None
+        for i, c in enumerate(line):
+            if c == "'":
+                quoted = not quoted
+            elif not quoted and line.startswith("//", i):
+                cut = i
+                break
+        if cut is not None:
+            line = line[:cut] + "(*" + line[cut + 2:].replace("*)", "* )").replace("(*", "( *") + " *)"
+        out.append(line)
+    return "\n".join(out)
+
+
+def plcopen_with_glue(units, order, version, xsd, repo: Path = REPO) -> list[tuple[str, str]]:
+    """[(family, PLCopen XML)]: the library and the family's glue files (dist/glue/<family>/)
+    in one TC6 project, each glue POU's body as in its file; validated when xsd is given."""
+    out = []
+    for fam, pattern in PLCOPEN_GLUE.items():
+        files = sorted((repo / "dist" / GLUE / fam).glob(pattern))
+        with tempfile.TemporaryDirectory() as tmp:
+            glue_units = []
+            # the glue block before the programs that use it
+            for path in sorted(files, key=lambda p: not p.name.startswith("MIP_")):
+                text = path.read_text(encoding="utf-8")
+                where = os.path.relpath(path, repo)
+                copy = Path(tmp) / path.name
+                copy.write_text(_iec_comments(text), encoding="utf-8")
+                try:
+                    unit = parse_file(str(copy))
+                except StError as e:
+                    raise DistError(str(e).replace(str(copy), where)) from None
+                bodies = {name: impl for kind, name, _d, impl in _tc_items(text, where) if impl}
+                for pou in unit.pous:
+                    pou.body = bodies[pou.name].rstrip("\n")
+                unit.file = where
+                for pou in unit.pous:
+                    pou.file = where
+                glue_units.append(unit)
+            xml = export(list(units) + glue_units, f"{PRODUCT}-st_lib-{fam}", "2026-01-01T00:00:00",
+                         order=list(order) + [u.file for u in glue_units], version=version)
+            if xsd is not None:
+                xml_path = Path(tmp) / f"{fam}.xml"
+                xml_path.write_text(xml, encoding="utf-8")
+                errors = validate(str(xsd), str(xml_path))
+                if errors:
+                    raise DistError(errors[0])
+        out.append((fam, xml))
+    return out
+
+
 def build(outdir: Path, xsd: Path | None, repo: Path = REPO) -> list[Path]:
     version = read_version(repo)
     check_changelog(version, repo)
@@ -237,6 +408,9 @@ def build(outdir: Path, xsd: Path | None, repo: Path = REPO) -> list[Path]:
                 (f"{top}/blocks.md", blocks.encode()),
                 (f"{top}/{WIRESHARK}", (repo / "dist" / WIRESHARK).read_bytes())]
     members += [(f"{top}/{f}", glue_bytes(repo / "dist" / f)) for f in glue_files(repo)]
+    members += [(f"{top}/{name}", text.encode()) for name, text in twincat_objects(order, repo)]
+    members += [(f"{top}/{top}-{fam}.xml", text.encode())
+                for fam, text in plcopen_with_glue(units, order, version, xsd, repo)]
     epoch = int(os.environ.get("SOURCE_DATE_EPOCH", DEFAULT_EPOCH))
     tgz = outdir / f"{top}.tar.gz"
     buf = io.BytesIO()

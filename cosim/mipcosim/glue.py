@@ -39,9 +39,9 @@ CALL = {"twincat": (
     + OUTPUTS,
     "MIP_TcModbusIo"),
     "codesys": (
-    "io{s}(uiPort := 502, uiUnitId := {unit}, uiReadAddr := {ra},\n"
+    "io{s}(aIPaddr := aGlueIP, uiPort := 502, uiUnitId := {unit}, uiReadAddr := {ra},\n"
     "    uiWriteAddr := WORD_TO_UINT(SEL(pGlueWriteAddr = WORD#0, pGlueWriteAddr, WORD#{wa})),\n"
-    "    udiTimeOut := 2000000, xEnable := xRun, xWriteReq := wrTrig{s},\n"
+    "    xEnable := xRun, xWriteReq := wrTrig{s},\n"
     "    aWrite := {blk}.aWrite, uWriteLen := {blk}.uWriteLen);\n"
     + OUTPUTS,
     "MIP_CdsModbusIo"),
@@ -59,6 +59,11 @@ CALL = {"twincat": (
     "xWrDone{s} := io{s}.writeDone;\n"
     "wrErr{s} := io{s}.writeError;\n",
     "MIP_S7ModbusIo")}
+
+
+# declarations a family's call needs besides the glue block (CODESYS: the modem's address, which
+# the stand-in's ClientTCP wants set: its default 255.255.255.255 never connects)
+EXTRA_DECL = {"codesys": "  aGlueIP : ARRAY[0..3] OF BYTE := [127, 0, 0, 1];   (* the modem's address *)\n"}
 
 
 # a parameter word of the variant programs: the glue's write address instead of the modem's
@@ -94,7 +99,7 @@ def variant(text: str, family: str, role: str, s: int = 1) -> str:
         raise GlueError(f"station {s}: {k} located data words, expected 248")
     head = re.search(r"^PROGRAM \w+\n", text, re.M)
     text = (text[:head.end()] + "VAR\n  (* the vendor glue (issue 36) *)\n"
-            + f"  io{s} : {fb_type};\n" + "".join(decl) + "END_VAR\nVAR\n"
+            + f"  io{s} : {fb_type};\n" + EXTRA_DECL.get(family, "") + "".join(decl) + "END_VAR\nVAR\n"
             + f"  pGlueWriteAddr AT %MW{WRITE_ADDR_WORD} : WORD;   (* the glue's write address (0: the modem's); tests *)\n"
             + "END_VAR\n" + text[head.end():])
     # the read section (up to the write-done line) -> the glue call

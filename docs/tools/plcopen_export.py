@@ -47,6 +47,8 @@ def type_xml(t: TypeSpec, ind):
         return f'{pad}<{tag} length="{m.group(2)}"/>\n'
     if t.kind == "derived":
         return f'{pad}<derived name="{esc(t.name)}"/>\n'
+    if t.kind == "pointer":
+        return f"{pad}<pointer>\n{pad}  <baseType>\n{type_xml(t.base, ind + 4)}{pad}  </baseType>\n{pad}</pointer>\n"
     out = f"{pad}<array>\n"
     for lo, hi in t.dims:
         out += f'{pad}  <dimension lower="{esc(lo)}" upper="{esc(hi)}"/>\n'

@@ -314,14 +314,22 @@ class Parser:
             return TypeSpec("array", dims=dims, base=self.type_spec())
         if t.kind != "ident":
             raise self.err(t, f"expected a type, found {t.text!r}")
-        if t.up in ("STRING", "WSTRING") and self.peek() is not None and self.peek().text == "[":
-            self.next()
+        if t.up in ("STRING", "WSTRING") and self.peek() is not None and self.peek().text in "[(":
+            close = "]" if self.next().text == "[" else ")"     # STRING[n], or STRING(n) (vendor ST)
             n = self.next()
-            self.expect("]")
+            self.expect(close)
             return TypeSpec("string", name=f"{t.up}[{n.text}]")
+        if t.up == "POINTER" and self.peek() is not None and self.peek().up == "TO":
+            self.next()                                           # POINTER TO T (vendor ST)
+            return TypeSpec("pointer", base=self.type_spec())
         if t.up in ELEMENTARY:
             return TypeSpec("elementary", name=t.up)
-        return TypeSpec("derived", name=t.text)
+        name = t.text
+        while self.peek() is not None and self.peek().text == "." and self.peek(1) is not None \
+                and self.peek(1).kind == "ident":
+            self.next()                                           # Library.Type (a namespace)
+            name += "." + self.next().text
+        return TypeSpec("derived", name=name)
 
     def bound(self):
         sign = ""

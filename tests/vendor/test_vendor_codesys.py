@@ -10,6 +10,7 @@ import pytest
 from mipcosim import glue
 from mipcosim import layout as L
 from vendor_helpers import assert_exact, run, run_outstation, sources
+import realistic
 
 FAMILY = "codesys"
 
@@ -54,3 +55,37 @@ def test_codesys_xexecute_held_ends_in_a_named_error(vendor_workdir):
     assert r["SRC.UTRANSFERSFAILED"] >= 1
     assert r["SRC.WLASTERROR"] == errors["MIP_ERR_NO_ACK"]
     assert r["IO1.FBRD.XDONE"]                     # the one request's xDone, still shown
+
+
+def _without_reply_timeout():
+    """The glue with its two request calls leaving udiReplyTimeout and uiMaxRetries at the
+    library's defaults (50 ms, 0): the field issue 47 names."""
+    good = glue.GLUE[FAMILY][0].read_text()
+    bad = good.replace("udiReplyTimeout := udiReplyTimeout, uiMaxRetries := uiMaxRetries,", "")
+    assert good.count("udiReplyTimeout := udiReplyTimeout") == 2 and "udiReplyTimeout :=" not in bad
+    return bad
+
+
+def test_codesys_glue_without_reply_timeout_fails_with_reply_timeout(vendor_workdir):
+    """Over the realistic radio with a 9,600 bit/s line to the modem, a 125-register read takes
+    about 0.3 s: with udiReplyTimeout at the library's 50 ms every read and write ends in
+    ModbusFB's ReplyTimeout (56), which the sender shows as its link error; nothing is read
+    out. The shipped glue (2 s) passes the same run (test below)."""
+    wd = vendor_workdir / "cds-noreply"
+    src = sources(FAMILY, wd, _without_reply_timeout(), roles=("outstation",))
+    r = realistic.run_for(src, ("outstation",), wd, 20,
+                          ("OUTSTATION.IO1.EREADERROR", "OUTSTATION.IO1.EWRITEERROR",
+                           "OUTSTATION.SND.XLINKERROR", "OUTSTATION.SND.WLINKERROR",
+                           "OUTSTATION.SRC.UTRANSFERSDONE"))
+    assert r["OUTSTATION.IO1.EREADERROR"] == 56
+    assert r["OUTSTATION.SND.XLINKERROR"] and r["OUTSTATION.SND.WLINKERROR"] == 56
+    assert r["OUTSTATION.SRC.UTRANSFERSDONE"] == 0
+
+
+def test_codesys_glue_passes_the_realistic_radio_at_30_percent_loss(vendor_workdir):
+    wd = vendor_workdir / "cds-realistic"
+    src = sources(FAMILY, wd, roles=("outstation",))
+    finished, secs, tot, problems = realistic.run_to_end(src, ("outstation",), wd)
+    assert finished, f"not read out after {secs:.0f} s: {tot} {problems}"
+    assert problems == [] and tot["lost"] == 0 and tot["duplicated"] == 0
+    assert tot["records"] == realistic.RECORDS

@@ -4,12 +4,14 @@ in the example programs' place of the located I/O (mipcosim/glue.py), over the e
 co-simulation: the record-for-record check of the demo (mipcosim/check.py), and the handshake
 mistake of the family (bBusy's fall taken as done without looking at bError)."""
 import itertools
+from pathlib import Path
 
 import pytest
 
 from mipcosim import glue
 from mipcosim import layout as L
 from vendor_helpers import assert_exact, run, run_outstation, sources
+import realistic
 
 FAMILY = "twincat"
 
@@ -62,3 +64,43 @@ def test_twincat_failed_writes_end_in_a_named_error(vendor_workdir, mistaken):
     assert r["SRC.UTRANSFERSDONE"] == 0
     assert r["SRC.UTRANSFERSFAILED"] >= 1
     assert r["SRC.WLASTERROR"] == errors["MIP_ERR_NO_ACK"]
+
+
+def _central_sources(workdir, unit_id=True):
+    """The central with the glue; unit_id False: its call leaves nUnitID out (the FB's default
+    16#FF, the manual's value for a device addressed directly, not for a station behind the
+    MDP-810: the field issue 47 names)."""
+    src = sources(FAMILY, workdir, roles=("central",))
+    if not unit_id:
+        prog = Path(src["central"][-1])
+        text = prog.read_text()
+        bad = text.replace("nUnitID := 1, ", "")
+        assert bad != text
+        copy = prog.with_name("nounit_" + prog.name)
+        copy.write_text(bad)
+        src["central"][-1] = str(copy)
+    return src
+
+
+def test_twincat_glue_without_unit_id_fails_with_the_gateway_exception(vendor_workdir):
+    """At the MDP-810 the unit id selects the station. Left out, FB_MBReadRegs sends its default
+    16#FF; the MDP answers exception 0B (gateway target failed to respond), TwinCAT's 16#800B:
+    the receiver's link error, nothing read out. The shipped call passes (test below)."""
+    wd = vendor_workdir / "tc-nounit"
+    r = realistic.run_for(_central_sources(wd, unit_id=False), ("central",), wd, 20,
+                          ("CENTRAL.IO1.NREADERRID", "CENTRAL.RCV1.XLINKERROR",
+                           "CENTRAL.RCV1.WLINKERROR", "CENTRAL.RCV1.UDIRECORDS"))
+    assert r["CENTRAL.IO1.NREADERRID"] == 0x800B
+    assert r["CENTRAL.RCV1.XLINKERROR"] and r["CENTRAL.RCV1.WLINKERROR"] == 0x800B
+    assert r["CENTRAL.RCV1.UDIRECORDS"] == 0
+
+
+@pytest.mark.slow
+def test_twincat_glue_passes_the_realistic_radio_at_30_percent_loss(vendor_workdir):
+    """Full tier: a second build of the four-station central (about 20 s); the CODESYS glue's
+    realistic run stays quick."""
+    wd = vendor_workdir / "tc-realistic"
+    finished, secs, tot, problems = realistic.run_to_end(_central_sources(wd), ("central",), wd)
+    assert finished, f"not read out after {secs:.0f} s: {tot} {problems}"
+    assert problems == [] and tot["lost"] == 0 and tot["duplicated"] == 0
+    assert tot["records"] == realistic.RECORDS
