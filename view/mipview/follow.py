@@ -3,9 +3,13 @@ from __future__ import annotations
 
 import gzip
 import json
+import zlib
 from pathlib import Path
 
-from .common import MS, ViewError, diagram
+from .common import MS, ViewError, diagram, seqdiag
+from .rows import History
+
+BAD_SHOWN = 20           # bad lines listed on the page (our choice), the rest counted
 
 
 def radio_counts(events, station=1):
@@ -26,9 +30,11 @@ class Follow:
 
     mode = "follow"
 
-    def __init__(self, path, station=1, wait=False, log=None):
+    def __init__(self, path, station=1, wait=False, log=None, on_bad=None):
         """wait: the file may not exist yet (a run that is starting); log: a file whose last
-        line the page shows (the demo's progress)."""
+        line the page shows (the demo's progress); on_bad: called with the one line that says
+        why a line of the trace was skipped (a byte that is not UTF-8, no JSON, no trace
+        line), which the page shows too; the lines after it are read on."""
         self.path = Path(path)
         self.wait = wait
         self.log = Path(log) if log else None
@@ -38,12 +44,16 @@ class Follow:
             raise ViewError("station must be 1..247")
         self.station = station
         self.events = []
+        self.history = History()
         self._pos = 0
         self._partial = b""
         self._n = 0
         self.paused = False
         self.speed = 1.0
         self.bad = None         # the first line that is no trace line (file:line: why)
+        self.bad_lines = []     # the first BAD_SHOWN of them, each one line on the page
+        self.bad_count = 0
+        self.on_bad = on_bad    # called with each such line (the server logs it)
         self._note = None
         self.poll()
 
@@ -61,8 +71,8 @@ class Follow:
             try:
                 with gzip.open(self.path, "rb") as f:
                     chunk = f.read() + b"\n"
-            except (OSError, EOFError) as e:
-                self.bad = f"{self.path}: {getattr(e, 'strerror', None) or e}"
+            except (OSError, EOFError, zlib.error) as e:
+                self._bad_line(f"{self.path}: {getattr(e, 'strerror', None) or e}")
                 return False
             self._pos = 1
             return self._lines(chunk)
@@ -73,11 +83,13 @@ class Follow:
                 f.seek(0, 2)
                 if f.tell() < self._pos:            # truncated, a new run: start over
                     self.events, self._pos, self._partial, self._n = [], 0, b"", 0
+                    self.bad, self.bad_lines, self.bad_count = None, [], 0
                 f.seek(self._pos)
                 chunk = f.read()
                 self._pos = f.tell()
         except OSError as e:
-            self.bad = f"{self.path}: {e.strerror}"
+            if self.bad != f"{self.path}: {e.strerror}":
+                self._bad_line(f"{self.path}: {e.strerror}")
             return False
         if not chunk:
             return False
@@ -91,29 +103,58 @@ class Follow:
             self._n += 1
             if not raw.strip():
                 continue
-            try:
-                d = json.loads(raw)
-            except json.JSONDecodeError as e:
-                self.bad = self.bad or f"{self.path}:{self._n}:{e.colno}: not a JSON line: {e.msg}"
-                continue
-            if not isinstance(d, dict) or not isinstance(d.get("t"), int) or "ev" not in d:
-                self.bad = self.bad or f"{self.path}:{self._n}:1: a trace line needs \"t\" and \"ev\""
-                continue
-            self.events.append(d)
+            why = self._check(raw)
+            if isinstance(why, str):
+                self._bad_line(why)
+            else:
+                self.events.append(why)
         return True
+
+    def _check(self, raw):
+        """The trace line (a dict) or why it is none (one line, file:line:column: ...)."""
+        where = f"{self.path}:{self._n}"
+        try:
+            text = raw.decode("utf-8")
+        except UnicodeDecodeError as e:
+            return (f"{where}:{e.start + 1}: not UTF-8 (byte 16#{raw[e.start]:02X}): "
+                    f"line skipped")
+        try:
+            d = json.loads(text)
+        except json.JSONDecodeError as e:
+            return f"{where}:{e.colno}: not a JSON line: {e.msg}"
+        except (ValueError, RecursionError) as e:
+            return f"{where}:1: not a JSON line: {e}"
+        if not isinstance(d, dict) or "ev" not in d or not isinstance(d.get("t"), int) \
+                or isinstance(d["t"], bool) or d["t"] < 0:
+            return f"{where}:1: a trace line needs \"t\" (ns, an integer >= 0) and \"ev\""
+        try:                                     # a field the diagram cannot read
+            seqdiag.rows_from([d], self.station, 0, 1 << 62)
+        except (TypeError, ValueError, KeyError, AttributeError) as e:
+            return f"{where}:1: a field of the wrong type ({type(e).__name__}: {e})"
+        return d
+
+    def _bad_line(self, why):
+        """One line on the page (the first BAD_SHOWN and a count) and in the log."""
+        self.bad_count += 1
+        if self.bad is None:
+            self.bad = why
+        if len(self.bad_lines) < BAD_SHOWN:
+            self.bad_lines.append(why)
+        if self.on_bad:
+            self.on_bad(why)
 
     @property
     def t_ms(self):
         return self.events[-1]["t"] // MS if self.events else 0
 
     def state(self):
-        svg, rows, nrows = diagram(self.events, f"{self.path.name}, station {self.station} "
-                                   f"(following)", self.station)
+        dg = diagram(self.history, self.events, f"{self.path.name}, station {self.station} "
+                     f"(following)", self.station)
         return {"mode": self.mode, "title": str(self.path), "t_ms": self.t_ms,
-                "paused": self.paused, "svg": svg, "rows": rows, "nrows": nrows,
+                "paused": self.paused, **dg,
                 "radio": radio_counts(self.events, self.station), "lines": len(self.events),
                 "note": self._note,
-                "bad": self.bad, "registers": [], "blocks": [], "done": False}
+                "bad": self.bad, "bad_lines": self.bad_lines, "bad_count": self.bad_count, "registers": [], "blocks": [], "done": False}
 
     def _last_log_line(self):
         if self.log is None:

@@ -7,6 +7,7 @@ from pathlib import Path
 
 from .common import MS, ViewError, diagram, enum_name   # first: docs/tools on the path
 from .presets import PRESETS
+from .rows import History
 
 from chainsim import Chain, ChainError, Side  # noqa: E402  (docs/tools)
 from gen_traces import WORK, logger_data  # noqa: E402
@@ -19,10 +20,49 @@ SLOT_LIMIT_MS = 10_000               # "one radio slot" gives up after this much
 # (unit = station), 1 the TRM-810 of station 1 (mipemu.h).
 WINDOWS = [
     ("TRM-810 write (2000: count, 2001..: record)", 1, 1, 2000, 9),
-    ("TRM-810 read (2198: status, 2199: count, 2200..: data)", 1, 1, 2198, 9),
-    ("MDP-810 read, station 1 (198: status, 199: count, 200..: data)", 0, 1, 198, 9),
+    ("TRM-810 read (2198: status, 2199: count, 2200..: acknowledgement)", 1, 1, 2198, 9),
+    ("MDP-810 read, station 1 (198: status, 199: count, 200..: record)", 0, 1, 198, 9),
     ("MDP-810 write, station 1 (9: count, 10..: acknowledgement)", 0, 1, 9, 9),
 ]
+# what each register of a window is (offset from the window's first register): a short name
+# under its address and a tooltip. The areas are the emulator's (emulator/README.md "Register
+# maps", from the note's register tables); what the blocks put in them is st_lib/PROTOCOL.md's
+# (the record counter and the acknowledgement in the first register of a block, the note's
+# "Datensatzzähler" / "Bestätigungszähler"; acknowledgements 0 and 1 of our receiver carry the
+# echo [ack, 16#4D50, check], P8).
+_STATUS = ("status", "read status: bit 0 new data, bit 1 write data waiting, bit 4 write data "
+                     "not yet confirmed by the link (emulator/README.md)")
+_COUNT_RX = ("count", "number of registers received (the block's length)")
+_COUNT_TX = ("count", "number of registers written (the block's length, set by the write)")
+_RECORD = ("record", "record counter: 1, 2, ... 16#FFFF for the last record, 0 the reset "
+                     "record (the note's Datensatzzähler)")
+_ACK = ("ack", "acknowledgement counter: the last record the receiver accepted; 0 (start): "
+               "nothing yet, 16#FFFF: the last record (the note's Bestätigungszähler)")
+_MAGIC = ("echo", "16#4D50 ('MP'): the echo magic our MIP_Receiver writes with acknowledgements "
+                  "0 and 1 (st_lib/PROTOCOL.md P8); with a 1-register acknowledgement (count 1) "
+                  "it is left over from the last 3-register one")
+_CHECK = ("check", "check value of the record acknowledged, with acknowledgements 0 and 1 "
+                   "(st_lib/PROTOCOL.md P8); with a 1-register acknowledgement (count 1) it is "
+                   "left over from the last 3-register one")
+_DATA = ("data", "the record's data: the logger's registers")
+_UNUSED = ("-", "not part of the block (an acknowledgement has 1 or 3 registers)")
+REGISTERS = {
+    2000: [_COUNT_TX, _RECORD] + [_DATA] * 7,
+    2198: [_STATUS, _COUNT_RX, _ACK, _MAGIC, _CHECK] + [_UNUSED] * 4,
+    198: [_STATUS, _COUNT_RX, _RECORD] + [_DATA] * 6,
+    9: [_COUNT_TX, _ACK, _MAGIC, _CHECK] + [_UNUSED] * 5,
+}
+
+
+def shown(name, value):
+    """A register as the note writes it: counters 16#FFFF, the echo magic in hex."""
+    if name in ("record", "ack") and value == 0xFFFF:
+        return "16#FFFF"
+    if name == "echo" and value == 0x4D50:
+        return "16#4D50"
+    return str(value)
+
+
 SPEEDS = (0.1, 0.25, 0.5, 1.0, 2.0, 5.0, 10.0, 50.0)   # virtual seconds per real second
 
 # what the page shows of each block: (member, enum type or None)
@@ -34,6 +74,23 @@ RECEIVER_VIEW = [("eState", "E_MIP_ReceiverState"), ("eWaitReason", "E_MIP_WaitR
                  ("wAck", None), ("udiRecords", None), ("udiDuplicates", None),
                  ("udiUnexpected", None), ("udiTransfers", None),
                  ("udiFailedTransfers", None), ("eErrorId", "E_MIP_Error")]
+
+# the tooltips of the blocks' members (st_lib/MIP_Sender.st, MIP_Receiver.st)
+VAR_TIPS = {
+    "eState": "the block's state (E_MIP_SenderState / E_MIP_ReceiverState, st_lib/MIP_Types.st)",
+    "eWaitReason": "what the block waits for (E_MIP_WaitReason)",
+    "wRecord": "the record in flight: 1, 2, ... 16#FFFF the last",
+    "wAck": "the last acknowledgement written: 0 (start), then the record accepted, 16#FFFF the last",
+    "udiRecords": "records sent and acknowledged (sender) / accepted (receiver)",
+    "udiRetransmissions": "records the block wrote again after tTimeout without an acknowledgement"
+                          " (the modem's own repeats on the radio are not counted here)",
+    "udiUnexpectedAcks": "acknowledgements that fit no record in flight (out of step, P11)",
+    "udiTransfers": "transfers complete",
+    "udiDuplicates": "records received again and discarded (a repeat after a lost confirmation)",
+    "udiUnexpected": "records ignored: neither the next one nor a duplicate (P20)",
+    "udiFailedTransfers": "transfers given up",
+    "eErrorId": "the last error (E_MIP_Error)",
+}
 
 
 class _Windows:
@@ -48,7 +105,10 @@ class _Windows:
             old = self.last.get(title)
             changed = [i for i, v in enumerate(values) if old is not None and old[i] != v]
             self.last[title] = values
-            out.append({"title": title, "start": start, "values": values, "changed": changed})
+            names = REGISTERS[start]
+            out.append({"title": title, "start": start, "values": values, "changed": changed,
+                        "names": [n for n, _ in names], "tips": [tip for _, tip in names],
+                        "shown": [shown(n, v) for (n, _), v in zip(names, values)]})
         return out
 
 
@@ -87,6 +147,7 @@ class Live:
         self.off = {}                                     # side name -> virtual ms it returns
         self.restarted = p.restart is None
         self.windows = _Windows()
+        self.history = History()
         self._fate = FATE_FN(self._on_fate)               # kept alive as long as the network
         self.ch.lib.mipemu_net_set_fate(self.ch.net, self._fate, None)
 
@@ -212,7 +273,14 @@ class Live:
         out = []
         for member, enum in view:
             v = side.fbv(member)
-            out.append({"name": member, "value": enum_name(enum, v) if enum else v})
+            if enum:
+                value = enum_name(enum, v)
+            elif member in ("wRecord", "wAck"):
+                value = "16#FFFF (last)" if v == 0xFFFF else (
+                    "0 (start)" if v == 0 and member == "wAck" else v)
+            else:
+                value = v
+            out.append({"name": member, "value": value, "tip": VAR_TIPS.get(member, "")})
         block = "MIP_Sender" if side.role == "sender" else "MIP_Receiver"
         return {"side": side.name, "block": block, "vars": out,
                 "off": side.name in self.off}
@@ -226,14 +294,14 @@ class Live:
         return self.windows.show(vals)
 
     def state(self):
-        svg, rows, nrows = diagram(self.ch.lines, f"{self.preset.title} (live)")
+        dg = diagram(self.history, self.ch.lines, f"{self.preset.title} (live)")
         st = self.ch.stats(1)
         return {
             "mode": self.mode, "preset": self.preset_name, "title": self.preset.title,
             "mipsim": self.preset.mipsim_args(), "t_ms": self.t_ms, "paused": self.paused,
             "speed": self.speed, "extra_loss": dict(self.extra), "lose_next": {
                 "record": self.lose_next["up"], "ack": self.lose_next["down"]},
-            "done": self.done, "svg": svg, "rows": rows, "nrows": nrows,
+            "done": self.done, **dg,
             "registers": self._registers(), "blocks": [self._block(self.o), self._block(self.c)],
             "radio": {"polls": st["polls"], "down": st["tel_down"], "lost_down": st["lost_down"],
                       "up": st["tel_up"], "lost_up": st["lost_up"]},

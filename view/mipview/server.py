@@ -71,7 +71,12 @@ class App:
             await asyncio.sleep(FRAME_S)
             s = self.session
             if s.mode == "follow":
-                if not s.paused and s.poll():     # paused: the file is read on resume
+                try:
+                    if not s.paused and s.poll():     # paused: the file is read on resume
+                        self.touch()
+                except Exception as e:    # a bug: one line here and on the page; the
+                    self.error = f"internal error: {type(e).__name__}: {e}"   # clock goes on
+                    print(f"mip-view: {self.error}", file=sys.stderr, flush=True)
                     self.touch()
                 continue
             if s.paused:
@@ -183,6 +188,21 @@ def make_app(app: App):
             return web.json_response({"error": msg}, status=500)
         return web.Response(text=app.state(), content_type="application/json")
 
+    async def chunk(request):
+        """One chunk of the diagram's history (rows.History), by number; its key in the
+        X-Chunk-Key header (the page keeps it until the state names another)."""
+        app.state()                        # the history of the latest state
+        h = app.session.history
+        try:
+            i = int(request.query.get("i", ""))
+            if not 0 <= i < len(h.chunks):
+                raise ValueError
+        except ValueError:
+            return web.json_response({"error": f"no chunk {request.query.get('i')!r}"},
+                                     status=404)
+        return web.Response(text=h.svg(i), content_type="image/svg+xml",
+                            headers={"X-Chunk-Key": h.chunks[i]["key"]})
+
     async def trace(request):
         s = app.session
         lines = s.trace() if s.mode == "live" else [json.dumps(d) for d in s.events]
@@ -193,6 +213,7 @@ def make_app(app: App):
     w.router.add_get("/api/state", state)
     w.router.add_get("/api/events", events)
     w.router.add_get("/api/trace", trace)
+    w.router.add_get("/api/chunk", chunk)
     w.router.add_post("/api/control", control)
     w.router.add_static("/static/", STATIC)
     return w
@@ -249,9 +270,10 @@ def main(argv=None):
             trace = rundir / "emulator-trace.jsonl"
             trace.unlink(missing_ok=True)          # the page shows this run, not the last one
             # the log beside the run directory: the demo empties that at its start
-            session = Follow(trace, a.station, wait=True, log=rundir.parent / "demo.log")
+            session = Follow(trace, a.station, wait=True, log=rundir.parent / "demo.log",
+                             on_bad=log_bad)
         elif a.follow:
-            session = Follow(a.follow, a.station)
+            session = Follow(a.follow, a.station, on_bad=log_bad)
         else:
             session = Live(a.preset, a.workdir)
     except ViewError as e:
@@ -292,6 +314,11 @@ def main(argv=None):
                 demo.kill()
                 demo.wait()
     return 0
+
+
+def log_bad(why):
+    """A line of a followed trace that was skipped: one line in the log (the page shows it)."""
+    print(f"mip-view: {why}", file=sys.stderr, flush=True)
 
 
 def rel(path):
