@@ -9,7 +9,7 @@ from pathlib import Path
 from .common import MS, ViewError, diagram, seqdiag
 from .rows import History
 
-BAD_SHOWN = 20           # bad lines listed on the page (our choice), the rest counted
+BAD_SHOWN = 50           # bad lines listed on the page and logged (our choice), the rest counted
 
 
 def radio_counts(events, station=1):
@@ -134,14 +134,18 @@ class Follow:
         return d
 
     def _bad_line(self, why):
-        """One line on the page (the first BAD_SHOWN and a count) and in the log."""
+        """One line on the page and in the log (the first BAD_SHOWN; then a count: a file
+        that is no trace at all does not flood the log)."""
         self.bad_count += 1
         if self.bad is None:
             self.bad = why
         if len(self.bad_lines) < BAD_SHOWN:
             self.bad_lines.append(why)
-        if self.on_bad:
-            self.on_bad(why)
+            if self.on_bad:
+                self.on_bad(why)
+        elif self.bad_count == BAD_SHOWN + 1 and self.on_bad:
+            self.on_bad(f"{self.path}: more than {BAD_SHOWN} lines skipped: the rest are "
+                        f"counted on the page, not logged")
 
     @property
     def t_ms(self):
