@@ -34,7 +34,7 @@ def test_the_demo_in_the_notes_words_with_the_modems_repeat_marked(view_workdir)
     assert t[lost + 1] == "answer: record 2 (123 regs) (modem repeat)"
     assert sum("modem repeat" in x for x in t) == 1
     assert not any("retransmission" in x for x in t)     # the PLC wrote record 2 once
-    assert "write record 16#FFFF (last) (50 regs)" in t
+    assert "write record 16#FFFF (last) (123 regs)" in t
     assert "write ack 0 (start) + echo (3 regs)" in t and "write ack 2 (1 reg)" in t
     assert "radio ack: block confirmed" in t
     assert not any("65535" in x for x in t)
