@@ -143,6 +143,17 @@ $("start-preset").onclick = () => control({action: "preset", name: $("preset").v
 // last chunk comes with each state, the others are fetched when their key changes. The box
 // stays at the bottom while the run goes on, unless the user scrolled up.
 const chunkKeys = {};           // chunk number -> key drawn
+let stick = true;               // the box follows the end (until the user scrolls up)
+
+function toEnd() {
+  const box = $("diagram-box");
+  if (stick && !searching) box.scrollTop = box.scrollHeight;
+}
+
+$("diagram-box").addEventListener("scroll", () => {
+  const box = $("diagram-box");
+  stick = box.scrollTop + box.clientHeight >= box.scrollHeight - 40;
+});
 
 function chunkDiv(i) {
   let div = document.querySelector(`#diagram .chunk[data-i="${i}"]`);
@@ -164,16 +175,16 @@ async function fetchChunk(i, key) {
     chunkDiv(i).innerHTML = svg;
     chunkDiv(i).dataset.key = k;
     markHits();
+    toEnd();
   } catch (e) { /* the next state asks again */ }
 }
 
 function drawDiagram(st) {
-  const box = $("diagram-box");
-  const atBottom = box.scrollTop + box.clientHeight >= box.scrollHeight - 40;
   const last = st.chunks.length - 1;
   document.querySelectorAll("#diagram .chunk").forEach((d) => {
     if (Number(d.dataset.i) > last) { d.remove(); delete chunkKeys[d.dataset.i]; }
   });
+  for (const c of st.chunks) chunkDiv(c.i);     // in order, before any is filled
   for (const c of st.chunks) {
     if (chunkKeys[c.i] === c.key) continue;
     chunkKeys[c.i] = c.key;
@@ -186,7 +197,7 @@ function drawDiagram(st) {
   }
   $("diagram").dataset.rows = st.nrows;
   markHits();
-  if (atBottom && !searching) box.scrollTop = box.scrollHeight;
+  toEnd();
 }
 
 // search: every label of the history that contains the text; Enter goes to the next one
