@@ -7,6 +7,7 @@ import zlib
 from pathlib import Path
 
 from .common import MS, ViewError, diagram, seqdiag
+from .chainview import ChainFiles, merged
 from .rows import History
 
 BAD_SHOWN = 50           # bad lines listed on the page and logged (our choice), the rest counted
@@ -45,6 +46,8 @@ class Follow:
         self.station = station
         self.events = []
         self.history = History()
+        # the chain demo's run directory: its relay and SCADA beside the trace (chainview.py)
+        self.ends = ChainFiles(self.path) if ChainFiles.present(self.path) else None
         self._pos = 0
         self._partial = b""
         self._n = 0
@@ -62,7 +65,10 @@ class Follow:
         the log's last line)."""
         note = self._last_log_line()
         new_note, self._note = note != self._note, note
-        return self._poll_trace() or new_note
+        new = self._poll_trace()
+        if self.ends is not None:
+            new = self.ends.poll(self.events[-1]["t"] if self.events else 0) or new
+        return new or new_note
 
     def _poll_trace(self):
         if self.path.suffix == ".gz":
@@ -152,7 +158,8 @@ class Follow:
         return self.events[-1]["t"] // MS if self.events else 0
 
     def state(self):
-        dg = diagram(self.history, self.events, f"{self.path.name}, station {self.station} "
+        dg = diagram(self.history, merged(self.events, self.ends),
+                     f"{self.path.name}, station {self.station} "
                      f"(following)", self.station)
         return {"mode": self.mode, "title": str(self.path), "t_ms": self.t_ms,
                 "paused": self.paused, **dg,

@@ -171,6 +171,11 @@ class Live:
         return self.ch.t // MS
 
     @property
+    def tick(self):
+        """One scan tick (ns): what the server's clock steps."""
+        return self.ch.tick
+
+    @property
     def done(self):
         return self.o.send_done and self.c.send_done and self.ch.t > 0 and not self.off
 

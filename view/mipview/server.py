@@ -57,9 +57,11 @@ class App:
             st["boot"] = self.boot
             st["error"] = self.error
             if st["mode"] == "live":
-                from .session import PRESETS, SPEEDS
+                from .session import CHAIN, PRESETS, SPEEDS
+                from .chainview import CHAIN_TITLE
                 st["presets"] = {k: {"title": p.title, "exercise": p.exercise,
                                      "mipsim": p.mipsim_args()} for k, p in PRESETS.items()}
+                st["presets"][CHAIN] = {"title": CHAIN_TITLE, "exercise": "", "mipsim": ""}
                 st["speeds"] = list(SPEEDS)
             self._cached = json.dumps(st)
         return self._cached
@@ -67,6 +69,7 @@ class App:
     async def run(self):
         """The clock: steps a live run, polls a followed trace."""
         from .session import ChainError, ViewError
+        from mipcosim.sim import CosimError
         while True:
             await asyncio.sleep(FRAME_S)
             s = self.session
@@ -81,13 +84,13 @@ class App:
                 continue
             if s.paused:
                 continue
-            self._carry += s.speed * FRAME_S * 1e9 / s.ch.tick
+            self._carry += s.speed * FRAME_S * 1e9 / s.tick
             n = int(self._carry)
             self._carry -= n
             try:
                 for _ in range(n):
                     s.step()
-            except (ChainError, ViewError) as e:
+            except (ChainError, ViewError, CosimError) as e:
                 s.paused = True            # the run cannot go on: say why, keep the page
                 self.error = str(e)
             except Exception as e:         # a bug: one line here and on the page, no traceback
@@ -99,7 +102,7 @@ class App:
 
     def control(self, req: dict):
         """One control; returns nothing, raises ViewError with a line for the page."""
-        from .session import ChainError, Live, ViewError
+        from .session import ChainError, ViewError, make_live
         s = self.session
         action = req.get("action")
         if s.mode == "follow" and action not in ("pause", "resume"):
@@ -128,7 +131,7 @@ class App:
                 s.restart(req.get("plc"), req.get("kind", "cold"),
                           int(req.get("outage_ms", 1000)))
             elif action == "preset":
-                new = Live(req.get("name", ""), self.workdir)
+                new = make_live(req.get("name", ""), self.workdir)
                 new.paused, new.speed = s.paused, s.speed
                 s.close()
                 self.session = new
@@ -220,12 +223,13 @@ def make_app(app: App):
 
 
 def parse(argv):
-    from .session import PRESETS, SPEEDS
+    from .session import CHAIN, PRESETS, SPEEDS
     ap = argparse.ArgumentParser(prog="mip-view", description=(
         "A live view in the browser: the MIP blocks in two soft PLCs over the emulated radio "
         "(co-simulation, driven from the page), or a trace file followed as it grows."))
-    ap.add_argument("--preset", default="demo", choices=list(PRESETS),
-                    help="the run to start with (the exercises of docs/exercises.md)")
+    ap.add_argument("--preset", default="demo", choices=[*PRESETS, CHAIN],
+                    help="the run to start with (the exercises of docs/exercises.md; chain: "
+                         "the whole chain, relay to SCADA)")
     ap.add_argument("--follow", metavar="TRACE",
                     help="read-only: follow this JSON-lines trace (mip-emulator --trace, the "
                          "demo's build/plc/run/emulator-trace.jsonl, mipsim --trace)")
@@ -261,7 +265,7 @@ def parse(argv):
 
 def main(argv=None):
     a = parse(argv)
-    from .session import REPO, Follow, Live, ViewError
+    from .session import REPO, Follow, ViewError, make_live
     demo = None
     try:
         if a.demo is not None:
@@ -275,7 +279,7 @@ def main(argv=None):
         elif a.follow:
             session = Follow(a.follow, a.station, on_bad=log_bad)
         else:
-            session = Live(a.preset, a.workdir)
+            session = make_live(a.preset, a.workdir)
     except ViewError as e:
         print(f"mip-view: error: {e}", file=sys.stderr)
         return 2

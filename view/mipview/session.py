@@ -19,3 +19,14 @@ from .follow import Follow, radio_counts  # noqa: F401
 from .live import SPEEDS, WINDOWS, Live  # noqa: F401
 from .presets import PRESETS, Preset  # noqa: F401
 from .rows import CHUNK, History, note_words, rows_of  # noqa: F401
+
+
+CHAIN = "chain"          # the whole chain's run (chainview.py), beside the presets
+
+
+def make_live(name, workdir=None):
+    """The live run of a preset, or of the whole chain."""
+    if name == CHAIN:
+        from .chainview import ChainLive
+        return ChainLive(workdir)
+    return Live(name, workdir)

@@ -53,7 +53,7 @@ function drawBlocks(st) {
   let html = "";
   for (const b of st.blocks) {
     html += `<table class="block${b.off ? " off" : ""}" id="block-${b.side}"><tr><th colspan="2">` +
-            `${esc(b.side)} PLC: ${esc(b.block)}${b.off ? " (off)" : ""}</th></tr>`;
+            `${esc(b.head || b.side + " PLC")}: ${esc(b.block)}${b.off ? " (off)" : ""}</th></tr>`;
     for (const v of b.vars) {
       const cls = v.name === "eState" ? "state" : "";
       html += `<tr><td title="${esc(v.tip || "")}">${esc(v.name)}</td><td class="${cls}" data-var="${esc(v.name)}">${esc(v.value)}</td></tr>`;
@@ -93,7 +93,7 @@ function draw(st) {
   if (last && st.version <= last.version) return;
   const before = last;
   last = st;
-  document.body.className = st.mode;
+  document.body.className = st.mode + (st.chain ? " chain" : "");
   fillOptions(st);
   $("title").textContent = st.title;
   $("time").textContent = st.t_ms;
@@ -110,7 +110,7 @@ function draw(st) {
     // the lists follow the run only when it changed them: a choice being made stays
     if (!before || before.preset !== st.preset) $("preset").value = st.preset;
     if (!before || before.speed !== st.speed) $("speed").value = st.speed;
-    $("mipsim").textContent = "mipsim " + st.mipsim;
+    $("mipsim").textContent = st.chain ? st.mipsim : "mipsim " + st.mipsim;
     for (const d of ["up", "down"]) {
       if (document.activeElement !== $("loss-" + d)) $("loss-" + d).value = st.extra_loss[d];
       $("loss-" + d + "-val").textContent = st.extra_loss[d];
