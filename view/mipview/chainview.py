@@ -19,17 +19,17 @@ import json
 from pathlib import Path
 
 from .common import MS, ViewError, diagram
+from .live import Stepping
 from .rows import History
 
 CHAIN_TITLE = "the chain: relay -> outstation -> radio -> central -> SCADA, 20 events"
-SLOT_LIMIT_MS = 10_000
 
 
 def entries(n):
     return f"{n} entry" if n == 1 else f"{n} entries"
 
 
-class ChainLive:
+class ChainLive(Stepping):
     """A run of the co-simulated chain the page drives (pause, step, speed; the chain's own
     faults are the chain tests', not the page's)."""
 
@@ -118,35 +118,12 @@ class ChainLive:
                        "record's acknowledgement may go")
 
     @property
-    def t_ms(self):
-        return self.ch.now // MS
+    def t_ns(self):
+        return self.ch.now
 
     @property
     def done(self):
         return self.ch.finished()
-
-    def step_slot(self):
-        n = len(self.lines)
-        end = self.ch.now + SLOT_LIMIT_MS * MS
-        while self.ch.now < end:
-            self.step()
-            if any(d.get("ev") == "radio" for d in self.lines[n:]):
-                return True
-            n = len(self.lines)
-        return False
-
-    def advance(self, ms):
-        if not 0 < ms <= 600_000:
-            raise ViewError("advance: ms must be 1..600000")
-        end = self.ch.now + ms * MS
-        while self.ch.now < end:
-            self.step()
-
-    def set_speed(self, s):
-        from .live import SPEEDS
-        if s not in SPEEDS:
-            raise ViewError(f"speed {s}: one of {', '.join(f'{x:g}' for x in SPEEDS)}")
-        self.speed = s
 
     def _no(self, what):
         raise ViewError(f"{what}: not in the chain's run (its faults are the chain tests', "

@@ -112,7 +112,40 @@ class _Windows:
         return out
 
 
-class Live:
+class Stepping:
+    """Stepping a run by radio slot or by time, for any session with step(), `lines` (its
+    trace so far) and `t_ns` (its virtual time)."""
+
+    @property
+    def t_ms(self):
+        return self.t_ns // MS
+
+    def step_slot(self):
+        """Scan ticks up to and including the next radio telegram."""
+        n = len(self.lines)
+        end = self.t_ns + SLOT_LIMIT_MS * MS
+        while self.t_ns < end:
+            self.step()
+            if any(d.get("ev") == "radio" for d in self.lines[n:]):
+                return True
+            n = len(self.lines)
+        return False
+
+    def advance(self, ms):
+        """Scan ticks for ms of virtual time (a jump ahead, e.g. to a moment of an exercise)."""
+        if not 0 < ms <= 600_000:
+            raise ViewError("advance: ms must be 1..600000")
+        end = self.t_ns + ms * MS
+        while self.t_ns < end:
+            self.step()
+
+    def set_speed(self, s):
+        if s not in SPEEDS:
+            raise ViewError(f"speed {s}: one of {', '.join(f'{x:g}' for x in SPEEDS)}")
+        self.speed = s
+
+
+class Live(Stepping):
     """A run of the docs' chain the page drives: pause, step, speed, extra loss, lose the next
     record or acknowledgement, PLC restarts."""
 
@@ -167,8 +200,12 @@ class Live:
         return FATE_OK
 
     @property
-    def t_ms(self):
-        return self.ch.t // MS
+    def t_ns(self):
+        return self.ch.t
+
+    @property
+    def lines(self):
+        return self.ch.lines
 
     @property
     def tick(self):
@@ -190,25 +227,6 @@ class Live:
             if self.t_ms >= back_ms:           # on again: scanned from the next tick
                 del self.off[name]
                 self._power_on(name)
-
-    def step_slot(self):
-        """Scan ticks up to and including the next radio telegram."""
-        n = len(self.ch.lines)
-        end = self.ch.t + SLOT_LIMIT_MS * MS
-        while self.ch.t < end:
-            self.step()
-            if any(d.get("ev") == "radio" for d in self.ch.lines[n:]):
-                return True
-            n = len(self.ch.lines)
-        return False
-
-    def advance(self, ms):
-        """Scan ticks for ms of virtual time (a jump ahead, e.g. to a moment of an exercise)."""
-        if not 0 < ms <= 600_000:
-            raise ViewError("advance: ms must be 1..600000")
-        end = self.ch.t + ms * MS
-        while self.ch.t < end:
-            self.step()
 
     def side(self, name):
         if name not in ("outstation", "central"):
@@ -257,11 +275,6 @@ class Live:
         if not 0.0 <= p <= 1.0:
             raise ViewError("loss must be 0..1")
         self.extra[direction] = p
-
-    def set_speed(self, s):
-        if s not in SPEEDS:
-            raise ViewError(f"speed {s}: one of {', '.join(f'{x:g}' for x in SPEEDS)}")
-        self.speed = s
 
     def lose(self, what):
         """Lose the next telegram that carries a record (uplink: the outstation's block) or an
