@@ -90,3 +90,22 @@ def test_the_chain_in_the_page_with_its_relay_and_control_system_ends(browser, v
         pg.close()
     finally:
         srv.close()
+
+
+def test_the_push_chain_shows_the_hand_over_to_wincc_oa(view_workdir):
+    s = ChainLive(view_workdir, handover="push")
+    try:
+        while not s.done and s.t_ms < 20_000:
+            s.step()
+        assert s.done
+        texts = [d["text"] for _, _, d in S.rows_of(s.lines)]
+        st = s.state()
+    finally:
+        s.close()
+    for drv in "AB":                 # the redundant pair: every event to both drivers
+        pushed = [t for t in texts
+                  if t.startswith(f"central -> WinCC OA (UNICOS driver {drv}): events pushed")]
+        vals = [int(v) for t in pushed for v in t.split("(values ")[1].rstrip(")").split(", ")]
+        assert vals == list(range(20)), drv
+    assert RELAY_READ in texts and not any(t.startswith("SCADA") for t in texts)
+    assert st["blocks"][-1]["head"] == "control system" and "WinCC OA" in st["blocks"][-1]["block"]

@@ -22,7 +22,10 @@ from .common import MS, ViewError, diagram
 from .live import Stepping
 from .rows import History
 
-CHAIN_TITLE = "the chain: relay -> outstation -> radio -> central -> SCADA, 20 events"
+CHAIN_TITLES = {
+    "chain": "the chain: relay -> outstation -> radio -> central -> SCADA, 20 events",
+    "chain-push": "the chain: relay -> outstation -> radio -> central -> WinCC OA, 20 events",
+}
 
 
 def entries(n):
@@ -35,17 +38,22 @@ class ChainLive(Stepping):
 
     mode = "live"
 
-    def __init__(self, workdir: Path | None = None, events=20):
+    def __init__(self, workdir: Path | None = None, events=20, handover="pull"):
         from chainsim import TRACE_FN              # docs/tools, on the path by .common
         from gen_traces import WORK
         from mipcosim import chain as C
         from mipcosim.sim import CosimError
         self.C = C
-        self.preset_name = "chain"
+        self.push = handover == "push"
+        self.preset_name = "chain-push" if self.push else "chain"
+        self.title = CHAIN_TITLES[self.preset_name]
         self.workdir = (Path(workdir) if workdir else WORK) / "view-chain"
         self.n_events = events
         try:
-            self.ch = C.SoeChain(C.ChainSetup(events=C.script(events, start_s=0.5)), self.workdir)
+            self.ch = C.SoeChain(C.ChainSetup(events=C.script(events, start_s=0.5),
+                                              handover=handover,
+                                              params=C.SoeParams(redundant=self.push)),
+                                 self.workdir)
         except (CosimError, OSError) as e:
             raise ViewError(f"the chain: {e}") from None
         lib = self.ch.lib
@@ -70,9 +78,13 @@ class ChainLive(Stepping):
                 "entries": rs["entries"],
                 "stored": ch.mw32("out", C.OUT_STORED) if up["out"] else None,
                 "sent": ch.mw32("out", C.OUT_SENT) if up["out"] else None,
-                "records": ch.mw32("cen", C.CEN_RECORDS) if up["cen"] else None,
-                "put": ch.mw32("cen", C.CEN_PUT) if up["cen"] else None,
-                "acked": ch.mw32("cen", C.CEN_ACKED) if up["cen"] else None,
+                "records": ch.mw32("cen", C.PUSH_RECORDS if self.push else C.CEN_RECORDS)
+                if up["cen"] else None,
+                # push: the events MIP_UnicosEvents framed; pull: handed over to MIP_SoeServer
+                "put": ch.mw32("cen", C.PUSH_EVENTS if self.push else C.CEN_PUT)
+                if up["cen"] else None,
+                "acked": None if self.push else (ch.mw32("cen", C.CEN_ACKED) if up["cen"]
+                                                 else None),
                 "taken": len(ch.rows)}
 
     def _note(self, side, what, text):
@@ -105,10 +117,16 @@ class ChainLive(Stepping):
         if more("sent"):
             self._note("outstation", "done", f"{entries(cur['sent'] - prev['sent'])} "
                        f"acknowledged by the central: out of the logger")
-        if more("put"):
+        if more("put") and not self.push:
             self._note("central", "deliver", f"{entries(cur['put'] - prev['put'])} handed "
                        f"over to MIP_SoeServer (not acknowledged yet: xAckByCaller)")
-        if more("taken"):
+        if more("taken") and self.push:
+            rows = self.ch.rows[prev["taken"]:cur["taken"]]
+            for d in sorted({r["driver"] for r in rows}):
+                vals = ", ".join(str(r["value"]) for r in rows if r["driver"] == d)
+                self._note("central", "scada", f"central -> WinCC OA (UNICOS driver "
+                           f"{d.upper()}): events pushed and answered (values {vals})")
+        elif more("taken"):
             rows = self.ch.rows[prev["taken"]:cur["taken"]]
             vals = ", ".join(str(r["value"]) for r in rows)
             self._note("central", "scada", f"SCADA <- central: FC3 40601.., took "
@@ -145,23 +163,32 @@ class ChainLive(Stepping):
                  ("entries acknowledged", c["acknowledged"])]
         out = [("entries read and stored", c["stored"]), ("entries acknowledged by the central",
                                                            c["sent"])]
-        cen = [("records received", c["records"]), ("entries handed over", c["put"]),
-               ("records acknowledged", c["acked"])]
-        scada = [("entries taken", c["taken"]), ("of events", self.n_events)]
+        if self.push:
+            cen = [("records received", c["records"]), ("events framed", c["put"])]
+            scada = [("events at the drivers (A and B)", c["taken"]),
+                     ("of events (each to both)", self.n_events)]
+        else:
+            cen = [("records received", c["records"]), ("entries handed over", c["put"]),
+                   ("records acknowledged", c["acked"])]
+            scada = [("entries taken", c["taken"]), ("of events", self.n_events)]
         return [{"side": side, "block": block, "off": False,
                  "head": {"relay": "relay", "scada": "control system"}.get(side, f"{side} PLC"),
                  "vars": [{"name": k, "value": "-" if v is None else v, "tip": ""}
                           for k, v in rows]}
                 for side, block, rows in (("relay", "SIPROTEC event recorder", relay),
                                           ("outstation", "MIP_SoeReader, MIP_Sender", out),
-                                          ("central", "MIP_Receiver, MIP_SoeServer", cen),
-                                          ("scada", "SCADA stand-in (mippeer.scada)", scada))]
+                                          ("central", "MIP_Receiver, " + (
+                                              "MIP_UnicosEvents" if self.push else
+                                              "MIP_SoeServer"), cen),
+                                          ("scada", "WinCC OA's UNICOS drivers (mippeer.unicos)"
+                                           if self.push else "SCADA stand-in (mippeer.scada)",
+                                           scada))]
 
     def state(self):
-        dg = diagram(self.history, self.lines, f"{CHAIN_TITLE} (live)")
+        dg = diagram(self.history, self.lines, f"{self.title} (live)")
         s1 = self.ch.radio_stats()
         return {
-            "mode": self.mode, "chain": True, "preset": self.preset_name, "title": CHAIN_TITLE,
+            "mode": self.mode, "chain": True, "preset": self.preset_name, "title": self.title,
             "mipsim": "the whole chain in the co-simulation (cosim/mipcosim/chain.py): make "
                       "run RUN_ARGS=--chain in virtual time",
             "t_ms": self.t_ms, "paused": self.paused, "speed": self.speed,

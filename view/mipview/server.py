@@ -57,11 +57,12 @@ class App:
             st["boot"] = self.boot
             st["error"] = self.error
             if st["mode"] == "live":
-                from .session import CHAIN, PRESETS, SPEEDS
-                from .chainview import CHAIN_TITLE
+                from .session import PRESETS, SPEEDS
+                from .chainview import CHAIN_TITLES
                 st["presets"] = {k: {"title": p.title, "exercise": p.exercise,
                                      "mipsim": p.mipsim_args()} for k, p in PRESETS.items()}
-                st["presets"][CHAIN] = {"title": CHAIN_TITLE, "exercise": "", "mipsim": ""}
+                for k, title in CHAIN_TITLES.items():
+                    st["presets"][k] = {"title": title, "exercise": "", "mipsim": ""}
                 st["speeds"] = list(SPEEDS)
             self._cached = json.dumps(st)
         return self._cached
@@ -223,13 +224,13 @@ def make_app(app: App):
 
 
 def parse(argv):
-    from .session import CHAIN, PRESETS, SPEEDS
+    from .session import CHAINS, PRESETS, SPEEDS
     ap = argparse.ArgumentParser(prog="mip-view", description=(
         "A live view in the browser: the MIP blocks in two soft PLCs over the emulated radio "
         "(co-simulation, driven from the page), or a trace file followed as it grows."))
-    ap.add_argument("--preset", default="demo", choices=[*PRESETS, CHAIN],
-                    help="the run to start with (the exercises of docs/exercises.md; chain: "
-                         "the whole chain, relay to SCADA)")
+    ap.add_argument("--preset", default="demo", choices=[*PRESETS, *CHAINS],
+                    help="the run to start with (the exercises of docs/exercises.md; chain, "
+                         "chain-push: the whole chain, relay to SCADA or to WinCC OA)")
     ap.add_argument("--follow", metavar="TRACE",
                     help="read-only: follow this JSON-lines trace (mip-emulator --trace, the "
                          "demo's build/plc/run/emulator-trace.jsonl, mipsim --trace)")

@@ -21,12 +21,13 @@ from .presets import PRESETS, Preset  # noqa: F401
 from .rows import CHUNK, History, note_words, rows_of  # noqa: F401
 
 
-CHAIN = "chain"          # the whole chain's run (chainview.py), beside the presets
+CHAINS = {"chain": "pull", "chain-push": "push"}   # the whole chain's runs (chainview.py)
 
 
 def make_live(name, workdir=None):
-    """The live run of a preset, or of the whole chain."""
-    if name == CHAIN:
+    """The live run of a preset, or of the whole chain (the SCADA polls it: pull; or it
+    pushes to WinCC OA's drivers: push)."""
+    if name in CHAINS:
         from .chainview import ChainLive
-        return ChainLive(workdir)
+        return ChainLive(workdir, handover=CHAINS[name])
     return Live(name, workdir)
