@@ -5,8 +5,9 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-import time
 from pathlib import Path
+
+import pytest
 
 from mipview import session as S
 
@@ -40,9 +41,11 @@ def test_the_demo_in_the_notes_words_with_the_modems_repeat_marked(view_workdir)
     assert not any("65535" in x for x in t)
 
 
-def test_our_retransmission_is_marked_apart_from_the_modems_repeat(view_workdir):
-    """Exercise 4: a timeout too short for the link, so MIP_Sender writes a record again."""
-    s = S.Live("ex4", view_workdir)
+@pytest.mark.parametrize("preset", ["ex2", "ex4", "ex5"])
+def test_our_retransmission_is_marked_apart_from_the_modems_repeat(view_workdir, preset):
+    """Exercise 4: a timeout too short for the link, so MIP_Sender writes a record again (and
+    2, 5: polled, bursts); every write marked is one of its udiRetransmissions."""
+    s = S.Live(preset, view_workdir)
     run_to_end(s)
     rows = S.rows_of(s.ch.lines)
     retrans = s.o.fbv("udiRetransmissions")

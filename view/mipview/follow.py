@@ -66,6 +66,8 @@ class Follow:
         note = self._last_log_line()
         new_note, self._note = note != self._note, note
         new = self._poll_trace()
+        if self.ends is None and self.events and ChainFiles.present(self.path):
+            self.ends = ChainFiles(self.path)      # the chain demo (--demo "--chain") started
         if self.ends is not None:
             new = self.ends.poll(self.events[-1]["t"] if self.events else 0) or new
         return new or new_note

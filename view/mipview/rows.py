@@ -13,7 +13,8 @@ the whole history cut into chunks the page keeps and scrolls.
   check] for acknowledgements 0 and 1): "ack 1 + echo (3 regs)". The radio's own confirmation
   of a block (a MIP ack telegram, or an answer that confirms the poll's block) is "radio ack",
   so "ack N" is always the logger's acknowledgement counter.
-- A radio telegram that carries the same block again with no write of the PLC in between is
+- A radio telegram that carries the same block again, with no write of that block by the PLC
+  in between (a write of the next block may come while the modem still repeats this one), is
   the modem's own repeat (it sends a block until the link confirmed it: emulator/README.md
   "Read status" bit 4): "(modem repeat)". A write of a PLC with the same counter as its write
   before is our block writing it again: MIP_Sender's retransmission after tTimeout, or
@@ -93,7 +94,7 @@ def mark(rows):
     "block" or None."""
     out = []
     last_block = {True: None, False: None}      # down? -> the last block telegram's body
-    written = {True: False, False: False}       # a write of its PLC since then
+    written = {True: False, False: False}       # its PLC wrote that block again since
     last_write = {"outstation": None, "central": None}
     for t, kind, d in rows:
         d = dict(d, repeat=None)
@@ -105,7 +106,10 @@ def mark(rows):
                 text += (" (retransmission by MIP_Sender)" if side == "outstation"
                          else " (ack written again)")
             last_write[side] = d.get("text", "")
-            written[side == "central"] = True
+            # the PLC wrote the block on air again itself: what follows is not the modem's
+            # repeat (a write of another block does not stop the modem repeating this one)
+            if d.get("text", "").removeprefix("write ") == last_block[side == "central"]:
+                written[side == "central"] = True
         elif kind == "radio" and d.get("regs"):
             down, body = d["down"], _body(text)
             if last_block[down] == body and not written[down]:
