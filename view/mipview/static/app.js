@@ -153,7 +153,29 @@ function toEnd() {
 $("diagram-box").addEventListener("scroll", () => {
   const box = $("diagram-box");
   stick = box.scrollTop + box.clientHeight >= box.scrollHeight - 40;
+  drawLanes();
 });
+
+// the lifelines' names stay on top while the diagram scrolls: the head of the last chunk's
+// SVG (seqdiag draws its background, title and "time" first, then each lifeline's line,
+// box and name), cut to the names' height
+const HEAD_ELEMENTS = 15, HEAD_TOP = 44, HEAD_H = 30;
+
+function drawLanes() {
+  const box = $("diagram-box"), lanes = $("lanes");
+  const svgs = document.querySelectorAll("#diagram .chunk svg");
+  lanes.style.display = box.scrollTop > 60 && svgs.length ? "flex" : "none";
+  if (lanes.style.display === "none") return;
+  const src = svgs[svgs.length - 1];
+  if (lanes.dataset.key === src.parentNode.dataset.key) return;
+  const c = src.cloneNode(false);
+  [...src.children].slice(0, HEAD_ELEMENTS).forEach((e) => c.appendChild(e.cloneNode(true)));
+  const vb = src.getAttribute("viewBox").split(" ");
+  c.setAttribute("viewBox", `${vb[0]} ${HEAD_TOP} ${vb[2]} ${HEAD_H}`);
+  c.setAttribute("height", HEAD_H);
+  lanes.replaceChildren(c);
+  lanes.dataset.key = src.parentNode.dataset.key;
+}
 
 function chunkDiv(i) {
   let div = document.querySelector(`#diagram .chunk[data-i="${i}"]`);
