@@ -98,6 +98,9 @@ def test_scroll_back_to_record_1_after_the_end_and_search(browser, view_workdir)
         assert len([t for t in texts if t.startswith("write record ")]) >= 20
         assert not any("65535" in t for t in texts)
         assert "write record 16#FFFF (last) (123 regs)" in texts
+        # the modem's repeats of blocks whose telegram or confirmation was lost, marked
+        repeats = [t for t in texts if t.endswith("(modem repeat)")]
+        assert repeats and all(t.startswith(("answer: ", "poll: ")) for t in repeats)
         assert pg.inner_text("#registers td[data-addr='2001']") == "16#FFFF"
         assert "16#4D50" in pg.get_attribute("#registers th:has-text('11')", "title")
         pg.fill("#search", "write record 16#FFFF")
