@@ -86,6 +86,8 @@ def test_the_chain_in_the_page_with_its_relay_and_control_system_ends(browser, v
         heads = pg.locator("#blocks th").all_inner_texts()
         assert heads[0].startswith("relay: ") and heads[-1].startswith("control system: ")
         assert pg.locator("#lose-record").is_hidden()            # no faults of the page's own
+        assert pg.get_attribute("#registers td[data-addr='10']", "title").startswith(
+            "acknowledgement counter")                           # the modems' windows too
         assert pg.locator("#step-slot").is_visible()
         pg.close()
     finally:

@@ -19,7 +19,7 @@ import json
 from pathlib import Path
 
 from .common import MS, ViewError, diagram
-from .live import Stepping
+from .live import Stepping, Windows
 from .rows import History
 
 CHAIN_TITLES = {
@@ -67,6 +67,7 @@ class ChainLive(Stepping):
         self.speed = 1.0
         self.tick = self.ch.tick_ns
         self.history = History()
+        self.windows = Windows()
         self._prev = self._counters()
 
     # ---------------------------------------------------------------- the simulation
@@ -194,7 +195,8 @@ class ChainLive(Stepping):
             "t_ms": self.t_ms, "paused": self.paused, "speed": self.speed,
             "extra_loss": {"up": 0.0, "down": 0.0},
             "lose_next": {"record": False, "ack": False},
-            "done": self.done, **dg, "registers": [], "blocks": self._blocks(),
+            "done": self.done, **dg, "blocks": self._blocks(),
+            "registers": self.windows.peek(self.ch.lib, self.ch.lib.mipcosim_net(self.ch.sim)),
             "radio": {"down": s1.get("tel_down", 0), "up": s1.get("tel_up", 0),
                       "lost_down": s1.get("lost_down", 0), "lost_up": s1.get("lost_up", 0)},
             "off": {},

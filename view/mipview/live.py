@@ -93,11 +93,20 @@ VAR_TIPS = {
 }
 
 
-class _Windows:
+class Windows:
     """The register windows and which registers changed since the last look."""
 
     def __init__(self):
         self.last = {}
+
+    def peek(self, lib, net):
+        """The windows of the emulator core `net` (mipemu_net_peek: no side effects)."""
+        vals = []
+        for title, ep, unit, addr, n in WINDOWS:
+            buf = (ctypes.c_uint16 * n)()
+            lib.mipemu_net_peek(net, ep, unit, addr, n, buf)
+            vals.append((title, addr, list(buf)))
+        return self.show(vals)
 
     def show(self, values_by_title):
         out = []
@@ -179,7 +188,7 @@ class Live(Stepping):
         self.lost_by_view = []                            # (t_ms, dir, first register)
         self.off = {}                                     # side name -> virtual ms it returns
         self.restarted = p.restart is None
-        self.windows = _Windows()
+        self.windows = Windows()
         self.history = History()
         self._fate = FATE_FN(self._on_fate)               # kept alive as long as the network
         self.ch.lib.mipemu_net_set_fate(self.ch.net, self._fate, None)
@@ -304,12 +313,7 @@ class Live(Stepping):
                 "off": side.name in self.off}
 
     def _registers(self):
-        vals = []
-        for title, ep, unit, addr, n in WINDOWS:
-            buf = (ctypes.c_uint16 * n)()
-            self.ch.lib.mipemu_net_peek(self.ch.net, ep, unit, addr, n, buf)
-            vals.append((title, addr, list(buf)))
-        return self.windows.show(vals)
+        return self.windows.peek(self.ch.lib, self.ch.net)
 
     def state(self):
         dg = diagram(self.history, self.ch.lines, f"{self.preset.title} (live)")
