@@ -4,7 +4,9 @@ followed (the real-time chain demo's run directory), and in the page (Chromium).
 from __future__ import annotations
 
 import json
-from pathlib import Path
+import time
+
+import pytest
 
 from view_helpers import needs_browser
 from mipview import shots
@@ -111,3 +113,27 @@ def test_the_push_chain_shows_the_hand_over_to_wincc_oa(view_workdir):
         assert vals == list(range(20)), drv
     assert RELAY_READ in texts and not any(t.startswith("SCADA") for t in texts)
     assert st["blocks"][-1]["head"] == "control system" and "WinCC OA" in st["blocks"][-1]["block"]
+
+
+@pytest.mark.slow
+def test_the_real_time_chain_demo_followed_with_its_ends():
+    """--demo "--chain": plc/demo_chain.py in real time (mip-emulator with a relay, two soft
+    PLCs, mip-peer scada); the page's rows have the relay's events and the SCADA's takes
+    beside the records, and the demo's own result line (not the last run's)."""
+    srv = shots.Server("--demo", "--chain --events 10", paused=False)
+    try:
+        deadline = time.time() + 120
+        st = json.loads(srv.get("api/state"))
+        while time.time() < deadline and not (st.get("note") or "").startswith("result:"):
+            time.sleep(0.3)
+            st = json.loads(srv.get("api/state"))
+        assert (st["note"] or "").startswith("result: ok events=10 "), st["note"]
+        time.sleep(0.5)                         # the SCADA's last entries read by the view
+        texts = [r["text"] for r in json.loads(srv.get("api/state"))["rows"]]
+    finally:
+        srv.close()
+    assert len([t for t in texts if t.startswith("relay: event recorded")]) == 10
+    took = [t for t in texts if t.startswith("SCADA took ")]
+    assert sum(int(t.split()[2]) for t in took) == 10
+    assert any(t.startswith("write record 1 (") for t in texts)
+    assert not any(t.startswith("FC16 write") for t in texts)

@@ -274,6 +274,7 @@ def main(argv=None):
             rundir.mkdir(parents=True, exist_ok=True)
             trace = rundir / "emulator-trace.jsonl"
             trace.unlink(missing_ok=True)          # the page shows this run, not the last one
+            (rundir.parent / "demo.log").unlink(missing_ok=True)   # nor the last one's result
             # the log beside the run directory: the demo empties that at its start
             session = Follow(trace, a.station, wait=True, log=rundir.parent / "demo.log",
                              on_bad=log_bad)
