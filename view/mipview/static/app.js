@@ -46,7 +46,7 @@ function drawRegisters(st) {
     });
     html += "</tr></table>";
   }
-  $("registers").innerHTML = html;
+  $("registers").innerHTML = html || `<div class="caption">not in a trace: the modems' registers are read in a live run</div>`;
 }
 
 function drawBlocks(st) {
@@ -60,7 +60,7 @@ function drawBlocks(st) {
     }
     html += "</table>";
   }
-  $("blocks").innerHTML = html;
+  $("blocks").innerHTML = html || `<div class="caption">not in a trace: the blocks' states are shown in a live run</div>`;
 }
 
 function drawRadio(st) {
