@@ -18,7 +18,7 @@ import ctypes
 import json
 from pathlib import Path
 
-from .common import MS, ViewError, diagram
+from .common import ViewError, diagram
 from .live import Stepping, Windows
 from .rows import History
 
