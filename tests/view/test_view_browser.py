@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from view_helpers import needs_browser
+from view_helpers import all_chunks_drawn, needs_browser
 from mipview import session as S
 from mipview import shots
 
@@ -110,6 +110,7 @@ def test_every_preset_runs_in_the_page(page, server):
                              "'transfer complete'", timeout=60_000)
         pg.click("#pause")
         settle(pg, server)
+        all_chunks_drawn(pg, server)            # ex8 has more than one chunk
         tr = trace(server)
         rows = S.rows_of(tr)               # the whole run, every row
         texts = svg_texts(pg)

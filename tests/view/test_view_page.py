@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from view_helpers import needs_browser
+from view_helpers import all_chunks_drawn, needs_browser
 from mipview import session as S
 from mipview import shots
 
@@ -35,14 +35,6 @@ def settle(pg, srv):
     pg.wait_for_function("(document.body.dataset.pending || '0') === '0'")
     v = json.loads(srv.get("api/state"))["version"]
     pg.wait_for_function(f"Number(document.body.dataset.version) >= {v}")
-
-
-def all_chunks_drawn(pg, srv):
-    st = json.loads(srv.get("api/state"))
-    keys = json.dumps([c["key"] for c in st["chunks"]], separators=(",", ":"))
-    pg.wait_for_function(f"JSON.stringify([...document.querySelectorAll('#diagram .chunk')]"
-                         f".map(d => d.dataset.key)) === {json.dumps(keys)}")
-    return st
 
 
 def svg_texts(pg):
