@@ -12,4 +12,4 @@ view: all
 # The screenshots of docs/view.md, taken in Debian's Chromium (tests/view checks the committed
 # ones are what this makes).
 view-shots: all
-	@$(PY) -m mipview.shots docs/img $(foreach p,demo ex2 ex6-outstation,--preset $(p))
+	@$(PY) -m mipview.shots docs/img $(foreach p,demo ex2 ex6-outstation chain,--preset $(p))

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from view_helpers import needs_browser
+from view_helpers import all_chunks_drawn, needs_browser
 from mipview import session as S
 from mipview import shots
 
@@ -110,8 +110,9 @@ def test_every_preset_runs_in_the_page(page, server):
                              "'transfer complete'", timeout=60_000)
         pg.click("#pause")
         settle(pg, server)
+        all_chunks_drawn(pg, server)            # ex8 has more than one chunk
         tr = trace(server)
-        rows = S.seqdiag.rows_from(tr, 1, 0, 1 << 62)[-S.ROWS_SHOWN:]
+        rows = S.rows_of(tr)               # the whole run, every row
         texts = svg_texts(pg)
         for _, _, d in rows:
             assert S.seqdiag.mark_reset(d["text"]) in texts or d["text"] in texts, (name, d)
@@ -193,8 +194,7 @@ def test_follow_mode_shows_a_growing_trace(browser, view_workdir, tmp_path):
         assert pg.locator("#restart-central-cold").is_hidden()     # read-only
         with open(path, "a") as f:
             f.write("".join(lines[len(lines) // 2:]))
-        want = [d["text"] for _, _, d in S.seqdiag.rows_from(
-            [json.loads(x) for x in lines], 1, 0, 1 << 62)][-S.ROWS_SHOWN:]
+        want = [d["text"] for _, _, d in S.rows_of([json.loads(x) for x in lines])]
         deadline = time.time() + 10
         while time.time() < deadline and want[-1] not in svg_texts(pg):
             time.sleep(0.1)
@@ -244,10 +244,10 @@ def test_demo_in_real_time_is_followed_and_stopped_with_the_view(browser):
         settle(pg, srv)
         lost = [d for d in events if d["ev"] == "radio" and d.get("lost")]
         assert [d["r0"] for d in lost] == [2]          # the demo's record 2, lost once
-        want = [d["text"] for _, _, d in S.seqdiag.rows_from(events, 1, 0, 1 << 62)]
+        want = [d["text"] for _, _, d in S.rows_of(events)]
         texts = svg_texts(pg)
         assert all(w in texts or S.seqdiag.mark_reset(w) in texts
-                   for w in want[-S.ROWS_SHOWN:])
+                   for w in want)
         pg.close()
         # a long demo, stopped with the view: its processes end too
         srv.close()
@@ -268,7 +268,7 @@ def test_screenshots_of_the_presets_match_the_docs(browser, view_workdir):
     """The generator of docs/img/view-*.png, run here into build/view/: the same pictures (what
     each shows, written into it; its size) as the committed ones."""
     out = shots.take(REPO / "build" / "view", workdir=view_workdir, browser=browser)
-    assert set(out) == set(S.PRESETS)
+    assert set(out) == set(S.PRESETS) | set(S.CHAINS)
     assert all(path.is_file() for path, _ in out.values())
     for name in shots.DOCS_PRESETS:
         path = out[name][0]

@@ -1,5 +1,5 @@
 """What both kinds of session share: the docs' tools on the path (one chain, one diagram),
-st_lib's enum names, the diagram of a trace, the error a user sees."""
+st_lib's enum names, the diagram of a trace (its rows: rows.py), the error a user sees."""
 from __future__ import annotations
 
 import sys
@@ -16,7 +16,6 @@ from chainsim import MS  # noqa: E402
 from mipcosim.layout import st_enums  # noqa: E402
 
 ENUMS = st_enums(chainsim.LIB_DIR / "MIP_Types.st")
-ROWS_SHOWN = 36                      # rows of the diagram on the page (our choice: one screen)
 
 
 class ViewError(Exception):
@@ -28,12 +27,12 @@ def enum_name(type_name, value):
     return names[value] if 0 <= value < len(names) else f"{type_name}#{value}"
 
 
-def diagram(events, title, station=1):
-    """The seqdiag rows of a trace (one station's) and the SVG of the last ROWS_SHOWN."""
-    rows = seqdiag.rows_from(events, station, 0, 1 << 62)
-    shown = rows[-ROWS_SHOWN:]
-    caption = (f"The last {len(shown)} of {len(rows)} rows; empty polls and answers and PLC reads "
-               f"without new data omitted.")
-    svg = seqdiag.render(shown, title, caption)
-    return svg, [{"t_ms": t // MS, "kind": kind, "text": d.get("text", ""),
-                  "lost": bool(d.get("lost"))} for t, kind, d in shown], len(rows)
+def diagram(history, events, title, station=1):
+    """What the page shows of a trace's diagram: the whole history in chunks (rows.History),
+    the last chunk's SVG and rows inline (the page fetches the others by key)."""
+    from .rows import row_data, rows_of
+    rows = rows_of(events, station)
+    chunks = history.update(rows, title)
+    last = chunks[-1]
+    return {"svg": history.svg(last["i"]), "chunks": chunks, "nrows": len(rows),
+            "rows": row_data(rows[(last["first"] or 1) - 1:])}

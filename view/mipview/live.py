@@ -7,6 +7,7 @@ from pathlib import Path
 
 from .common import MS, ViewError, diagram, enum_name   # first: docs/tools on the path
 from .presets import PRESETS
+from .rows import History
 
 from chainsim import Chain, ChainError, Side  # noqa: E402  (docs/tools)
 from gen_traces import WORK, logger_data  # noqa: E402
@@ -19,10 +20,49 @@ SLOT_LIMIT_MS = 10_000               # "one radio slot" gives up after this much
 # (unit = station), 1 the TRM-810 of station 1 (mipemu.h).
 WINDOWS = [
     ("TRM-810 write (2000: count, 2001..: record)", 1, 1, 2000, 9),
-    ("TRM-810 read (2198: status, 2199: count, 2200..: data)", 1, 1, 2198, 9),
-    ("MDP-810 read, station 1 (198: status, 199: count, 200..: data)", 0, 1, 198, 9),
+    ("TRM-810 read (2198: status, 2199: count, 2200..: acknowledgement)", 1, 1, 2198, 9),
+    ("MDP-810 read, station 1 (198: status, 199: count, 200..: record)", 0, 1, 198, 9),
     ("MDP-810 write, station 1 (9: count, 10..: acknowledgement)", 0, 1, 9, 9),
 ]
+# what each register of a window is (offset from the window's first register): a short name
+# under its address and a tooltip. The areas are the emulator's (emulator/README.md "Register
+# maps", from the note's register tables); what the blocks put in them is st_lib/PROTOCOL.md's
+# (the record counter and the acknowledgement in the first register of a block, the note's
+# "Datensatzzähler" / "Bestätigungszähler"; acknowledgements 0 and 1 of our receiver carry the
+# echo [ack, 16#4D50, check], P8).
+_STATUS = ("status", "read status: bit 0 new data, bit 1 write data waiting, bit 4 write data "
+                     "not yet confirmed by the link (emulator/README.md)")
+_COUNT_RX = ("count", "number of registers received (the block's length)")
+_COUNT_TX = ("count", "number of registers written (the block's length, set by the write)")
+_RECORD = ("record", "record counter: 1, 2, ... 16#FFFF for the last record, 0 the reset "
+                     "record (the note's Datensatzzähler)")
+_ACK = ("ack", "acknowledgement counter: the last record the receiver accepted; 0 (start): "
+               "nothing yet, 16#FFFF: the last record (the note's Bestätigungszähler)")
+_MAGIC = ("echo", "16#4D50 ('MP'): the echo magic our MIP_Receiver writes with acknowledgements "
+                  "0 and 1 (st_lib/PROTOCOL.md P8); with a 1-register acknowledgement (count 1) "
+                  "it is left over from the last 3-register one")
+_CHECK = ("check", "check value of the record acknowledged, with acknowledgements 0 and 1 "
+                   "(st_lib/PROTOCOL.md P8); with a 1-register acknowledgement (count 1) it is "
+                   "left over from the last 3-register one")
+_DATA = ("data", "the record's data: the logger's registers")
+_UNUSED = ("-", "not part of the block (an acknowledgement has 1 or 3 registers)")
+REGISTERS = {
+    2000: [_COUNT_TX, _RECORD] + [_DATA] * 7,
+    2198: [_STATUS, _COUNT_RX, _ACK, _MAGIC, _CHECK] + [_UNUSED] * 4,
+    198: [_STATUS, _COUNT_RX, _RECORD] + [_DATA] * 6,
+    9: [_COUNT_TX, _ACK, _MAGIC, _CHECK] + [_UNUSED] * 5,
+}
+
+
+def shown(name, value):
+    """A register as the note writes it: counters 16#FFFF, the echo magic in hex."""
+    if name in ("record", "ack") and value == 0xFFFF:
+        return "16#FFFF"
+    if name == "echo" and value == 0x4D50:
+        return "16#4D50"
+    return str(value)
+
+
 SPEEDS = (0.1, 0.25, 0.5, 1.0, 2.0, 5.0, 10.0, 50.0)   # virtual seconds per real second
 
 # what the page shows of each block: (member, enum type or None)
@@ -35,12 +75,38 @@ RECEIVER_VIEW = [("eState", "E_MIP_ReceiverState"), ("eWaitReason", "E_MIP_WaitR
                  ("udiUnexpected", None), ("udiTransfers", None),
                  ("udiFailedTransfers", None), ("eErrorId", "E_MIP_Error")]
 
+# the tooltips of the blocks' members (st_lib/MIP_Sender.st, MIP_Receiver.st)
+VAR_TIPS = {
+    "eState": "the block's state (E_MIP_SenderState / E_MIP_ReceiverState, st_lib/MIP_Types.st)",
+    "eWaitReason": "what the block waits for (E_MIP_WaitReason)",
+    "wRecord": "the record in flight: 1, 2, ... 16#FFFF the last",
+    "wAck": "the last acknowledgement written: 0 (start), then the record accepted, 16#FFFF the last",
+    "udiRecords": "records sent and acknowledged (sender) / accepted (receiver)",
+    "udiRetransmissions": "records the block wrote again after tTimeout without an acknowledgement"
+                          " (the modem's own repeats on the radio are not counted here)",
+    "udiUnexpectedAcks": "acknowledgements that fit no record in flight (out of step, P11)",
+    "udiTransfers": "transfers complete",
+    "udiDuplicates": "records received again and discarded (a repeat after a lost confirmation)",
+    "udiUnexpected": "records ignored: neither the next one nor a duplicate (P20)",
+    "udiFailedTransfers": "transfers given up",
+    "eErrorId": "the last error (E_MIP_Error)",
+}
 
-class _Windows:
+
+class Windows:
     """The register windows and which registers changed since the last look."""
 
     def __init__(self):
         self.last = {}
+
+    def peek(self, lib, net):
+        """The windows of the emulator core `net` (mipemu_net_peek: no side effects)."""
+        vals = []
+        for title, ep, unit, addr, n in WINDOWS:
+            buf = (ctypes.c_uint16 * n)()
+            lib.mipemu_net_peek(net, ep, unit, addr, n, buf)
+            vals.append((title, addr, list(buf)))
+        return self.show(vals)
 
     def show(self, values_by_title):
         out = []
@@ -48,11 +114,47 @@ class _Windows:
             old = self.last.get(title)
             changed = [i for i, v in enumerate(values) if old is not None and old[i] != v]
             self.last[title] = values
-            out.append({"title": title, "start": start, "values": values, "changed": changed})
+            names = REGISTERS[start]
+            out.append({"title": title, "start": start, "values": values, "changed": changed,
+                        "names": [n for n, _ in names], "tips": [tip for _, tip in names],
+                        "shown": [shown(n, v) for (n, _), v in zip(names, values)]})
         return out
 
 
-class Live:
+class Stepping:
+    """Stepping a run by radio slot or by time, for any session with step(), `lines` (its
+    trace so far) and `t_ns` (its virtual time)."""
+
+    @property
+    def t_ms(self):
+        return self.t_ns // MS
+
+    def step_slot(self):
+        """Scan ticks up to and including the next radio telegram."""
+        n = len(self.lines)
+        end = self.t_ns + SLOT_LIMIT_MS * MS
+        while self.t_ns < end:
+            self.step()
+            if any(d.get("ev") == "radio" for d in self.lines[n:]):
+                return True
+            n = len(self.lines)
+        return False
+
+    def advance(self, ms):
+        """Scan ticks for ms of virtual time (a jump ahead, e.g. to a moment of an exercise)."""
+        if not 0 < ms <= 600_000:
+            raise ViewError("advance: ms must be 1..600000")
+        end = self.t_ns + ms * MS
+        while self.t_ns < end:
+            self.step()
+
+    def set_speed(self, s):
+        if s not in SPEEDS:
+            raise ViewError(f"speed {s}: one of {', '.join(f'{x:g}' for x in SPEEDS)}")
+        self.speed = s
+
+
+class Live(Stepping):
     """A run of the docs' chain the page drives: pause, step, speed, extra loss, lose the next
     record or acknowledgement, PLC restarts."""
 
@@ -86,7 +188,8 @@ class Live:
         self.lost_by_view = []                            # (t_ms, dir, first register)
         self.off = {}                                     # side name -> virtual ms it returns
         self.restarted = p.restart is None
-        self.windows = _Windows()
+        self.windows = Windows()
+        self.history = History()
         self._fate = FATE_FN(self._on_fate)               # kept alive as long as the network
         self.ch.lib.mipemu_net_set_fate(self.ch.net, self._fate, None)
 
@@ -106,8 +209,17 @@ class Live:
         return FATE_OK
 
     @property
-    def t_ms(self):
-        return self.ch.t // MS
+    def t_ns(self):
+        return self.ch.t
+
+    @property
+    def lines(self):
+        return self.ch.lines
+
+    @property
+    def tick(self):
+        """One scan tick (ns): what the server's clock steps."""
+        return self.ch.tick
 
     @property
     def done(self):
@@ -124,25 +236,6 @@ class Live:
             if self.t_ms >= back_ms:           # on again: scanned from the next tick
                 del self.off[name]
                 self._power_on(name)
-
-    def step_slot(self):
-        """Scan ticks up to and including the next radio telegram."""
-        n = len(self.ch.lines)
-        end = self.ch.t + SLOT_LIMIT_MS * MS
-        while self.ch.t < end:
-            self.step()
-            if any(d.get("ev") == "radio" for d in self.ch.lines[n:]):
-                return True
-            n = len(self.ch.lines)
-        return False
-
-    def advance(self, ms):
-        """Scan ticks for ms of virtual time (a jump ahead, e.g. to a moment of an exercise)."""
-        if not 0 < ms <= 600_000:
-            raise ViewError("advance: ms must be 1..600000")
-        end = self.ch.t + ms * MS
-        while self.ch.t < end:
-            self.step()
 
     def side(self, name):
         if name not in ("outstation", "central"):
@@ -192,11 +285,6 @@ class Live:
             raise ViewError("loss must be 0..1")
         self.extra[direction] = p
 
-    def set_speed(self, s):
-        if s not in SPEEDS:
-            raise ViewError(f"speed {s}: one of {', '.join(f'{x:g}' for x in SPEEDS)}")
-        self.speed = s
-
     def lose(self, what):
         """Lose the next telegram that carries a record (uplink: the outstation's block) or an
         acknowledgement (downlink: the central's block)."""
@@ -212,28 +300,30 @@ class Live:
         out = []
         for member, enum in view:
             v = side.fbv(member)
-            out.append({"name": member, "value": enum_name(enum, v) if enum else v})
+            if enum:
+                value = enum_name(enum, v)
+            elif member in ("wRecord", "wAck"):
+                value = "16#FFFF (last)" if v == 0xFFFF else (
+                    "0 (start)" if v == 0 and member == "wAck" else v)
+            else:
+                value = v
+            out.append({"name": member, "value": value, "tip": VAR_TIPS.get(member, "")})
         block = "MIP_Sender" if side.role == "sender" else "MIP_Receiver"
         return {"side": side.name, "block": block, "vars": out,
                 "off": side.name in self.off}
 
     def _registers(self):
-        vals = []
-        for title, ep, unit, addr, n in WINDOWS:
-            buf = (ctypes.c_uint16 * n)()
-            self.ch.lib.mipemu_net_peek(self.ch.net, ep, unit, addr, n, buf)
-            vals.append((title, addr, list(buf)))
-        return self.windows.show(vals)
+        return self.windows.peek(self.ch.lib, self.ch.net)
 
     def state(self):
-        svg, rows, nrows = diagram(self.ch.lines, f"{self.preset.title} (live)")
+        dg = diagram(self.history, self.ch.lines, f"{self.preset.title} (live)")
         st = self.ch.stats(1)
         return {
             "mode": self.mode, "preset": self.preset_name, "title": self.preset.title,
             "mipsim": self.preset.mipsim_args(), "t_ms": self.t_ms, "paused": self.paused,
             "speed": self.speed, "extra_loss": dict(self.extra), "lose_next": {
                 "record": self.lose_next["up"], "ack": self.lose_next["down"]},
-            "done": self.done, "svg": svg, "rows": rows, "nrows": nrows,
+            "done": self.done, **dg,
             "registers": self._registers(), "blocks": [self._block(self.o), self._block(self.c)],
             "radio": {"polls": st["polls"], "down": st["tel_down"], "lost_down": st["lost_down"],
                       "up": st["tel_up"], "lost_up": st["lost_up"]},

@@ -58,8 +58,11 @@ class App:
             st["error"] = self.error
             if st["mode"] == "live":
                 from .session import PRESETS, SPEEDS
+                from .chainview import CHAIN_TITLES
                 st["presets"] = {k: {"title": p.title, "exercise": p.exercise,
                                      "mipsim": p.mipsim_args()} for k, p in PRESETS.items()}
+                for k, title in CHAIN_TITLES.items():
+                    st["presets"][k] = {"title": title, "exercise": "", "mipsim": ""}
                 st["speeds"] = list(SPEEDS)
             self._cached = json.dumps(st)
         return self._cached
@@ -67,22 +70,28 @@ class App:
     async def run(self):
         """The clock: steps a live run, polls a followed trace."""
         from .session import ChainError, ViewError
+        from mipcosim.sim import CosimError
         while True:
             await asyncio.sleep(FRAME_S)
             s = self.session
             if s.mode == "follow":
-                if not s.paused and s.poll():     # paused: the file is read on resume
+                try:
+                    if not s.paused and s.poll():     # paused: the file is read on resume
+                        self.touch()
+                except Exception as e:    # a bug: one line here and on the page; the
+                    self.error = f"internal error: {type(e).__name__}: {e}"   # clock goes on
+                    print(f"mip-view: {self.error}", file=sys.stderr, flush=True)
                     self.touch()
                 continue
             if s.paused:
                 continue
-            self._carry += s.speed * FRAME_S * 1e9 / s.ch.tick
+            self._carry += s.speed * FRAME_S * 1e9 / s.tick
             n = int(self._carry)
             self._carry -= n
             try:
                 for _ in range(n):
                     s.step()
-            except (ChainError, ViewError) as e:
+            except (ChainError, ViewError, CosimError) as e:
                 s.paused = True            # the run cannot go on: say why, keep the page
                 self.error = str(e)
             except Exception as e:         # a bug: one line here and on the page, no traceback
@@ -94,7 +103,7 @@ class App:
 
     def control(self, req: dict):
         """One control; returns nothing, raises ViewError with a line for the page."""
-        from .session import ChainError, Live, ViewError
+        from .session import ChainError, ViewError, make_live
         s = self.session
         action = req.get("action")
         if s.mode == "follow" and action not in ("pause", "resume"):
@@ -123,7 +132,7 @@ class App:
                 s.restart(req.get("plc"), req.get("kind", "cold"),
                           int(req.get("outage_ms", 1000)))
             elif action == "preset":
-                new = Live(req.get("name", ""), self.workdir)
+                new = make_live(req.get("name", ""), self.workdir)
                 new.paused, new.speed = s.paused, s.speed
                 s.close()
                 self.session = new
@@ -183,6 +192,21 @@ def make_app(app: App):
             return web.json_response({"error": msg}, status=500)
         return web.Response(text=app.state(), content_type="application/json")
 
+    async def chunk(request):
+        """One chunk of the diagram's history (rows.History), by number; its key in the
+        X-Chunk-Key header (the page keeps it until the state names another)."""
+        app.state()                        # the history of the latest state
+        h = app.session.history
+        try:
+            i = int(request.query.get("i", ""))
+            if not 0 <= i < len(h.chunks):
+                raise ValueError
+        except ValueError:
+            return web.json_response({"error": f"no chunk {request.query.get('i')!r}"},
+                                     status=404)
+        return web.Response(text=h.svg(i), content_type="image/svg+xml",
+                            headers={"X-Chunk-Key": h.chunks[i]["key"]})
+
     async def trace(request):
         s = app.session
         lines = s.trace() if s.mode == "live" else [json.dumps(d) for d in s.events]
@@ -193,18 +217,20 @@ def make_app(app: App):
     w.router.add_get("/api/state", state)
     w.router.add_get("/api/events", events)
     w.router.add_get("/api/trace", trace)
+    w.router.add_get("/api/chunk", chunk)
     w.router.add_post("/api/control", control)
     w.router.add_static("/static/", STATIC)
     return w
 
 
 def parse(argv):
-    from .session import PRESETS, SPEEDS
+    from .session import CHAINS, PRESETS, SPEEDS
     ap = argparse.ArgumentParser(prog="mip-view", description=(
         "A live view in the browser: the MIP blocks in two soft PLCs over the emulated radio "
         "(co-simulation, driven from the page), or a trace file followed as it grows."))
-    ap.add_argument("--preset", default="demo", choices=list(PRESETS),
-                    help="the run to start with (the exercises of docs/exercises.md)")
+    ap.add_argument("--preset", default="demo", choices=[*PRESETS, *CHAINS],
+                    help="the run to start with (the exercises of docs/exercises.md; chain, "
+                         "chain-push: the whole chain, relay to SCADA or to WinCC OA)")
     ap.add_argument("--follow", metavar="TRACE",
                     help="read-only: follow this JSON-lines trace (mip-emulator --trace, the "
                          "demo's build/plc/run/emulator-trace.jsonl, mipsim --trace)")
@@ -240,7 +266,7 @@ def parse(argv):
 
 def main(argv=None):
     a = parse(argv)
-    from .session import REPO, Follow, Live, ViewError
+    from .session import REPO, Follow, ViewError, make_live
     demo = None
     try:
         if a.demo is not None:
@@ -248,12 +274,14 @@ def main(argv=None):
             rundir.mkdir(parents=True, exist_ok=True)
             trace = rundir / "emulator-trace.jsonl"
             trace.unlink(missing_ok=True)          # the page shows this run, not the last one
+            (rundir.parent / "demo.log").unlink(missing_ok=True)   # nor the last one's result
             # the log beside the run directory: the demo empties that at its start
-            session = Follow(trace, a.station, wait=True, log=rundir.parent / "demo.log")
+            session = Follow(trace, a.station, wait=True, log=rundir.parent / "demo.log",
+                             on_bad=log_bad)
         elif a.follow:
-            session = Follow(a.follow, a.station)
+            session = Follow(a.follow, a.station, on_bad=log_bad)
         else:
-            session = Live(a.preset, a.workdir)
+            session = make_live(a.preset, a.workdir)
     except ViewError as e:
         print(f"mip-view: error: {e}", file=sys.stderr)
         return 2
@@ -292,6 +320,11 @@ def main(argv=None):
                 demo.kill()
                 demo.wait()
     return 0
+
+
+def log_bad(why):
+    """A line of a followed trace that was skipped: one line in the log (the page shows it)."""
+    print(f"mip-view: {why}", file=sys.stderr, flush=True)
 
 
 def rel(path):

@@ -18,7 +18,7 @@ import urllib.request
 import zlib
 from pathlib import Path
 
-from .session import PRESETS
+from .session import CHAINS, PRESETS
 
 CHROMIUM = os.environ.get("MIP_VIEW_CHROMIUM", "/usr/bin/chromium")
 # Chromium as root in a closed network (no sandbox, nothing fetched in the background)
@@ -27,7 +27,7 @@ CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic"
                  "--disable-component-update", "--disable-sync"]
 VIEWPORT = {"width": 1500, "height": 1000}
 # the presets pictured in docs/view.md (docs/img/view-<preset>.png); the tests take them all
-DOCS_PRESETS = ("demo", "ex2", "ex6-outstation")
+DOCS_PRESETS = ("demo", "ex2", "ex6-outstation", "chain")
 AFTER_MS = 400             # the picture: this long after the moment that matters (our choice)
 STEP_MS = 100
 
@@ -93,6 +93,8 @@ def moment(server, limit_ms=60_000):
 
 
 def describe(preset, t_ms):
+    if preset in CHAINS:
+        return f"mip-view preset {preset} at {t_ms} ms (the whole chain, {CHAINS[preset]})"
     return f"mip-view preset {preset} at {t_ms} ms (mipsim {PRESETS[preset].mipsim_args()})"
 
 
@@ -141,7 +143,7 @@ def take(outdir, presets=None, workdir=None, browser=None):
     try:
         page = browser.new_page(viewport=VIEWPORT)
         page.goto(server.url)
-        for name in presets or list(PRESETS):
+        for name in presets or [*PRESETS, *CHAINS]:
             server.control(action="preset", name=name)
             st = moment(server)
             # the page has drawn this state (the event stream's copy of it)
@@ -161,7 +163,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(prog="mipview.shots",
                                  description=" ".join(__doc__.split("\n\n")[0].split()))
     ap.add_argument("outdir")
-    ap.add_argument("--preset", action="append", choices=list(PRESETS))
+    ap.add_argument("--preset", action="append", choices=[*PRESETS, *CHAINS])
     a = ap.parse_args(argv)
     if not Path(CHROMIUM).is_file():
         print(f"mipview.shots: error: {CHROMIUM} missing (Debian package chromium)",
