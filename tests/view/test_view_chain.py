@@ -71,6 +71,48 @@ def test_a_followed_chain_demo_run_shows_the_relay_and_the_scada(view_workdir, t
     assert not any(t.startswith("FC16 write") for t in texts)
 
 
+MS = 1_000_000
+ORIGIN = 7_000_000_000          # CLOCK_MONOTONIC at the trace's time 0 (the emulator's start)
+
+
+def test_a_followed_run_directory_draws_the_relays_handshake_and_the_scadas_takes_in_time(
+        tmp_path):
+    """A small run directory as the real-time demo writes it: mip-emulator --relay --trace's
+    "relay" lines (its clock's origin, a read, an acknowledgement, a refused one), the relay's
+    script, the SCADA's entries with the times it took them (mono_ns), and one older entry
+    without a time."""
+    trace = [
+        {"t": 0, "seq": 0, "ev": "relay", "start": True, "mono_ns": ORIGIN},
+        {"t": 100 * MS, "seq": 1, "ev": "relay", "fc": 3, "ra": 600, "rq": 26, "soe": 0x0201,
+         "offered": 2, "entries": 2},
+        {"t": 110 * MS, "seq": 2, "ev": "relay", "fc": 16, "wa": 601, "w0": 0x0201, "exc": 0,
+         "acked": 2, "entries": 0},
+        {"t": 120 * MS, "seq": 3, "ev": "relay", "fc": 16, "wa": 601, "w0": 0x0201, "exc": 3,
+         "acked": 0, "entries": 0},
+        {"t": 900 * MS, "seq": 4, "ev": "station", "st": 1, "state": "reachable"},
+    ]
+    (tmp_path / "emulator-trace.jsonl").write_text("".join(json.dumps(d) + "\n" for d in trace))
+    (tmp_path / "events.txt").write_text("0.050 0x0102 101 0x0101 7\n0.060 0x0102 102 0x0101 8\n")
+    (tmp_path / "scada-entries.jsonl").write_text(
+        json.dumps({"value": 7, "mono_ns": ORIGIN + 800 * MS}) + "\n"
+        + json.dumps({"value": 8, "mono_ns": ORIGIN + 800 * MS}) + "\n"
+        + json.dumps({"value": 9}) + "\n")
+    f = S.Follow(tmp_path / "emulator-trace.jsonl")
+    got = [(t // MS, d["text"]) for t, _, d in S.rows_of(merged(f.events, f.ends))
+           if d.get("side") in ("outstation", "central")]
+    assert got == [
+        (50, "relay: event recorded (value 7)"),
+        (60, "relay: event recorded (value 8)"),
+        (100, "relay -> PLC: FC3 40601.., 2 entries offered (SOE_Control 16#0201, 2 in its "
+              "recorder)"),
+        (110, "PLC -> relay: FC16 SOE_Control, 2 entries acknowledged, deleted at the relay "
+              "(0 left)"),
+        (120, "PLC -> relay: FC16 SOE_Control 16#0201 refused (exception 03)"),
+        (800, "SCADA <- central: FC3 40601.., took 2 entries (values 7, 8)"),
+        (900, "SCADA took 1 entry (values 9), seen by the view at this time"),
+    ]
+
+
 @needs_browser
 def test_the_chain_in_the_page_with_its_relay_and_control_system_ends(browser, view_workdir):
     srv = shots.Server("--preset", "clean", workdir=view_workdir)
@@ -133,7 +175,11 @@ def test_the_real_time_chain_demo_followed_with_its_ends():
     finally:
         srv.close()
     assert len([t for t in texts if t.startswith("relay: event recorded")]) == 10
-    took = [t for t in texts if t.startswith("SCADA took ")]
-    assert sum(int(t.split()[2]) for t in took) == 10
+    took = [t for t in texts if t.startswith("SCADA <- central: FC3 40601.., took ")]
+    assert sum(int(t.split()[5]) for t in took) == 10        # each at the time it was taken
+    assert any(t.startswith("relay -> PLC: FC3 40601.., ") for t in texts)
+    acked = [t.split(", ")[1].split()[0] for t in texts
+             if t.startswith("PLC -> relay: FC") and " acknowledged" in t]
+    assert sum(int(n) for n in acked) == 10                  # the relay's recorder emptied
     assert any(t.startswith("write record 1 (") for t in texts)
     assert not any(t.startswith("FC16 write") for t in texts)
