@@ -113,6 +113,30 @@ def test_a_followed_run_directory_draws_the_relays_handshake_and_the_scadas_take
     ]
 
 
+def test_a_followed_push_run_draws_the_pushes_to_drivers_a_and_b_in_time(tmp_path):
+    """The push variant's run directory: WinCC OA's drivers' file (unicos-events.jsonl, each
+    event with its driver and mono_ns) instead of the SCADA's; a status table is no event."""
+    trace = [{"t": 0, "seq": 0, "ev": "relay", "start": True, "mono_ns": ORIGIN},
+             {"t": 900 * MS, "seq": 1, "ev": "station", "st": 1, "state": "reachable"}]
+    (tmp_path / "emulator-trace.jsonl").write_text("".join(json.dumps(d) + "\n" for d in trace))
+    (tmp_path / "events.txt").write_text("0.050 0x0102 101 0x0101 7\n")
+
+    def ev(drv, value, at_ms):
+        return json.dumps({"kind": "event", "driver": drv, "sub": 0x11, "offset": 101,
+                           "value": 0x0102 << 16 | value, "mono_ns": ORIGIN + at_ms * MS}) + "\n"
+    (tmp_path / "unicos-events.jsonl").write_text(
+        ev("A", 7, 600) + ev("A", 8, 600) + ev("B", 7, 610) + ev("B", 8, 610)
+        + json.dumps({"kind": "status", "driver": "A", "offset": 0, "words": [],
+                      "mono_ns": ORIGIN + 620 * MS}) + "\n")
+    f = S.Follow(tmp_path / "emulator-trace.jsonl")
+    got = [(t // MS, d["text"]) for t, _, d in S.rows_of(merged(f.events, f.ends))
+           if d.get("side") == "central"]
+    assert got == [
+        (600, "central -> WinCC OA (UNICOS driver A): events pushed and answered (values 7, 8)"),
+        (610, "central -> WinCC OA (UNICOS driver B): events pushed and answered (values 7, 8)"),
+    ]
+
+
 @needs_browser
 def test_the_chain_in_the_page_with_its_relay_and_control_system_ends(browser, view_workdir):
     srv = shots.Server("--preset", "clean", workdir=view_workdir)

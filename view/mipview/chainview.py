@@ -215,16 +215,20 @@ class ChainFiles:
     emulator, so with the trace's) and the SCADA's store (scada-entries.jsonl: the entries it
     took, in order, each with `mono_ns`, when it took them on CLOCK_MONOTONIC; the trace's first
     "relay" line gives that clock's value at the trace's time 0, so each poll is drawn at its
-    time; an entry without it (an older file) is drawn when the view first read it). The
+    time; an entry without it (an older file) is drawn when the view first read it); with
+    --handover push, WinCC OA's drivers' file instead (unicos-events.jsonl, mippeer.unicos
+    --out: each event with its driver, A or B, and `mono_ns` the same way). The
     relay's reads and acknowledgements are in the trace itself ("relay" lines of mip-emulator
     --relay: relay_notes)."""
 
     def __init__(self, trace: Path):
         d = Path(trace).parent
         self.script, self.store = d / "events.txt", d / "scada-entries.jsonl"
+        self.pushes = d / "unicos-events.jsonl"     # the push way: WinCC OA's drivers A and B
         self.relay = self._script()
         self.taken = []                 # (mono_ns or None, t_ns seen, entry)
-        self._pos = 0
+        self.pushed = []                # the same, of the drivers' events
+        self._pos = {}
 
     @staticmethod
     def present(trace: Path):
@@ -245,25 +249,32 @@ class ChainFiles:
         return out
 
     def poll(self, t_now):
-        """Reads the SCADA's new entries; True if any."""
+        """Reads the SCADA's new entries and the drivers' new events; True if any."""
+        a = self._read(self.store, self.taken, t_now, lambda e: True)
+        b = self._read(self.pushes, self.pushed, t_now,
+                       lambda e: e.get("kind") == "event" and e.get("driver") in ("A", "B")
+                       and isinstance(e.get("value"), int))
+        return a or b
+
+    def _read(self, path, into, t_now, wanted):
         try:
-            with open(self.store, "rb") as f:
-                f.seek(self._pos)
+            with open(path, "rb") as f:
+                f.seek(self._pos.get(path, 0))
                 chunk = f.read()
         except OSError:
             return False
         end = chunk.rfind(b"\n") + 1
-        self._pos += end
+        self._pos[path] = self._pos.get(path, 0) + end
         new = False
         for raw in chunk[:end].splitlines():
             try:
                 e = json.loads(raw)
             except ValueError:
                 continue
-            if isinstance(e, dict):
+            if isinstance(e, dict) and wanted(e):
                 m = e.get("mono_ns")
-                self.taken.append((m if isinstance(m, int) and not isinstance(m, bool) else None,
-                                   t_now, e))
+                into.append((m if isinstance(m, int) and not isinstance(m, bool) else None,
+                             t_now, e))
                 new = True
         return new
 
@@ -283,6 +294,20 @@ class ChainFiles:
             else:
                 at, text = seen, (f"SCADA took {entries(len(es))} (values {vals}), seen by the "
                                   f"view at this time")
+            out.append({"t": at, "ev": "plc", "side": "central", "what": "scada", "text": text})
+        from mippeer.unicos import SUB_EVENTS32
+        groups = {}
+        for m, seen, e in self.pushed:
+            at = m - origin if m is not None and origin is not None and m >= origin else None
+            groups.setdefault((e["driver"], at, seen if at is None else None), []).append(e)
+        for (drv, at, seen), es in groups.items():
+            # a 32-bit event's value: type / bit offset in the high word (docs/chain.md)
+            vals = ", ".join(str(e.get("value", 0) & 0xFFFF if e.get("sub") == SUB_EVENTS32
+                                 else e.get("value")) for e in es)
+            text = (f"central -> WinCC OA (UNICOS driver {drv}): events pushed and answered "
+                    f"(values {vals})")
+            if at is None:
+                at, text = seen, text + ", seen by the view at this time"
             out.append({"t": at, "ev": "plc", "side": "central", "what": "scada", "text": text})
         return out
 
