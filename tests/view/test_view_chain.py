@@ -181,12 +181,11 @@ def test_the_push_chain_shows_the_hand_over_to_wincc_oa(view_workdir):
     assert st["blocks"][-1]["head"] == "control system" and "WinCC OA" in st["blocks"][-1]["block"]
 
 
-@pytest.mark.slow
-def test_the_real_time_chain_demo_followed_with_its_ends():
-    """--demo "--chain": plc/demo_chain.py in real time (mip-emulator with a relay, two soft
-    PLCs, mip-peer scada); the page's rows have the relay's events and the SCADA's takes
-    beside the records, and the demo's own result line (not the last run's)."""
-    srv = shots.Server("--demo", "--chain --events 10", paused=False)
+def follow_the_demo(args):
+    """The page's whole history of `--demo ARGS` once the demo printed its result (its state
+    inlines the last chunk's rows only: the same files are read again as the page reads them;
+    the demo's last lines may have come after the page's last state)."""
+    srv = shots.Server("--demo", args, paused=False)
     try:
         deadline = time.time() + 120
         st = json.loads(srv.get("api/state"))
@@ -194,21 +193,42 @@ def test_the_real_time_chain_demo_followed_with_its_ends():
             time.sleep(0.3)
             st = json.loads(srv.get("api/state"))
         assert (st["note"] or "").startswith("result: ok events=10 "), st["note"]
-        time.sleep(0.5)                         # the SCADA's last entries read by the view
+        time.sleep(0.5)                         # the control system's last entries read
         st = json.loads(srv.get("api/state"))
     finally:
         srv.close()
-    # the page's whole history (its state inlines the last chunk's rows only): the same files
-    # read again as the page reads them (the demo's last lines may have come after its state)
     f = S.Follow(st["title"])
     texts = [d["text"] for _, _, d in S.rows_of(merged(f.events, f.ends))]
-    assert len(texts) >= st["nrows"] > 0
+    assert st["nrows"] > 0
     assert len([t for t in texts if t.startswith("relay: event recorded")]) == 10
-    took = [t for t in texts if t.startswith("SCADA <- central: FC3 40601.., took ")]
-    assert sum(int(t.split()[6]) for t in took) == 10        # each at the time it was taken
     assert any(t.startswith("relay -> PLC: FC3 40601.., ") for t in texts)
     acked = [t.split(", ")[1].split()[0] for t in texts
              if t.startswith("PLC -> relay: FC") and " acknowledged" in t]
     assert sum(int(n) for n in acked) == 10                  # the relay's recorder emptied
     assert any(t.startswith("write record 1 (") for t in texts)
     assert not any(t.startswith("FC16 write") for t in texts)
+    return texts
+
+
+@pytest.mark.slow
+def test_the_real_time_chain_demo_followed_with_its_ends():
+    """--demo "--chain": plc/demo_chain.py in real time (mip-emulator with a relay, two soft
+    PLCs, mip-peer scada); the page's rows have the relay's events, reads and
+    acknowledgements and the SCADA's takes (each at the time it took them) beside the records,
+    and the demo's own result line (not the last run's)."""
+    texts = follow_the_demo("--chain --events 10")
+    took = [t for t in texts if t.startswith("SCADA <- central: FC3 40601.., took ")]
+    assert sum(int(t.split()[6]) for t in took) == 10
+
+
+@pytest.mark.slow
+def test_the_real_time_push_chain_demo_followed_with_both_drivers():
+    """--demo "--chain --handover push": the pushes to WinCC OA's drivers A and B, each at
+    the time the driver took it, every event to both."""
+    texts = follow_the_demo("--chain --handover push --events 10")
+    for drv in "AB":
+        pushed = [t for t in texts
+                  if t.startswith(f"central -> WinCC OA (UNICOS driver {drv}): events pushed")]
+        vals = [int(v) for t in pushed for v in t.split("(values ")[1].rstrip(")").split(", ")]
+        assert vals == list(range(10)), drv
+    assert not any(t.startswith("SCADA") for t in texts)
