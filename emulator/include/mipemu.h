@@ -81,6 +81,10 @@ void mipemu_net_free(mipemu_net *net);
 
 /* Trace: fn receives one JSON object per line, newline included, stamped in virtual ns. */
 void mipemu_net_set_trace(mipemu_net *net, mipemu_trace_fn fn, void *user);
+/* One more trace line at the core's virtual now, with the next "seq": {"t":..,"seq":..,FIELDS}.
+ * For what the core does not see but a reader wants beside its lines in time order (the
+ * server's relay); FIELDS is JSON members without braces. Nothing when no trace is set. */
+void mipemu_net_trace_note(mipemu_net *net, const char *fields);
 
 /* Runs the radio model up to virtual time now_ns. Returns 0, or -1 if now_ns lies before the
  * time already reached (nothing is done then). */

@@ -192,6 +192,12 @@ void mipemu_net_set_trace(mipemu_net *net, mipemu_trace_fn fn, void *user)
     net->trace_user = user;
 }
 
+void mipemu_net_trace_note(mipemu_net *net, const char *fields)
+{
+    if (net && fields)
+        emit(net, net->now, "%s", fields);
+}
+
 void mipemu_net_set_fate(mipemu_net *net, mipemu_fate_fn fn, void *user)
 {
     net->fate = fn;

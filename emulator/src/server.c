@@ -128,6 +128,36 @@ static long g_clients;
 /* --relay: one SIPROTEC event recorder on its own port (endpoint EP_RELAY) */
 #define EP_RELAY (-1)
 static siprotec_relay *g_relay;
+static uint16_t g_relay_base;
+
+/* The relay's part of the SOE_Control handshake in the trace (docs/view.md follows it): a read
+ * that shows SOE_Control while entries are offered, and every write to SOE_Control (the
+ * acknowledgement), each as one small "relay" line at the core's clock, which is the relay's. */
+static void relay_trace(const uint8_t *req, size_t len, const uint8_t *resp, long rl,
+                        const siprotec_stats *before)
+{
+    if (!g_trace || len < 12 || rl < 9)
+        return;
+    unsigned fc = req[7], a = (unsigned)(req[8] << 8 | req[9]), q = (unsigned)(req[10] << 8 | req[11]);
+    unsigned ctl = (unsigned)g_relay_base + 1, exc = resp[7] & 0x80 ? resp[8] : 0;
+    siprotec_stats st;
+    siprotec_get_stats(g_relay, &st);
+    char f[200];
+    if (fc == 3 && !exc && a <= ctl && a + q > ctl && st.offered > 0) {
+        uint16_t soe;
+        siprotec_peek(g_relay, (uint16_t)ctl, 1, &soe);
+        snprintf(f, sizeof f, "\"ev\":\"relay\",\"fc\":3,\"ra\":%u,\"rq\":%u,\"soe\":%u,\"offered\":%u,"
+                 "\"entries\":%u", a, q, soe, st.offered, st.entries);
+    } else if ((fc == 6 || (fc == 16 && len >= 15)) && a == ctl) {
+        unsigned v = fc == 6 ? (unsigned)(req[10] << 8 | req[11]) : (unsigned)(req[13] << 8 | req[14]);
+        snprintf(f, sizeof f, "\"ev\":\"relay\",\"fc\":%u,\"wa\":%u,\"w0\":%u,\"exc\":%u,\"acked\":%llu,"
+                 "\"entries\":%u", fc, a, v, exc,
+                 (unsigned long long)(st.acknowledged - before->acknowledged), st.entries);
+    } else {
+        return;
+    }
+    mipemu_net_trace_note(g_net, f);
+}
 
 static uint64_t mono_ns(void)
 {
@@ -247,9 +277,15 @@ static int process_frames(conn_t *c)
                 break;
             uint8_t resp[SIPROTEC_RESPONSE_MAX];
             siprotec_advance(g_relay, mono_ns() - g_t0);
+            siprotec_stats before;
+            siprotec_get_stats(g_relay, &before);
             long rl = siprotec_handle(g_relay, c->in + off, (size_t)fl, resp, sizeof resp);
             if (rl < 0 || append_out(c, resp, (size_t)rl) < 0)
                 return -1;
+            if (g_trace) {
+                advance_now(); /* the line's time: the relay's now on the same clock */
+                relay_trace(c->in + off, (size_t)fl, resp, rl, &before);
+            }
             off += (size_t)fl;
             continue;
         }
@@ -509,6 +545,7 @@ static siprotec_relay *relay_parse(const char *spec, int *port)
         cli_usage_error("--relay: %s", err);
     if (script)
         relay_load_script(r, script);
+    g_relay_base = c.base;
     return r;
 }
 
@@ -682,6 +719,13 @@ int main(int argc, char **argv)
     }
 
     g_t0 = mono_ns();
+    if (g_relay && g_trace) {
+        /* the clock's origin, so a file written by another process with CLOCK_MONOTONIC times
+         * (the SCADA stand-in's entries, mippeer.scada --out) lines up with the trace */
+        char f[96];
+        snprintf(f, sizeof f, "\"ev\":\"relay\",\"start\":true,\"mono_ns\":%llu", (unsigned long long)g_t0);
+        mipemu_net_trace_note(g_net, f);
+    }
     struct epoll_event evs[256];
     while (!g_stop) {
         uint64_t now = mono_ns() - g_t0;

@@ -12,7 +12,8 @@ evaluated; until that write the slave leaves the data as they are; after a commu
 failure it reads again.
 
 What the manual leaves to the master (our choices, docs/chain.md "The control system, pull"):
-- An entry is evaluated = written to the JSON-lines file (flushed) before the acknowledgement.
+- An entry is evaluated = written to the JSON-lines file (flushed) before the acknowledgement,
+  with `mono_ns`, the time it was taken on CLOCK_MONOTONIC (time.monotonic_ns()).
 - The offer last acknowledged (its sequence number and blocks) is remembered: read again
   unchanged, it is not taken again (its acknowledgement was not processed yet, or its answer was
   lost); the acknowledgement is repeated every `reack` seconds. The file's last offer is read at
@@ -239,8 +240,11 @@ def main(argv=None, prog="mip-peer scada"):
         return 2
 
     def sink(entries):
+        # when it took them, on CLOCK_MONOTONIC (the clock of mip-emulator's trace, whose
+        # origin the trace's first "relay" line gives): the live view draws them at that time
+        t = time.monotonic_ns()
         for e in entries:
-            out.write(json.dumps(e) + "\n")
+            out.write(json.dumps({**e, "mono_ns": t}) + "\n")
         out.flush()
         os.fsync(out.fileno())
 

@@ -33,6 +33,7 @@ import socketserver
 import struct
 import sys
 import threading
+import time
 from dataclasses import dataclass
 
 SUB_STATUS, SUB_EVENTS32, SUB_EVENTS16 = 0x01, 0x11, 0x12
@@ -178,9 +179,12 @@ class UnicosDriver:
         self.events += [x for x in lines if x["kind"] == "event"]
         self.duplicates += sum(1 for x in lines if x.get("duplicate"))
         if self.out:
+            # when the frame came, on CLOCK_MONOTONIC (the clock of mip-emulator's trace, whose
+            # origin the trace's first "relay" line gives): the live view draws it at that time
+            t = time.monotonic_ns()
             with open(self.out, "a") as f:
                 for x in lines:
-                    f.write(json.dumps(x) + "\n")
+                    f.write(json.dumps({**x, "mono_ns": t}) + "\n")
 
 
 class _Refuse(Exception):

@@ -20,9 +20,9 @@ def write_script(path, events):
 
 
 class RelayServer:
-    def __init__(self, opts=""):
+    def __init__(self, opts="", args=()):
         spec = "0:origin=%d" % ORIGIN_MS + ("," + opts if opts else "")
-        cmd = [str(BINARY), "--mdp-port", "0", "--trm-base-port", "0", "--relay", spec]
+        cmd = [str(BINARY), "--mdp-port", "0", "--trm-base-port", "0", "--relay", spec, *args]
         self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         line = self.proc.stdout.readline()
         m = re.search(r" relay=(\d+)$", line.strip())

@@ -9,6 +9,7 @@ import re
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -156,10 +157,15 @@ def emulator_relay(tmp_path):
 
 def test_takes_every_entry_of_the_emulators_relay_once_in_order(emulator_relay, tmp_path):
     out = tmp_path / "e.jsonl"
+    before = time.monotonic_ns()
     p = cli("--port", emulator_relay, "--out", out, "--entries", 10, "--interval", 0.02)
+    after = time.monotonic_ns()
     assert p.returncode == 0, p.stderr
     rows = [json.loads(x) for x in out.read_text().splitlines()]
     assert taken(rows) == expected()
+    # when each was taken, on CLOCK_MONOTONIC (mip-emulator's trace clock): the view draws it
+    took = [r["mono_ns"] for r in rows]
+    assert before <= took[0] and took == sorted(took) and took[-1] <= after
     c = Client("127.0.0.1", emulator_relay)
     assert c.read_holding(600, 2)[0] == 0                   # the recorder is empty
     c.close()

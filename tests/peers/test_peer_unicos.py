@@ -45,6 +45,8 @@ def test_event_frames_are_decoded_with_utc_time_stamps(tmp_path):
         (0x12, 7, 0xBEEF, T + 8640000, 4)]
     assert lines[0]["utc"] == "2026-01-01T00:00:00.010Z"
     assert lines[2]["utc"] == "2026-01-02T00:00:00.000Z"
+    # when each frame came (CLOCK_MONOTONIC, the emulator trace's clock): one time a frame
+    assert lines[0]["mono_ns"] == lines[1]["mono_ns"] <= lines[2]["mono_ns"] <= time.monotonic_ns()
     assert d.frames == 2 and len(d.events) == 3
 
 

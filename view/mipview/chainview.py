@@ -213,16 +213,22 @@ class ChainFiles:
     """The ends of the real-time chain demo (plc/demo_chain.py) beside its emulator trace: the
     relay's script (events.txt: each event's time on the relay's clock, which starts with the
     emulator, so with the trace's) and the SCADA's store (scada-entries.jsonl: the entries it
-    took, in order, without a time: each is drawn at the trace's time when the view first read
-    it, so a post-mortem draws them all at the end). Neither is in the emulator's trace (the
-    relay's requests and the SCADA's polls do not pass a modem)."""
+    took, in order, each with `mono_ns`, when it took them on CLOCK_MONOTONIC; the trace's first
+    "relay" line gives that clock's value at the trace's time 0, so each poll is drawn at its
+    time; an entry without it (an older file) is drawn when the view first read it); with
+    --handover push, WinCC OA's drivers' file instead (unicos-events.jsonl, mippeer.unicos
+    --out: each event with its driver, A or B, and `mono_ns` the same way). The
+    relay's reads and acknowledgements are in the trace itself ("relay" lines of mip-emulator
+    --relay: relay_notes)."""
 
     def __init__(self, trace: Path):
         d = Path(trace).parent
         self.script, self.store = d / "events.txt", d / "scada-entries.jsonl"
+        self.pushes = d / "unicos-events.jsonl"     # the push way: WinCC OA's drivers A and B
         self.relay = self._script()
-        self.taken = []                 # (t_ns seen, entry)
-        self._pos = 0
+        self.taken = []                 # (mono_ns or None, t_ns seen, entry)
+        self.pushed = []                # the same, of the drivers' events
+        self._pos = {}
 
     @staticmethod
     def present(trace: Path):
@@ -243,45 +249,107 @@ class ChainFiles:
         return out
 
     def poll(self, t_now):
-        """Reads the SCADA's new entries; True if any."""
+        """Reads the SCADA's new entries and the drivers' new events; True if any."""
+        a = self._read(self.store, self.taken, t_now, lambda e: True)
+        b = self._read(self.pushes, self.pushed, t_now,
+                       lambda e: e.get("kind") == "event" and e.get("driver") in ("A", "B")
+                       and isinstance(e.get("value"), int))
+        return a or b
+
+    def _read(self, path, into, t_now, wanted):
         try:
-            with open(self.store, "rb") as f:
-                f.seek(self._pos)
+            with open(path, "rb") as f:
+                f.seek(self._pos.get(path, 0))
                 chunk = f.read()
         except OSError:
             return False
         end = chunk.rfind(b"\n") + 1
-        self._pos += end
+        self._pos[path] = self._pos.get(path, 0) + end
         new = False
         for raw in chunk[:end].splitlines():
             try:
                 e = json.loads(raw)
             except ValueError:
                 continue
-            if isinstance(e, dict):
-                self.taken.append((t_now, e))
+            if isinstance(e, dict) and wanted(e):
+                m = e.get("mono_ns")
+                into.append((m if isinstance(m, int) and not isinstance(m, bool) else None,
+                             t_now, e))
                 new = True
         return new
 
-    def lines(self, t_now):
-        """The chain's ends as notes, up to the trace's time t_now."""
+    def lines(self, t_now, origin=None):
+        """The chain's ends as notes, up to the trace's time t_now; origin: CLOCK_MONOTONIC at
+        the trace's time 0 (None: not in the trace)."""
         out = [{"t": t, "ev": "plc", "side": "outstation", "what": "relay",
                 "text": f"relay: event recorded (value {v})"} for t, v in self.relay if t <= t_now]
         groups = {}
-        for t, e in self.taken:
-            groups.setdefault(t, []).append(e)
-        for t, es in groups.items():
+        for m, seen, e in self.taken:
+            at = m - origin if m is not None and origin is not None and m >= origin else None
+            groups.setdefault((at, seen if at is None else None), []).append(e)
+        for (at, seen), es in groups.items():
             vals = ", ".join(str(e.get("value")) for e in es)
-            out.append({"t": t, "ev": "plc", "side": "central", "what": "scada",
-                        "text": f"SCADA took {entries(len(es))} (values {vals}), "
-                                f"seen by the view at this time"})
+            if at is not None:
+                text = f"SCADA <- central: FC3 40601.., took {entries(len(es))} (values {vals})"
+            else:
+                at, text = seen, (f"SCADA took {entries(len(es))} (values {vals}), seen by the "
+                                  f"view at this time")
+            out.append({"t": at, "ev": "plc", "side": "central", "what": "scada", "text": text})
+        from mippeer.unicos import SUB_EVENTS32
+        groups = {}
+        for m, seen, e in self.pushed:
+            at = m - origin if m is not None and origin is not None and m >= origin else None
+            groups.setdefault((e["driver"], at, seen if at is None else None), []).append(e)
+        for (drv, at, seen), es in groups.items():
+            # a 32-bit event's value: type / bit offset in the high word (docs/chain.md)
+            vals = ", ".join(str(e.get("value", 0) & 0xFFFF if e.get("sub") == SUB_EVENTS32
+                                 else e.get("value")) for e in es)
+            text = (f"central -> WinCC OA (UNICOS driver {drv}): events pushed and answered "
+                    f"(values {vals})")
+            if at is None:
+                at, text = seen, text + ", seen by the view at this time"
+            out.append({"t": at, "ev": "plc", "side": "central", "what": "scada", "text": text})
         return out
 
 
+def relay_origin(events):
+    """CLOCK_MONOTONIC at the trace's time 0, from mip-emulator's first "relay" line (None)."""
+    for d in events[:8]:
+        if d.get("ev") == "relay" and d.get("start") and isinstance(d.get("mono_ns"), int):
+            return d["mono_ns"]
+    return None
+
+
+def relay_notes(events):
+    """The relay's "relay" trace lines (mip-emulator --relay --trace) as the notes the chain
+    preset draws at the outstation: a read that showed offered entries, an acknowledgement."""
+    out = []
+    for d in events:
+        if d.get("ev") != "relay" or d.get("start"):
+            continue
+        fc, left = d.get("fc"), d.get("entries")
+        if not all(isinstance(d.get(k, 0), int) for k in ("fc", "offered", "soe", "w0", "exc",
+                                                           "acked")):
+            continue                    # not one mip-emulator writes: nothing to draw
+        if fc == 3:
+            n = d.get("offered", 0)
+            text = (f"relay -> PLC: FC3 40601.., {entries(n)} offered (SOE_Control "
+                    f"16#{d.get('soe', 0):04X}, {left} in its recorder)")
+        elif d.get("exc"):
+            text = (f"PLC -> relay: FC{fc} SOE_Control 16#{d.get('w0', 0):04X} refused "
+                    f"(exception {d['exc']:02d})")
+        else:
+            text = (f"PLC -> relay: FC{fc} SOE_Control, {entries(d.get('acked', 0))} "
+                    f"acknowledged, deleted at the relay ({left} left)")
+        out.append({"t": d["t"], "ev": "plc", "side": "outstation", "what": "relay",
+                    "text": text})
+    return out
+
+
 def merged(events, ends):
-    """The trace's lines and the chain's ends, in time order (a trace line first at a tie)."""
-    if not ends:
-        return events
-    t_now = events[-1]["t"] if events else 0
-    extra = ends.lines(t_now)
+    """The trace's lines, the relay's handshake in them as notes and the chain's ends, in time
+    order (a trace line first at a tie)."""
+    extra = relay_notes(events)
+    if ends:
+        extra += ends.lines(events[-1]["t"] if events else 0, relay_origin(events))
     return sorted(events + extra, key=lambda d: d["t"]) if extra else events

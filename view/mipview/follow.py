@@ -46,8 +46,9 @@ class Follow:
         self.station = station
         self.events = []
         self.history = History()
-        # the chain demo's run directory: its relay and SCADA beside the trace (chainview.py)
-        self.ends = ChainFiles(self.path) if ChainFiles.present(self.path) else None
+        # the chain demo's run directory: its relay and SCADA beside the trace (chainview.py),
+        # read once the trace has lines (poll): before, the files may be an earlier run's
+        self.ends = None
         self._pos = 0
         self._partial = b""
         self._n = 0
@@ -92,6 +93,7 @@ class Follow:
                 if f.tell() < self._pos:            # truncated, a new run: start over
                     self.events, self._pos, self._partial, self._n = [], 0, b"", 0
                     self.bad, self.bad_lines, self.bad_count = None, [], 0
+                    self.ends = None        # the new run's files (read again when present)
                 f.seek(self._pos)
                 chunk = f.read()
                 self._pos = f.tell()
