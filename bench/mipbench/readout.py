@@ -16,7 +16,7 @@ def _timing_runs(radio, records, workdir, reps):
     """{pair: [Readout, ...]} from mipinterop.timing, `reps` runs per pair, the pairs
     interleaved so that a busy moment of the machine does not hit one pair only."""
     from mipinterop import timing as T
-    from mipinterop.matrix import build_programs
+    from mipinterop.cell import build_programs
     progs = build_programs(workdir / "build")
     out = {p: [] for p in T.PAIRS}
     for rep in range(reps):

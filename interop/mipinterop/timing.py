@@ -32,7 +32,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .matrix import (FAST_RADIO, REALISTIC_RADIO, MatrixError, PeerProc, build_programs, L,
+from .cell import (FAST_RADIO, REALISTIC_RADIO, MatrixError, PeerProc, build_programs, L,
                      demo, start_emulator)
 
 PAIRS = ("note->note", "ours->note-strict", "ours->note-lenient", "ours->ours")
