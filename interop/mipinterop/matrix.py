@@ -33,9 +33,9 @@ from dataclasses import asdict
 from pathlib import Path
 
 # the matrix's names, defined in cell.py (shared with kernel.py) and used from here by
-# __main__, timing and the tests
+# __main__ and the tests
 from .cell import (EMU, FAST_RADIO, FAULTS, LAYOUTS, MODES, OURS, READINGS, REALISTIC_RADIO,  # noqa: F401
-                   Cell, CellRun, Config, L, MatrixError, PeerProc, Result, all_cells,
+                   PEER, Cell, CellRun, Config, L, MatrixError, PeerProc, Result, all_cells,
                    build_programs, demo, pipelined_applies, start_emulator)
 from .kernel import KernelRun
 from .kernel import build_programs as kernel_programs
