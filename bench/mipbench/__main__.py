@@ -33,7 +33,8 @@ FIGURES = ["goodput", "goodput_pipelined", "goodput_rtu", "fc23_gain", "scan_cos
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(prog="python -m mipbench", description=" ".join(__doc__.split("\n\n")[0].split()))
+    ap = argparse.ArgumentParser(prog="python -m mipbench",
+                                 description=" ".join(__doc__.split("\n\n")[0].split()))
     ap.add_argument("--quick", action="store_true", default=os.environ.get("BENCH_QUICK") == "1")
     ap.add_argument("--only", default=",".join(FIGURES))
     a = ap.parse_args(argv)

@@ -37,7 +37,8 @@ STEPS = [
 
 
 def parse(argv):
-    ap = argparse.ArgumentParser(prog="python -m mipbench.serial_timeline", description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m mipbench.serial_timeline",
+                                 description=__doc__.split("\n\n")[0])
     ap.add_argument("--link", default="rtu:19200", help="tcp or rtu:BAUD (default rtu:19200)")
     ap.add_argument("--status-first", default=None,
                     help="no, yes or the registers of the first read (default: 3 on RTU, no on TCP)")
