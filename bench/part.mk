@@ -2,6 +2,8 @@
 # line per figure with its ratio to the target; BENCH_QUICK=1 runs every figure with small
 # counts (what CI checks). Build outputs under build/bench/.
 BENCH_DIR   := bench
+# the mipbench package (bench/mipbench/: one module a figure family), installed editable into the venv
+PY_PACKAGES += bench
 BENCH_BUILD := $(BUILD)/bench
 BENCH_CFLAGS := -std=c11 -D_POSIX_C_SOURCE=200809L -O2 -Wall -Wextra
 
@@ -29,4 +31,4 @@ bench: bench-figures
 BENCH_DEPS := venv $(BUILD)/emulator/mip-emulator $(BUILD)/runtime_shim/libplcrt.a \
   $(if $(wildcard cosim/part.mk),$(BUILD)/cosim/libmipcosim.so)
 bench-figures: $(BENCH_DEPS) $(BENCH_BINS)
-	$(PY) $(BENCH_DIR)/run_bench.py
+	$(PY) -m mipbench

@@ -8,12 +8,9 @@ machines, FOR loops over arrays, conversions, and a CONFIGURATION. Timed: parse 
 generation (in-process, grammar already loaded, i.e. what every file after the first costs);
 the one-off grammar load is printed separately."""
 import argparse
-import os
 import sys
 import tempfile
 import time
-
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 BLOCK = """
 FUNCTION_BLOCK Worker{n}

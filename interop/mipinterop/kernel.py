@@ -1,4 +1,4 @@
-"""The interop matrix in the co-simulation kernel (the default; matrix.py has the cells, the judge
+"""The interop matrix in the co-simulation kernel (the default; cell.py has the cells, the judge
 and the classification, the same for both ways of running a cell).
 
 Our side is the example program (plc/outstation*.st or plc/central*.st) as a soft-PLC of
@@ -29,7 +29,7 @@ from mippeer.cli import Loop, received
 from mippeer.modem import Modem
 from mippeer.peer import Peer
 
-from .matrix import CellRun, MatrixError, demo
+from .cell import CellRun, MatrixError, demo
 
 RESPONSE_MAX = 300               # MIPEMU_RESPONSE_MAX: room for any response ADU
 _SCAN = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_uint64)

@@ -21,7 +21,7 @@ modem); then the sender starts. Every figure comes from the emulator's trace (on
   ack -> next write       for each record n > 1: from the sender's first read of its modem after
                           the acknowledgement n-1 arrived there, to its write of record n
 
-Used by bench/run_bench.py (the `readout_realistic` and `record_reaction` lines) and
+Used by the bench (mipbench.readout: the `readout_realistic` and `record_reaction` lines) and
 tests/interop/test_interop_timing.py.
 """
 from __future__ import annotations
@@ -32,7 +32,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .matrix import (FAST_RADIO, REALISTIC_RADIO, MatrixError, PeerProc, build_programs, L,
+from .cell import (FAST_RADIO, REALISTIC_RADIO, MatrixError, PeerProc, build_programs, L,
                      demo, start_emulator)
 
 PAIRS = ("note->note", "ours->note-strict", "ours->note-lenient", "ours->ours")

@@ -81,6 +81,6 @@ def test_no_server_left_behind(bench_output):
                 cmd = (d / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
             except OSError:
                 continue
-            if comm in mine or "bench/pymodbus_server.py" in cmd:
+            if comm in mine or "mipbench.pymodbus_server" in cmd:
                 left.append((d.name, cmd))
     assert not left, f"processes left running: {left}"

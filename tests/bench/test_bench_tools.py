@@ -7,16 +7,15 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[2]
 BUILD = REPO / "build" / "bench"
-sys.path.insert(0, str(REPO / "bench"))
-import run_bench  # noqa: E402
+from mipbench import common, goodput, scan_cost, translator
 
 
 def test_model_at_no_loss_is_the_bound():
-    assert run_bench.goodput_model(0.0) == pytest.approx(run_bench.PAYLOAD / 2)
+    assert goodput.goodput_model(0.0) == pytest.approx(common.PAYLOAD / 2)
 
 
 def test_model_decreases_with_loss():
-    g = [run_bench.goodput_model(p / 10) for p in range(0, 9)]
+    g = [goodput.goodput_model(p / 10) for p in range(0, 9)]
     assert all(a > b for a, b in zip(g, g[1:]))
 
 
@@ -25,9 +24,8 @@ def test_model_matches_the_kernel(p, tmp_path):
     """Records of the example programs (st_lib via stc) through the simulation kernel at 9600
     bit/s: the measured payload per poll is within 10 % of the model (the model assumes the
     ends react between two polls, which 10 ms scans at 9600 bit/s do)."""
-    sys.path.insert(0, str(REPO / "cosim"))
-    polls, payload = run_bench.goodput_cosim(p, 60, 7, tmp_path)
-    assert payload / polls == pytest.approx(run_bench.goodput_model(p), rel=0.10)
+    polls, payload = goodput.goodput_cosim(p, 60, 7, tmp_path)
+    assert payload / polls == pytest.approx(goodput.goodput_model(p), rel=0.10)
 
 
 @pytest.mark.parametrize("prog,args", [("mb_client", ["127.0.0.1", "0", "1", "0", "125", "10"]),
@@ -41,14 +39,14 @@ def test_c_tools_bad_arguments(prog, args):
 
 
 def test_mb_client_connection_refused():
-    port = run_bench.free_port()      # nobody listens there
+    port = common.free_port()      # nobody listens there
     p = subprocess.run([BUILD / "mb_client", "127.0.0.1", str(port), "1", "0", "125", "10"],
                        capture_output=True, text=True, timeout=10)
     assert p.returncode == 1 and "connect" in p.stderr and len(p.stderr.strip().splitlines()) == 1
 
 
 def test_run_bench_unknown_figure():
-    p = subprocess.run([sys.executable, REPO / "bench" / "run_bench.py", "--only", "nonsense"],
+    p = subprocess.run([sys.executable, "-m", "mipbench", "--only", "nonsense"],
                        capture_output=True, text=True, timeout=60)
     assert p.returncode == 2
     assert p.stderr.strip().splitlines() == [p.stderr.strip()] and "unknown figure" in p.stderr
@@ -56,7 +54,7 @@ def test_run_bench_unknown_figure():
 
 
 def test_generated_st_has_5000_lines_and_translates(tmp_path):
-    text = run_bench.gen_st(5000)
+    text = translator.gen_st(5000)
     n = text.count("\n")
     assert 5000 <= n <= 5500
     src = tmp_path / "gen.st"
@@ -71,7 +69,7 @@ def test_scan_cost_without_matiec_says_why():
     the reason (BENCH_MATIEC=off stands in for a machine without matiec)."""
     import os
     env = dict(os.environ, BENCH_MATIEC="off")
-    p = subprocess.run([sys.executable, REPO / "bench" / "run_bench.py", "--quick", "--only",
+    p = subprocess.run([sys.executable, "-m", "mipbench", "--quick", "--only",
                         "scan_cost"], capture_output=True, text=True, timeout=600, env=env)
     assert p.returncode == 0, p.stdout + p.stderr
     l = next(l for l in p.stdout.splitlines() if l.startswith("scan_cost:"))
@@ -91,7 +89,7 @@ def test_scan_cost_against_matiec_counts_both_fb_bodies():
     """With iec2c on PATH the line compares with matiec: gcc splits matiec's FB bodies, and
     the callers call the clone (MIP_SENDER_body__.part.0), which a count by name alone
     missed (0 instructions: a ZeroDivisionError)."""
-    p = subprocess.run([sys.executable, REPO / "bench" / "run_bench.py", "--quick", "--only",
+    p = subprocess.run([sys.executable, "-m", "mipbench", "--quick", "--only",
                         "scan_cost"], capture_output=True, text=True, timeout=600)
     assert p.returncode == 0 and "Traceback" not in p.stderr, p.stdout + p.stderr
     l = next(l for l in p.stdout.splitlines() if l.startswith("scan_cost:"))
@@ -119,4 +117,4 @@ def test_inclusive_cost_takes_the_calls_into_gcc_clones_once():
         "fn=MIP_LINK_body__",
         "cfn=MIP_RECEIVER_body__.constprop.0", "calls=2 1", "3 50",
     ])
-    assert run_bench.inclusive_cost(out, run_bench.FB_BODIES) == 470
+    assert scan_cost.inclusive_cost(out, scan_cost.FB_BODIES) == 470

@@ -1,16 +1,10 @@
 """The chain's goodput (issue 35 item 8): with events waiting in the relay, the outstation's
 logger (plc/PLC_SoeChain.st PLC_SoeLog) sends full records, up to uPerTransfer of them per
 transfer, and the push way delivers at least 0.90 of the middle hop's registers per second
-(bench/chain_bench.py measures the same for `make bench`; docs/chain.md "Goodput")."""
-import sys
-from pathlib import Path
-
+(mipbench.chain measures the same for `make bench`; docs/chain.md "Goodput")."""
 from mipcosim.chain import (OUT_DONE, OUT_FAILED, PUSH_RECORDS, ChainSetup, SoeChain, SoeParams,
                             check_chain, script)
 from mipcosim.sim import SEC, Radio
-
-REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO / "bench"))
 
 
 def saturated(workdir, n, per_transfer):
@@ -43,7 +37,7 @@ def test_a_backlog_goes_in_full_records_and_long_transfers(tmp_path):
 
 
 def test_push_way_costs_at_most_10_percent_of_the_middle_hop(tmp_path):
-    import chain_bench
+    from mipbench import chain as chain_bench
     hop = chain_bench.middle_hop_regs_per_s(tmp_path / "hop", 20)
     push = chain_bench.saturated_rate(tmp_path / "push", 300, handover="push") * chain_bench.REGS
     assert push / hop >= 0.90, f"{push:.0f} registers/s relay -> drivers vs {hop:.0f} middle hop"

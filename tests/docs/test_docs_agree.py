@@ -144,8 +144,8 @@ def _first_paragraph(path):
     (["-c", "import sys; sys.path.insert(0, 'kit'); from mipkit.scenario import main; "
             "sys.exit(main(sys.argv[1:]))"], "kit/mipkit/scenario.py"),
     (["docs/tools/mipsim.py"], "docs/tools/mipsim.py"),
-    (["bench/run_bench.py"], "bench/run_bench.py"),
-], ids=["mip-kit", "mipsim", "run_bench"])
+    (["-m", "mipbench"], "bench/mipbench/__main__.py"),
+], ids=["mip-kit", "mipsim", "mipbench"])
 def test_help_says_the_whole_first_paragraph(cmd, source):
     """7. `mip-kit --help` and `mipsim --help` stopped after the first line of a docstring,
     in the middle of a sentence ("exit 0 when every expectation holds,")."""

@@ -26,11 +26,10 @@ import traceback
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.abspath(os.path.join(HERE, "..", ".."))
-sys.path.insert(0, os.path.join(ROOT, "translator"))
 
-from stc.compiler import compile_files  # noqa: E402
-from stc.cgen import Gen  # noqa: E402
-from stc.diag import Diagnostics  # noqa: E402
+from stc.compiler import compile_files   # stc: installed by make venv (translator/pyproject.toml)
+from stc.cgen import Gen
+from stc.diag import Diagnostics
 
 CFLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-c"]
 TOKEN_RE = re.compile(r"\(\*.*?\*\)|[A-Za-z_][A-Za-z0-9_]*#[A-Za-z0-9_#.+-]*|[A-Za-z_][A-Za-z0-9_]*"

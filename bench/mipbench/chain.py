@@ -1,4 +1,4 @@
-"""The chain's figures (issue 35, item 8) for bench/run_bench.py, all in the co-simulation
+"""The chain's figures (issue 35, item 8) for `make bench` (mipbench), all in the co-simulation
 (cosim/mipcosim/chain.py: relay -> outstation PLC -> realistic radio -> central PLC -> SCADA
 polling every 50 ms, 10 ms scans, virtual time):
 

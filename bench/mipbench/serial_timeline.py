@@ -1,11 +1,10 @@
-#!/usr/bin/env python3
 """Where the time of one record goes: a transfer of the example programs (plc/outstation.st,
 plc/central.st, window 1) in the co-simulation on the realistic radio, the PLCs on Modbus TCP or
 RTU, and from its emulator trace the mean time of each step of a record's round trip, the
 Modbus requests per record on each PLC's line and how long they keep the line busy.
 
-    .venv/bin/python bench/serial_timeline.py [--link tcp|rtu:BAUD] [--status-first no|yes|N]
-                                              [--fc23] [--records N] [--payload N] [--seed S]
+    .venv/bin/python -m mipbench.serial_timeline [--link tcp|rtu:BAUD] [--status-first no|yes|N]
+                                                 [--fc23] [--records N] [--payload N] [--seed S]
 
 Defaults: --link rtu:19200, the read strategy mip-cosim uses on that link (status_first 3 on
 serial lines, the whole read area over TCP), 20 records of 122 registers, seed 1. Records 5 ..
@@ -38,7 +37,8 @@ STEPS = [
 
 
 def parse(argv):
-    ap = argparse.ArgumentParser(prog="serial_timeline.py", description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m mipbench.serial_timeline",
+                                 description=__doc__.split("\n\n")[0])
     ap.add_argument("--link", default="rtu:19200", help="tcp or rtu:BAUD (default rtu:19200)")
     ap.add_argument("--status-first", default=None,
                     help="no, yes or the registers of the first read (default: 3 on RTU, no on TCP)")
@@ -119,12 +119,12 @@ def main(argv=None):
         trace = Path(tmp) / "trace.jsonl"
         with S.Chain(s, Path(tmp), trace=trace) as ch:
             if not ch.run_to_end(a.records * 60 * S.SEC, step_ns=100 * MS, settle_ns=0):
-                print(f"serial_timeline.py: error: {a.records} records not read out after "
+                print(f"mipbench.serial_timeline: error: {a.records} records not read out after "
                       f"{ch.now // S.SEC} virtual s", file=sys.stderr)
                 return 1
         ev, rows = timeline(trace)
     if not rows:
-        print("serial_timeline.py: error: no record to measure", file=sys.stderr)
+        print("mipbench.serial_timeline: error: no record to measure", file=sys.stderr)
         return 1
     sf = {False: "no", True: "yes"}.get(a.sf, a.sf)
     print(f"{a.link}, status_first {sf}{', fc23' if a.fc23 else ''}: {a.records} records of "

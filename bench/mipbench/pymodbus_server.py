@@ -1,6 +1,6 @@
 """pymodbus 3 TCP server with 500 holding registers, the Python peer of the throughput figure.
 
-    python pymodbus_server.py PORT
+    python -m mipbench.pymodbus_server PORT
 
 Prints "listening port=N" once the socket accepts, serves until SIGTERM / SIGINT."""
 import asyncio
@@ -35,7 +35,7 @@ if __name__ == "__main__":
     except ValueError:
         port = -1
     if not 1 <= port <= 65535:
-        sys.exit("usage: pymodbus_server.py PORT (1..65535)")
+        sys.exit("usage: python -m mipbench.pymodbus_server PORT (1..65535)")
     try:
         asyncio.run(main(port))
     except KeyboardInterrupt:

@@ -1,0 +1,67 @@
+"""Figure 5b: peak memory of the emulator, a soft-PLC and the co-simulation."""
+from __future__ import annotations
+
+import re
+import subprocess
+import tempfile
+from pathlib import Path
+
+from .common import BUILD, BenchError, EMU, RSS_RUN, Server, error, line, read_rss, run_rss
+from .scan_cost import build_pair
+from .emulator import client_rate
+
+def fig_memory(quick):
+    try:
+        floor = run_rss(["/bin/true"])
+    except (BenchError, subprocess.SubprocessError, OSError) as e:
+        floor = f"? ({e})"
+    note = f"ru_maxrss via bench/rss_run.c, floor of /bin/true {floor} KiB; no target"
+    # runtime executable: the bench pair program, virtual time, with a Modbus master of 1 or 64
+    # devices (MDP unit ids 1..n of a running emulator, one cyclic FC3 range each)
+    try:
+        exe = BUILD / "pair-stc" / "plc"
+        if not exe.is_file():
+            exe = build_pair("stc")
+        scans = 1000 if quick else 10000
+        with Server([EMU, "--mdp-port", 0, "--trm-base-port", 0, "--stations", 64]) as emu:
+            mdp = int(re.search(r"mdp=[\d.]+:(\d+)", emu.first).group(1))
+            for n in (1, 64):
+                name = f"peak_rss_runtime_{n}st"
+                try:
+                    conf = BUILD / f"rss_runtime_{n}.conf"
+                    text = "[master]\npolling_period = 100ms\ntimeout = 1s\n"
+                    for d in range(1, n + 1):
+                        text += (f"\n[device mdp{d}]\nhost = 127.0.0.1\nport = {mdp}\n"
+                                 f"unit_id = {d}\n\n[read r{d}]\ndevice = mdp{d}\nstart = 198\n"
+                                 f"size = 12\nimage = %IW{100 + 12 * (d - 1)}\npolicy = cycle\n")
+                    conf.write_text(text)
+                    rss = run_rss([exe, "-c", conf, "-m", "virtual", "-n", scans])
+                    line(name, f"{rss} KiB (plc executable of bench/st/bench_pair.st, {scans} "
+                         f"virtual scans of 10 ms, Modbus master of {n} device{'s' * (n > 1)} "
+                         f"(TCP to the emulator's MDP, 12 registers every 100 ms each); {note})",
+                         "INFO")
+                except (BenchError, subprocess.SubprocessError, OSError) as e:
+                    error(name, str(e))
+    except (BenchError, subprocess.SubprocessError, OSError, AttributeError) as e:
+        for n in (1, 64):
+            error(f"peak_rss_runtime_{n}st", str(e))
+    for n in (1, 64):
+        name = f"peak_rss_emulator_{n}st"
+        try:
+            with tempfile.NamedTemporaryFile(dir=BUILD, suffix=".rss") as f:
+                srv = Server([RSS_RUN, f.name, EMU, "--mdp-port", 0, "--trm-base-port", 0,
+                              "--stations", n])
+                try:
+                    mdp = int(re.search(r"mdp=[\d.]+:(\d+)", srv.first).group(1))
+                    trms = [int(x) for x in re.search(r"trm=([\d,]+)", srv.first).group(1).split(",")]
+                    reqs = 20 if quick else 200
+                    for s in range(1, n + 1):        # touch every station's buffers
+                        client_rate(mdp, s, 198, reqs)
+                        client_rate(trms[s - 1], 1, 2198, reqs)
+                finally:
+                    srv.stop()
+                rss = read_rss(Path(f.name))
+            line(name, f"{rss} KiB (mip-emulator, {n} station{'s' * (n > 1)}, {2 * n} ports, "
+                 f"{reqs} FC3 reads per port; {note})", "INFO")
+        except (BenchError, subprocess.SubprocessError, OSError, AttributeError) as e:
+            error(name, str(e))
