@@ -40,7 +40,7 @@ class ChainLive(Stepping):
 
     def __init__(self, workdir: Path | None = None, events=20, handover="pull"):
         from mipdocs.chainsim import TRACE_FN
-        from gen_traces import WORK
+        from mipdocs.gen_traces import WORK
         from mipcosim import chain as C
         from mipcosim.sim import CosimError
         self.C = C
