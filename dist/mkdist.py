@@ -46,15 +46,13 @@ import time
 import zipfile
 from pathlib import Path
 
+from mipdocs.blockref import dependency_order, render
+from mipdocs.plcopen_export import export, validate
+from mipdocs.stdecl import StError, parse_file
+
 REPO = Path(__file__).resolve().parents[1]
-TOOLS = REPO / "docs" / "tools"
 WIRESHARK = "wireshark/mipmb.lua"     # dist/wireshark/mipmb.lua, at the same path in the archive
 GLUE = "glue"                         # dist/glue/<family>/*, at the same paths in the archive
-sys.path.insert(0, str(TOOLS))
-
-from blockref import dependency_order, render  # noqa: E402
-from plcopen_export import export, validate  # noqa: E402
-from stdecl import StError, parse_file  # noqa: E402
 
 PRODUCT = "mip-logger"
 VERSION_FILE = "st_lib/MIP_Version.st"

@@ -4,6 +4,8 @@
 # st_lib goes to build/docs/ and is validated against the official TC6 v2.01 schema.
 DOCS_BUILD   := $(BUILD)/docs
 DOCS_TOOLS   := docs/tools
+# the generators are the package mipdocs (docs/tools/pyproject.toml), installed by `make venv`
+PY_PACKAGES += docs/tools
 # MIP_STLIB_DIR=DIR/st_lib: the blocks from DIR (e.g. an export of the last commit), as chainsim
 DOCS_STLIB   := $(or $(MIP_STLIB_DIR),st_lib)
 DOCS_ST      := $(sort $(wildcard $(DOCS_STLIB)/*.st))

@@ -18,9 +18,7 @@ import os
 import re
 import sys
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-
-from stdecl import StError, parse_doc, parse_file  # noqa: E402
+from mipdocs.stdecl import StError, parse_doc, parse_file
 
 LABEL = re.compile(r"^[A-Z][A-Za-z ()/-]{0,40}:(\s|$)")
 DIR_OF = {"VAR_INPUT": "in", "VAR_OUTPUT": "out", "VAR_IN_OUT": "in_out"}

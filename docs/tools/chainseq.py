@@ -38,8 +38,6 @@ class ChainSeqError(Exception):
 
 
 def make_trace(workdir):
-    sys.path.insert(0, str(REPO / "cosim"))
-    sys.path.insert(0, str(REPO / "peers"))
     from mipcosim import chain as C
     from mipcosim.sim import MS, Radio
     workdir = Path(workdir)

@@ -26,16 +26,13 @@ from __future__ import annotations
 import ctypes
 import json
 import os
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[2]
-if str(REPO / "cosim") not in sys.path:
-    sys.path.insert(0, str(REPO / "cosim"))       # this checkout's mipcosim
+from mipcosim import sim as _sim
+from mipcosim.layout import LIB_FILES, st_enums   # import order, the one list
 
-from mipcosim import sim as _sim  # noqa: E402
-from mipcosim.layout import LIB_FILES, st_enums  # noqa: E402   import order, the one list
+REPO = Path(__file__).resolve().parents[2]
 
 PROGRAM = Path(__file__).with_name("chain_main.st")
 # MIP_STLIB_DIR: take the blocks from another directory (e.g. an export of the last commit while

@@ -26,8 +26,6 @@ import sys
 import tempfile
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
 REPO = Path(__file__).resolve().parents[2]
 LOSSES = [0.0, 0.05, 0.1, 0.2, 0.3, 0.4]
 PAYLOAD = 122
@@ -49,7 +47,6 @@ def first_record_start(trace_lines):
 
 
 def run_cosim(p, drive, seed, records, workdir):
-    sys.path.insert(0, str(REPO / "cosim"))
     from mipcosim import layout
     from mipcosim.sim import Chain, CosimError, Radio, Setup
     if os.environ.get("MIP_STLIB_DIR"):          # as in chainsim: st_lib from elsewhere
@@ -72,8 +69,8 @@ def run_cosim(p, drive, seed, records, workdir):
 
 
 def run_blocks(p, drive, seed, records, workdir=None):
-    from chainsim import Chain, ChainError, Side
-    from gen_traces import WORK, logger_data
+    from mipdocs.chainsim import Chain, ChainError, Side
+    from mipdocs.gen_traces import WORK, logger_data
     polled = drive == "polled"
     data = logger_data(records * PAYLOAD, seed)
     o = Side("outstation", "sender", data=data, polled=polled, timeout_ms=1500, read_ms=100)

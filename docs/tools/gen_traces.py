@@ -14,9 +14,7 @@ import os
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-from chainsim import FFFF, Chain, ChainError, Side  # noqa: E402
+from mipdocs.chainsim import FFFF, Chain, ChainError, Side
 
 REPO = Path(__file__).resolve().parents[2]
 # where the PLCs are built; MIP_DOCS_WORKDIR elsewhere (the tests: one per test process)

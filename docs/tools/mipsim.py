@@ -20,10 +20,8 @@ import signal
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-from chainsim import MS, Chain, ChainError, Side  # noqa: E402
-from gen_traces import WORK, logger_data  # noqa: E402
+from mipdocs.chainsim import MS, Chain, ChainError, Side
+from mipdocs.gen_traces import WORK, logger_data
 
 
 def parse(argv):

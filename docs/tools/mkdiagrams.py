@@ -10,9 +10,7 @@ import argparse
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-import seqdiag  # noqa: E402
+from mipdocs import seqdiag
 
 REPO = Path(__file__).resolve().parents[2]
 COMMON = ("st_lib blocks in two soft PLCs (plcrt, its Modbus master does the requests) + "

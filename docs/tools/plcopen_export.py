@@ -16,10 +16,8 @@ import os
 import re
 import sys
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-
-from blockref import dependency_order  # noqa: E402
-from stdecl import StError, TypeSpec, parse_file  # noqa: E402
+from mipdocs.blockref import dependency_order
+from mipdocs.stdecl import StError, TypeSpec, parse_file
 
 NS = "http://www.plcopen.org/xml/tc6_0201"
 XHTML = "http://www.w3.org/1999/xhtml"

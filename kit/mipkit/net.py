@@ -322,8 +322,7 @@ class Net:
         """The sequence diagram (docs' seqdiag) of the `last_s` virtual seconds up to the last
         record on the radio (1 s after its telegram), or of window = (from, to) in virtual ns
         (the failure report's: centred on the fault), as SVG into out; None without a trace."""
-        from . import _seqdiag_mod
-        sd = _seqdiag_mod()
+        from mipdocs import seqdiag as sd
         if self.trace_path is None or not self.trace_path.is_file():
             return None
         if window is not None:

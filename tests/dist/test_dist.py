@@ -179,7 +179,6 @@ def test_license_is_mit_with_the_authors():
 def _copy_product(tmp_path):
     repo = tmp_path / "repo"
     shutil.copytree(REPO / "st_lib", repo / "st_lib")
-    shutil.copytree(REPO / "docs" / "tools", repo / "docs" / "tools")
     shutil.copytree(REPO / "dist", repo / "dist")
     for n in ("LICENSE", "CHANGELOG.md"):
         shutil.copy(REPO / n, repo / n)

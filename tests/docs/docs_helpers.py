@@ -13,9 +13,6 @@ XSD = REPO / "build" / "docs" / "tc6_xml_v201.xsd"
 # the co-simulation kernel (its emulator core runs the docs' chains: docs/tools/chainsim.py)
 KERNEL_SO = REPO / "build" / "cosim" / "libmipcosim.so"
 
-if str(TOOLS) not in sys.path:
-    sys.path.insert(0, str(TOOLS))
-
 
 def tool(name, *args, cwd=REPO):
     """Runs docs/tools/<name>.py; returns the CompletedProcess (text)."""

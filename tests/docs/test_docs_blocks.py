@@ -76,7 +76,7 @@ def test_check_wants_the_meaning_as_trailing_comment(tmp_path):
 def test_sampled_lists_are_generated_from_the_headers():
     """st_lib/README.md and PROTOCOL.md (P26) list which inputs are sampled at which edge: the
     text between the markers is what the headers' 'sampled' column gives."""
-    import blockref
+    from mipdocs import blockref
     r = tool("blockref", "--sampled", *rel(ST_LIB))
     assert r.returncode == 0, r.stderr
     assert "`MIP_Sender`: at the rising edge of `xExecute`: `uChunkSize`" in r.stdout

@@ -52,7 +52,7 @@ class Client:
 def test_glue_example_sends_its_data(tmp_path):
     assert KERNEL_SO.exists(), f"{KERNEL_SO} missing: run `make {KERNEL_SO.relative_to(REPO)}`"
     from plcharness import Plc
-    from chainsim import MS, Chain, Side
+    from mipdocs.chainsim import MS, Chain, Side
 
     glue = Plc.build([str(REPO / "st_lib" / f) for f in LIB] + [str(SRC)], workdir=tmp_path,
                      compiler="stc")

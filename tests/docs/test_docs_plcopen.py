@@ -42,7 +42,7 @@ def test_export_is_deterministic(xml, tmp_path):
 
 
 def test_every_block_type_and_variable_is_exported(xml):
-    import stdecl
+    from mipdocs import stdecl
     root = etree.parse(str(xml)).getroot()
     pous = {p.get("name"): p for p in root.iterfind(".//p:pou", NS)}
     types = {t.get("name") for t in root.iterfind(".//p:dataType", NS)}
@@ -87,7 +87,7 @@ def test_every_comment_is_kept(xml):
     variables' documentation, group comments inside VAR blocks as their list's, doc headers as
     the POU's, file headers in the content header's Comment, enum values' in their type's,
     body comments in the body text."""
-    import stdecl
+    from mipdocs import stdecl
     text = xml_text(xml)
     lost, count = [], 0
     for f in ST_LIB:
@@ -130,7 +130,7 @@ def test_no_body_comment_names_another_pou():
     plain iec2c then rejects it (issue 26). Bodies name other POUs only in code."""
     import re
 
-    import stdecl
+    from mipdocs import stdecl
     units = [stdecl.parse_file(f) for f in ST_LIB]
     names = {p.name.upper() for u in units for p in u.pous}
     assert len(names) >= 10
@@ -220,8 +220,8 @@ def test_bad_st_gives_one_line_and_no_xml(tmp_path):
 def test_every_program_the_translator_accepts_exports_valid(tmp_path):
     """The ST reader is not a toy: each file of the translator's accept corpus (90 programs with
     types, FBs, functions, located variables, configurations) exports to schema-valid XML."""
-    import plcopen_export
-    import stdecl
+    from mipdocs import plcopen_export
+    from mipdocs import stdecl
     corpus = sorted((REPO / "tests" / "translator" / "accept").glob("*.st"))
     assert len(corpus) >= 50, "the translator's accept corpus moved"
     schema = etree.XMLSchema(etree.parse(str(XSD)))

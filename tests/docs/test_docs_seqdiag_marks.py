@@ -73,7 +73,7 @@ def test_time_jumps_are_shown(diagrams, name):
         after = min((t for t in times if t[1] > y), key=lambda t: t[1])
         assert int(after[0].split()[0]) - int(before[0].split()[0]) == int(s[1:].split()[0])
     # and no two consecutive rows JUMP_MS or more apart go without one
-    import seqdiag
+    from mipdocs import seqdiag
     ms = [(int(s.split()[0]), y) for s, y in times]
     for (t1, y1), (t2, y2) in zip(ms, ms[1:]):
         if t2 - t1 >= seqdiag.JUMP_MS:

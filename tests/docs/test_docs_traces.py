@@ -84,7 +84,7 @@ def test_restart_breaks_one_transfer_and_completes_the_next():
 def test_throughput_data_reproduce():
     """Two points of docs/data/throughput-vs-loss.json, run again (seed 1, no loss and 20 %)."""
     data = json.loads((REPO / "docs" / "data" / "throughput-vs-loss.json").read_text())
-    import gen_lossdata
+    from mipdocs import gen_lossdata
     for loss in (0.0, 0.2):
         rate = gen_lossdata.run(loss, "spontaneous", 1, data["records"], data["source_key"])
         point = next(p for p in data["series"]["spontaneous"] if p["loss"] == loss)

@@ -498,7 +498,7 @@ def test_wheel_carries_what_the_kit_needs_and_the_checkout_stays_clean(tmp_path)
                  "plcharness/_runtime/src/plcrt_main.c", "plcharness/_runtime/include/plcrt.h",
                  "mipcosim/_lib/libmipcosim.so", "mipcosim/_st_lib/MIP_Sender.st",
                  "mippeer/peer.py", "mipprobe/cli.py", "mipprobe/regmap.py", "mipkit/plugin.py",
-                 "mipkit/_seqdiag.py"]:
+                 "mipdocs/seqdiag.py", "mipdocs/__init__.py"]:
         assert want in names, want
     assert not [n for n in names if n.endswith((".o", ".pyc"))]
     ep = next(n for n in names if n.endswith("entry_points.txt"))

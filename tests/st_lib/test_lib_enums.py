@@ -2,7 +2,6 @@
 (mipcosim.layout.st_enums): it agrees with the documentation's reader (docs/tools/stdecl.py,
 behind the 'as integer' column of docs/blocks.md) and refuses what it cannot number."""
 import re
-import sys
 from pathlib import Path
 
 import pytest
@@ -13,8 +12,7 @@ REPO = Path(__file__).resolve().parents[2]
 
 
 def test_reader_agrees_with_the_documentation_reader():
-    sys.path.insert(0, str(REPO / "docs" / "tools"))
-    import stdecl
+    from mipdocs import stdecl
     unit = stdecl.parse_file(str(REPO / "st_lib" / "MIP_Types.st"))
     documented = {t.name: [v for v, _ in t.values] for t in unit.types if t.kind == "enum"}
     assert st_enums() == documented

@@ -3,7 +3,6 @@ read-status bits and the check value's step are functions (MIP_EchoMagic.st, MIP
 MIP_CheckStep.st), the buffer bound a VAR CONSTANT that matches MIP_T_Buffer. A second copy
 in another block would make the two drift apart in a later edit."""
 import re
-import sys
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
@@ -40,8 +39,7 @@ def test_check_value_step_is_written_once():
 
 
 def test_buffer_bound_matches_the_buffer_type():
-    sys.path.insert(0, str(REPO / "docs" / "tools"))
-    import stdecl
+    from mipdocs import stdecl
     types = {t.name: t for t in stdecl.parse_file(str(REPO / "st_lib" / "MIP_Types.st")).types}
     (lo, hi), = types["MIP_T_Buffer"].spec.dims
     unit = stdecl.parse_file(str(REPO / "st_lib" / "MIP_BufferSender.st"))

@@ -8,18 +8,16 @@ the receiver its unchanged acknowledgement): the transfer stalled after record 1
 the virtual-time chain of docs/tools/chainsim.py (the program built from st_lib in the
 soft-PLC runtime, whose master has the cyclic policy, and the emulator core, in the
 co-simulation kernel)."""
-import sys
 from pathlib import Path
 
 import pytest
 
 REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO / "docs" / "tools"))
 
 if not (REPO / "build" / "cosim" / "libmipcosim.so").is_file():
     pytest.fail("build/cosim/libmipcosim.so not built: run make first (these tests cannot run without it)", pytrace=False)
 
-from chainsim import Chain, Side  # noqa: E402
+from mipdocs.chainsim import Chain, Side  # noqa: E402
 
 FFFF = 0xFFFF
 N = 40

@@ -39,8 +39,8 @@ class ChainLive(Stepping):
     mode = "live"
 
     def __init__(self, workdir: Path | None = None, events=20, handover="pull"):
-        from chainsim import TRACE_FN              # docs/tools, on the path by .common
-        from gen_traces import WORK
+        from mipdocs.chainsim import TRACE_FN
+        from mipdocs.gen_traces import WORK
         from mipcosim import chain as C
         from mipcosim.sim import CosimError
         self.C = C

@@ -1,19 +1,14 @@
-"""What both kinds of session share: the docs' tools on the path (one chain, one diagram),
+"""What both kinds of session share: the docs' chain and diagram (mipdocs: one of each),
 st_lib's enum names, the diagram of a trace (its rows: rows.py), the error a user sees."""
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[2]
-TOOLS = REPO / "docs" / "tools"
-if str(TOOLS) not in sys.path:
-    sys.path.insert(0, str(TOOLS))          # the docs' chain and diagram, one copy of each
+from mipcosim.layout import st_enums
+from mipdocs import chainsim, seqdiag
+from mipdocs.chainsim import MS
 
-import chainsim  # noqa: E402
-import seqdiag  # noqa: E402
-from chainsim import MS  # noqa: E402
-from mipcosim.layout import st_enums  # noqa: E402
+REPO = Path(__file__).resolve().parents[2]
 
 ENUMS = st_enums(chainsim.LIB_DIR / "MIP_Types.st")
 

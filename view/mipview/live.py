@@ -5,13 +5,13 @@ import ctypes
 import random
 from pathlib import Path
 
-from .common import MS, ViewError, diagram, enum_name   # first: docs/tools on the path
+from mipcosim.sim import FATE_FN
+from mipdocs.chainsim import Chain, ChainError, Side
+from mipdocs.gen_traces import WORK, logger_data
+
+from .common import MS, ViewError, diagram, enum_name
 from .presets import PRESETS
 from .rows import History
-
-from chainsim import Chain, ChainError, Side  # noqa: E402  (docs/tools)
-from gen_traces import WORK, logger_data  # noqa: E402
-from mipcosim.sim import FATE_FN  # noqa: E402
 
 FATE_OK, FATE_LOST = 0, 1            # mipemu.h: enum mipemu_fate
 SLOT_LIMIT_MS = 10_000               # "one radio slot" gives up after this much virtual time

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 # the parts (common, presets, live, follow), under the one name the server and the tests use
 from .common import ENUMS, MS, REPO, ViewError, diagram, enum_name, seqdiag  # noqa: F401
-from chainsim import ChainError  # noqa: E402,F401   (docs/tools, on the path by .common)
+from mipdocs.chainsim import ChainError  # noqa: F401
 from .follow import Follow, radio_counts  # noqa: F401
 from .live import SPEEDS, WINDOWS, Live  # noqa: F401
 from .presets import PRESETS, Preset  # noqa: F401
