@@ -34,8 +34,7 @@ import argparse
 import re
 import shlex
 import sys
-from dataclasses import dataclass, field, fields, replace
-from pathlib import Path
+from dataclasses import dataclass
 
 from .openplc_limits import MAX_MB_IO
 

@@ -1,4 +1,3 @@
-#!/usr/bin/env python3
 """The whole chain in real time (make run RUN_ARGS=--chain): relay to control system (docs/chain.md).
 
 mip-emulator with a relay (`--relay`, scripted events) -> the outstation soft-PLC
@@ -18,15 +17,11 @@ import sys
 import time
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "cosim"))
-sys.path.insert(0, str(REPO / "plc"))
+from mipcosim import chain as C
+from mipprobe.sizing import handover_polls, handover_timeout_ms
 
-from demo import modem_port_args  # noqa: E402
-from demo import (DemoError, Procs, Progress, Slave, TraceStats, bar, free_port,  # noqa: E402
-                  fresh_rundir, radio_args, run_or_fail, start_emulator)
-from mipcosim import chain as C                                         # noqa: E402
-from mipprobe.sizing import handover_polls, handover_timeout_ms       # noqa: E402
+from .common import (REPO, DemoError, Procs, Progress, Slave, TraceStats, bar, free_port,
+                     fresh_rundir, modem_port_args, radio_args, run_or_fail, start_emulator)
 
 
 def parse_args(argv):
@@ -280,6 +275,3 @@ def main(argv=None):
           f"duplicates={r['duplicates']} seconds={r['seconds']}")
     return 0
 
-
-if __name__ == "__main__":
-    sys.exit(main())
