@@ -21,7 +21,8 @@ from mipcosim import chain as C
 from mipprobe.sizing import handover_polls, handover_timeout_ms
 
 from .common import (REPO, DemoError, Procs, Progress, Slave, TraceStats, bar, free_port,
-                     fresh_rundir, modem_port_args, radio_args, run_or_fail, start_emulator)
+                     fresh_rundir, modem_port_args, radio_args, result, run_or_fail,
+                     start_emulator)
 
 
 def parse_args(argv):
@@ -263,15 +264,9 @@ def run(a):
 
 def main(argv=None):
     a = parse_args(sys.argv[1:] if argv is None else argv)
-    outcome = run_or_fail(run, a)
-    if outcome is None:
-        return 1
-    problems, r = outcome
-    if problems:
-        print("result: FAIL " + "; ".join(problems))
-        return 1
-    print(f"result: ok events={r['events']} records={r['records']} polls={r['polls']} "
-          f"lost_telegrams={r['lost']} retransmissions={r['retransmissions']} "
-          f"duplicates={r['duplicates']} seconds={r['seconds']}")
-    return 0
+    return result(
+        run_or_fail(run, a),
+        lambda r: (f"result: ok events={r['events']} records={r['records']} polls={r['polls']} "
+                   f"lost_telegrams={r['lost']} retransmissions={r['retransmissions']} "
+                   f"duplicates={r['duplicates']} seconds={r['seconds']}"))
 

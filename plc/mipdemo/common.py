@@ -219,3 +219,18 @@ def run_or_fail(run, a):
     except DemoError as e:
         print(f"\nresult: FAIL {e}")
     return None
+
+
+def result(outcome, ok_line, note=None):
+    """A demo's last lines from run_or_fail's outcome (None: its FAIL line is out): note(figures)
+    if given, then `result: FAIL <problems>` (exit status 1) or ok_line(figures) (0)."""
+    if outcome is None:
+        return 1
+    problems, r = outcome
+    if note:
+        print(note(r))
+    if problems:
+        print("result: FAIL " + "; ".join(problems))
+        return 1
+    print(ok_line(r))
+    return 0

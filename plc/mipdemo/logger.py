@@ -15,7 +15,8 @@ import time
 from mipcosim import layout as L
 
 from .common import (REPO, DemoError, Procs, Progress, Slave, TraceStats, bar, free_port,
-                     fresh_rundir, modem_port_args, radio_args, run_or_fail, start_emulator)
+                     fresh_rundir, modem_port_args, radio_args, result, run_or_fail,
+                     start_emulator)
 
 def parse_args(argv):
     p = argparse.ArgumentParser(prog="demo", description=__doc__.splitlines()[0])
@@ -252,16 +253,11 @@ def run(a):
 def main(argv=None):
     """The logger's demo; mipdemo.cli.main also runs the chain's (--chain)."""
     a = parse_args(sys.argv[1:] if argv is None else list(argv))
-    outcome = run_or_fail(run, a)
-    if outcome is None:
-        return 1
-    problems, r = outcome
-    print(f"demo: radio lost {r['lost_telegrams']} telegrams, {r['lost_block_telegrams']} of "
-          f"them carrying a record or an acknowledgement")
-    if problems:
-        print("result: FAIL " + "; ".join(problems))
-        return 1
-    print(f"result: ok records={r['records']} registers={r['registers']} polls={r['polls']} "
-          f"retransmissions={r['retransmissions']} duplicates={r['duplicates']} "
-          f"seconds={r['seconds']}")
-    return 0
+    return result(
+        run_or_fail(run, a),
+        lambda r: (f"result: ok records={r['records']} registers={r['registers']} "
+                   f"polls={r['polls']} retransmissions={r['retransmissions']} "
+                   f"duplicates={r['duplicates']} seconds={r['seconds']}"),
+        note=lambda r: (f"demo: radio lost {r['lost_telegrams']} telegrams, "
+                        f"{r['lost_block_telegrams']} of them carrying a record or an "
+                        f"acknowledgement"))
