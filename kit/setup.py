@@ -1,13 +1,12 @@
 """Builds the test kit's wheel from a checkout of mip-logger (docs/test-kit.md).
 
 The wheel holds the repository's own packages as they are (stc, plcharness, mipcosim, mippeer,
-mipprobe, mipdocs for the docs' sequence diagrams:
-one model of each thing, nothing copied into kit/) plus what they find in a checkout:
-the runtime's C sources and headers (plcharness/_runtime: every user program is compiled
-against them), libmipcosim.so (mipcosim/_lib: the emulator core and the co-simulation kernel,
-compiled here with the C compiler of the machine), st_lib's ST sources (mipcosim/_st_lib) and
-stock OpenPLC's limits
-(mipkit/_openplc_limits.py, for mip-glue).
+mipprobe, mipdocs for the docs' sequence diagrams, mipprograms for mip-glue, stock OpenPLC's
+limits and the example programs' generator: one model of each thing, nothing copied into kit/)
+plus what they find in a checkout: the runtime's C sources and headers (plcharness/_runtime:
+every user program is compiled against them), libmipcosim.so (mipcosim/_lib: the emulator core
+and the co-simulation kernel, compiled here with the C compiler of the machine), st_lib's ST
+sources (mipcosim/_st_lib) and the Wireshark dissector (mipkit/mipmb.lua).
 """
 import atexit
 import os
@@ -30,11 +29,11 @@ REPO = HERE.parent if (HERE.parent / "translator" / "stc").is_dir() else HERE / 
 NEEDED = ["translator/stc", "runtime_shim/harness/plcharness", "runtime_shim/src",
           "runtime_shim/include", "cosim/mipcosim", "cosim/src/mipcosim.c", "cosim/include",
           "emulator/src/mipemu.c", "emulator/src/siprotec.c", "emulator/include", "peers/mippeer", "probe/mipprobe", "st_lib",
-          "docs/tools", "plc/openplc_limits.py", "LICENSE"]
+          "docs/tools", "plc/mipprograms", "LICENSE"]
 NEEDED += ["dist/wireshark/mipmb.lua"]      # the dissector, for the kit's captures (capture.py)
 PACKAGES = {"stc": "translator/stc", "plcharness": "runtime_shim/harness/plcharness",
             "mipcosim": "cosim/mipcosim", "mippeer": "peers/mippeer",
-            "mipprobe": "probe/mipprobe"}
+            "mipprobe": "probe/mipprobe", "mipprograms": "plc/mipprograms"}
 
 
 def _tree(src: Path, dst: Path, patterns=None):
@@ -71,7 +70,6 @@ class BuildKit(build_py):
         _tree(REPO / "runtime_shim" / "include", rt / "include")
         _tree(REPO / "st_lib", out / "mipcosim" / "_st_lib", ("*.st",))
         _tree(REPO / "docs" / "tools", out / "mipdocs", ("*.py", "*.st"))   # the package, not its pyproject
-        shutil.copyfile(REPO / "plc" / "openplc_limits.py", out / "mipkit" / "_openplc_limits.py")
         shutil.copyfile(REPO / "dist" / "wireshark" / "mipmb.lua", out / "mipkit" / "mipmb.lua")
         lib = out / "mipcosim" / "_lib"
         lib.mkdir(parents=True, exist_ok=True)

@@ -1,6 +1,7 @@
 """The chain's layout (issue 35): its programs, their runtime configs, parameters and status
 words, and the relay events of a run with what the control system must receive
-(cosim/mipcosim/chain.py runs them; plc/demo_chain.py and bench/mipbench/chain.py use them too)."""
+(cosim/mipcosim/chain.py runs them; mipdemo.chain (plc/demo.py --chain) and bench/mipbench/chain.py
+use them too)."""
 from __future__ import annotations
 
 from dataclasses import dataclass

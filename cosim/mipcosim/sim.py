@@ -564,7 +564,7 @@ class Chain(_Kernel):
 
 class Network(_Kernel):
     """The largest MIP network: `stations` outstation soft-PLCs (plc/outstation.st, one per
-    TRM-810) and ONE central program for all of them (plc/gen_programs.py central_many(n):
+    TRM-810) and ONE central program for all of them (mipprograms.logger.central_many(n):
     n receivers behind one shared Modbus client) on one MDP-810, in lockstep virtual time.
     Stations per central and the scan tick are parameters. Delivery is checked per station
     from the central's record stores: registers committed and their Fletcher sums against
@@ -574,7 +574,6 @@ class Network(_Kernel):
     def __init__(self, stations, workdir: Path, *, records=5, per_transfer=0, payload=16,
                  loss=0.0, seed=1, radio=None, tick_ms=100, timeout_ms=2000, compiler="stc",
                  transfer_timeout_s=0, window=1):
-        import sys
         if not 1 <= stations <= 247:
             raise CosimError(f"stations {stations}: one MDP-810 serves unit ids 1..247")
         if not 1 <= tick_ms <= 1000:
@@ -596,11 +595,10 @@ class Network(_Kernel):
             raise CosimError(err.value.decode())
         self.plcs = {}
         try:
-            sys.path.insert(0, str(L.PLC_DIR))
-            import gen_programs
+            from mipprograms.logger import central_many
             src = self.workdir / f"src-many-{stations}" / "central_many.st"
             src.parent.mkdir(parents=True, exist_ok=True)
-            text = gen_programs.central_many(stations)
+            text = central_many(stations)
             if not src.is_file() or src.read_text() != text:
                 src.write_text(text)
             lib_src = [str(L.ST_LIB / f) for f in L.LIB_FILES] + [str(L.PLC_DIR / "PLC_Logger.st")]

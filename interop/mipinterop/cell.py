@@ -14,15 +14,11 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[2]
-# plc/demo.py (Procs, Slave, free_port, TraceStats) is not yet an installed package: its one path
-# entry, until plc/ is one (issue 45)
-if str(REPO / "plc") not in sys.path:
-    sys.path.insert(0, str(REPO / "plc"))
+from mipcosim import layout as L
+from mipdemo import common as demo            # noqa: F401  (Procs, Slave, free_port, TraceStats: for matrix, kernel, timing)
+from mippeer.cli import logger_records
 
-import demo                                   # noqa: E402, F401  (plc/demo.py: for matrix, kernel, timing)
-from mipcosim import layout as L              # noqa: E402
-from mippeer.cli import logger_records        # noqa: E402
+REPO = Path(__file__).resolve().parents[2]
 
 EMU = REPO / "build" / "emulator" / "mip-emulator"
 PEER = [sys.executable, "-m", "mippeer.cli"]

@@ -10,18 +10,3 @@ from .ends import KitRelay, KitScada, KitUnicos, missing
 __all__ = ["KitError", "KitWarning", "Net", "assert_records", "KitRelay", "KitScada", "KitUnicos",
            "missing"]
 
-
-def _seqdiag_mod():
-    """docs/tools/seqdiag.py, the diagram generator of the docs: installed as mipkit._seqdiag
-    (kit/setup.py copies it), or from the checkout this package runs in."""
-    try:
-        from . import _seqdiag
-        return _seqdiag
-    except ImportError:
-        import importlib.util
-        from pathlib import Path
-        path = Path(__file__).resolve().parents[2] / "docs" / "tools" / "seqdiag.py"
-        spec = importlib.util.spec_from_file_location("mipkit_seqdiag", path)
-        mod = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(mod)
-        return mod

@@ -3,7 +3,7 @@ serial link adds to the blocks' repeat timeout tTimeout (the table of docs/seria
 tests/docs/test_docs_serial.py compares it with this module), and the parameters mip-probe
 recommends from the round trips it measured (`recommend`, docs/commissioning.md). One
 implementation for the docs' table, the tool and what the chain's hand-over to a polling SCADA
-adds (handover_timeout_ms, plc/demo_chain.py: the steps a round trip waits for in series, times
+adds (handover_timeout_ms, mipdemo.chain: the steps a round trip waits for in series, times
 their duration); the demo's rule (mipcosim.cli.link_timeout_ms,
 plc/demo.py) is older and up to 24 ms lower above 19,200 baud (docs/serial.md says so).
 

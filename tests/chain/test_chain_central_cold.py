@@ -11,18 +11,17 @@ that the docs change when it goes away.
 
 Real time over build/emulator/mip-emulator on 127.0.0.1 (free ports, fast radio)."""
 import subprocess
-import sys
 import time
 from pathlib import Path
 
 import pytest
 
+from mipcosim import layout as L
+from mipdemo import common as demo   # the demos' process and slave helpers
+from mipinterop.matrix import EMU, FAST_RADIO, PEER, start_emulator
+from mippeer.cli import logger_records
+
 REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO / "plc"))
-import demo  # noqa: E402  (plc/demo.py: Procs, Slave, free_port)
-from mipcosim import layout as L  # noqa: E402
-from mipinterop.matrix import EMU, FAST_RADIO, PEER, start_emulator  # noqa: E402
-from mippeer.cli import logger_records  # noqa: E402
 
 RECORDS, SIZE = 4, 20          # records per transfer, payload registers per record
 SEEDS = (11, 12)               # the peer's logger data of transfer 1 and 2

@@ -1,6 +1,6 @@
-"""The chain's real-time demo (`make run RUN_ARGS=--chain`, plc/demo_chain.py): mip-emulator with a
-relay -> outstation soft-PLC -> emulated radio -> central soft-PLC -> `mip-peer scada`; and the
-committed runtime configs of the chain's programs."""
+"""The chain's real-time demo (`make run RUN_ARGS=--chain`, plc/demo.py --chain, mipdemo.chain):
+mip-emulator with a relay -> outstation soft-PLC -> emulated radio -> central soft-PLC ->
+`mip-peer scada`; and the committed runtime configs of the chain's programs."""
 import re
 import subprocess
 import sys

@@ -11,11 +11,12 @@ from pathlib import Path
 
 import pytest
 
+from mipcosim import layout as L
+from mipdemo import common as demo   # the demos' process and slave helpers
+from mipdemo.logger import build_programs
+from mippeer.cli import logger_records
+
 REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO / "plc"))
-import demo  # noqa: E402  (plc/demo.py: process and slave helpers)
-from mipcosim import layout as L  # noqa: E402
-from mippeer.cli import logger_records  # noqa: E402
 
 EMU = REPO / "build" / "emulator" / "mip-emulator"
 PEER = [sys.executable, "-m", "mippeer.cli"]
@@ -25,7 +26,7 @@ if not EMU.is_file():
 
 @pytest.fixture(scope="module")
 def progs(tmp_path_factory):
-    return demo.build_programs(tmp_path_factory.mktemp("interop-build"))
+    return build_programs(tmp_path_factory.mktemp("interop-build"))
 
 
 class Net:

@@ -1,7 +1,7 @@
 """TIME under matiec: its standard library multiplies a TIME by an integer n as tv_sec * n
 seconds plus (int)(tv_nsec * n) nanoseconds through a 32-bit int (lib/C/iec_std_lib.h,
 __time_mul), so `T#1ms * 2148` comes out negative. The example programs build every TIME from
-seconds and milliseconds (plc/gen_programs.py: ms_to_time). These tests check
+seconds and milliseconds (mipprograms.common: ms_to_time). These tests check
 
 - every TIME product in plc/*.st and st_lib/*.st, for the whole range of its operand, stays
   inside that int (a model of matiec's arithmetic, so it runs without matiec);
@@ -22,8 +22,7 @@ from mipcosim.check import check
 from mipcosim.sim import MS, SEC, Chain, Setup
 
 REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO / "plc"))
-import gen_programs  # noqa: E402
+from mipprograms.common import ms_to_time, s_to_time
 
 INT_MAX = 2**31 - 1
 WORD_MAX = 65535
@@ -133,7 +132,7 @@ END_CONFIGURATION
 
 def test_generated_time_expressions_give_the_time_under_stc(tmp_path):
     src = tmp_path / "probe.st"
-    src.write_text(PROBE.format(ms=gen_programs.ms_to_time("pMs"), s=gen_programs.s_to_time("pS")))
+    src.write_text(PROBE.format(ms=ms_to_time("pMs"), s=s_to_time("pS")))
     with Plc.build([src], workdir=tmp_path / "b", compiler="stc") as plc:
         for ms in (0, 1, 999, 1000, 2147, 2148, 3000, 60000, WORD_MAX):
             plc["Probe.pMs"] = ms
@@ -149,8 +148,8 @@ def test_generated_time_expressions_give_the_time_under_stc(tmp_path):
     for name in ("outstation.st", "central.st", "outstation_bidi.st", "central_bidi.st"):
         text = (REPO / "plc" / name).read_text()
         for p in ("pTimeout", "pLogPeriod", "pCyclicWrite"):
-            assert gen_programs.ms_to_time(p) in text, (name, p)
-        assert f"tTransferTimeout := {gen_programs.s_to_time('pTransferTimeout')};" in text
+            assert ms_to_time(p) in text, (name, p)
+        assert f"tTransferTimeout := {s_to_time('pTransferTimeout')};" in text
 
 
 COMPILERS = [pytest.param("stc"),

@@ -10,8 +10,7 @@ import pytest
 REPO = Path(__file__).resolve().parents[2]
 GEN = REPO / "plc" / "gen_programs.py"
 CHECK = REPO / "plc" / "openplc_limits.py"
-sys.path.insert(0, str(REPO / "plc"))
-import gen_programs  # noqa: E402
+from mipprograms import gen
 
 
 def run(*args):
@@ -22,7 +21,7 @@ def run(*args):
 def test_committed_openplc_configs_are_within_the_limit_and_generated():
     r = run(CHECK, *sorted((REPO / "plc" / "openplc").glob("*.cfg")))
     assert (r.returncode, r.stderr) == (0, "")
-    for name, text in gen_programs.openplc_configs(gen_programs.OPENPLC_STATIONS):
+    for name, text in gen.openplc_configs(gen.OPENPLC_STATIONS):
         assert (REPO / "plc" / name).read_text() == text, \
             f"plc/{name} differs from what plc/gen_programs.py writes: run it and commit"
 
@@ -47,7 +46,7 @@ def test_generator_writes_a_central_of_3_stations(tmp_path):
 
 def test_checker_refuses_4_x_125_with_file_and_line(tmp_path):
     cfg = tmp_path / "mbconfig.cfg"
-    cfg.write_text(gen_programs.mbconfig([(f"mdp{s}", s, 502, 198, 10) for s in range(1, 5)]))
+    cfg.write_text(gen.mbconfig([(f"mdp{s}", s, 502, 198, 10) for s in range(1, 5)]))
     r = run(CHECK, cfg)
     assert r.returncode == 1
     line = next(i for i, t in enumerate(cfg.read_text().splitlines(), 1)

@@ -10,10 +10,11 @@ from pathlib import Path
 
 import pytest
 
+from mipcosim import layout as L
+from mipdemo import common as demo   # the demos' process and slave helpers
+from mipdemo.logger import build_programs
+
 REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO / "plc"))
-import demo  # noqa: E402
-from mipcosim import layout as L  # noqa: E402
 
 EMU = REPO / "build" / "emulator" / "mip-emulator"
 if not EMU.is_file():
@@ -134,7 +135,7 @@ def test_chain_openplc_mbconfig_static_mode(tmp_path):
     """The committed plc/openplc/*.cfg, ports changed, with the cyclic-I/O flag; the programs
     built with the values of OpenPLC's matiec fork (stc --semantics=openplc), as OpenPLC runs
     them (PLCRT_SEMANTICS, when set, wins)."""
-    progs = demo.build_programs(tmp_path / "build",
+    progs = build_programs(tmp_path / "build",
                                 semantics=os.environ.get("PLCRT_SEMANTICS") or "openplc")
     procs = demo.Procs()
     slaves = []

@@ -1,10 +1,11 @@
-"""mip-glue (kit/mipkit/glue.py): the located-variable glue between a Modbus master's image and
+"""mip-glue (plc/mipprograms/mipglue.py): the located-variable glue between a Modbus master's image and
 the MIP blocks' arrays, as an integrator runs it; the kit example's and plc/'s copies are its
 output; bad input is one line."""
 import re
 import shlex
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -13,7 +14,7 @@ from mipcosim import layout as L
 from plcharness.build import matiec_available
 from plcharness.plc import Plc
 
-GLUE = KIT / "mipkit" / "glue.py"
+GLUE = Path(sys.executable).parent / "mip-glue"   # installed by `make venv` (plc/pyproject.toml)
 LIB = [L.ST_LIB / f for f in L.LIB_FILES]
 CONFIG = """
 CONFIGURATION Config0
@@ -26,8 +27,8 @@ END_CONFIGURATION
 
 
 def glue(*args, cwd=None):
-    """mip-glue as a command (this venv's Python runs the file, as the console script would)."""
-    return run([sys.executable, GLUE, *args], cwd or REPO)
+    """mip-glue as a command: the venv's console script, as the kit installs it."""
+    return run([GLUE, *args], cwd or REPO)
 
 
 def one_error_line(r):
@@ -199,11 +200,7 @@ def test_bad_options_recorded_in_the_file_are_named_as_such(tmp_path):
 def test_a_file_that_cannot_be_written_is_one_line(tmp_path, monkeypatch, capsys):
     """(In process: the tests may run as root, who writes read-only files.)"""
     import builtins
-    import importlib.util
-    spec = importlib.util.spec_from_file_location("glue_under_test", GLUE)
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules["glue_under_test"] = mod
-    spec.loader.exec_module(mod)
+    from mipprograms import mipglue as mod
 
     def read_only(path, mode="r", *a, **k):
         if "w" in mode:
@@ -216,7 +213,6 @@ def test_a_file_that_cannot_be_written_is_one_line(tmp_path, monkeypatch, capsys
     out = capsys.readouterr()
     assert out.out == "" and out.err == f"mip-glue: error: {f}: Permission denied\n"
     assert f.read_text() == HAND
-    sys.modules.pop("glue_under_test")
 
 
 @pytest.mark.parametrize("program", ["Outstation.st", "RelayStation.st", "WinccCentral.st"])
@@ -297,6 +293,6 @@ def test_installed_mip_glue_runs_outside_the_checkout(tmp_path):
     p = subprocess.run([cmd, "--read-base", "450"], cwd=tmp_path, env=env, capture_output=True,
                        text=True, timeout=60)
     assert p.returncode == 2 and "fills only %IW100..%IW499 (400 registers" in p.stderr, p.stderr
-    p = subprocess.run([sys.executable, "-c", "import mipkit.glue as g; print(g.__file__)"],
+    p = subprocess.run([sys.executable, "-c", "import mipprograms.mipglue as g; print(g.__file__)"],
                        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=60)
     assert str(tmp_path / "site") in p.stdout and str(REPO) not in p.stdout, p.stdout + p.stderr

@@ -48,7 +48,7 @@ def test_the_live_chain_shows_both_ends_and_the_records(view_workdir):
 
 
 def test_a_followed_chain_demo_run_shows_the_relay_and_the_scada(view_workdir, tmp_path):
-    """A run directory as plc/demo_chain.py leaves it: the emulator's trace (no PLC lines),
+    """A run directory as plc/demo.py --chain (mipdemo.chain) leaves it: the emulator's trace (no PLC lines),
     the relay's script events.txt and the SCADA's scada-entries.jsonl."""
     s = run_chain(view_workdir)
     try:
@@ -235,7 +235,7 @@ def follow_the_demo(args):
 
 @pytest.mark.slow
 def test_the_real_time_chain_demo_followed_with_its_ends():
-    """--demo "--chain": plc/demo_chain.py in real time (mip-emulator with a relay, two soft
+    """--demo "--chain": plc/demo.py --chain (mipdemo.chain) in real time (mip-emulator with a relay, two soft
     PLCs, mip-peer scada); the page's rows have the relay's events, reads and
     acknowledgements and the SCADA's takes (each at the time it took them) beside the records,
     and the demo's own result line (not the last run's)."""

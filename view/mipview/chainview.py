@@ -210,7 +210,7 @@ class ChainLive(Stepping):
 
 
 class ChainFiles:
-    """The ends of the real-time chain demo (plc/demo_chain.py) beside its emulator trace: the
+    """The ends of the real-time chain demo (plc/demo.py --chain, mipdemo.chain) beside its emulator trace: the
     relay's script (events.txt: each event's time on the relay's clock, which starts with the
     emulator, so with the trace's) and the SCADA's store (scada-entries.jsonl: the entries it
     took, in order, each with `mono_ns`, when it took them on CLOCK_MONOTONIC; the trace's first

@@ -1,4 +1,3 @@
-#!/usr/bin/env python3
 """The whole chain in real time (make run RUN_ARGS=--chain): relay to control system (docs/chain.md).
 
 mip-emulator with a relay (`--relay`, scripted events) -> the outstation soft-PLC
@@ -18,15 +17,12 @@ import sys
 import time
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "cosim"))
-sys.path.insert(0, str(REPO / "plc"))
+from mipcosim import chain as C
+from mipprobe.sizing import handover_polls, handover_timeout_ms
 
-from demo import modem_port_args  # noqa: E402
-from demo import (DemoError, Procs, Progress, Slave, TraceStats, bar, free_port,  # noqa: E402
-                  fresh_rundir, radio_args, run_or_fail, start_emulator)
-from mipcosim import chain as C                                         # noqa: E402
-from mipprobe.sizing import handover_polls, handover_timeout_ms       # noqa: E402
+from .common import (REPO, DemoError, Procs, Progress, Slave, TraceStats, bar, free_port,
+                     fresh_rundir, modem_port_args, radio_args, result, run_or_fail,
+                     start_emulator)
 
 
 def parse_args(argv):
@@ -268,18 +264,9 @@ def run(a):
 
 def main(argv=None):
     a = parse_args(sys.argv[1:] if argv is None else argv)
-    outcome = run_or_fail(run, a)
-    if outcome is None:
-        return 1
-    problems, r = outcome
-    if problems:
-        print("result: FAIL " + "; ".join(problems))
-        return 1
-    print(f"result: ok events={r['events']} records={r['records']} polls={r['polls']} "
-          f"lost_telegrams={r['lost']} retransmissions={r['retransmissions']} "
-          f"duplicates={r['duplicates']} seconds={r['seconds']}")
-    return 0
+    return result(
+        run_or_fail(run, a),
+        lambda r: (f"result: ok events={r['events']} records={r['records']} polls={r['polls']} "
+                   f"lost_telegrams={r['lost']} retransmissions={r['retransmissions']} "
+                   f"duplicates={r['duplicates']} seconds={r['seconds']}"))
 
-
-if __name__ == "__main__":
-    sys.exit(main())

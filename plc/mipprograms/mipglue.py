@@ -1,4 +1,3 @@
-#!/usr/bin/env python3
 """mip-glue: writes the located-variable glue between a Modbus master's image and the MIP blocks.
 
     mip-glue [layout options] [--form fragment|program]      (prints the glue)
@@ -21,12 +20,13 @@ located variables in matiec).
 Limits (one-line errors, exit status 2): a runtime's image holds %IW0..%IW1023 and
 %QW0..%QW1023 (OpenPLC v3 and plcrt); with --runtime openplc (the default) the blocks must lie
 where stock OpenPLC's Modbus master puts them, %IW100..%IW499 and %QW100..%QW499 (MAX_MB_IO,
-400 registers per direction over all devices, plc/openplc_limits.py); a read is at most 125
+400 registers per direction over all devices, mipprograms.openplc_limits); a read is at most 125
 registers (one FC3, MIP_T_ReadBlock), a write at most 123 (one FC16, MIP_T_Block). With
 --update/--check, a located variable of FILE outside the regions on an address of a block is
 refused too (one address, two variables).
 
-The same code writes the copies of the repository's example programs (plc/gen_programs.py).
+The same code writes the copies of the repository's example programs (mipprograms.gen,
+plc/gen_programs.py).
 """
 from __future__ import annotations
 
@@ -34,18 +34,9 @@ import argparse
 import re
 import shlex
 import sys
-from dataclasses import dataclass, field, fields, replace
-from pathlib import Path
+from dataclasses import dataclass
 
-try:                                    # the installed kit carries plc/openplc_limits.py
-    from ._openplc_limits import MAX_MB_IO
-except ImportError:                     # run from a checkout (also as a script, or by path)
-    import importlib.util
-    _p = Path(__file__).resolve().parents[2] / "plc" / "openplc_limits.py"
-    _spec = importlib.util.spec_from_file_location("_mipglue_openplc_limits", _p)
-    _mod = importlib.util.module_from_spec(_spec)
-    _spec.loader.exec_module(_mod)
-    MAX_MB_IO = _mod.MAX_MB_IO
+from .openplc_limits import MAX_MB_IO
 
 PROG = "mip-glue"
 IMAGE_SIZE = 1024           # %IW n, %QW n: n < 1024 in OpenPLC v3 and plcrt (PLCRT_IMAGE_SIZE)

@@ -1,0 +1,251 @@
+"""What the example programs share: the register layout of their located image and %MW blocks,
+the parameter words, and the ST fragments every program is assembled from."""
+from . import mipglue as glue
+
+OPENPLC_STATIONS = 2      # devices in the committed plc/openplc/central-mbconfig.cfg
+MAX_STATIONS = 4          # receivers in the central programs (devices 1..4)
+READ_REGS = 125           # one FC3 at the read-status register: status, count, 123 data
+WRITE_REGS = 123          # one FC16 at the first write register
+WINDOW = 160              # PLC_RecordStore.aWindow
+
+
+# the located image of the example programs: station s reads %IW100 + 125(s-1).. and writes
+# %QW100 + 123(s-1).. into/from rd<s> and <fb>.aWrite, through r<s>_<i> / w<s>_<i>
+GLUE = glue.Layout(read_base=100, read_count=READ_REGS, write_base=100, write_count=WRITE_REGS,
+                   stations=MAX_STATIONS, read_array="rd{s}", write_array="rcv{s}.aWrite",
+                   numbered=True)     # write_array: the central's; io_after() passes each block's
+glue.check(GLUE, "plcrt")          # 4 stations of 125 pass OpenPLC's 400: station 4 idles there
+# plc/central_many.st: ONE read and ONE write range for all stations, r_<i> / w_<i>
+GLUE_MANY = glue.Layout(read_base=100, read_count=READ_REGS, write_base=100, write_count=WRITE_REGS,
+                        read_array="rd", write_array="aWr", read_prefix="r_", write_prefix="w_",
+                        numbered=False)
+glue.check(GLUE_MANY, "openplc")
+
+
+def read_image(s):        # station s (1-based): %IW of its read block
+    return GLUE.read_image(s)
+
+
+def write_image(s):
+    return GLUE.write_image(s)
+
+
+def peer_base(s):         # %MW block of peer s: receiver 0..19, sender 20..39, window 40..199
+    return 100 + 200 * (s - 1)
+
+
+PARAMS = """\
+  (* parameters (%MW0..%MW23), written by the demo, a test or an operator panel *)
+  pStart AT %MW0 : WORD;          (* <> 0: run *)
+  pTotalLo AT %MW1 : WORD;        (* records to log and read out (0: 5) *)
+  pTotalHi AT %MW2 : WORD;
+  pPerTransfer AT %MW3 : WORD;    (* records per transfer (0: all in one) *)
+  pPayload AT %MW4 : WORD;        (* payload registers per record (0: 16) *)
+  pSession AT %MW5 : WORD;        (* session number, part of the data *)
+  pStation AT %MW6 : WORD;        (* outstation: its address (0: 1) *)
+  pFlags AT %MW7 : WORD;          (* bit 0 polled, bit 1 static mode, bit 2 cyclic I/O (OpenPLC), bit 3 retain, bit 4 window 2, bit 5 hand-over (central, central_bidi) *)
+  pLogPeriod AT %MW8 : WORD;      (* ms between logged records (0: all at once) *)
+  pTimeout AT %MW9 : WORD;        (* ms, tTimeout of the blocks (0: 2000) *)
+  pChunkSize AT %MW10 : WORD;     (* registers per write block incl. header (0: 123); static: the static size *)
+  pTransferTimeout AT %MW11 : WORD; (* s, receivers' tTransferTimeout (0: never) *)
+  pMaxRetries AT %MW12 : WORD;    (* sender's uMaxRetries (0: unlimited) *)
+  pCyclicWrite AT %MW13 : WORD;   (* cyclic I/O: ms after which a write counts as done (0: the next scan) *)
+  pStartLo AT %MW14 : WORD;       (* records already read out (resume after a restart) *)
+  pStartHi AT %MW15 : WORD;
+  (* the central's own streams (bidirectional): records already read out, per station *)
+  pDownStart1Lo AT %MW16 : WORD;
+  pDownStart1Hi AT %MW17 : WORD;
+  pDownStart2Lo AT %MW18 : WORD;
+  pDownStart2Hi AT %MW19 : WORD;
+  pDownStart3Lo AT %MW20 : WORD;
+  pDownStart3Hi AT %MW21 : WORD;
+  pDownStart4Lo AT %MW22 : WORD;
+  pDownStart4Hi AT %MW23 : WORD;
+  (* the runtime's snapshot handshake (plcrt [retain] request / saved; flags bit 3) *)
+  snapReq AT %QX8.0 : BOOL;       (* a snapshot at the end of this scan, please *)
+  snapSaved AT %IW8 : WORD;       (* snapshots completed *)
+"""
+
+PARAM_VARS = """\
+  xRun : BOOL;
+  xPolled : BOOL;
+  xStatic : BOOL;
+  xCyclic : BOOL;
+  xRetain : BOOL;
+  uWindow : UINT;
+  udiTotal : UDINT;
+  uPerTransfer : UINT;
+  uPayload : UINT;
+  uChunkSize : UINT;
+  tTimeout : TIME;
+  tTransferTimeout : TIME;
+  tLogPeriod : TIME;
+  tCyclicWrite : TIME;
+  udiStart : UDINT;
+"""
+
+def ms_to_time(word):
+    """ST for a TIME of `word` milliseconds (a WORD, 0..65535) that matiec computes right.
+
+    matiec's standard library multiplies a TIME by an integer n as (tv_sec * n) seconds plus
+    (int)(tv_nsec * n) nanoseconds through a 32-bit int: `T#1ms * n` is wrong (negative) for
+    n > 2147. So the TIME is built from whole seconds and the remaining milliseconds:
+    `T#1s * (n / 1000)` has tv_nsec 0 (the int product is 0, exact for any n) and
+    `T#1ms * (n MOD 1000)` stays at most 999,000,000 ns < 2**31. Right for all 0..65535 ms.
+    (matiec's DINT_TO_TIME would take n as seconds, CODESYS's as milliseconds: not portable.)
+    """
+    return (f"T#1s * (WORD_TO_DINT({word}) / 1000) + T#1ms * (WORD_TO_DINT({word}) MOD 1000)")
+
+
+def s_to_time(word):
+    """ST for a TIME of `word` seconds (0..65535): T#1s has tv_nsec 0, exact under matiec."""
+    return f"T#1s * WORD_TO_DINT({word})"
+
+
+PARAM_CODE = """\
+(* parameters; a started program keeps them *)
+IF NOT xRun THEN
+  udiTotal := WORD_TO_UDINT(pTotalLo) + WORD_TO_UDINT(pTotalHi) * 65536;
+  IF udiTotal = 0 THEN udiTotal := 5; END_IF;
+  uPerTransfer := WORD_TO_UINT(pPerTransfer);
+  uPayload := WORD_TO_UINT(pPayload);
+  IF uPayload = 0 THEN uPayload := 16; END_IF;
+  uChunkSize := WORD_TO_UINT(pChunkSize);
+  IF uChunkSize = 0 THEN uChunkSize := 123; END_IF;
+  xPolled := (pFlags AND 16#0001) <> 0;
+  xStatic := (pFlags AND 16#0002) <> 0;
+  xCyclic := (pFlags AND 16#0004) <> 0;
+  xRetain := (pFlags AND 16#0008) <> 0;   (* warm restarts: the blocks wait for snapshots *)
+  uWindow := 1;
+  IF (pFlags AND 16#0010) <> 0 THEN uWindow := 2; END_IF;   (* the pipelined sender (P27) *)
+  (* every TIME from seconds and milliseconds: matiec gets T#1ms * n wrong above n = 2147 *)
+  tTimeout := MS_TIMEOUT;
+  IF pTimeout = 0 THEN tTimeout := T#2s; END_IF;
+  tTransferTimeout := S_TRANSFER_TIMEOUT;
+  tLogPeriod := MS_LOG_PERIOD;
+  tCyclicWrite := MS_CYCLIC_WRITE;
+  udiStart := WORD_TO_UDINT(pStartLo) + WORD_TO_UDINT(pStartHi) * 65536;
+  xRun := pStart <> 0;
+END_IF;
+""".replace("MS_TIMEOUT", ms_to_time("pTimeout")).replace(
+    "S_TRANSFER_TIMEOUT", s_to_time("pTransferTimeout")).replace(
+    "MS_LOG_PERIOD", ms_to_time("pLogPeriod")).replace(
+    "MS_CYCLIC_WRITE", ms_to_time("pCyclicWrite"))
+
+
+def located_io(s, tag):
+    """Declarations of station s's located I/O (see the runtime configs)."""
+    lines = [
+        f"  (* modem {tag}: read block %IW{read_image(s)}.., write block %QW{write_image(s)}.. *)",
+        f"  rdTrig{s} AT %QX{s}.0 : BOOL;",
+        f"  rdDone{s} AT %IX{s}.0 : BOOL;",
+        f"  rdErr{s} AT %IX{s}.1 : BOOL;",
+        f"  rdSt{s} AT %IW{10 + s} : WORD;         (* the read's status: why it failed *)",
+        f"  wrTrig{s} AT %QX{s}.1 : BOOL;",
+        f"  wrDone{s} AT %IX{s}.2 : BOOL;",
+        f"  wrErr{s} AT %IX{s}.3 : BOOL;",
+        f"  wrLen{s} AT %QW{s} : WORD;",
+    ]
+    lines += glue.declarations(GLUE, s)
+    lines += [f"  rd{s} : MIP_T_ReadBlock;", f"  xRdValid{s} : BOOL;", f"  xWrDone{s} : BOOL;",
+              f"  tonWr{s} : TON;"]
+    return lines
+
+
+def status_vars(s, receiver=True, sender=True):
+    b = peer_base(s)
+    out = []
+    if receiver:
+        names = ["Seq", "Flags", "Number", "Len", "Error", "RecLo", "RecHi", "ComLo", "ComHi",
+                 "SumA", "SumB", "Transfers", "Failed", "Dup", "Unexp", "OpenLo", "OpenHi"]
+        out += [f"  mR{s}{n} AT %MW{b + i} : WORD;" for i, n in enumerate(names)]
+        out += [f"  mWin{s}_{i} AT %MW{b + 40 + i} : WORD;" for i in range(WINDOW)]
+    if sender:
+        names = ["Seq", "Flags", "Error", "LogLo", "LogHi", "OutLo", "OutHi", "Done", "Failed",
+                 "Retrans", "All"]
+        out += [f"  mS{s}{n} AT %MW{b + 20 + i} : WORD;" for i, n in enumerate(names)]
+    return out
+
+
+def io_before(s):
+    """Read handshake and read block copy, before the MIP block is called."""
+    lines = [f"(* station {s}: read handshake (trigger policy): a read every other scan; the block is"
+             f" copied when it is valid (the MIP blocks look at aRead only with xReadValid) *)",
+             f"xRdValid{s} := rdDone{s} OR xCyclic;",
+             f"IF xRdValid{s} THEN"]
+    lines += glue.read_copies(GLUE, s)
+    lines += [
+        "END_IF;",
+        f"rdTrig{s} := xRun AND NOT (rdDone{s} OR rdErr{s});",
+        f"tonWr{s}(IN := xCyclic AND wrTrig{s}, PT := tCyclicWrite);",
+        f"xWrDone{s} := wrDone{s} OR tonWr{s}.Q;",
+    ]
+    return lines
+
+
+def io_after(s, fb):
+    lines = [f"(* station {s}: write handshake and block; the runtime takes the block at the"
+             f" request's rising edge, OpenPLC's cyclic master whenever it polls *)",
+             f"wrTrig{s} := {fb}.xWriteReq;",
+             f"IF wrTrig{s} OR xCyclic THEN",
+             f"  wrLen{s} := UINT_TO_WORD({fb}.uWriteLen);"]
+    lines += glue.write_copies(GLUE, s, array=f"{fb}.aWrite")
+    lines += ["END_IF;"]
+    return lines
+
+
+def store_out(s, store, extra_failed=None):
+    lines = [
+        f"mR{s}Seq := {store}.wSeq;", f"mR{s}Flags := {store}.wFlags;",
+        f"mR{s}Number := {store}.wNumber;", f"mR{s}Len := {store}.wLen;",
+        f"mR{s}Error := {store}.wError;",
+        f"mR{s}RecLo := UDINT_TO_WORD({store}.udiRecords MOD 65536);",
+        f"mR{s}RecHi := UDINT_TO_WORD({store}.udiRecords / 65536);",
+        f"mR{s}ComLo := UDINT_TO_WORD({store}.udiCommitted MOD 65536);",
+        f"mR{s}ComHi := UDINT_TO_WORD({store}.udiCommitted / 65536);",
+        f"mR{s}SumA := {store}.wSumA;", f"mR{s}SumB := {store}.wSumB;",
+        f"mR{s}Transfers := UINT_TO_WORD({store}.uTransfers);",
+        f"mR{s}Failed := UINT_TO_WORD({store}.uFailed);",
+        f"mR{s}OpenLo := UDINT_TO_WORD({store}.udiOpen MOD 65536);",
+        f"mR{s}OpenHi := UDINT_TO_WORD({store}.udiOpen / 65536);",
+    ]
+    lines += [f"mWin{s}_{i} := {store}.aWindow[{i}];" for i in range(WINDOW)]
+    return lines
+
+
+def source_out(s, src, retrans):
+    return [
+        f"mS{s}Seq := {src}.wSeq;", f"mS{s}Flags := {src}.wFlags;",
+        f"mS{s}Error := {src}.wLastError;",
+        f"mS{s}LogLo := UDINT_TO_WORD({src}.udiLogged MOD 65536);",
+        f"mS{s}LogHi := UDINT_TO_WORD({src}.udiLogged / 65536);",
+        f"mS{s}OutLo := UDINT_TO_WORD({src}.udiReadOut MOD 65536);",
+        f"mS{s}OutHi := UDINT_TO_WORD({src}.udiReadOut / 65536);",
+        f"mS{s}Done := UINT_TO_WORD({src}.uTransfersDone);",
+        f"mS{s}Failed := UINT_TO_WORD({src}.uTransfersFailed);",
+        f"mS{s}Retrans := UDINT_TO_WORD({retrans} MOD 65536);",
+        f"IF {src}.xAllReadOut THEN mS{s}All := WORD#1; ELSE mS{s}All := WORD#0; END_IF;",
+    ]
+
+
+def var_blocks(decl):
+    """Located and unlocated variables in separate VAR blocks (matiec wants that). The
+    unlocated ones are RETAIN: the blocks, the logger and the store with the parameters they
+    run with, so that a warm start resumes where the last snapshot was (st_lib/PROTOCOL.md
+    W3); without retain in the runtime (or on OpenPLC, which ignores RETAIN) nothing changes."""
+    lines = "\n".join(decl).split("\n")
+    located = [l for l in lines if " AT %" in l]
+    plain = [l for l in lines if " AT %" not in l and l.strip()]
+    return ("VAR RETAIN\n" + "\n".join(plain) + "\nEND_VAR\nVAR\n" + "\n".join(located)
+            + "\nEND_VAR\n")
+
+
+def config(prog, inst):
+    return (f"\nCONFIGURATION Config0\n  RESOURCE Res0 ON PLC\n"
+            f"    TASK tMain(INTERVAL := T#10ms, PRIORITY := 0);\n"
+            f"    PROGRAM {inst} WITH tMain : {prog};\n  END_RESOURCE\nEND_CONFIGURATION\n")
+
+
+HEADER = "(* GENERATED by plc/gen_programs.py -- edit the generator, not this file.\n{doc} *)\n"
+
+
