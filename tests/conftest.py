@@ -97,9 +97,10 @@ ONE_WORKER = (
     "tests/chain/test_chain_warm_restart.py",
 )
 
-# group -> node id prefixes of tests (in modules not in ONE_WORKER) that build the same
-# programs with matiec: on one worker they run one after the other and the build cache
-# (runtime_shim/README.md) builds each program once; on two workers at once both built it
+# group -> node id prefixes of tests (in modules not in ONE_WORKER) that must run one after the
+# other on one worker: those that build the same programs with matiec (the build cache,
+# runtime_shim/README.md, then builds each program once; on two workers at once both built it),
+# and those that share one run directory
 SAME_WORKER = {
     "matiec-chain-programs": (   # plc/outstation.st and central.st (and the bidi ones)
         "tests/chain/test_chain_programs.py::test_chain_programs_compile_with_matiec",
@@ -110,6 +111,14 @@ SAME_WORKER = {
     "matiec-kit-example": (      # kit/example's outstation
         "tests/kit/test_kit_quick.py::test_matiec_builds_the_example_when_iec2c_is_on_path",
         "tests/kit/test_kit_quick.py::test_restarts_say_whether_retain_was_restored[matiec]",
+    ),
+    # not a build: `mip-view --demo` runs the demo in the one run directory build/view/demo,
+    # so two of these at once read each other's files (CI saw the push chain's test read a
+    # pull run's directory: no driver events)
+    "view-demo-rundir": (
+        "tests/view/test_view_browser.py::test_demo_in_real_time_is_followed_and_stopped_with_the_view",
+        "tests/view/test_view_chain.py::test_the_real_time_chain_demo_followed_with_its_ends",
+        "tests/view/test_view_chain.py::test_the_real_time_push_chain_demo_followed_with_both_drivers",
     ),
 }
 
