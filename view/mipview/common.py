@@ -5,8 +5,10 @@ from __future__ import annotations
 from pathlib import Path
 
 from mipcosim.layout import st_enums
-from mipdocs import chainsim, seqdiag
-from mipdocs.chainsim import MS
+from mipdocs import chainsim
+# re-exported to rows.py, follow.py and session.py (the redundant alias says so to ruff)
+from mipdocs import seqdiag as seqdiag
+from mipdocs.chainsim import MS as MS
 
 REPO = Path(__file__).resolve().parents[2]
 
