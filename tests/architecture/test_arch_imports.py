@@ -8,6 +8,7 @@ import re
 import shutil
 import subprocess
 import sys
+import tomllib
 from pathlib import Path
 
 import pytest
@@ -50,13 +51,11 @@ def test_every_installed_package_of_ours_is_under_the_contracts():
     for pyproject in REPO.glob("**/pyproject.toml"):
         if {".venv", "build"} & set(pyproject.relative_to(REPO).parts):
             continue
-        text = pyproject.read_text()
-        m = re.search(r"^packages = \[(.*)\]", text, re.M)
-        if m:
-            installed |= set(re.findall(r'"(\w+)"', m.group(1)))
-        m = re.search(r'^include = \["(\w+)\*"\]', text, re.M)
-        if m:
-            installed.add(m.group(1))
+        setuptools = tomllib.loads(pyproject.read_text()).get("tool", {}).get("setuptools", {})
+        packages = setuptools.get("packages", [])
+        if isinstance(packages, dict):            # [tool.setuptools.packages.find] include = ["x*"]
+            packages = [p.rstrip("*") for p in packages.get("find", {}).get("include", [])]
+        installed |= set(packages)
     assert installed >= {"stc", "plcharness", "mipcosim", "mipkit"}, installed   # the reader works
     assert installed - roots == set(), "packages not in root_packages of .importlinter"
     assert installed - layered == set(), "packages in no layer of .importlinter"
