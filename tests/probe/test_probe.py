@@ -76,6 +76,9 @@ def test_a_correct_network_passes_every_check_and_leaves_its_evidence(emu, tmp_p
     rt = rep["stations"][0]["round_trips"]
     assert rt["registers"] == 123 and len(rt["down"]["samples_ms"]) == 10
     assert rt["down"]["delivered_ms"]["min"] <= rt["down"]["delivered_ms"]["max"]
+    # the fast radio's slots (1 ms gaps) are shorter than the probe's reads tell apart
+    assert rt["down"]["slots"]["resolved"] is False and rt["down"]["slots"]["cycle_ms"] is None
+    assert "its slots: faster than the probe tells apart" in r.stdout
     p = rep["recommended"]
     assert p["tTimeout_ms"] >= 2 * p["round_trip_ms"] and p["tTransferTimeout_ms"] == 5 * p["tTimeout_ms"]
     assert f"MIP_tTimeout : TIME := T#{p['tTimeout_ms']}ms;" in (tmp_path / "p.st").read_text()
