@@ -66,7 +66,7 @@ CASES = {
            "TRM 123"}),
     "missing station": (DYN, None, None, ST + [(3, "trm1", 3)], QUICK, {
         3: "station 3: FAIL answers: MDP rtu:{mdp}:115200:8N1: no answer to read of 1 at 9 "
-           "within 0.3 s (over RTU the MDP is silent for a unit id without a station",
+           "within 1 s (over RTU the MDP is silent for a unit id without a station",
         1: "ok", 2: "ok"}),
     "wrong unit id": (DYN, None, None, [(1, "trm2", 2), (2, "trm1", 1)], QUICK, {
         1: "station 1: FAIL unit id: the block written to the MDP under unit id 1 arrived at "
@@ -112,7 +112,7 @@ def test_rtu_wrong_setting_is_named_in_its_first_line(case, tmp_path):
             split, name = plc_at
             plc = WritingPlc(tmp_path / f"{name}-plc", split=split, cycle=0.03 if split else 0.02,
                              unit=int(name[3:]))
-        cmd = [str(PROBE), "--mdp", f"rtu:{port['mdp']}:{LINE}", "--request-timeout", "0.3"]
+        cmd = [str(PROBE), "--mdp", f"rtu:{port['mdp']}:{LINE}"]
         for s, line, unit in stations:
             cmd += ["--trm", f"{s}=rtu:{port[line]}:{LINE}@{unit}"]
         r = subprocess.run(cmd + [str(a) for a in args], capture_output=True, text=True, timeout=120)

@@ -176,9 +176,10 @@ class FaultLine:
     """A Modbus RTU front for the emulator's serial line `upstream` (its pty), wrong as `Faults`:
     each of `links` becomes a pty of its own (a client's serial port: the probe's, a PLC's) whose
     requests go over the one line behind, one at a time. A unit id nobody on the line has gets
-    silence, as from the emulator (its silence ends after `silence` s)."""
+    silence, as from the emulator (its silence ends after `silence` s: longer than an answer
+    of the emulator takes on a loaded machine, shorter than what a client waits for one)."""
 
-    def __init__(self, upstream, links, silence=0.5, **faults):
+    def __init__(self, upstream, links, silence=0.9, **faults):
         self.faults = Faults(**faults)
         self.silence = silence
         self.up = os.open(str(upstream), os.O_RDWR | os.O_NOCTTY)
