@@ -13,9 +13,13 @@ slots seen"):
   a slot of its station, so the arrivals of two consecutive blocks are a whole number of the
   station's poll cycles apart (the time from one of its slots to the next).
 - The cycle: the median of the gaps between consecutive arrivals that lie within 1.5 times the
-  smallest gap (the blocks that took the next slot). Each block after the first then took
-  round(gap / cycle) slots: 1 = the next slot; more = the modem repeated it after a loss on air
-  (or repeated the previous block's confirmation), or the probe turned round too late.
+  smallest gap (the blocks that took the next slot). A block after the first took the next slot
+  when its gap is within the probe's error of the cycle (3 x `resolution`, at least a quarter
+  of the cycle); else round(gap / cycle) slots, at least 2: the modem repeated it after a loss
+  on air (or repeated the previous block's confirmation), or the probe turned round too late.
+  A slot that carries nothing is shorter than one that carries a block (on the emulator's radio
+  a lost poll's slot is 2 gaps, a slot with a block up and its acknowledgement 3), so a count
+  above 2 may be one low; "later" (the blocks that did not take the next slot) is not.
 - The probe sees an arrival at most one read period plus a request late (`resolution`). When
   the blocks did not wait for their slot longer than twice that (the median time from a write
   to its arrival), the radio polls faster than the probe can tell: the cycle is not given.
@@ -28,6 +32,7 @@ from __future__ import annotations
 import statistics
 
 NEAR = 1.5          # gaps within NEAR x the smallest one took the next slot (our choice)
+ERROR = 3           # ... and a gap within ERROR x resolution (or a quarter cycle) of the cycle
 WAIT_OVER = 2       # the blocks waited for their slot: median wait > WAIT_OVER x resolution
 
 
@@ -47,7 +52,8 @@ def slots_seen(writes, arrivals, resolution):
         out.update(cycle_ms=None, per_block=None, later=None)
         return out
     cycle = statistics.median([g for g in gaps if g <= NEAR * min(gaps)])
-    per = [max(1, round(g / cycle)) for g in gaps]
+    margin = max(ERROR * resolution, cycle / 4)
+    per = [1 if g <= cycle + margin else max(2, round(g / cycle)) for g in gaps]
     out.update(cycle_ms=round(cycle * 1000, 1), per_block=per, later=sum(k > 1 for k in per))
     return out
 
