@@ -337,7 +337,15 @@ def test_three_stations_on_the_realistic_radio_within_three_minutes(tmp_path):
     assert r.returncode == 0, r.stdout + r.stderr
     assert took < 180, took
     assert firsts(r.stdout) == {s: f"station {s}: ok: every check passed" for s in (1, 2, 3)}
-    p = json.loads((tmp_path / "r.json").read_text())["recommended"]
+    rep = json.loads((tmp_path / "r.json").read_text())
+    p = rep["recommended"]
+    # the station's cycle (emulator/README.md "Radio model"): its slot with a block down (215
+    # + 20 + 10 + 20 ms) or up and its ack (10 + 20 + 215 + 20 + 10 + 20 ms), and the two
+    # other stations' empty slots (60 ms each)
+    for st in rep["stations"]:
+        for d, want in (("down", 385), ("up", 415)):
+            s = st["round_trips"][d]["slots"]
+            assert s["resolved"] and abs(s["cycle_ms"] - want) <= 25, (st["station"], d, s)
     # a 123-register block each way plus the ack: 500 ms a slot (emulator/README.md); the
     # deliveries of three stations' blocks take up to a poll cycle or two
     assert 250 <= p["poll_cycle_ms"] <= 3000, p
