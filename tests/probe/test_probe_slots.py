@@ -23,6 +23,22 @@ def air_ms(registers, overhead=12):
     return (overhead + 2 * registers) * 8 * 1000 / BITRATE
 
 
+def probe_one_station(tmp_path, gap_ms, blocks, *loss):
+    """mip-probe of the emulator's one station at BITRATE with gap_ms gaps: its round trips in
+    the report, and the round trips line it printed"""
+    e = Emulator("--bitrate", BITRATE, "--slot-gap-ms", gap_ms, "--stations", 1, *loss)
+    try:
+        r = subprocess.run([str(PROBE), "--mdp", f"127.0.0.1:{e.mdp_port}",
+                            "--trm", f"1=127.0.0.1:{e.trm_port(1)}", "--watch", "0.2",
+                            "--blocks", str(blocks), "--report", tmp_path / "r.json"],
+                           capture_output=True, text=True, timeout=120)
+    finally:
+        assert e.stop() == 0
+    assert r.returncode == 0, r.stdout + r.stderr
+    rt = json.loads((tmp_path / "r.json").read_text())["stations"][0]["round_trips"]
+    return rt, re.search(r"^  ok   round trips   (.*)$", r.stdout, re.M).group(1)
+
+
 @pytest.mark.parametrize("gap_ms", [50, 120])
 def test_the_slot_cycle_is_the_radios(gap_ms, tmp_path):
     """One station, so that its slots follow each other (emulator/README.md "Radio model"): a
@@ -30,17 +46,7 @@ def test_the_slot_cycle_is_the_radios(gap_ms, tmp_path):
     carries a block up is poll + gap + answer (with the block) + gap + ack + gap."""
     want = {"down": air_ms(123) + gap_ms + air_ms(0) + gap_ms,
             "up": air_ms(0) + gap_ms + air_ms(123) + gap_ms + air_ms(0) + gap_ms}
-    e = Emulator("--bitrate", BITRATE, "--slot-gap-ms", gap_ms, "--stations", 1)
-    try:
-        r = subprocess.run([str(PROBE), "--mdp", f"127.0.0.1:{e.mdp_port}",
-                            "--trm", f"1=127.0.0.1:{e.trm_port(1)}", "--watch", "0.2",
-                            "--blocks", "4", "--report", tmp_path / "r.json"],
-                           capture_output=True, text=True, timeout=120)
-    finally:
-        assert e.stop() == 0
-    assert r.returncode == 0, r.stdout + r.stderr
-    rt = json.loads((tmp_path / "r.json").read_text())["stations"][0]["round_trips"]
-    line = re.search(r"^  ok   round trips   (.*)$", r.stdout, re.M).group(1)
+    rt, line = probe_one_station(tmp_path, gap_ms, 4)
     for d in ("down", "up"):
         s = rt[d]["slots"]
         assert s["resolved"] and s["per_block"] == [1, 1, 1] and s["later"] == 0, (d, s)
@@ -81,21 +87,11 @@ def test_a_lost_poll_shorter_than_a_slot_still_counts_as_later():
 def test_losses_on_air_show_as_later_slots(tmp_path):
     """20 % of the telegrams lost each way: the modems repeat, some blocks take a later slot,
     and the cycle of the blocks that took the next one is still the radio's. (Which telegrams
-    are lost follows the real clock, --seed notwithstanding: a block takes the next slot with
+    are lost follows the real clock, whatever the seed: a block takes the next slot with
     p = 0.8 x 0.8 down, so no down gap of 7 is the cycle once in 1,300 runs, and no gap of 14
     is later once in 2,500.)"""
     gap_ms = 50
-    e = Emulator("--bitrate", BITRATE, "--slot-gap-ms", gap_ms, "--stations", 1,
-                 "--loss-down", 0.2, "--loss-up", 0.2, "--seed", 7)
-    try:
-        r = subprocess.run([str(PROBE), "--mdp", f"127.0.0.1:{e.mdp_port}",
-                            "--trm", f"1=127.0.0.1:{e.trm_port(1)}", "--watch", "0.2",
-                            "--blocks", "8", "--report", tmp_path / "r.json"],
-                           capture_output=True, text=True, timeout=120)
-    finally:
-        assert e.stop() == 0
-    assert r.returncode == 0, r.stdout + r.stderr
-    rt = json.loads((tmp_path / "r.json").read_text())["stations"][0]["round_trips"]
+    rt, _ = probe_one_station(tmp_path, gap_ms, 8, "--loss-down", 0.2, "--loss-up", 0.2)
     down = rt["down"]["slots"]
     assert abs(down["cycle_ms"] - (air_ms(123) + gap_ms + air_ms(0) + gap_ms)) <= 20, down
     assert rt["down"]["slots"]["later"] + rt["up"]["slots"]["later"] >= 1, rt
