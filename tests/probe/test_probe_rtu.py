@@ -9,7 +9,6 @@ of the station named as the TCP tests assert it."""
 import re
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
