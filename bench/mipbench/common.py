@@ -8,8 +8,6 @@ import platform
 import re
 import select
 import shutil
-import signal
-import socket
 import subprocess
 import sys
 import tempfile
@@ -17,6 +15,7 @@ import time
 from pathlib import Path
 
 from mipcosim.layout import LIB_FILES   # st_lib in import order, the one list
+from plcharness.procs import stop
 
 REPO = Path(__file__).resolve().parents[2]   # bench/mipbench/common.py, installed editable
 BUILD = REPO / "build" / "bench"
@@ -110,12 +109,6 @@ def machine():
 
 # ---------------------------------------------------------------- helpers: processes
 
-def free_port():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 class Server:
     """A server process started by the bench; stopped (SIGTERM, then SIGKILL) on exit."""
 
@@ -141,12 +134,7 @@ class Server:
 
     def stop(self):
         if self.p.returncode is None:
-            self.p.send_signal(signal.SIGTERM)
-            try:
-                self.p.wait(10)
-            except subprocess.TimeoutExpired:
-                self.p.kill()
-                self.p.wait()
+            stop(self.p, timeout=10)
         for f in (self.p.stdout, self.p.stderr):
             if f:
                 f.close()

@@ -3,10 +3,8 @@ the program below reads 26 registers at 40601 and writes SOE_Control, as an outs
 next to a relay would (docs/chain.md "The reader"). Against the C relay in the co-simulation
 (the runtime's in-process transport, virtual time) and, in real time, against
 `mip-emulator --relay` over Modbus TCP."""
-import socket
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -14,6 +12,7 @@ import pytest
 from mipcosim.layout import LIB_FILES, ST_LIB
 from mipcosim.relay import Relay, RelayKernel
 from plcharness import Plc
+from plcharness.procs import wait_port
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO / "tests" / "st_lib"))
@@ -159,12 +158,6 @@ def test_generated_events_follow_virtual_time(tmp_path):
     assert [e.value for e in log] == list(range(1, len(log) + 1))   # docs/chain.md: value n + 1
 
 
-def free_port():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 @pytest.mark.slow
 def test_soe_reader_in_real_time_against_mip_emulator_relay(tmp_path):
     """The runtime in real time, Modbus TCP to `mip-emulator --relay` (its wall clock)."""
@@ -177,13 +170,7 @@ def test_soe_reader_in_real_time_against_mip_emulator_relay(tmp_path):
                             f"{port}:origin={ORIGIN},script={scr}"],
                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
-        deadline = time.monotonic() + 5
-        while time.monotonic() < deadline:
-            try:
-                socket.create_connection(("127.0.0.1", port), timeout=0.2).close()
-                break
-            except OSError:
-                time.sleep(0.05)
+        wait_port(port, timeout=5)
         plc = build(tmp_path, port)
         plc.run_realtime(200)        # 2 s
         got = logged(plc)

@@ -93,13 +93,6 @@ def read_write_ranges(device: str, start: int) -> str:
         "write wr", device, start, "%QW41", ("%QX1.1", "%IX1.2", "%IX1.3"), "%IW21")
 
 
-def free_port() -> int:
-    import socket
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 class ModbusServer:
     """A small Modbus TCP server on 127.0.0.1 (thread per connection) for the master's tests:
     holding and input registers, FC 3/4/6/16, a log of (function, address, count)."""

@@ -4,6 +4,7 @@ import subprocess
 import pytest
 
 from plcharness import build_program
+from plcharness.procs import free_port
 from rt_helpers import COMPILERS, COUNTER
 
 
@@ -112,9 +113,7 @@ def test_real_time_slave_serves_the_image_until_sigterm(compiler, st_file, tmp_p
     import time
 
     res = build_program([st_file(COUNTER)], tmp_path / "out", compiler=compiler)
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        port = probe.getsockname()[1]
+    port = free_port()
     proc = subprocess.Popen([str(res.executable), "-m", "real", "-s", f"127.0.0.1:{port}"],
                             stderr=subprocess.PIPE, text=True)
     try:

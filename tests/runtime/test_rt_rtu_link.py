@@ -254,7 +254,7 @@ def test_a_polled_read_that_keeps_failing_is_an_error_the_program_sees(compiler,
 @pytest.mark.parametrize("compiler", [compiler_param("stc")])
 def test_a_polled_read_of_a_tcp_device_that_is_not_there_is_an_error(compiler, tmp_path):
     """The same over TCP: nothing listens on the port, the program sees 1111 (refused)."""
-    from rt_helpers import free_port
+    from plcharness.procs import free_port
     cfg = tmp_path / "poll.conf"
     cfg.write_text(POLLED.format(where=f"host = 127.0.0.1\nport = {free_port()}"))
     plc = Plc.build([_write(tmp_path / "prog.st", TRIGGER)], workdir=tmp_path, compiler=compiler, config=cfg)
