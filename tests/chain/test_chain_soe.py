@@ -12,7 +12,8 @@ import pytest
 from mipcosim.layout import LIB_FILES, ST_LIB
 from mipcosim.relay import Relay, RelayKernel
 from plcharness import Plc
-from plcharness.procs import wait_port
+from plcharness.config import Config
+from plcharness.procs import free_port, wait_port
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO / "tests" / "st_lib"))
@@ -77,38 +78,14 @@ END_CONFIGURATION
 def config(port):
     """plcrt config: device `relay`, SOE_Control written with FC16 of one register at 40602,
     the 26 registers read at 40601 (PDU addresses 601, 600)."""
-    return f"""[master]
-timeout = 500ms
-reconnect_min = 100ms
-reconnect_max = 1s
-
-[device relay]
-host = 127.0.0.1
-port = {port}
-unit_id = 1
-
-[write soe_control]
-device = relay
-start = 601
-size = 1
-image = %QW100
-policy = trigger
-trigger = %QX0.1
-done = %IX0.2
-error = %IX0.3
-length = %QW1
-
-[read soe]
-device = relay
-start = 600
-size = 26
-image = %IW100
-policy = trigger
-trigger = %QX0.0
-done = %IX0.0
-error = %IX0.1
-status = %IW10
-"""
+    cfg = Config()
+    cfg.add("master", timeout="500ms", reconnect_min="100ms", reconnect_max="1s")
+    cfg.add("device", "relay", host="127.0.0.1", port=port, unit_id=1)
+    cfg.add("write", "soe_control", device="relay", start=601, size=1, image="%QW100",
+            policy="trigger", trigger="%QX0.1", done="%IX0.2", error="%IX0.3", length="%QW1")
+    cfg.add("read", "soe", device="relay", start=600, size=26, image="%IW100", policy="trigger",
+            trigger="%QX0.0", done="%IX0.0", error="%IX0.1", status="%IW10")
+    return cfg.text()
 
 
 def build(tmp_path, port):

@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 
 from plcharness.build import matiec_available
+from plcharness.config import Config
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -63,34 +64,56 @@ END_PROGRAM
 """)
 
 
-def _trigger_range(kind: str, device: str, start: int, image: str, bits: tuple, status: str):
-    """One plcrt trigger range of one register: [read rd] or [write wr]."""
+def tcp_device(port, name="out", host="127.0.0.1", **keys) -> Config:
+    """A plcrt config (plcharness.config) of one Modbus TCP device; add its ranges."""
+    cfg = Config()
+    cfg.add("device", name, host=host, port=port, **keys)
+    return cfg
+
+
+def trigger_range(cfg, kind, name, device, start, image, bits, status=None, size=1, **keys):
+    """A [read NAME] / [write NAME] range on the handshake bits (trigger, done, error)."""
     trigger, done, error = bits
-    return f"""[{kind}]
-device = {device}
-start = {start}
-size = 1
-image = {image}
-policy = trigger
-trigger = {trigger}
-done = {done}
-error = {error}
-status = {status}
-"""
+    return cfg.add(kind, name, device=device, start=start, size=size, image=image,
+                   policy="trigger", trigger=trigger, done=done, error=error, status=status,
+                   **keys)
 
 
-def read_range(device: str, start: int) -> str:
+def rtu_device(tty, unit=5, master=None, name="trm", **keys) -> Config:
+    """A plcrt config of one Modbus RTU device at 19200 baud, parity even (the emulator's
+    8E1 pty), after a [master] of the keys `master` if given; add its ranges."""
+    cfg = Config()
+    if master:
+        cfg.add("master", **master)
+    cfg.add("device", name, serial=tty, baud=19200, parity="even", unit_id=unit, **keys)
+    return cfg
+
+
+def rtu_conf(tty, unit=5, master=None) -> str:
+    """The RTU tests' config: device trm with read_write_ranges at 2001 (the TRM's write area),
+    timeout 300 ms, its error counter in %IW30."""
+    return read_write_ranges("trm", 2001, rtu_device(tty, unit, master, timeout="300ms",
+                                                     errors="%IW30"))
+
+
+def read_range(device: str, start: int, cfg=None) -> str:
     """plcrt's [read rd]: one register at `start` into %IW100, on the handshake xRd %QX1.0 ->
-    xRdDone %IX1.0 / xRdErr %IX1.1, status %IW11 (as the test programs that use it declare)."""
-    return _trigger_range("read rd", device, start, "%IW100", ("%QX1.0", "%IX1.0", "%IX1.1"),
-                          "%IW11")
+    xRdDone %IX1.0 / xRdErr %IX1.1, status %IW11 (as the test programs that use it declare);
+    added to cfg (a Config) if given. The config's text."""
+    cfg = cfg or Config()
+    trigger_range(cfg, "read", "rd", device, start, "%IW100", ("%QX1.0", "%IX1.0", "%IX1.1"),
+                  "%IW11")
+    return cfg.text()
 
 
-def read_write_ranges(device: str, start: int) -> str:
+def read_write_ranges(device: str, start: int, cfg=None) -> str:
     """read_range and its [write wr]: one register at `start` from %QW41, on the handshake xWr
     %QX1.1 -> xWrDone %IX1.2 / xWrErr %IX1.3, status %IW21."""
-    return read_range(device, start) + "\n" + _trigger_range(
-        "write wr", device, start, "%QW41", ("%QX1.1", "%IX1.2", "%IX1.3"), "%IW21")
+    cfg = cfg or Config()
+    read_range(device, start, cfg)
+    trigger_range(cfg, "write", "wr", device, start, "%QW41", ("%QX1.1", "%IX1.2", "%IX1.3"),
+                  "%IW21")
+    return cfg.text()
 
 
 class ModbusServer:

@@ -4,7 +4,6 @@ stops on the grammar plcrt stops on the same line."""
 import random
 import re
 import subprocess
-from pathlib import Path
 
 import pytest
 

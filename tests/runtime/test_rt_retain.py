@@ -7,7 +7,7 @@ import time
 import pytest
 
 from plcharness import build_program
-from rt_helpers import ModbusServer, compiler_param, one_task
+from rt_helpers import ModbusServer, compiler_param, one_task, tcp_device
 
 PROG = one_task("""
 FUNCTION_BLOCK ACC
@@ -27,17 +27,11 @@ out := UINT_TO_WORD(cnt); out2 := UINT_TO_WORD(kept.total); out3 := UINT_TO_WORD
 END_PROGRAM
 """)
 
-CONFIG = """
-[device out]
-host = 127.0.0.1
-port = {port}
-[write count]
-device = out
-start = 0
-size = 3
-image = %QW100
-policy = cycle
-"""
+def config(port) -> str:
+    """out, out2, out3 (%QW100..102) written to holding registers 0..2 every cycle."""
+    cfg = tcp_device(port)
+    cfg.add("write", "count", device="out", start=0, size=3, image="%QW100", policy="cycle")
+    return cfg.text()
 
 
 @pytest.fixture
@@ -49,7 +43,7 @@ def server():
 
 @pytest.fixture
 def plc(tmp_path, st_file, conf_file, server):
-    cfg = conf_file(CONFIG.format(port=server.port))
+    cfg = conf_file(config(server.port))
 
     def make(extra="", compiler="stc", name="out"):
         res = build_program([st_file(PROG.replace("{extra}", extra), name=f"{name}.st")],

@@ -6,17 +6,15 @@ import os
 import re
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
 import pytest
 
 from plcharness import Plc
-from rt_helpers import REPO, compiler_param, one_task, read_write_ranges
+from rt_helpers import REPO, compiler_param, one_task, rtu_conf
 
-sys.path.insert(0, str(REPO / "tests" / "emulator"))
-from emu_support import Emulator, tcp_read  # noqa: E402
+from emu_support import Emulator, tcp_read
 
 EMU = REPO / "build" / "emulator" / "mip-emulator"
 
@@ -123,16 +121,6 @@ x := x + 1;
 END_PROGRAM
 """)
 
-CONF = """
-[device trm]
-serial = {tty}
-baud = 19200
-parity = even
-unit_id = {unit}
-timeout = 300ms
-errors = %IW30
-
-""" + read_write_ranges("trm", 2001)
 
 
 def handshake(plc, trig, done, err, scans=50):
@@ -150,7 +138,7 @@ def handshake(plc, trig, done, err, scans=50):
 
 def build(tmp_path, link, unit, compiler="stc"):
     cfg = tmp_path / "rtu.conf"
-    cfg.write_text(CONF.format(tty=link, unit=unit))
+    cfg.write_text(rtu_conf(link, unit))
     src = tmp_path / "prog.st"
     src.write_text(TRIGGER)
     return Plc.build([src], workdir=tmp_path, compiler=compiler, config=cfg)

@@ -10,7 +10,7 @@ import subprocess
 import pytest
 
 from plcharness import Plc
-from rt_helpers import REPO, compiler_param, one_task, read_write_ranges
+from rt_helpers import REPO, compiler_param, one_task, read_write_ranges, tcp_device
 
 EMU = REPO / "build" / "emulator" / "mip-emulator"
 
@@ -69,15 +69,11 @@ END_CASE;
 END_PROGRAM
 """)
 
-CONFIG = """
-[device mdp]
-host = 127.0.0.1
-port = {port}
-unit_id = %QW40
-timeout = 2s
-errors = %IW30
-
-""" + read_write_ranges("mdp", 10)
+def config(port) -> str:
+    """The MDP as one device whose unit id the program sets (%QW40), with [read rd] and
+    [write wr] of one register at 10 (rt_helpers.read_write_ranges)."""
+    return read_write_ranges("mdp", 10, tcp_device(port, "mdp", unit_id="%QW40", timeout="2s",
+                                                   errors="%IW30"))
 
 
 @pytest.fixture
@@ -112,7 +108,7 @@ def mdp(tmp_path):
 def test_program_chooses_the_station_of_each_request(compiler, mdp, tmp_path):
     port, stop = mdp
     cfg = tmp_path / "central.conf"
-    cfg.write_text(CONFIG.format(port=port))
+    cfg.write_text(config(port))
     src = tmp_path / "prog.st"
     src.write_text(PROG)
     plc = Plc.build([src], workdir=tmp_path, compiler=compiler, config=cfg)
