@@ -76,3 +76,53 @@ class Processes:
         for _, _, f, _ in self.procs:
             f.close()
         self.procs = []
+
+
+class NotReady(RuntimeError):
+    """A server that exited or said nothing matching its ready line in time (one line)."""
+
+
+class Server:
+    """A server process: started with its output in pipes, ready once a line on its stdout
+    matches `ready` (a regex; match: that match, first: the line) within timeout seconds, else
+    stopped and NotReady with its stderr. stop(): SIGTERM, SIGKILL after `timeout`; the exit
+    code."""
+
+    def __init__(self, cmd, ready=r"listening", timeout=30, **popen):
+        import re
+        import select
+        self.proc = subprocess.Popen([str(c) for c in cmd], stdout=subprocess.PIPE,
+                                     stderr=subprocess.PIPE, text=True, **popen)
+        t_end = time.monotonic() + timeout
+        self.first, self.match = "", None
+        while time.monotonic() < t_end:
+            # a line without blocking past the deadline (a hung server is an error)
+            if not select.select([self.proc.stdout], [], [], max(0.0, t_end - time.monotonic()))[0]:
+                break
+            line = self.proc.stdout.readline()
+            if not line:
+                break
+            self.match = re.search(ready, line)
+            if self.match:
+                self.first = line.strip()
+                return
+        err = self.proc.stderr.read() if self.proc.poll() is not None else ""
+        self.stop()
+        raise NotReady(f"{Path(str(cmd[0])).name} did not start: {err.strip() or 'no ready line'}")
+
+    def stop(self, timeout=10.0):
+        if self.proc.returncode is None:
+            stop(self.proc, timeout=timeout)
+        for f in (self.proc.stdout, self.proc.stderr):
+            if f:
+                f.close()
+        return self.proc.returncode
+
+    def alive(self):
+        return self.proc.poll() is None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.stop()
