@@ -85,7 +85,7 @@ class NotReady(RuntimeError):
 class Server:
     """A server process: started with its output in pipes, ready once a line on its stdout
     matches `ready` (a regex; match: that match, first: the line) within timeout seconds, else
-    stopped and NotReady with its stderr. stop(): SIGTERM, SIGKILL after `timeout`; the exit
+    stopped and NotReady with the last line of its stderr. stop(): SIGTERM, SIGKILL after `timeout`; the exit
     code."""
 
     def __init__(self, cmd, ready=r"listening", timeout=30, **popen):
@@ -100,15 +100,20 @@ class Server:
             if not select.select([self.proc.stdout], [], [], max(0.0, t_end - time.monotonic()))[0]:
                 break
             line = self.proc.stdout.readline()
-            if not line:
+            if not line:                    # its stdout closed: it is exiting, say why
+                try:
+                    self.proc.wait(timeout=max(0.1, min(2.0, t_end - time.monotonic())))
+                except subprocess.TimeoutExpired:
+                    pass
                 break
             self.match = re.search(ready, line)
             if self.match:
                 self.first = line.strip()
                 return
-        err = self.proc.stderr.read() if self.proc.poll() is not None else ""
+        err = self.proc.stderr.read().strip() if self.proc.poll() is not None else ""
         self.stop()
-        raise NotReady(f"{Path(str(cmd[0])).name} did not start: {err.strip() or 'no ready line'}")
+        last = err.splitlines()[-1] if err else "no ready line"       # one line: its last word
+        raise NotReady(f"{Path(str(cmd[0])).name} did not start: {last}")
 
     def stop(self, timeout=10.0):
         if self.proc.returncode is None:
