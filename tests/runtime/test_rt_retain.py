@@ -7,6 +7,7 @@ import time
 import pytest
 
 from plcharness import build_program
+from plcharness.config import read_file
 from rt_helpers import ModbusServer, compiler_param, one_task, tcp_device
 
 PROG = one_task("""
@@ -201,7 +202,9 @@ def test_an_unwritable_retain_path_is_reported_without_flooding_or_crashing(plc,
 def test_the_config_can_name_the_retain_file_and_period(plc, server, tmp_path):
     exe = plc()
     cfg = tmp_path / "with-retain.conf"
-    cfg.write_text(plc.cfg.read_text() + f"[retain]\nfile = {plc.retain}\nperiod = 50ms\n")
+    conf = read_file(plc.cfg)
+    conf.add("retain", file=plc.retain, period="50ms")
+    conf.write(cfg)
     first = run(exe, cfg, "-m", "virtual", "-n", "20")
     assert first.returncode == 0, first.stderr
     assert "cold start: no retain file" in first.stderr
