@@ -116,6 +116,97 @@ def read_write_ranges(device: str, start: int, cfg=None) -> str:
     return cfg.text()
 
 
+# the handshakes of read_write_ranges: [read rd] on xRd -> xRdDone / xRdErr into wRd, status
+# wRdStatus; [write wr] of wData on xWr -> xWrDone / xWrErr, status wWrStatus
+TRIGGER = one_task("""
+PROGRAM MAIN
+VAR
+  wData AT %QW41 : WORD;
+  xRd AT %QX1.0 : BOOL; xWr AT %QX1.1 : BOOL;
+  xRdDone AT %IX1.0 : BOOL; xRdErr AT %IX1.1 : BOOL;
+  xWrDone AT %IX1.2 : BOOL; xWrErr AT %IX1.3 : BOOL;
+  wRdStatus AT %IW11 : WORD; wWrStatus AT %IW21 : WORD;
+  wRd AT %IW100 : WORD;
+END_VAR
+VAR
+  x : INT;
+END_VAR
+x := x + 1;
+END_PROGRAM
+""")
+
+
+def handshake(plc, trig, done, err, scans=50):
+    """Raises trig until done or err (at most `scans` scans), lowers it; (done, err)."""
+    plc.force(trig, True)
+    for _ in range(scans):
+        plc.scan()
+        if plc[done] or plc[err]:
+            break
+    res = (plc[done], plc[err])
+    plc.force(trig, False)
+    plc.scan(2)
+    plc.unforce(trig)
+    return res
+
+
+def write_read_back(plc, value):
+    """read_write_ranges' [write wr] of value (forced into %QW41), then its [read rd] into
+    %IW100: both succeed and the value comes back."""
+    plc.force("%QW41", value)
+    assert handshake(plc, "%QX1.1", "%IX1.2", "%IX1.3") == (True, False)
+    assert handshake(plc, "%QX1.0", "%IX1.0", "%IX1.1") == (True, False)
+    assert plc["%IW100"] == value
+
+
+# a plcrt config of every kind of range, valid (the config tests mangle it)
+GOOD = """[master]
+polling_period = 100ms
+timeout = 1s
+[device d]
+host = 127.0.0.1
+port = 5020
+unit_id = 3
+errors = %IW90
+[read r]
+device = d
+table = input
+start = 0
+size = 10
+image = %IW100
+[write w]
+device = d
+start = 100
+size = 123
+image = %QW100
+policy = trigger
+trigger = %QX10.0
+done = %IX10.0
+error = %IX10.1
+status = %IW60
+length = %QW99
+"""
+
+TOKENS = ["[", "]", "=", "%", "%IW", "%QX1.", "..", "#", '"', "-1", "99999999999999999999",
+          "0x10", "1e9s", " ", "\t", "\n", "ms", "[read", "[device", "policy = trigger",
+          "size = 0", "image = %IW1023", "device = d", "\x00", "é", "device0.", "Num_Devices ="]
+
+
+def mangle(text, rng):
+    chars = list(text)
+    for _ in range(rng.randint(1, 6)):
+        op = rng.randrange(3)
+        pos = rng.randrange(len(chars) + 1)
+        if op == 0 and chars:
+            del chars[pos:pos + rng.randint(1, 8)]
+        elif op == 1:
+            chars[pos:pos] = list(rng.choice(TOKENS))
+        else:
+            src = rng.randrange(len(chars) or 1)
+            chars[pos:pos] = chars[src:src + rng.randint(1, 20)]
+    return "".join(chars)
+
+
 class ModbusServer:
     """A small Modbus TCP server on 127.0.0.1 (thread per connection) for the master's tests:
     holding and input registers, FC 3/4/6/16, a log of (function, address, count)."""

@@ -17,11 +17,10 @@ import pytest
 
 from plcharness import Plc, build_program
 from plcharness.config import Config
-from rt_helpers import (COUNTER, REPO, TINY, compiler_param, one_task, read_range, rtu_conf,
-                        rtu_device, trigger_range)
+from rt_helpers import (COUNTER, REPO, TINY, TRIGGER, compiler_param, handshake, one_task,
+                        read_range, rtu_conf, rtu_device, trigger_range, write_read_back)
 
 from emu_support import Emulator, tcp_read
-from test_rt_rtu import TRIGGER, handshake
 
 
 def emulator(link):
@@ -120,10 +119,7 @@ def test_a_serial_line_that_went_away_is_reopened_without_a_restart(compiler, tm
         else:
             pytest.fail(f"no read succeeded after the line came back: statuses {statuses}")
         assert all(s > 1000 for s in statuses), statuses       # failures are named, never 0
-        plc.force("%QW41", 4343)
-        assert handshake(plc, "%QX1.1", "%IX1.2", "%IX1.3") == (True, False)
-        assert handshake(plc, "%QX1.0", "%IX1.0", "%IX1.1") == (True, False)
-        assert plc["%IW100"] == 4343
+        write_read_back(plc, 4343)
     finally:
         plc.close()
         emu.stop()
