@@ -64,14 +64,20 @@ def virtual(plc, exe, scans, *args):
     return run(exe, plc.cfg, "-m", "virtual", "-n", str(scans), "--retain", str(plc.retain), *args)
 
 
-def test_warm_start_restores_retained_variables_and_whole_retained_fb_instances(plc, server):
-    exe = plc()
+def cold_then_warm(plc, exe, server):
+    """20 scans from no retain file (a cold start), then 5 from its snapshot: the second run."""
     first = virtual(plc, exe, 20)
     assert first.returncode == 0, first.stderr
     assert "cold start: no retain file" in first.stderr
     assert server.holding[0:3] == [20, 20, 20]
     second = virtual(plc, exe, 5)
     assert second.returncode == 0, second.stderr
+    return second
+
+
+def test_warm_start_restores_retained_variables_and_whole_retained_fb_instances(plc, server):
+    exe = plc()
+    second = cold_then_warm(plc, exe, server)
     assert "warm start: 4 retained variables restored" in second.stderr
     # cnt and the instance in the RETAIN section (its own non-RETAIN n included) go on;
     # the instance in a plain VAR section starts again
@@ -173,12 +179,7 @@ def test_sigterm_saves_on_a_clean_stop(plc, server):
 @pytest.mark.parametrize("compiler", [compiler_param("matiec")])
 def test_matiec_programs_keep_their_retained_variables_on_a_warm_start(plc, server, compiler):
     exe = plc("hist : ARRAY[0..3] OF UINT;", compiler=compiler, name="m")
-    first = virtual(plc, exe, 20)
-    assert first.returncode == 0, first.stderr
-    assert "cold start: no retain file" in first.stderr
-    assert server.holding[0:3] == [20, 20, 20]
-    second = virtual(plc, exe, 5)
-    assert second.returncode == 0, second.stderr
+    second = cold_then_warm(plc, exe, server)
     # the same as an stc build keeps (cnt, kept's inc, total and n) and the array, which
     # matiec cannot mark retained
     assert "warm start: 5 retained variables restored" in second.stderr, second.stderr
