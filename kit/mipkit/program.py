@@ -79,7 +79,7 @@ def check_config(build, config: Path):
         if key in OPTIONAL_OUTPUTS:
             continue
         m = _LOCATED.fullmatch(addr)
-        area, size, a, b = m.group(1), m.group(2), int(m.group(3)), m.group(4)
+        area, size, a = m.group(1), m.group(2), int(m.group(3))
         if count > 1 and size != "X":
             if not any(f"%{area}{size}{a + i}" in declared for i in range(count)):
                 raise KitError(f"{config}:{line}: error: {key} = {addr} (size {count}): the program "
