@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass, field
+from pathlib import Path
 
 # the keys of every section, in the order of plcrt_config.c's "unknown key" messages
 KEYS = {
@@ -88,7 +89,7 @@ class Config:
         return head + "\n".join(s.text() for s in self.sections)
 
     def write(self, path):
-        from pathlib import Path
+        """The text into the file path; path."""
         Path(path).write_text(self.text())
         return path
 
@@ -255,7 +256,7 @@ def read(text, file="<config>") -> Config:
 
 
 def read_file(path) -> Config:
-    from pathlib import Path
+    """read() of a file, its errors named by its path."""
     return read(Path(path).read_text(errors="replace"), str(path))
 
 
