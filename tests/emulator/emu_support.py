@@ -6,13 +6,12 @@ frames, pipelining), and tcp_read, one plain FC3 read for a test that only wants
 goes through pymodbus or mbpoll."""
 import json
 import os
-import re
-import signal
 import socket
 import struct
-import subprocess
 import time
 from pathlib import Path
+
+from plcharness.procs import NotReady, Server
 
 ROOT = Path(__file__).resolve().parents[2]
 BINARY = Path(os.environ.get("MIP_EMULATOR", ROOT / "build" / "emulator" / "mip-emulator"))
@@ -21,7 +20,9 @@ BINARY = Path(os.environ.get("MIP_EMULATOR", ROOT / "build" / "emulator" / "mip-
 FAST = ["--bitrate", "1000000", "--slot-gap-ms", "1"]
 
 
-class Emulator:
+class Emulator(Server):
+    """mip-emulator on free ports (plcharness.procs.Server: up once it says where it listens)."""
+
     def __init__(self, *args, trace=None, preexec_fn=None):
         if not BINARY.exists():
             raise RuntimeError(f"{BINARY} is missing: run `make` first")
@@ -29,35 +30,17 @@ class Emulator:
         if trace:
             cmd += ["--trace", str(trace)]
         self.trace_path = trace
-        self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                     preexec_fn=preexec_fn)
-        line = self.proc.stdout.readline()
-        m = re.match(r"mip-emulator: listening mdp=([\d.]+):(\d+) trm=([\d,]+)", line)
-        if not m:
-            self.proc.kill()
-            raise RuntimeError(f"emulator did not start: {line!r} {self.proc.stderr.read()!r}")
-        self.host = m.group(1)
-        self.mdp_port = int(m.group(2))
-        self.trm_ports = [int(p) for p in m.group(3).split(",")]
+        try:
+            super().__init__(cmd, r"^mip-emulator: listening mdp=([\d.]+):(\d+) trm=([\d,]+)",
+                             timeout=30, preexec_fn=preexec_fn)
+        except NotReady as e:
+            raise RuntimeError(f"emulator did not start: {e}") from None
+        self.host = self.match.group(1)
+        self.mdp_port = int(self.match.group(2))
+        self.trm_ports = [int(p) for p in self.match.group(3).split(",")]
 
     def trm_port(self, station):
         return self.trm_ports[station - 1]
-
-    def stop(self):
-        """SIGTERM; returns the exit code (the server must exit cleanly)."""
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGTERM)
-            try:
-                self.proc.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
-        self.proc.stdout.close()
-        self.proc.stderr.close()
-        return self.proc.returncode
-
-    def alive(self):
-        return self.proc.poll() is None
 
     def trace(self):
         with open(self.trace_path) as f:

@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from emu_support import FAST, Emulator
-from rt_helpers import free_port
+from plcharness.procs import free_port
 from wrongnet import FaultProxy, WritingPlc
 
 PROBE = Path(sys.executable).parent / "mip-probe"
