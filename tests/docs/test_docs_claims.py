@@ -57,7 +57,7 @@ def tracked_top_folders():
     if out.returncode != 0:
         pytest.skip(f"not a git checkout (git ls-files: {out.stderr.strip()[:80]})")
     return {p.split("/")[0] for p in out.stdout.splitlines()
-            if "/" in p and not p.startswith(".")}
+            if "/" in p and not p.startswith(".git")}
 
 
 # ----------------------------------------------------------------------- lists of what exists
