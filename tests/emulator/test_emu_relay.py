@@ -6,7 +6,7 @@ import subprocess
 
 import pytest
 
-from emu_support import BINARY, connect, wait_until
+from miptest.emu import BINARY, connect, wait_until
 from relay_support import BASE, ORIGIN_MS, Master, RelayServer, exc, write_script
 
 EVENTS = [(k / 1000, 0x0102, 100 + k, 0x0101, k) for k in range(1, 8)]  # 7 events at k ms

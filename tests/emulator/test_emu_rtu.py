@@ -8,7 +8,7 @@ import time
 
 import pytest
 
-from emu_support import BINARY, FAST, Emulator, connect, tcp_read
+from miptest.emu import BINARY, FAST, Emulator, connect, tcp_read
 from rtu_support import RtuLine, char_s, check_frame, crc16, fc3, fc16, frame
 
 

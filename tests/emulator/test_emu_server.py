@@ -10,7 +10,7 @@ import subprocess
 import pytest
 from pymodbus.client import ModbusTcpClient
 
-from emu_support import (BINARY, FAST, Emulator, closed_by_peer, connect, frame, recv_frame,
+from miptest.emu import (BINARY, FAST, Emulator, closed_by_peer, connect, frame, recv_frame,
                          wait_until)
 
 

@@ -11,8 +11,6 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[2]
 KIT = REPO / "kit"
 EXAMPLE = KIT / "example"
-if str(KIT) not in sys.path:
-    sys.path.insert(0, str(KIT))     # mipkit in process (the repository's venv has the rest)
 BUG = "  IF udiN = 7 THEN aChunk[0] := WORD#17; END_IF;   (* the deliberate bug: record 7 says 17 *)\n"
 
 

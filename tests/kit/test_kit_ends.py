@@ -6,7 +6,6 @@ from pathlib import Path
 
 import pytest
 
-import kit_helpers  # noqa: F401 - puts kit/ on sys.path
 from mipkit import KitError, Net
 from mipkit.ends import missing
 

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from emu_support import FAST, Emulator
+from miptest.emu import FAST, Emulator
 from rt_helpers import free_port
 from wrongnet import FaultProxy, WritingPlc
 

@@ -6,7 +6,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from emu_support import FAST, Emulator
+from miptest.emu import FAST, Emulator
 
 PROBE = Path(sys.executable).parent / "mip-probe"
 

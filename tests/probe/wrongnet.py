@@ -17,7 +17,7 @@ import time
 
 from pymodbus.client import ModbusTcpClient
 
-from emu_support import recv_exact
+from miptest.emu import recv_exact
 
 
 class FaultProxy:
