@@ -4,6 +4,7 @@ import json
 
 import pytest
 from lxml import etree
+from mipcosim.trace import read_trace
 
 from docs_helpers import REPO, tool
 
@@ -104,7 +105,7 @@ def test_a_trace_line_that_is_not_json_is_reported_with_its_line(tmp_path):
 def test_an_emulator_server_trace_renders(tmp_path):
     """A trace without the chain's "plc" lines (as mip-emulator --trace writes it) still gives
     a diagram: writes labelled by their first register, blocks by r0."""
-    lines = [json.loads(x) for x in (TRACES / "note-2-1-1.jsonl").read_text().splitlines()]
+    lines = read_trace(TRACES / "note-2-1-1.jsonl")
     plain = tmp_path / "server.jsonl"
     plain.write_text("".join(json.dumps(d) + "\n" for d in lines if d["ev"] != "plc"))
     r = tool("seqdiag", plain, "-o", tmp_path / "o.svg")
