@@ -7,6 +7,7 @@ import sys
 import warnings
 
 import pytest
+from mipprograms.common import config
 
 from kit_helpers import EXAMPLE, kit_env, mipkit_cli, run
 from test_kit_quick import SMALL, one_line_failure, scenario
@@ -26,14 +27,7 @@ t := T#1ms * WORD_TO_DINT(n);
 s := TIME_TO_DINT(t);
 END_PROGRAM
 """
-CONFIG = """
-CONFIGURATION Config0
-  RESOURCE Res0 ON PLC
-    TASK tMain(INTERVAL := T#10ms, PRIORITY := 0);
-    PROGRAM p0 WITH tMain : P;
-  END_RESOURCE
-END_CONFIGURATION
-"""
+CONFIG = config("P", "p0")
 
 
 PERIOD = "tLogPeriod := T#1s * (WORD_TO_DINT(pLogPeriod) / 1000) + T#1ms * (WORD_TO_DINT(pLogPeriod) MOD 1000);"
