@@ -11,7 +11,7 @@ import pytest
 from pymodbus.client import ModbusTcpClient
 
 from miptest.emu import (BINARY, FAST, Emulator, closed_by_peer, connect, frame, recv_frame,
-                         wait_until)
+                         run_cli, wait_until)
 
 
 @pytest.fixture
@@ -268,10 +268,6 @@ def test_trace_file_lines(tmp_path):
 
 
 # ---- CLI ----
-
-def run_cli(*args):
-    return subprocess.run([str(BINARY), *map(str, args)], capture_output=True, text=True, timeout=10)
-
 
 def test_help_documents_every_option():
     r = run_cli("--help")

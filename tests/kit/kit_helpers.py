@@ -52,6 +52,13 @@ def run(cmd, cwd, env=None, timeout=900):
                           capture_output=True, text=True, timeout=timeout)
 
 
+def kit_pytest(args, cwd, tmp_path):
+    """pytest with the kit's plugin in an integrator's project (cwd), quiet, its temporary
+    files under tmp_path/bt: the CompletedProcess."""
+    return run([sys.executable, "-m", "pytest", "-p", "mipkit.plugin", "-p", "no:cacheprovider", "-q",
+                *args, f"--basetemp={tmp_path / 'bt'}"], cwd, kit_env())
+
+
 def mipkit_cli(args, cwd):
     """mip-kit from kit/ with this venv's Python (what the console script runs)."""
     return run([sys.executable, "-c", "import sys; from mipkit.scenario import main; "

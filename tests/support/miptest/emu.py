@@ -22,6 +22,11 @@ BINARY = Path(os.environ.get("MIP_EMULATOR", ROOT / "build" / "emulator" / "mip-
 FAST = ["--bitrate", "1000000", "--slot-gap-ms", "1"]
 
 
+def run_cli(*args):
+    """mip-emulator ARGS to its exit (options it refuses, --help): the CompletedProcess (text)."""
+    return subprocess.run([str(BINARY), *map(str, args)], capture_output=True, text=True, timeout=10)
+
+
 class Emulator:
     def __init__(self, *args, trace=None, preexec_fn=None):
         if not BINARY.exists():
