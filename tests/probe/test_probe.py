@@ -36,6 +36,14 @@ def probe_mdp(e, *args, **kw):
     return probe("--mdp", f"127.0.0.1:{e.mdp_port}", *args, **kw)
 
 
+def probe_writing(e, plc, *args):
+    """The probe of e's stations (args: its options) while plc writes to a TRM; plc stopped."""
+    try:
+        return probe_mdp(e, *trms(e), *args)
+    finally:
+        plc.stop()
+
+
 def failed(r):
     """The first line of each station of a probe that found a fault (exit 1)."""
     assert r.returncode == 1
@@ -198,10 +206,7 @@ def test_a_client_that_splits_its_blocks_is_named(emu):
     """Static modems (FC6 is taken there): a PLC writing its block a register a cycle."""
     e = emu("--stations", 2, "--mode", "static", "--static-registers", 123)
     plc = WritingPlc(e.trm_port(2), split=True)
-    try:
-        r = probe_mdp(e, *trms(e), "--watch", "1", "--blocks", "3")
-    finally:
-        plc.stop()
+    r = probe_writing(e, plc, "--watch", "1", "--blocks", "3")
     first = failed(r)
     assert first[2].startswith("station 2: FAIL quiet: a client writes station 2's block at the "
                                "TRM in parts"), first[2]
@@ -212,10 +217,7 @@ def test_a_client_that_splits_its_blocks_is_named(emu):
 def test_a_plc_writing_stops_the_probe_of_its_station(emu):
     e = emu("--stations", 1)
     plc = WritingPlc(e.trm_port(1), cycle=0.02)
-    try:
-        r = probe_mdp(e, *trms(e), "--watch", "1", "--blocks", "3")
-    finally:
-        plc.stop()
+    r = probe_writing(e, plc, "--watch", "1", "--blocks", "3")
     assert r.returncode == 1
     assert firsts(r.stdout)[1].startswith("station 1: FAIL quiet: a PLC writes to station 1: TRM ("), r.stdout
     assert "--force" in firsts(r.stdout)[1]
@@ -224,11 +226,7 @@ def test_a_plc_writing_stops_the_probe_of_its_station(emu):
 def test_force_probes_a_station_a_plc_writes_to(emu):
     e = emu("--stations", 1)
     plc = WritingPlc(e.trm_port(1), cycle=0.02)
-    try:
-        r = probe_mdp(e, *trms(e), "--watch", "0.5", "--blocks", "1",
-                  "--timeout", "1", "--force")
-    finally:
-        plc.stop()
+    r = probe_writing(e, plc, "--watch", "0.5", "--blocks", "1", "--timeout", "1", "--force")
     assert re.search(r"^  ok   quiet         a PLC writes \(TRM \(\d+ changes in 0.5 s\)\): probing "
                      r"anyway \(--force\)$", r.stdout, re.M), r.stdout
 
