@@ -2,7 +2,6 @@
 up to date; the generators are deterministic and reject bad input with one line."""
 import json
 
-import pytest
 from lxml import etree
 from mipcosim.trace import read_trace
 
