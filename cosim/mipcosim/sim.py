@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import ctypes
 import hashlib
-import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
 

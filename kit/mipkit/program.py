@@ -47,14 +47,14 @@ def _config_addresses(path: Path):
     """(line number, key, address, count) of every located address a plcrt config maps:
     count > 1 for a range's image (its size), 1 for handshake bits and words."""
     out = []
-    section, size, pending = None, 1, []
+    size, pending = 1, []
     for n, raw in enumerate(path.read_text().splitlines(), 1):
         line = raw.split("#", 1)[0].strip()
         if not line:
             continue
         if line.startswith("["):
             out += [(ln, k, a, size if k in _RANGE_KEYS else 1) for ln, k, a in pending]
-            section, size, pending = line, 1, []
+            size, pending = 1, []
             continue
         if "=" not in line:
             continue
@@ -95,7 +95,7 @@ def check_config(build, config: Path):
         if key in OPTIONAL_OUTPUTS:
             continue
         m = _LOCATED.fullmatch(addr)
-        area, size, a, b = m.group(1), m.group(2), int(m.group(3)), m.group(4)
+        area, size, a = m.group(1), m.group(2), int(m.group(3))
         if count > 1 and size != "X":
             if not any(f"%{area}{size}{a + i}" in declared for i in range(count)):
                 raise KitError(f"{config}:{line}: error: {key} = {addr} (size {count}): the program "

@@ -36,7 +36,7 @@ def measured(results):
 
 
 def params_lines(p):
-    return ([f"recommended (docs/commissioning.md, \"What the probe recommends\"):"]
+    return (["recommended (docs/commissioning.md, \"What the probe recommends\"):"]
             + [f"  {k:<20}{p[k]:>8}  {p['why'][k]}" for k in p["why"]])
 
 

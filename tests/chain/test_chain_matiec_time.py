@@ -10,7 +10,6 @@ seconds and milliseconds (mipprograms.common: ms_to_time). These tests check
   where iec2c is installed, under matiec (stock OpenPLC made 737 with the old expression).
 """
 import re
-import sys
 from pathlib import Path
 
 import pytest

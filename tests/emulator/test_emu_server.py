@@ -1,7 +1,6 @@
 """The server front: framing, pipelining, malformed frames, many clients, CLI, trace file.
 
 Raw sockets here only where a conformant client cannot produce the bytes."""
-import json
 import resource
 import socket
 import struct

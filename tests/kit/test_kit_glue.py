@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from kit_helpers import EXAMPLE, KIT, REPO, run
+from kit_helpers import KIT, REPO, run
 from mipcosim import layout as L
 from mipprograms.common import config
 from plcharness.build import matiec_available

@@ -3,7 +3,6 @@ check; each wrong setting of docs/commissioning.md, produced on purpose (wrongne
 in the first line of its station, and the other stations stay ok; the failures a field engineer
 meets (unreachable, refused, a station that never answers, bad arguments) are one line each."""
 import json
-import os
 import re
 import signal
 import socket

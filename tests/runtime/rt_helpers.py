@@ -1,6 +1,4 @@
 """Shared helpers of the runtime tests (a uniquely named module: every part has its own tests dir)."""
-import os
-import shutil
 import subprocess
 import sys
 from pathlib import Path

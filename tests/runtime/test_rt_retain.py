@@ -1,5 +1,4 @@
 """RETAIN in the thin executable: warm / cold starts, atomic snapshots, kill -9, bad files."""
-import os
 import signal
 import subprocess
 import time

@@ -3,12 +3,10 @@ OpenPLC mbconfig.cfg with two RTU devices on one line (they take the line in tur
 format with trigger handshakes, unknown unit ids ending in a named error (timeout), and the line
 unplugged for 5 s (the emulator stopped): timeouts, then the same data again, never wrong data."""
 import os
-import re
 import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import pytest
 

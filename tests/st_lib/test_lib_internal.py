@@ -1,6 +1,5 @@
 """The internal blocks MIP_Layout and MIP_ReadDecoder on their own: the tables the sender, the
 receiver and the link rely on (st_lib/PROTOCOL.md section 1, note 2.1 and 2.2)."""
-from pathlib import Path
 
 import pytest
 from mipprograms.common import config

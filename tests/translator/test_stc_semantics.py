@@ -147,7 +147,7 @@ def test_unclosed_comments_are_one_located_error_in_linear_time(tmp_path):
     rc, rss, err = _stc_under_limits(tmp_path, "PROGRAM Main\nVAR x : INT; END_VAR\n" +
                                      "(* " * 20000 + "\nx := 1;\nEND_PROGRAM\n")
     assert rc == 1
-    assert f"big.st:3:1: error: comment '(*' is not closed: missing '*)'" in err
+    assert "big.st:3:1: error: comment '(*' is not closed: missing '*)'" in err
     assert "internal" not in err and rss < 200 * 1024
 
 

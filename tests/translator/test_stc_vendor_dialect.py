@@ -2,7 +2,6 @@
 // comments, library namespaces, STRING(n), END_IF without ';', POINTER TO, ADR, SIZEOF, p^,
 MEMCPY) is read, translated and runs; the same constructs stay errors in .st files, with the
 position of the construct."""
-from pathlib import Path
 
 import pytest
 

@@ -6,7 +6,7 @@ import sys
 import threading
 
 from . import __version__
-from .diag import CompileError, Diagnostics
+from .diag import Diagnostics
 
 USAGE_EPILOG = """\
 Each -I DIR adds the *.st files of DIR (sorted by name) as library sources: their TYPEs,

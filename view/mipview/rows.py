@@ -26,7 +26,8 @@ from __future__ import annotations
 import hashlib
 import re
 
-from .common import MS, seqdiag
+from mipdocs import seqdiag
+from mipdocs.chainsim import MS
 
 CHUNK = 100                  # rows per chunk of the history (our choice: a few screens)
 FFFF = 0xFFFF

@@ -79,7 +79,7 @@ class DeclarationGen:
             done.add(key)
             for ft, _, _ in t.fields.values():
                 self.emit_type(ft, done)
-            self.w(f"typedef struct {{")
+            self.w("typedef struct {")
             for fname, (ft, _, _) in t.fields.items():
                 self.w(f"    {cdecl(ft, fname)};")
             self.w(f"}} {t.name};")
@@ -100,7 +100,7 @@ class DeclarationGen:
         done.add(key)
         for v in pou.vars.values():
             self.emit_type(v.type, done)
-        self.w(f"typedef struct {{")
+        self.w("typedef struct {")
         any_field = False
         if pou.kind == "function_block":
             self.w("    uint8_t EN;")

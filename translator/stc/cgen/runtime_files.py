@@ -79,12 +79,10 @@ class RuntimeFilesGen:
             self.w("{")
             self.ind += 1
             self.w("(void)tick;")
-            runs = False
             if self.matiec:
                 # matiec: the program instances in declaration order, each when its task is
                 # due; PRIORITY plays no part
                 for i in r.instances:
-                    runs = True
                     if i.task is None:
                         self.w(f"{i.pou.name}_body__(&{r.name}__{i.name});  /* no task: every tick */")
                         continue
@@ -98,7 +96,6 @@ class RuntimeFilesGen:
                     insts = [i for i in r.instances if i.task is task]
                     if not insts:
                         continue
-                    runs = True
                     period = max(1, task.interval_ns // tick) if tick else 1
                     self.w(f"if (tick % {period}u == 0u) {{  /* task {task.name}, {task.interval_ns} ns */")
                     for i in insts:
@@ -106,7 +103,6 @@ class RuntimeFilesGen:
                     self.w("}")
                 for i in r.instances:
                     if i.task is None:
-                        runs = True
                         self.w(f"{i.pou.name}_body__(&{r.name}__{i.name});  /* no task: every tick */")
             self.ind -= 1
             self.w("}")

@@ -369,7 +369,7 @@ class ExpressionChecks:
         if not t.is_elem:
             self.fail(e.pos, f"'{op}' on {t}")
         if op == "/" and t.is_int and self.const_value(e.right) == 0:
-            self.fail(e.right.pos, f"division by constant zero (matiec rejects it)")
+            self.fail(e.right.pos, "division by constant zero (matiec rejects it)")
         if op == "MOD":
             if not t.is_int:
                 self.fail(e.pos, f"MOD needs an integer type, not {t}")
