@@ -6,7 +6,9 @@ import statistics
 import subprocess
 from pathlib import Path
 
-from .common import BUILD, BenchError, EMU, PY, Server, error, free_port, line, run
+from plcharness.procs import free_port
+
+from .common import BUILD, BenchError, EMU, PY, Server, error, line, run
 
 # ---------------------------------------------------------------- 3. emulator throughput
 

@@ -52,6 +52,7 @@ def report_json(path, results, params, meta):
                 m[d] = {"delivered_ms": stats_ms(x["delivered_s"]),
                         "confirmed_ms": stats_ms(x["confirmed_s"]),
                         "repeated": x["duplicates"], "lost": x["lost"], "damaged": x["damaged"],
+                        "slots": x["slots"],
                         "samples_ms": [round(t * 1000, 2) for t in x["delivered_s"]]}
         bad = r.verdict()
         doc["stations"].append({

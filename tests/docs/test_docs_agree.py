@@ -8,6 +8,7 @@ import subprocess
 import pytest
 
 from docs_helpers import REPO
+from plcharness.config import read as read_config
 
 STC = REPO / ".venv" / "bin" / "stc"
 PAGES = sorted([REPO / "README.md"] + [p for p in (REPO / "docs").rglob("*.md")
@@ -107,18 +108,9 @@ def test_the_readme_says_how_to_get_iec2c():
 
 
 def _ini(text):
-    """[(section, [(key, value), ...]), ...] in file order, comments left out."""
-    out = []
-    for raw in text.splitlines():
-        line = raw.split("#", 1)[0].strip()
-        if not line:
-            continue
-        if line.startswith("["):
-            out.append((line, []))
-        else:
-            k, v = (x.strip() for x in line.split("=", 1))
-            out[-1][1].append((k, v))
-    return out
+    """[(section, [(key, value), ...]), ...] in file order (plcharness.config's reader)."""
+    return [(f"[{s.kind} {s.name}]" if s.name else f"[{s.kind}]", list(s.keys.items()))
+            for s in read_config(text).sections]
 
 
 def test_wiring_plcrt_shows_the_outstation_config_as_it_is():

@@ -9,7 +9,7 @@ import time
 import pytest
 
 from miptest.emu import BINARY, FAST, Emulator, connect, run_cli, tcp_read
-from rtu_support import RtuLine, char_s, check_frame, crc16, fc3, fc16, frame
+from miptest.rtu import RtuLine, char_s, check_frame, crc16, fc3, fc16, frame
 
 
 class RtuEmulator(Emulator):

@@ -11,7 +11,7 @@ import time
 import pytest
 
 from miptest.emu import BINARY
-from rtu_support import check_frame, fc3, frame
+from miptest.rtu import check_frame, fc3, frame
 
 serial = pytest.importorskip("serial", reason="pyserial is pinned in requirements.txt")
 

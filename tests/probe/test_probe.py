@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from miptest.emu import FAST, Emulator
-from rt_helpers import free_port
+from plcharness.procs import free_port
 from wrongnet import FaultProxy, WritingPlc
 
 PROBE = Path(sys.executable).parent / "mip-probe"
@@ -94,6 +94,9 @@ def test_a_correct_network_passes_every_check_and_leaves_its_evidence(emu, tmp_p
     rt = rep["stations"][0]["round_trips"]
     assert rt["registers"] == 123 and len(rt["down"]["samples_ms"]) == 10
     assert rt["down"]["delivered_ms"]["min"] <= rt["down"]["delivered_ms"]["max"]
+    # the fast radio's slots (1 ms gaps) are shorter than the probe's reads tell apart
+    assert rt["down"]["slots"]["resolved"] is False and rt["down"]["slots"]["cycle_ms"] is None
+    assert "its slots: faster than the probe tells apart" in r.stdout
     p = rep["recommended"]
     assert p["tTimeout_ms"] >= 2 * p["round_trip_ms"] and p["tTransferTimeout_ms"] == 5 * p["tTimeout_ms"]
     assert f"MIP_tTimeout : TIME := T#{p['tTimeout_ms']}ms;" in (tmp_path / "p.st").read_text()
@@ -337,7 +340,15 @@ def test_three_stations_on_the_realistic_radio_within_three_minutes(tmp_path):
     assert r.returncode == 0, r.stdout + r.stderr
     assert took < 180, took
     assert firsts(r.stdout) == {s: f"station {s}: ok: every check passed" for s in (1, 2, 3)}
-    p = json.loads((tmp_path / "r.json").read_text())["recommended"]
+    rep = json.loads((tmp_path / "r.json").read_text())
+    p = rep["recommended"]
+    # the station's cycle (emulator/README.md "Radio model"): its slot with a block down (215
+    # + 20 + 10 + 20 ms) or up and its ack (10 + 20 + 215 + 20 + 10 + 20 ms), and the two
+    # other stations' empty slots (60 ms each)
+    for st in rep["stations"]:
+        for d, want in (("down", 385), ("up", 415)):
+            s = st["round_trips"][d]["slots"]
+            assert s["resolved"] and abs(s["cycle_ms"] - want) <= 25, (st["station"], d, s)
     # a 123-register block each way plus the ack: 500 ms a slot (emulator/README.md); the
     # deliveries of three stations' blocks take up to a poll cycle or two
     assert 250 <= p["poll_cycle_ms"] <= 3000, p

@@ -18,6 +18,8 @@ import urllib.request
 import zlib
 from pathlib import Path
 
+from plcharness.procs import stop
+
 from .session import CHAINS, PRESETS
 
 CHROMIUM = os.environ.get("MIP_VIEW_CHROMIUM", "/usr/bin/chromium")
@@ -67,12 +69,7 @@ class Server:
             return f.read().decode()
 
     def close(self):
-        self.proc.terminate()
-        try:
-            self.proc.wait(10)
-        except subprocess.TimeoutExpired:
-            self.proc.kill()
-            self.proc.wait()
+        stop(self.proc, timeout=10)
 
 
 def launch(pw):

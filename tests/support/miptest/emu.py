@@ -5,8 +5,6 @@ frames, pipelining), and tcp_read, one plain FC3 read for a test that only wants
 (the RTU tests, which check the TCP side of the same registers); everything else in the tests
 goes through pymodbus or mbpoll."""
 import os
-import re
-import signal
 import socket
 import struct
 import subprocess
@@ -14,6 +12,7 @@ import time
 from pathlib import Path
 
 from mipcosim.trace import read_trace
+from plcharness.procs import NotReady, Server
 
 ROOT = Path(__file__).resolve().parents[3]   # tests/support/miptest/emu.py -> the repository
 BINARY = Path(os.environ.get("MIP_EMULATOR", ROOT / "build" / "emulator" / "mip-emulator"))
@@ -27,7 +26,9 @@ def run_cli(*args):
     return subprocess.run([str(BINARY), *map(str, args)], capture_output=True, text=True, timeout=10)
 
 
-class Emulator:
+class Emulator(Server):
+    """mip-emulator on free ports (plcharness.procs.Server: up once it says where it listens)."""
+
     def __init__(self, *args, trace=None, preexec_fn=None):
         if not BINARY.exists():
             raise RuntimeError(f"{BINARY} is missing: run `make` first")
@@ -35,35 +36,17 @@ class Emulator:
         if trace:
             cmd += ["--trace", str(trace)]
         self.trace_path = trace
-        self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                     preexec_fn=preexec_fn)
-        line = self.proc.stdout.readline()
-        m = re.match(r"mip-emulator: listening mdp=([\d.]+):(\d+) trm=([\d,]+)", line)
-        if not m:
-            self.proc.kill()
-            raise RuntimeError(f"emulator did not start: {line!r} {self.proc.stderr.read()!r}")
-        self.host = m.group(1)
-        self.mdp_port = int(m.group(2))
-        self.trm_ports = [int(p) for p in m.group(3).split(",")]
+        try:
+            super().__init__(cmd, r"^mip-emulator: listening mdp=([\d.]+):(\d+) trm=([\d,]+)",
+                             timeout=30, preexec_fn=preexec_fn)
+        except NotReady as e:
+            raise RuntimeError(f"emulator did not start: {e}") from None
+        self.host = self.match.group(1)
+        self.mdp_port = int(self.match.group(2))
+        self.trm_ports = [int(p) for p in self.match.group(3).split(",")]
 
     def trm_port(self, station):
         return self.trm_ports[station - 1]
-
-    def stop(self):
-        """SIGTERM; returns the exit code (the server must exit cleanly)."""
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGTERM)
-            try:
-                self.proc.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
-        self.proc.stdout.close()
-        self.proc.stderr.close()
-        return self.proc.returncode
-
-    def alive(self):
-        return self.proc.poll() is None
 
     def trace(self):
         return read_trace(self.trace_path)
