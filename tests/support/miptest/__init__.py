@@ -6,5 +6,6 @@ tests); one that a second folder needs moves here. `make venv` installs this pac
 (tests/part.mk: PY_PACKAGES), like every other part.
 
     miptest.emu    the real mip-emulator server for a test, raw Modbus TCP helpers, its trace
+    miptest.rtu    a minimal Modbus RTU client on a pty: frames and CRC built by hand
     miptest.soe    the SOE relay's scripted events and the entries a logger must store
 """
