@@ -13,7 +13,6 @@ docs/serial.md shows and explains the output."""
 from __future__ import annotations
 
 import argparse
-import json
 import statistics
 import sys
 import tempfile
@@ -22,6 +21,7 @@ from pathlib import Path
 import mipcosim.layout as L
 import mipcosim.sim as S
 from mipcosim.cli import link_timeout_ms
+from mipcosim.trace import read_trace
 
 MS = 1_000_000
 STEPS = [
@@ -76,7 +76,7 @@ def rtu_chars(e):
 
 
 def timeline(trace):
-    ev = [json.loads(line) for line in trace.read_text().splitlines()]
+    ev = read_trace(trace)
     mb = [e for e in ev if e["ev"] == "modbus"]
     writes = {}
     for e in mb:

@@ -26,6 +26,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from mipcosim.trace import parse
+
 REPO = Path(__file__).resolve().parents[2]
 LOSSES = [0.0, 0.05, 0.1, 0.2, 0.3, 0.4]
 PAYLOAD = 122
@@ -38,8 +40,7 @@ class DataError(RuntimeError):
 
 
 def first_record_start(trace_lines):
-    for line in trace_lines:
-        d = json.loads(line)
+    for d in parse(trace_lines):
         if d.get("ev") == "radio" and d.get("dir") == "up" and d.get("regs") \
                 and d.get("r0") == 1:
             return d["t0"]

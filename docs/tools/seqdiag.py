@@ -23,11 +23,12 @@ trace: the same trace gives the same bytes.
 from __future__ import annotations
 
 import argparse
-import json
 import re
 import sys
 import textwrap
 from xml.sax.saxutils import escape
+
+from mipcosim.trace import TraceError, read_trace
 
 W = 980
 X_TIME = 62
@@ -48,33 +49,9 @@ NOTE_FILL = {"deliver": "#e8f6ef", "done": "#d5f5e3", "error": "#fadbd8", "resta
              "goback": "#fdebd0"}
 
 
-class TraceError(Exception):
-    pass
-
-
 def load(path):
-    events = []
-    try:
-        f = sys.stdin if path == "-" else open(path, encoding="utf-8")
-    except OSError as e:
-        raise TraceError(f"seqdiag: error: {path}: {e.strerror}")
-    with f:
-        for n, line in enumerate(f, 1):
-            line = line.strip()
-            if not line:
-                continue
-            try:
-                d = json.loads(line)
-            except json.JSONDecodeError as e:
-                raise TraceError(f"{path}:{n}:{e.colno}: error: not a JSON line: {e.msg}")
-            if not isinstance(d, dict) or "t" not in d or "ev" not in d:
-                raise TraceError(f"{path}:{n}:1: error: a trace line needs \"t\" and \"ev\"")
-            if not isinstance(d["t"], int) or isinstance(d["t"], bool) or d["t"] < 0:
-                raise TraceError(f"{path}:{n}:1: error: \"t\" must be a non-negative integer "
-                                 f"(ns)")
-            d["_line"] = n
-            events.append(d)
-    return events
+    """The events of the trace file `path` ("-": standard input), each with its "_line"."""
+    return read_trace(path, line_numbers=True, prog="seqdiag")
 
 
 def fmt_ms(t_ns):

@@ -4,20 +4,19 @@ next to a relay would (docs/chain.md "The reader"). Against the C relay in the c
 (the runtime's in-process transport, virtual time) and, in real time, against
 `mip-emulator --relay` over Modbus TCP."""
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
 from mipcosim.layout import LIB_FILES, ST_LIB
 from mipcosim.relay import Relay, RelayKernel
+from miptest.soe import Entry, expected, script
+from mipprograms.common import config as st_config
 from plcharness import Plc
 from plcharness.config import Config
 from plcharness.procs import free_port, wait_port
 
 REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO / "tests" / "st_lib"))
-from soe_bench import Entry, expected, script  # noqa: E402
 
 ORIGIN = 1767225600000
 LOG = 64            # entries the program's log holds
@@ -65,14 +64,7 @@ wrTrig := rdr.xWriteReq;
 wrLen := 1;
 wrVal := rdr.wWriteValue;
 END_PROGRAM
-
-CONFIGURATION Config0
-  RESOURCE Res0 ON PLC
-    TASK tMain(INTERVAL := T#10ms, PRIORITY := 0);
-    PROGRAM inst0 WITH tMain : MAIN;
-  END_RESOURCE
-END_CONFIGURATION
-"""
+""" + st_config("MAIN", "inst0")
 
 
 def config(port):

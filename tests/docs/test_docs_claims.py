@@ -6,14 +6,11 @@ from __future__ import annotations
 
 import re
 import subprocess
-import sys
 
 import pytest
+from mipdist import mkdist
 
 from docs_helpers import REPO
-
-sys.path.insert(0, str(REPO / "dist"))
-import mkdist  # noqa: E402
 
 NUMBERS = {w: i for i, w in enumerate("zero one two three four five six seven eight nine ten "
                                       "eleven twelve".split())}

@@ -5,7 +5,7 @@ import time
 from plcharness.procs import NotReady, Server
 from pymodbus.client import ModbusTcpClient
 
-from emu_support import BINARY
+from miptest.emu import BINARY
 
 BASE = 600                  # PDU address of register 40601 (our default base)
 ORIGIN_MS = 1767225600000   # 2026-01-01T00:00:00Z: the time stamp of the relay's time 0

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from emu_support import FAST, Emulator
+from miptest.emu import FAST, Emulator
 from wrongnet import FaultLine, WritingPlc
 
 PROBE = Path(sys.executable).parent / "mip-probe"

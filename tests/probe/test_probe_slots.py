@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from emu_support import Emulator
+from miptest.emu import Emulator
 from mipprobe.slots import slots_seen
 
 PROBE = Path(sys.executable).parent / "mip-probe"

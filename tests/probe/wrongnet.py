@@ -25,8 +25,8 @@ import tty
 from pymodbus.client import ModbusSerialClient, ModbusTcpClient
 from pymodbus.framer import FramerType
 
-from emu_support import recv_exact
-from rtu_support import crc16, frame
+from miptest.emu import recv_exact
+from miptest.rtu import crc16, frame
 
 
 class Faults:

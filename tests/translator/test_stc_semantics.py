@@ -6,17 +6,11 @@ import sys
 import textwrap
 
 import pytest
+from mipprograms.common import config
 
 import stc_harness as H
 
-CONFIG = """
-CONFIGURATION Config0
-RESOURCE Res0 ON PLC
-TASK t(INTERVAL := T#10ms, PRIORITY := 0);
-PROGRAM Main0 WITH t : Main;
-END_RESOURCE
-END_CONFIGURATION
-"""
+CONFIG = config("Main", "Main0", task="t")
 
 # one program, the values matiec's library and C give, and the IEC 61131-3 values
 DIFFERS = """PROGRAM Main
