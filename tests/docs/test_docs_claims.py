@@ -197,8 +197,8 @@ def test_kit_openplc_configs_get_no_address_check(tmp_path):
     cfg = tmp_path / "mbconfig.cfg"
     cfg.write_text((REPO / "plc" / "openplc" / "central-mbconfig.cfg").read_text())
     conf = tmp_path / "plcrt.conf"
-    conf.write_text("[device mdp]\nhost = 127.0.0.1\nport = 1502\n[read]\ndevice = mdp\n"
-                    "address = 198\nsize = 125\nimage = %IW100\ntrigger = %QX1.0\n")
+    conf.write_text("[device mdp]\nhost = 127.0.0.1\nport = 1502\n[read up]\ndevice = mdp\ntable = holding\n"
+                    "start = 198\nsize = 125\nimage = %IW100\ntrigger = %QX1.0\n")
     build = SimpleNamespace(outdir=tmp_path / "build")
     with pytest.raises(Exception, match="the program declares none of %IW100"):
         check_config(build, conf)          # the check works on a plcrt config ...
