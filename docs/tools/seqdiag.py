@@ -29,6 +29,8 @@ import sys
 import textwrap
 from xml.sax.saxutils import escape
 
+from stc import oneline
+
 W = 980
 X_TIME = 62
 X = {"outstation": 180, "trm": 410, "mdp": 630, "central": 860}
@@ -400,13 +402,7 @@ def main(argv=None):
     caption = a.caption or ("From the trace " + a.trace.split("/")[-1]
                             + "; empty polls/answers and PLC reads without new data omitted.")
     svg = render(rows, a.title, caption)
-    try:
-        with open(a.output, "w", encoding="utf-8") as f:
-            f.write(svg)
-    except OSError as e:
-        print(f"seqdiag: error: {a.output}: {e.strerror}", file=sys.stderr)
-        return 1
-    return 0
+    return oneline.write_output("seqdiag", a.output, svg)
 
 
 if __name__ == "__main__":

@@ -28,7 +28,7 @@ import os
 import re
 import sys
 
-from . import parser
+from . import oneline, parser
 from . import syntax as S
 from .diag import Diagnostics
 
@@ -659,20 +659,15 @@ def main(argv=None):
                          "default: the constants uMajor, uMinor, uPatch in the inputs")
     ap.add_argument("files", nargs="+", metavar="FILE.st")
     a = ap.parse_args(argv)
-    try:
+
+    def convert():
         out = generate_files(a.files, a.libversion or library_version(a.files))
-    except SclError as e:
-        print(e, file=sys.stderr)
-        return 1
-    except OSError as e:
-        print(f"stc.scl_out: error: {e.filename}: {e.strerror}", file=sys.stderr)
-        return 1
-    os.makedirs(a.outdir, exist_ok=True)
-    for p, text in out.items():
-        dst = os.path.join(a.outdir, os.path.splitext(os.path.basename(p))[0] + ".scl")
-        with open(dst, "wb") as f:
-            f.write(tia_bytes(text))
-    return 0
+        os.makedirs(a.outdir, exist_ok=True)
+        for p, text in out.items():
+            dst = os.path.join(a.outdir, os.path.splitext(os.path.basename(p))[0] + ".scl")
+            with open(dst, "wb") as f:
+                f.write(tia_bytes(text))
+    return oneline.run("stc.scl_out", convert, located=(SclError,))
 
 
 if __name__ == "__main__":
