@@ -31,27 +31,19 @@ class RuntimeFilesGen:
                 self.w(f"void {r.name}_init__(void);")
                 self.w(f"void {r.name}_run__(unsigned long tick);")
         self.w()
-        self.w("void config_init__(void)")
-        self.w("{")
-        self.ind += 1
-        if cfg is not None:
-            for v in cfg.globals.values():
-                self.global_init(v)
-            for r in cfg.resources:
-                self.w(f"{r.name}_init__();")
-        self.ind -= 1
-        self.w("}")
+        with self.braced("void config_init__(void)"):
+            if cfg is not None:
+                for v in cfg.globals.values():
+                    self.global_init(v)
+                for r in cfg.resources:
+                    self.w(f"{r.name}_init__();")
         self.w()
-        self.w("void config_run__(unsigned long tick)")
-        self.w("{")
-        self.ind += 1
-        if cfg is not None and cfg.resources:
-            for r in cfg.resources:
-                self.w(f"{r.name}_run__(tick);")
-        else:
-            self.w("(void)tick;")
-        self.ind -= 1
-        self.w("}")
+        with self.braced("void config_run__(unsigned long tick)"):
+            if cfg is not None and cfg.resources:
+                for r in cfg.resources:
+                    self.w(f"{r.name}_run__(tick);")
+            else:
+                self.w("(void)tick;")
         files["Config0.c"] = self.take()
         if cfg is None:
             return files
@@ -65,51 +57,43 @@ class RuntimeFilesGen:
             for inst in r.instances:
                 self.w(f"{inst.pou.name} {r.name}__{inst.name};")
             self.w()
-            self.w(f"void {r.name}_init__(void)")
-            self.w("{")
-            self.ind += 1
-            for v in r.globals.values():
-                self.global_init(v)
-            for inst in r.instances:
-                self.w(f"{inst.pou.name}_init__(&{r.name}__{inst.name});")
-            self.ind -= 1
-            self.w("}")
+            with self.braced(f"void {r.name}_init__(void)"):
+                for v in r.globals.values():
+                    self.global_init(v)
+                for inst in r.instances:
+                    self.w(f"{inst.pou.name}_init__(&{r.name}__{inst.name});")
             self.w()
-            self.w(f"void {r.name}_run__(unsigned long tick)")
-            self.w("{")
-            self.ind += 1
-            self.w("(void)tick;")
-            runs = False
-            if self.matiec:
-                # matiec: the program instances in declaration order, each when its task is
-                # due; PRIORITY plays no part
-                for i in r.instances:
-                    runs = True
-                    if i.task is None:
-                        self.w(f"{i.pou.name}_body__(&{r.name}__{i.name});  /* no task: every tick */")
-                        continue
-                    period = max(1, i.task.interval_ns // tick) if tick else 1
-                    self.w(f"if (tick % {period}u == 0u) {{  /* task {i.task.name}, {i.task.interval_ns} ns */")
-                    self.w(f"    {i.pou.name}_body__(&{r.name}__{i.name});")
-                    self.w("}")
-            else:
-                # IEC: tasks due in the same tick run in PRIORITY order (0 first)
-                for task in sorted(r.tasks, key=lambda tk: tk.priority):
-                    insts = [i for i in r.instances if i.task is task]
-                    if not insts:
-                        continue
-                    runs = True
-                    period = max(1, task.interval_ns // tick) if tick else 1
-                    self.w(f"if (tick % {period}u == 0u) {{  /* task {task.name}, {task.interval_ns} ns */")
-                    for i in insts:
-                        self.w(f"    {i.pou.name}_body__(&{r.name}__{i.name});")
-                    self.w("}")
-                for i in r.instances:
-                    if i.task is None:
+            with self.braced(f"void {r.name}_run__(unsigned long tick)"):
+                self.w("(void)tick;")
+                runs = False
+                if self.matiec:
+                    # matiec: the program instances in declaration order, each when its task is
+                    # due; PRIORITY plays no part
+                    for i in r.instances:
                         runs = True
-                        self.w(f"{i.pou.name}_body__(&{r.name}__{i.name});  /* no task: every tick */")
-            self.ind -= 1
-            self.w("}")
+                        if i.task is None:
+                            self.w(f"{i.pou.name}_body__(&{r.name}__{i.name});  /* no task: every tick */")
+                            continue
+                        period = max(1, i.task.interval_ns // tick) if tick else 1
+                        self.w(f"if (tick % {period}u == 0u) {{  /* task {i.task.name}, {i.task.interval_ns} ns */")
+                        self.w(f"    {i.pou.name}_body__(&{r.name}__{i.name});")
+                        self.w("}")
+                else:
+                    # IEC: tasks due in the same tick run in PRIORITY order (0 first)
+                    for task in sorted(r.tasks, key=lambda tk: tk.priority):
+                        insts = [i for i in r.instances if i.task is task]
+                        if not insts:
+                            continue
+                        runs = True
+                        period = max(1, task.interval_ns // tick) if tick else 1
+                        self.w(f"if (tick % {period}u == 0u) {{  /* task {task.name}, {task.interval_ns} ns */")
+                        for i in insts:
+                            self.w(f"    {i.pou.name}_body__(&{r.name}__{i.name});")
+                        self.w("}")
+                    for i in r.instances:
+                        if i.task is None:
+                            runs = True
+                            self.w(f"{i.pou.name}_body__(&{r.name}__{i.name});  /* no task: every tick */")
             files[f"{r.name}.c"] = self.take()
         return files
 
