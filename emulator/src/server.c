@@ -450,11 +450,7 @@ static void relay_load_script(siprotec_relay *r, const char *path)
         cli_usage_error("--relay script=%s: %s", path, strerror(errno));
     char line[512];
     int ln = 0;
-    while (fgets(line, sizeof line, f)) {
-        ln++;
-        char *h = strchr(line, '#');
-        if (h)
-            *h = 0;
+    while (cli_script_line(f, line, sizeof line, &ln)) {
         char *p = line, *e;
         while (*p == ' ' || *p == '\t')
             p++;

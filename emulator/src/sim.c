@@ -181,11 +181,7 @@ int main(int argc, char **argv)
     mipemu_net_set_trace(net, trace_out, NULL);
     char line[4096];
     unsigned tid = 0;
-    while (fgets(line, sizeof line, f)) {
-        g_line++;
-        char *hash = strchr(line, '#');
-        if (hash)
-            *hash = 0;
+    while (cli_script_line(f, line, sizeof line, &g_line)) {
         tok_t tk[140];
         int nt = 0;
         for (char *p = line; *p;) {
