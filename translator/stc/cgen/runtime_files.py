@@ -121,19 +121,9 @@ class RuntimeFilesGen:
         decls = []
         body = []
         if cfg is not None:
-            for v in cfg.globals.values():
-                self.sym_rows(body, f"{cfg.name}.{v.name}", v.type,
-                              "LOCATED" if v.location else "VAR_GLOBAL",
-                              f"(*{v.cname})" if v.location else v.cname)
-                if v.location is None:
-                    decls.append(f"extern {cdecl(v.type, v.cname)};")
+            self.global_rows(body, decls, cfg.name, cfg.globals)
             for r in cfg.resources:
-                for v in r.globals.values():
-                    self.sym_rows(body, f"{cfg.name}.{r.name}.{v.name}", v.type,
-                                  "LOCATED" if v.location else "VAR_GLOBAL",
-                                  f"(*{v.cname})" if v.location else v.cname)
-                    if v.location is None:
-                        decls.append(f"extern {cdecl(v.type, v.cname)};")
+                self.global_rows(body, decls, f"{cfg.name}.{r.name}", r.globals)
                 for inst in r.instances:
                     cname = f"{r.name}__{inst.name}"
                     decls.append(f"extern {inst.pou.name} {cname};")
@@ -143,6 +133,16 @@ class RuntimeFilesGen:
         rows.append("path\ttype\tkind\tc_ref")
         rows += body
         return "\n".join(rows) + "\n"
+
+    def global_rows(self, body, decls, prefix, globs):
+        """The rows of the globals of a configuration or a resource (prefix: its path), and
+        the declarations of those not located."""
+        for v in globs.values():
+            self.sym_rows(body, f"{prefix}.{v.name}", v.type,
+                          "LOCATED" if v.location else "VAR_GLOBAL",
+                          f"(*{v.cname})" if v.location else v.cname)
+            if v.location is None:
+                decls.append(f"extern {cdecl(v.type, v.cname)};")
 
     # ---- RETAIN.c: the table of retained variables the runtime walks (plcrt_gen_retain_*).
     # Addresses and sizes come from functions evaluated at run time (no static address
