@@ -10,7 +10,7 @@ from pathlib import Path
 
 from .build_common import (BUILD_FORMAT, CORE_SOURCES, HERE, REPO_ROOT, RUNTIME_DIR, BuildError,
                            _compile)
-from .matiec import _matiec_paths
+from .matiec import matiec_paths
 
 # the modules whose code decides what a build produces: part of every key
 BUILD_MODULES = ("build.py", "build_common.py", "build_cache.py", "matiec.py")
@@ -34,7 +34,7 @@ def _hash_inputs(sources, compiler, extra):
 
 def _compiler_fingerprint(compiler):
     if compiler == "matiec":
-        iec2c, lib = _matiec_paths()
+        iec2c, lib = matiec_paths()
         if not iec2c:
             raise BuildError("matiec: iec2c not found on PATH (or env IEC2C)")
         st = os.stat(iec2c)

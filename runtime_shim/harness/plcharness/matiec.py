@@ -12,7 +12,9 @@ from pathlib import Path
 from .build_common import ELEMENTARY, BuildError, Symbol
 
 
-def _matiec_paths():
+def matiec_paths():
+    """(iec2c, its lib directory): $IEC2C or iec2c on PATH, $MATIEC_LIB or lib beside the
+    resolved iec2c; (None, None) without iec2c."""
     iec2c = os.environ.get("IEC2C") or shutil.which("iec2c")
     if not iec2c:
         return None, None
@@ -21,12 +23,12 @@ def _matiec_paths():
 
 
 def matiec_available() -> bool:
-    iec2c, lib = _matiec_paths()
+    iec2c, lib = matiec_paths()
     return bool(iec2c) and Path(lib, "C", "iec_std_lib.h").is_file()
 
 
 def _translate_matiec(sources, gen, workdir):
-    iec2c, lib = _matiec_paths()
+    iec2c, lib = matiec_paths()
     if not iec2c:
         raise BuildError("matiec: iec2c not found on PATH (or env IEC2C)")
     # iec2c takes one file: concatenate, and map error lines back to the originals.
