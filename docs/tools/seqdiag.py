@@ -29,6 +29,7 @@ import textwrap
 from xml.sax.saxutils import escape
 
 from mipcosim.trace import TraceError, read_trace
+from stc import oneline
 
 W = 980
 X_TIME = 62
@@ -377,13 +378,7 @@ def main(argv=None):
     caption = a.caption or ("From the trace " + a.trace.split("/")[-1]
                             + "; empty polls/answers and PLC reads without new data omitted.")
     svg = render(rows, a.title, caption)
-    try:
-        with open(a.output, "w", encoding="utf-8") as f:
-            f.write(svg)
-    except OSError as e:
-        print(f"seqdiag: error: {a.output}: {e.strerror}", file=sys.stderr)
-        return 1
-    return 0
+    return oneline.write_output("seqdiag", a.output, svg)
 
 
 if __name__ == "__main__":

@@ -19,6 +19,7 @@ import zlib
 from pathlib import Path
 
 from plcharness.procs import stop
+from stc import oneline
 
 from .session import CHAINS, PRESETS
 
@@ -166,13 +167,10 @@ def main(argv=None):
         print(f"mipview.shots: error: {CHROMIUM} missing (Debian package chromium)",
               file=sys.stderr)
         return 2
-    try:
+    def shoot():
         for name, (path, st) in take(a.outdir, a.preset).items():
             print(f"{path}: {describe(name, st['t_ms'])}")
-    except RuntimeError as e:
-        print(f"mipview.shots: error: {e}", file=sys.stderr)
-        return 1
-    return 0
+    return oneline.run("mipview.shots", shoot, errors=(RuntimeError,))
 
 
 if __name__ == "__main__":

@@ -71,9 +71,7 @@ class ExpressionChecks:
         if isinstance(e, S.Index):
             self._check_base_assignable(e.base)
             return self.expr(e, None)
-        if isinstance(e, S.BitAccess):
-            return self.expr(e, None)
-        if isinstance(e, S.Deref):
+        if isinstance(e, (S.BitAccess, S.Deref)):
             return self.expr(e, None)
         self.fail(e.pos, "the left side of ':=' must be a variable")
 
