@@ -63,6 +63,9 @@ def main(argv):
     ap.add_argument("--memlim", type=int, default=int(os.environ.get("MODEL_MEMLIM", "4096")),
                     help="MB one search may use before it counts as INCOMPLETE (default 4096, "
                          "or MODEL_MEMLIM)")
+    ap.add_argument("--bounded-memlim", type=int, default=None, metavar="MB",
+                    help="memory cap of the bounded configurations (model/configs.py BOUNDED; "
+                         "default: their own cap; 0: no cap, as far as --memlim: make model-deep)")
     ap.add_argument("--collapse", action="store_true",
                     help="compile pan with -DCOLLAPSE: about 0.7 of the memory per state, about "
                          "1.5 times the search time (for variants larger than --memlim holds)")
@@ -95,7 +98,7 @@ def main(argv):
         name, defs, expect, what = c
         try:
             return run_one(name, defs, expect, work_root, a.max_depth, a.memlim, a.timeout, cache,
-                           a.collapse)
+                           a.collapse, a.bounded_memlim)
         except (RuntimeError, subprocess.TimeoutExpired) as e:
             return dict(name=name, stored=None, depth=None, secs=0.0, ok=False, search="-",
                         verdict="ERROR " + " | ".join(str(e).splitlines()[:2]), kind=None, trace=[], raw=str(e))

@@ -193,7 +193,7 @@ def run_pan(cmd, cwd, timeout):
 
 
 def run_one(name, defs, expect, work_root, maxdepth, memlim=4096, timeout=900, cache=None,
-            collapse=False):
+            collapse=False, bounded_cap=None):
     work = os.path.join(work_root, re.sub(r"[^A-Za-z0-9]+", "_", name))
     shutil.rmtree(work, ignore_errors=True)
     os.makedirs(work)
@@ -206,7 +206,7 @@ def run_one(name, defs, expect, work_root, maxdepth, memlim=4096, timeout=900, c
         defs = dict(defs, SEEK="K_" + expect.split(":", 1)[1])
     is_bounded = expect == "holds" and bounded(name)
     if is_bounded:
-        memlim = bounded_memlim(name, memlim)
+        memlim = bounded_memlim(name, memlim, bounded_cap)
     build(work, defs, sp["cc"] + ["-DMEMLIM=%d" % memlim], cache, collapse)
     out, timed_out = run_pan(["./pan"] + sp["pan"] + ["-m%d" % maxdepth, "-w24"], work, timeout)
     st = stats(out)

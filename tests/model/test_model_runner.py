@@ -83,3 +83,23 @@ def test_a_violation_after_the_sender_finished_is_found_by_the_progress_search(t
     assert "VIOLATED WARMFAIL" in row[0]
     assert "outstation(TRM) PLC writes [0] for the other stream" in r.stdout   # the idle record 0
     assert "sender PLC warm restart" in r.stdout
+
+
+@pytest.mark.slow   # two searches of 200 and 300 MB: 16 s
+def test_a_bounded_configuration_searches_as_far_as_its_cap_and_says_it_is_no_proof(tmp_path):
+    """make check searches the configurations of BOUNDED as far as their cap; --bounded-memlim
+    sets it (make model-deep: 0, no cap). Two caps (above the 128 MB of pan's hash table): the
+    smaller stores fewer states, and both
+    verdicts say the search was bounded."""
+    stored = {}
+    for cap in (192, 288):
+        r = run("--exact", "-k", "warm/win2/ours-ours/spont/up+wrst-snd", "--bounded-memlim",
+                str(cap), tmp_path=tmp_path)
+        assert r.returncode == 0, r.stdout + r.stderr
+        row = [ln for ln in r.stdout.splitlines()
+               if ln.startswith("warm/win2/ours-ours/spont/up+wrst-snd")]
+        assert len(row) == 1 and "bounded: no violation in the first" in row[0], r.stdout
+        assert "not a proof" in row[0]
+        stored[cap] = int(row[0].split()[1])
+        assert "bounded searches, not proofs" in r.stdout
+    assert 0 < stored[192] < stored[288], stored
