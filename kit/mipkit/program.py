@@ -7,6 +7,7 @@ import re
 from pathlib import Path
 
 from plcharness.build import BuildError, build_program
+from stc.semantics import SEMANTICS
 
 from .base import KitError, _duration_ns, _warn
 
@@ -102,9 +103,6 @@ def check_config(build, config: Path):
                                f"declares none of %{area}{size}{a}..%{area}{size}{a + count - 1}")
         elif addr not in declared:
             raise KitError(f"{config}:{line}: error: {key} = {addr}: the program does not declare {addr}")
-
-
-SEMANTICS = ("matiec", "openplc", "iec")
 
 
 def build(sources, workdir: Path, compiler="stc", tick_ms=None, semantics=None):

@@ -108,7 +108,7 @@ def _run(cmd, what, cwd=None):
     return proc
 
 
-SEMANTICS = (None, "matiec", "openplc", "iec")
+SEMANTICS = (None, *__import__("stc.semantics", fromlist=["SEMANTICS"]).SEMANTICS)  # None: stc's default
 
 
 def is_openplc_config(path) -> bool:
