@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 from mipcosim.layout import LIB_FILES   # st_lib in import order, the one list
+from mipcosim.kernel import MS, SEC  # noqa: F401 (the bench modules take them from here)
 
 REPO = Path(__file__).resolve().parents[2]   # bench/mipbench/common.py, installed editable
 BUILD = REPO / "build" / "bench"
@@ -27,8 +28,6 @@ PY = sys.executable
 ST_LIB = [REPO / "st_lib" / f for f in LIB_FILES]
 PAIR_ST = REPO / "bench" / "st" / "bench_pair.st"
 PAYLOAD = 122                      # payload registers of a full chunk (123 - record counter)
-MS = 1_000_000
-SEC = 1_000_000_000
 
 ERRORS: list[str] = []
 

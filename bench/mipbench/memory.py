@@ -6,6 +6,8 @@ import subprocess
 import tempfile
 from pathlib import Path
 
+from mipprobe.regmap import MDP810, TRM810
+
 from .common import BUILD, BenchError, EMU, RSS_RUN, Server, error, line, read_rss, run_rss
 from .scan_cost import build_pair
 from .emulator import client_rate
@@ -32,7 +34,7 @@ def fig_memory(quick):
                     text = "[master]\npolling_period = 100ms\ntimeout = 1s\n"
                     for d in range(1, n + 1):
                         text += (f"\n[device mdp{d}]\nhost = 127.0.0.1\nport = {mdp}\n"
-                                 f"unit_id = {d}\n\n[read r{d}]\ndevice = mdp{d}\nstart = 198\n"
+                                 f"unit_id = {d}\n\n[read r{d}]\ndevice = mdp{d}\nstart = {MDP810.read_status}\n"
                                  f"size = 12\nimage = %IW{100 + 12 * (d - 1)}\npolicy = cycle\n")
                     conf.write_text(text)
                     rss = run_rss([exe, "-c", conf, "-m", "virtual", "-n", scans])
@@ -56,8 +58,8 @@ def fig_memory(quick):
                     trms = [int(x) for x in re.search(r"trm=([\d,]+)", srv.first).group(1).split(",")]
                     reqs = 20 if quick else 200
                     for s in range(1, n + 1):        # touch every station's buffers
-                        client_rate(mdp, s, 198, reqs)
-                        client_rate(trms[s - 1], 1, 2198, reqs)
+                        client_rate(mdp, s, MDP810.read_status, reqs)
+                        client_rate(trms[s - 1], 1, TRM810.read_status, reqs)
                 finally:
                     srv.stop()
                 rss = read_rss(Path(f.name))

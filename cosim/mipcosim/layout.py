@@ -6,6 +6,8 @@ from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
+from mipprobe.regmap import MDP810, TRM810
+
 REPO = Path(__file__).resolve().parents[2]
 PLC_DIR = REPO / "plc"
 ST_LIB = REPO / "st_lib"
@@ -273,7 +275,7 @@ def outstation_config(trm_port, host="127.0.0.1", comment="", retain="", serial=
 {link}unit_id = {unit}
 errors = %IW30
 online = %IX9.0
-""" + _read_write_ranges("trm", 1, 2198, 2001, status_first, channel) + retain)
+""" + _read_write_ranges("trm", 1, TRM810.read_status, TRM810.write_data, status_first, channel) + retain)
 
 
 def central_config(mdp_port, stations, host="127.0.0.1", comment="", retain="", serial=None,
@@ -292,7 +294,8 @@ def central_config(mdp_port, stations, host="127.0.0.1", comment="", retain="", 
 {link}unit_id = {f"%QW{CHANNEL_UNIT}" if channel and s == 1 else s}
 errors = %IW{30 + s}
 online = %IX9.{s}
-""" + _read_write_ranges(f"mdp{s}", s, 198, 10, status_first, channel and s == 1)
+""" + _read_write_ranges(f"mdp{s}", s, MDP810.read_status, MDP810.write_data, status_first,
+                               channel and s == 1)
     return text
 
 

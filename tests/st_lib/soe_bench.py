@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from mipcosim.layout import enum_values
+from mipcosim.kernel import MS
 from plcharness import Plc  # noqa: F401 (the type build() returns)
 from stlib_sim import Fb, RunUntil, build_text, lib_type
 
@@ -30,7 +31,6 @@ SOE_TYPES = REPO / "st_lib" / "MIP_TypesSoe.st"
 ERR = enum_values("E_MIP_SoeError", SOE_TYPES)
 STATE = enum_values("E_MIP_SoeState", SOE_TYPES)
 WAIT = enum_values("E_MIP_SoeWait", SOE_TYPES)
-MS = 1_000_000
 BASE = 600                      # PDU address of 40601 (docs/chain.md)
 
 

@@ -26,11 +26,14 @@ from __future__ import annotations
 import hashlib
 import re
 
+from mipprobe.regmap import MDP810, TRM810
+
 from .common import MS, seqdiag
 
 CHUNK = 100                  # rows per chunk of the history (our choice: a few screens)
 FFFF = 0xFFFF
-WRITE_AT = {"trm": (2001, "outstation", "record"), "mdp": (10, "central", "ack")}
+WRITE_AT = {"trm": (TRM810.write_data, "outstation", "record"),
+            "mdp": (MDP810.write_data, "central", "ack")}
 
 
 def counter(n):
