@@ -173,7 +173,7 @@ class StationProbe:
                 if diff or a[0] != b[0]:
                     steps[k].append(diff)
             prev = cur
-        for k, name, first in (("trm", "TRM", 2001), ("mdp", "MDP", 10)):
+        for k, name, first in (("trm", "TRM", TRM810.write_data), ("mdp", "MDP", MDP810.write_data)):
             st = [d for d in steps[k] if d]
             split = any(not (x & y) for x, y in zip(st, st[1:]))
             if split:
