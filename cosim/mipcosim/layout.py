@@ -112,9 +112,14 @@ def write_image(s):
     return 100 + 123 * (s - 1)
 
 
+def lib_sources() -> list[str]:
+    """st_lib's files (paths) in the import order: what a build takes before the programs."""
+    return [str(ST_LIB / f) for f in LIB_FILES]
+
+
 def program_sources(role: str, bidi: bool):
     name = f"{role}{'_bidi' if bidi else ''}.st"
-    return [str(ST_LIB / f) for f in LIB_FILES] + [str(PLC_DIR / "PLC_Logger.st"),
+    return lib_sources() + [str(PLC_DIR / "PLC_Logger.st"),
                                                    str(PLC_DIR / name)]
 
 

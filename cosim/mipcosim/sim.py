@@ -428,7 +428,7 @@ class Network(_Kernel):
             text = central_many(stations)
             if not src.is_file() or src.read_text() != text:
                 src.write_text(text)
-            lib_src = [str(L.ST_LIB / f) for f in L.LIB_FILES] + [str(L.PLC_DIR / "PLC_Logger.st")]
+            lib_src = L.lib_sources() + [str(L.PLC_DIR / "PLC_Logger.st")]
             out_b = build("outstation", False, self.workdir, compiler, tick_ms)
             cen_b = build("central_many", False, self.workdir, compiler, tick_ms,
                           lib_src + [str(src)])

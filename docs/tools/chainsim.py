@@ -335,19 +335,6 @@ class Chain:
         self._batch.append(line)
 
     @property
-    def lib(self):
-        return self.kernel.lib
-
-    @property
-    def sim(self):
-        """The C kernel (mipcosim *), for the emulator core's own API."""
-        return self.kernel.handle
-
-    @property
-    def net(self):
-        return self.kernel.net
-
-    @property
     def t(self):
         """Virtual time of the next scan."""
         return self.kernel.now

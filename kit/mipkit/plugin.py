@@ -70,7 +70,7 @@ def mip_compiler(request):
 @pytest.fixture
 def mip_st_lib():
     from mipcosim import layout as L
-    return [str(L.ST_LIB / f) for f in L.LIB_FILES]
+    return L.lib_sources()
 
 
 @pytest.fixture

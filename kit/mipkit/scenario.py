@@ -179,7 +179,7 @@ class Run:
             srcs = []
             for s in p["sources"]:
                 if s == "@st_lib":
-                    srcs += [str(L.ST_LIB / f) for f in L.LIB_FILES]
+                    srcs += L.lib_sources()
                 else:
                     srcs.append(str(self.base / s))
             plc = self.net.plc(p["name"], srcs, self.base / p["config"], p["station"],

@@ -189,7 +189,7 @@ class ChainLive(Stepping):
             "extra_loss": {"up": 0.0, "down": 0.0},
             "lose_next": {"record": False, "ack": False},
             "done": self.done, **dg, "blocks": self._blocks(),
-            "registers": self.windows.peek(self.ch.lib, self.ch.lib.mipcosim_net(self.ch.sim)),
+            "registers": self.windows.peek(self.ch.kernel.lib, self.ch.kernel.net),
             "radio": {"down": s1.get("tel_down", 0), "up": s1.get("tel_up", 0),
                       "lost_down": s1.get("lost_down", 0), "lost_up": s1.get("lost_up", 0)},
             "off": {},

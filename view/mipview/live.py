@@ -196,7 +196,7 @@ class Live(Stepping):
         self.windows = Windows()
         self.history = History()
         self._fate = FATE_FN(self._on_fate)               # kept alive as long as the network
-        self.ch.lib.mipemu_net_set_fate(self.ch.net, self._fate, None)
+        self.ch.kernel.lib.mipemu_net_set_fate(self.ch.kernel.net, self._fate, None)
 
     # ---------------------------------------------------------------- the simulation
     def _on_fate(self, user, station, up, blk, n):
@@ -315,7 +315,7 @@ class Live(Stepping):
                 "off": side.name in self.off}
 
     def _registers(self):
-        return self.windows.peek(self.ch.lib, self.ch.net)
+        return self.windows.peek(self.ch.kernel.lib, self.ch.kernel.net)
 
     def state(self):
         dg = diagram(self.history, self.ch.lines, f"{self.preset.title} (live)")
