@@ -158,9 +158,7 @@ class Radio:
         return cls(9600, 20 * MS, 12)
 
 
-
-
-TRANSPORTS = ("inproc", "socketpair", "tcp")
+TRANSPORTS = ("inproc", "socketpair", "tcp")      # Kernel.connect's ways to a modem
 
 
 class Kernel:
@@ -273,7 +271,7 @@ class Kernel:
         emulator core), "socketpair" or "tcp" (the same frames through libmodbus)."""
         if transport == "inproc":
             setter, fn = plc.library.plcrt_device_set_transport, self.lib.mipcosim_connect_inproc
-        elif transport in ("socketpair", "tcp"):
+        elif transport in TRANSPORTS:
             setter = plc.library.plcrt_device_set_fd
             fn = self.lib.mipcosim_connect if transport == "socketpair" else self.lib.mipcosim_connect_tcp
         else:

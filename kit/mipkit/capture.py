@@ -181,7 +181,7 @@ def save_for_report(net, outdir: Path, message: str = "", t_hint=None,
     the failure's message): (section title, text, JUnit property) after writing outdir/name."""
     cap = net.capture
     centre = None
-    if net._handle is not None:
+    if not net.kernel.closed:
         try:
             from .report import find_fault
             centre = find_fault(net, message, t_hint).t

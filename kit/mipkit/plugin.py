@@ -132,7 +132,7 @@ def pytest_runtest_makereport(item, call):
             except Exception as e:  # noqa: BLE001 - the capture must not hide the failure
                 title, text = "Modbus capture", f"none: {type(e).__name__}: {e}"
             report.sections.append((f"mip-kit network {k}: {title}", text))
-        if net._handle is None:
+        if net.kernel.closed:
             continue
         try:
             head, sections, props = failure_report(

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from mipcosim.kernel import MS  # noqa: F401 (the view's modules take it from here)
 from mipcosim.layout import st_enums
 from mipdocs import chainsim, seqdiag
-from mipdocs.chainsim import MS
 
 REPO = Path(__file__).resolve().parents[2]
 
