@@ -333,7 +333,7 @@ online = %IX9.2
 
 [read mdp_read]
 device = mdp
-start = 198
+start = {MDP810.read_status}
 size = 125
 image = %IW100
 policy = trigger
@@ -344,7 +344,7 @@ status = %IW11
 
 [write mdp_write]
 device = mdp_ack
-start = 10
+start = {MDP810.write_data}
 size = 123
 image = %QW100
 policy = trigger
