@@ -362,9 +362,10 @@ class StationProbe:
                                             "2200 (TRM) and 200 (MDP) after status and count")
             return
         which = " and the ".join(bad)
+        status = (TRM810 if "TRM" in bad else MDP810).read_status
         self.set("address base", False,
                  f"the {which} counts its register addresses from 1: the note's register "
-                 f"{'2198 (the read status) is at 2197' if 'TRM' in bad else '198 (the read status) is at 197'}, "
+                 f"{status} (the read status) is at {status - 1}, "
                  f"every block one register off (note §3.1, §3.2 count from 0); set the modem "
                  f"to 0-based addresses or give every address of the PLC's client one less "
                  f"(docs/wiring.md, check the address base)")
