@@ -22,7 +22,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from mipcosim.layout import enum_values  # noqa: F401 (the tests import it from here)
-from mipcosim.kernel import FATE_FN as _FATE_FN, MS, CosimError, Kernel, Radio, Stats as _Stats, kernel_lib
+from mipcosim.kernel import FATE_FN as _FATE_FN, MS, CosimError, Kernel, Stats as _Stats, kernel_lib
+from mipcosim.kernel import Radio as KernelRadio
 from plcharness import Plc, PlcError
 from mipprobe.regmap import MDP810, TRM810
 
@@ -337,7 +338,7 @@ class Radio:
         self.stations = max(1, poll_scans * tick_ms * MS // (2 * self.GAP_NS))
         try:
             kernel = Kernel(self.stations, static=bool(static_n), static_registers=static_n or 148,
-                            seed=seed, radio=Radio(self.BITRATE, self.GAP_NS, self.OVERHEAD))
+                            seed=seed, radio=KernelRadio(self.BITRATE, self.GAP_NS, self.OVERHEAD))
         except CosimError as e:
             raise RuntimeError(f"emulator: {e}") from None
         self._kernel = kernel
