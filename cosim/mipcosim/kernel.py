@@ -21,7 +21,6 @@ if (Path(__file__).resolve().parent / "_lib" / "libmipcosim.so").is_file():
     LIBDIR = Path(__file__).resolve().parent / "_lib"     # installed by the test kit (kit/)
 
 # virtual time is counted in ns (mipcosim_now); the one definition of its units
-US = 1_000
 MS = 1_000_000
 SEC = 1_000_000_000
 
