@@ -49,6 +49,7 @@ from pathlib import Path
 from mipdocs.blockref import dependency_order, render
 from mipdocs.plcopen_export import export, validate
 from mipdocs.stdecl import StError, parse_file
+from stc import oneline
 
 REPO = Path(__file__).resolve().parents[1]
 WIRESHARK = "wireshark/mipmb.lua"     # dist/wireshark/mipmb.lua, at the same path in the archive
@@ -440,22 +441,16 @@ def main(argv=None) -> int:
     ap.add_argument("--import-order", action="store_true",
                     help="print the st_lib files in import order, one a line, and exit")
     a = ap.parse_args(argv)
-    try:
+
+    def step():
         if a.version:
             print(read_version())
-            return 0
-        if a.import_order:
+        elif a.import_order:
             print("\n".join(import_order()[0]))
-            return 0
-        for p in build(Path(a.outdir), Path(a.xsd) if a.xsd else None):
-            print(f"dist: wrote {os.path.relpath(p)}")
-    except DistError as e:
-        print(e, file=sys.stderr)
-        return 1
-    except OSError as e:
-        print(f"mkdist: error: {e.filename or ''}: {e.strerror}", file=sys.stderr)
-        return 1
-    return 0
+        else:
+            for p in build(Path(a.outdir), Path(a.xsd) if a.xsd else None):
+                print(f"dist: wrote {os.path.relpath(p)}")
+    return oneline.run("mkdist", step, located=(DistError,))
 
 
 if __name__ == "__main__":

@@ -1,6 +1,8 @@
 # dist/: the release archive of st_lib. `make dist` writes build/dist/mip-logger-<version>.tar.gz
 # and .zip (version from st_lib/MIP_Version.st, checked against CHANGELOG.md; the PLCopen XML
 # inside is validated against the TC6 v2.01 schema). See docs/releases.md.
+# mkdist is also the package mipdist (dist/pyproject.toml), installed by `make venv`
+PY_PACKAGES += dist
 DIST_DIR := $(BUILD)/dist
 # the schema is made by docs/part.mk (included after this file, so not $(PLCOPEN_XSD) here)
 DIST_XSD := $(BUILD)/docs/tc6_xml_v201.xsd

@@ -29,9 +29,9 @@ $(PLCOPEN_XSD): | venv
 $(DOCS_BUILD)/st_lib.xml: $(DOCS_ST) $(DOCS_TOOLS)/plcopen_export.py $(DOCS_TOOLS)/stdecl.py | venv
 	$(PY) $(DOCS_TOOLS)/plcopen_export.py -o $@ $(DOCS_ST)
 
-.PHONY: docs docs-blocks docs-traces docs-diagrams docs-lossdata docs-plot docs-plcopen
+.PHONY: docs docs-blocks docs-traces docs-diagrams docs-lossdata docs-plot docs-plcopen docs-imports
 # Everything generated under docs/ but the throughput data (docs-lossdata: a few seconds).
-docs: docs-blocks docs-traces docs-diagrams docs-plot docs-plcopen
+docs: docs-blocks docs-traces docs-diagrams docs-plot docs-plcopen docs-imports
 
 docs-blocks: | venv
 	cd $(DOCS_STLIB)/.. && $(PY) $(abspath $(DOCS_TOOLS))/blockref.py -o $(abspath docs/blocks.md) $(addprefix st_lib/,$(notdir $(DOCS_ST)))
@@ -54,3 +54,8 @@ docs-plot: | venv
 docs-plcopen: $(DOCS_BUILD)/st_lib.xml $(PLCOPEN_XSD)
 	$(PY) $(DOCS_TOOLS)/plcopen_export.py --validate $(PLCOPEN_XSD) $(DOCS_BUILD)/st_lib.xml
 	@echo "docs: $(DOCS_BUILD)/st_lib.xml is valid PLCopen TC6 v2.01"
+
+# the package graph of docs/dev/architecture.md, from the imports and the layers of .importlinter
+# (mipkit is not installed into the venv: kit/ on the path, as pytest.ini has it)
+docs-imports: | venv
+	PYTHONPATH=kit $(PY) -m mipdocs.importgraph -o docs/img/import-graph.svg

@@ -34,10 +34,10 @@ $(EMU_BUILD)/mip-emulator: $(EMU_DIR)/src/server.c $(EMU_DIR)/src/rtu.c $(EMU_DI
 $(EMU_BUILD)/mipemu-sim: $(EMU_DIR)/src/sim.c $(EMU_CLI) $(EMU_BUILD)/libmipemu.a $(EMU_HDR)
 	$(CC) $(EMU_CFLAGS) -o $@ $< $(EMU_DIR)/src/cli_config.c $(EMU_BUILD)/libmipemu.a
 
-$(EMU_BUILD)/test_mipemu: $(EMU_DIR)/tests/test_mipemu.c $(EMU_DIR)/tests/unit.h $(EMU_BUILD)/libmipemu.a $(EMU_HDR)
+$(EMU_BUILD)/test_mipemu: $(EMU_DIR)/tests/test_mipemu.c $(EMU_DIR)/tests/unit.h $(EMU_DIR)/tests/pdu.h $(EMU_BUILD)/libmipemu.a $(EMU_HDR)
 	$(CC) $(EMU_CFLAGS) -o $@ $< $(EMU_BUILD)/libmipemu.a -lm
 
-$(EMU_BUILD)/test_siprotec: $(EMU_DIR)/tests/test_siprotec.c $(EMU_DIR)/tests/unit.h $(EMU_BUILD)/libmipemu.a $(EMU_HDR)
+$(EMU_BUILD)/test_siprotec: $(EMU_DIR)/tests/test_siprotec.c $(EMU_DIR)/tests/unit.h $(EMU_DIR)/tests/pdu.h $(EMU_BUILD)/libmipemu.a $(EMU_HDR)
 	$(CC) $(EMU_CFLAGS) -o $@ $< $(EMU_BUILD)/libmipemu.a
 
 # the RTU framing (t1.5, t3.5) with explicit times

@@ -1,3 +1,7 @@
+# tests/support: the package miptest, the helpers that tests in more than one folder use
+# (issue 45: installed like every part, never added to the import path by a test)
+PY_PACKAGES += tests/support
+
 # tests/: the ST library and the example programs once more with stc --semantics=iec (issue 13).
 # The default pass (py-tests) builds them with matiec's values; this pass with IEC 61131-3's.
 # A test whose outcome differs between the two passes is a portability bug in our ST.

@@ -6,18 +6,15 @@ from __future__ import annotations
 import os
 import platform
 import re
-import select
 import shutil
-import signal
-import socket
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
-from mipcosim.layout import LIB_FILES   # st_lib in import order, the one list
 from mipcosim.kernel import MS, SEC  # noqa: F401 (the bench modules take them from here)
+from mipcosim.layout import LIB_FILES   # st_lib in import order, the one list
+from plcharness import procs
 
 REPO = Path(__file__).resolve().parents[2]   # bench/mipbench/common.py, installed editable
 BUILD = REPO / "build" / "bench"
@@ -109,52 +106,16 @@ def machine():
 
 # ---------------------------------------------------------------- helpers: processes
 
-def free_port():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-class Server:
-    """A server process started by the bench; stopped (SIGTERM, then SIGKILL) on exit."""
+class Server(procs.Server):
+    """A server process started by the bench (plcharness.procs.Server: ready at a line that
+    matches `ready`); stopped (SIGTERM, then SIGKILL) on exit."""
 
     def __init__(self, cmd, ready=r"listening", timeout=30):
-        self.p = subprocess.Popen([str(c) for c in cmd], stdout=subprocess.PIPE,
-                                  stderr=subprocess.PIPE, text=True)
-        t_end = time.monotonic() + timeout
-        self.first = ""
-        while time.monotonic() < t_end:
-            # wait for a line without blocking past the deadline (a hung server is an error)
-            ready_fds, _, _ = select.select([self.p.stdout], [], [], max(0.0, t_end - time.monotonic()))
-            if not ready_fds:
-                break
-            l = self.p.stdout.readline()
-            if not l:
-                break
-            if re.search(ready, l):
-                self.first = l.strip()
-                return
-        err = self.p.stderr.read() if self.p.poll() is not None else ""
-        self.stop()
-        raise BenchError(f"{Path(str(cmd[0])).name} did not start: {err.strip() or 'no ready line'}")
-
-    def stop(self):
-        if self.p.returncode is None:
-            self.p.send_signal(signal.SIGTERM)
-            try:
-                self.p.wait(10)
-            except subprocess.TimeoutExpired:
-                self.p.kill()
-                self.p.wait()
-        for f in (self.p.stdout, self.p.stderr):
-            if f:
-                f.close()
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.stop()
+        try:
+            super().__init__(cmd, ready, timeout)
+        except procs.NotReady as e:
+            raise BenchError(str(e)) from None
+        self.p = self.proc
 
 
 RSS_RUN = BUILD / "rss_run"

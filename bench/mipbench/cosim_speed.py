@@ -1,7 +1,6 @@
 """Figure 4: co-simulation speed (virtual against wall time) and its scaling with stations."""
 from __future__ import annotations
 
-import re
 import time
 from pathlib import Path
 
@@ -48,10 +47,10 @@ def cosim_speed_run(virt_s, workdir: Path, stations=8, transport="inproc", tick_
         for k in range((stations + 3) // 4):
             n = min(4, stations - 4 * k)
             conf = workdir / f"central{k}.conf"
-            text = L.central_config(15020, n)
-            text = re.sub(r"unit_id = (\d+)", lambda m: f"unit_id = {int(m.group(1)) + 4 * k}",
-                          text)
-            conf.write_text(text)
+            cfg = L.central_model(15020, n)
+            for dev in cfg.devices:         # this group's stations
+                dev.keys["unit_id"] = str(int(dev["unit_id"]) + 4 * k)
+            cfg.write(conf)
             add(cen_b, conf, L.Params(records=big, payload=PAYLOAD, station=0),
                 [(f"mdp{i}", 0) for i in range(1, n + 1)])
         ru0 = resource.getrusage(resource.RUSAGE_SELF)

@@ -7,8 +7,9 @@ import subprocess
 from pathlib import Path
 
 from mipprobe.regmap import TRM810
+from plcharness.procs import free_port
 
-from .common import BUILD, BenchError, EMU, PY, Server, error, free_port, line, run
+from .common import BUILD, BenchError, EMU, PY, Server, error, line, run
 
 # ---------------------------------------------------------------- 3. emulator throughput
 

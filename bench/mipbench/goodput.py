@@ -135,9 +135,12 @@ def fig_goodput_pipelined(quick, workdir):
     if cosim_missing(name, pending=True):
         return
     records = {1: 40, 4: 20, 16: 10} if quick else {1: 150, 4: 80, 16: 80}
+    # the quick run (make check's bench test: the line's shape) leaves out the 16 stations,
+    # two thirds of its time
+    sizes = (1, 4) if quick else (1, 4, 16)
     cells, fit = [], []
     try:
-        for n in (1, 4, 16):
+        for n in sizes:
             for p in (0.0, 0.1, 0.3):
                 g = goodput_pair(n, p, records[n], workdir)
                 m = pipelined_model(p, records[n])
@@ -147,9 +150,9 @@ def fig_goodput_pipelined(quick, workdir):
         error(name, failure(e))
         return
     per_poll = "; ".join(f"{n} station{'s' if n > 1 else ''} " + "/".join(
-        f"{r:.2f}" for m, _, r, _ in cells if m == n) for n in (1, 4, 16))
+        f"{r:.2f}" for m, _, r, _ in cells if m == n) for n in sizes)
     per_s = "; ".join(f"{n}: " + "/".join(f"{r:.2f}" for m, _, _, r in cells if m == n)
-                      for n in (1, 4, 16))
+                      for n in sizes)
     model = "/".join(f"{stop_and_wait_polls(p) / pipelined_polls(p):.2f}" for p in (0.0, 0.1, 0.3))
     worst0 = min(r for _, p, r, _ in cells if p == 0)
     inside = sum(1 for f in fit if 0.9 <= f <= 1.1)

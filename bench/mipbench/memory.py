@@ -7,6 +7,7 @@ import tempfile
 from pathlib import Path
 
 from mipprobe.regmap import MDP810, TRM810
+from plcharness.config import Config
 
 from .common import BUILD, BenchError, EMU, RSS_RUN, Server, error, line, read_rss, run_rss
 from .scan_cost import build_pair
@@ -31,12 +32,13 @@ def fig_memory(quick):
                 name = f"peak_rss_runtime_{n}st"
                 try:
                     conf = BUILD / f"rss_runtime_{n}.conf"
-                    text = "[master]\npolling_period = 100ms\ntimeout = 1s\n"
+                    cfg = Config()
+                    cfg.add("master", polling_period="100ms", timeout="1s")
                     for d in range(1, n + 1):
-                        text += (f"\n[device mdp{d}]\nhost = 127.0.0.1\nport = {mdp}\n"
-                                 f"unit_id = {d}\n\n[read r{d}]\ndevice = mdp{d}\nstart = {MDP810.read_status}\n"
-                                 f"size = 12\nimage = %IW{100 + 12 * (d - 1)}\npolicy = cycle\n")
-                    conf.write_text(text)
+                        cfg.add("device", f"mdp{d}", host="127.0.0.1", port=mdp, unit_id=d)
+                        cfg.add("read", f"r{d}", device=f"mdp{d}", start=MDP810.read_status, size=12,
+                                image=f"%IW{100 + 12 * (d - 1)}", policy="cycle")
+                    cfg.write(conf)
                     rss = run_rss([exe, "-c", conf, "-m", "virtual", "-n", scans])
                     line(name, f"{rss} KiB (plc executable of bench/st/bench_pair.st, {scans} "
                          f"virtual scans of 10 ms, Modbus master of {n} device{'s' * (n > 1)} "

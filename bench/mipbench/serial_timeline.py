@@ -13,7 +13,6 @@ docs/serial.md shows and explains the output."""
 from __future__ import annotations
 
 import argparse
-import json
 import statistics
 import sys
 import tempfile
@@ -23,6 +22,7 @@ import mipcosim.layout as L
 import mipcosim.sim as S
 from mipcosim.cli import link_timeout_ms
 from mipcosim.kernel import MS
+from mipcosim.trace import read_trace
 from mipprobe.regmap import TRM810
 
 STEPS = [
@@ -77,7 +77,7 @@ def rtu_chars(e):
 
 
 def timeline(trace):
-    ev = [json.loads(line) for line in trace.read_text().splitlines()]
+    ev = read_trace(trace)
     mb = [e for e in ev if e["ev"] == "modbus"]
     writes = {}
     for e in mb:

@@ -28,7 +28,7 @@ def gen_st(lines_wanted: int) -> str:
                 "wOut := aBuf[3] OR SHL(wIn, 2);",
                 "t(IN := xIn, PT := T#100ms);",
                 "xOut := t.Q OR (iOut > 100);",
-                f"END_FUNCTION_BLOCK", ""]
+                "END_FUNCTION_BLOCK", ""]
         k += 1
     n = k
     prog = ["PROGRAM MAIN", "VAR"] + [f"  f{i} : FB{i};" for i in range(n)] + \

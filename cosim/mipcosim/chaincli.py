@@ -103,7 +103,7 @@ def main(argv=None):
                       if a.restart_every else "")
             print(f"mip-cosim: {a.what} --chain: {a.events} relay events every {a.every_ms:g} ms, "
                   f"{a.per_record} per record, loss {a.loss:.0%}, seed {a.seed}, "
-                  + (f"pushed to a redundant pair of UNICOS drivers" if a.handover == "push" else
+                  + ("pushed to a redundant pair of UNICOS drivers" if a.handover == "push" else
                      f"SCADA polls every {a.scada_ms} ms") + faults, flush=True)
             k = 0
             next_fault = a.restart_every * SEC if a.restart_every else None

@@ -34,87 +34,51 @@ def program_sources(role, handover="pull"):
             + [str(L.PLC_DIR / name)])
 
 
-def relay_sections(port=15030, host="127.0.0.1"):
+def relay_sections(cfg, port=15030, host="127.0.0.1"):
     """The outstation's device `relay`: 40601..40626 read into %IW300.., SOE_Control written from
-    %QW300 (FC16 of one register), trigger policy (plc/outstation_soe.st)."""
-    return f"""
-[device relay]
-host = {host}
-port = {port}
-unit_id = 1
-
-[write soe_control]
-device = relay
-start = {SOE_BASE + 1}
-size = 1
-image = %QW300
-policy = trigger
-trigger = %QX2.1
-done = %IX2.2
-error = %IX2.3
-length = %QW2
-
-[read soe]
-device = relay
-start = {SOE_BASE}
-size = 26
-image = %IW300
-policy = trigger
-trigger = %QX2.0
-done = %IX2.0
-error = %IX2.1
-status = %IW12
-"""
+    %QW300 (FC16 of one register), trigger policy (plc/outstation_soe.st); added to cfg."""
+    cfg.add("device", "relay", host=host, port=port, unit_id=1)
+    cfg.add("write", "soe_control", device="relay", start=SOE_BASE + 1, size=1, image="%QW300",
+            policy="trigger", trigger="%QX2.1", done="%IX2.2", error="%IX2.3", length="%QW2")
+    cfg.add("read", "soe", device="relay", start=SOE_BASE, size=26, image="%IW300",
+            policy="trigger", trigger="%QX2.0", done="%IX2.0", error="%IX2.1", status="%IW12")
+    return cfg
 
 
-def slave_section(port=0, host="127.0.0.1"):
+def slave_section(cfg, port=0, host="127.0.0.1"):
     """The central's Modbus slave for the SCADA: SOE_Control's writes counted (MIP_SoeServer)."""
-    return (f"\n[slave]\nhost = {host}\nport = {port}\nwatch = %QW{SOE_BASE + 1}\n"
-            f"watch_count = %IW9\n")
+    cfg.add("slave", host=host, port=port, watch=f"%QW{SOE_BASE + 1}", watch_count="%IW9")
+    return cfg
 
 
-def unicos_sections(ports=(15040, 15041), host="127.0.0.1"):
+def unicos_sections(cfg, ports=(15040, 15041), host="127.0.0.1"):
     """The push central's devices unicos_a / unicos_b (WinCC OA's redundant pair of UNICOS
     drivers) and its write ranges: FC16 of the frame at the marker, trigger policy."""
-    out = ""
     for k, (d, port) in enumerate(zip("ab", ports)):
-        out += f"""
-[device unicos_{d}]
-host = {host}
-port = {port}
-unit_id = 1
-
-[write unicos_{d}]
-device = unicos_{d}
-start = {UNICOS_MARKER}
-size = 123
-image = %QW{UNICOS_IMAGE[d]}
-policy = trigger
-trigger = %QX3.{k}
-done = %IX3.{2 * k}
-error = %IX3.{2 * k + 1}
-status = %IW{13 + k}
-length = %QW{3 + k}
-"""
-    return out
+        cfg.add("device", f"unicos_{d}", host=host, port=port, unit_id=1)
+        cfg.add("write", f"unicos_{d}", device=f"unicos_{d}", start=UNICOS_MARKER, size=123,
+                image=f"%QW{UNICOS_IMAGE[d]}", policy="trigger", trigger=f"%QX3.{k}",
+                done=f"%IX3.{2 * k}", error=f"%IX3.{2 * k + 1}", status=f"%IW{13 + k}",
+                length=f"%QW{3 + k}")
+    return cfg
 
 
-def central_push_config(mdp_port=15020, unicos_ports=(15040, 15041), retain="", host="127.0.0.1"):
-    return L.central_config(mdp_port, 1, host, comment="# the chain (plc/central_push.st): also "
-                            "WinCC OA's UNICOS drivers A and B.\n", retain=retain) \
-        + unicos_sections(unicos_ports, host)
+def central_push_config(mdp_port=15020, unicos_ports=(15040, 15041), retain=None, host="127.0.0.1"):
+    return unicos_sections(L.central_model(
+        mdp_port, 1, host, comment="the chain (plc/central_push.st): also WinCC OA's UNICOS "
+        "drivers A and B.", retain=retain), unicos_ports, host).text()
 
 
-def outstation_soe_config(trm_port=15021, relay_port=15030, retain="", host="127.0.0.1"):
-    return L.outstation_config(trm_port, host, comment="# the chain (plc/outstation_soe.st): "
-                               "also the relay's event recorder.\n", retain=retain) \
-        + relay_sections(relay_port, host)
+def outstation_soe_config(trm_port=15021, relay_port=15030, retain=None, host="127.0.0.1"):
+    return relay_sections(L.outstation_model(
+        trm_port, host, comment="the chain (plc/outstation_soe.st): also the relay's event "
+        "recorder.", retain=retain), relay_port, host).text()
 
 
-def central_soe_config(mdp_port=15020, slave_port=0, retain="", host="127.0.0.1"):
-    return L.central_config(mdp_port, 1, host, comment="# the chain (plc/central_soe.st): "
-                            "also the SCADA's Modbus slave.\n", retain=retain) \
-        + slave_section(slave_port, host)
+def central_soe_config(mdp_port=15020, slave_port=0, retain=None, host="127.0.0.1"):
+    return slave_section(L.central_model(
+        mdp_port, 1, host, comment="the chain (plc/central_soe.st): also the SCADA's Modbus "
+        "slave.", retain=retain), slave_port, host).text()
 
 
 @dataclass

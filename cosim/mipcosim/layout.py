@@ -7,6 +7,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from mipprobe.regmap import MDP810, TRM810
+from plcharness.config import Config, Section
 
 REPO = Path(__file__).resolve().parents[2]
 PLC_DIR = REPO / "plc"
@@ -191,50 +192,40 @@ CHANNEL_READ_ADDR, CHANNEL_READ_LEN, CHANNEL_WRITE_ADDR, CHANNEL_UNIT = 61, 62, 
 def _channel_keys(s, write):
     """The address / length keys of station s's range when it is the stand-ins' channel."""
     if write:
-        return f"address = %QW{CHANNEL_WRITE_ADDR}\n"
-    return f"address = %QW{CHANNEL_READ_ADDR}\nlength = %QW{CHANNEL_READ_LEN}\n"
+        return {"address": f"%QW{CHANNEL_WRITE_ADDR}"}
+    return {"address": f"%QW{CHANNEL_READ_ADDR}", "length": f"%QW{CHANNEL_READ_LEN}"}
 
 
-def _read_write_ranges(dev, s, read_start, write_start, status_first=False, channel=False):
+def _read_write_ranges(cfg, dev, s, read_start, write_start, status_first=False, channel=False):
     """The device's write range, then its read range: requests run in config order, so a
     record or an acknowledgement the program raised in the same scan as the next read reaches
     the modem first (on a serial line a status read in front of it costs 14 ms at 19,200 baud,
     docs/serial.md). status_first: False, True ("yes": status and count alone) or the number
     of registers of the first read (3: an acknowledgement of one register comes in it)."""
-    sf = f"status_first = {'yes' if status_first is True else status_first}\n" if status_first else ""
-    cw = _channel_keys(s, True) if channel else ""
-    cr = _channel_keys(s, False) if channel else ""
-    return f"""
-[write {dev}_write]
-device = {dev}
-start = {write_start}
-size = 123
-image = %QW{write_image(s)}
-policy = trigger
-trigger = %QX{s}.1
-done = %IX{s}.2
-error = %IX{s}.3
-status = %IW{20 + s}
-length = %QW{s}
-{cw}
-[read {dev}_read]
-device = {dev}
-start = {read_start}
-size = 125
-{sf}image = %IW{read_image(s)}
-policy = trigger
-trigger = %QX{s}.0
-done = %IX{s}.0
-error = %IX{s}.1
-status = %IW{10 + s}
-{cr}"""
+    sf = ("yes" if status_first is True else status_first) if status_first else None
+    cfg.add("write", f"{dev}_write", device=dev, start=write_start, size=123,
+            image=f"%QW{write_image(s)}", policy="trigger", trigger=f"%QX{s}.1",
+            done=f"%IX{s}.2", error=f"%IX{s}.3", status=f"%IW{20 + s}", length=f"%QW{s}",
+            **(_channel_keys(s, True) if channel else {}))
+    cfg.add("read", f"{dev}_read", device=dev, start=read_start, size=125, status_first=sf,
+            image=f"%IW{read_image(s)}", policy="trigger", trigger=f"%QX{s}.0",
+            done=f"%IX{s}.0", error=f"%IX{s}.1", status=f"%IW{10 + s}",
+            **(_channel_keys(s, False) if channel else {}))
 
 
-MASTER = """[master]
-timeout = 1s
-reconnect_min = 100ms
-reconnect_max = 1s
-"""
+MASTER = {"timeout": "1s", "reconnect_min": "100ms", "reconnect_max": "1s"}   # [master]
+
+
+def _config(comment, own):
+    """A Config with its comment lines (own, then the caller's) and the [master] section."""
+    cfg = Config(comment="\n".join(c for c in (own, comment) if c))
+    cfg.add("master", **MASTER)
+    return cfg
+
+
+def _add_retain(cfg, retain):
+    if retain:
+        cfg.add("retain", **retain.keys)
 
 
 # The durability handshake of the RETAIN snapshots (docs/retain.md#durability-handshake), the
@@ -245,9 +236,10 @@ RETAIN_SAVED = "%IW8"
 
 
 def retain_section(file, period_ms=1000):
-    """The [retain] section: snapshots in `file` every period_ms of scan time and on request."""
-    return (f"\n[retain]\nfile = {file}\nperiod = {period_ms}ms\n"
-            f"request = {RETAIN_REQUEST}\nsaved = {RETAIN_SAVED}\n")
+    """The [retain] section: snapshots in `file` every period_ms of scan time and on request
+    (pass as retain= to the configs below)."""
+    return Section("retain", keys={"file": str(file), "period": f"{period_ms}ms",
+                                   "request": RETAIN_REQUEST, "saved": RETAIN_SAVED})
 
 
 # The read strategy on a serial line (docs/serial.md, measured best): the first read of a MIP
@@ -258,50 +250,59 @@ RTU_STATUS_FIRST = 3
 
 
 def serial_keys(path, baud=19200, parity="even", data_bits=8, stop_bits=1):
-    """The [device] lines of a Modbus RTU link (instead of host / port): pass as `serial=` to
+    """The [device] keys of a Modbus RTU link (instead of host / port): pass as `serial=` to
     outstation_config / central_config (issue 27, docs/serial.md)."""
-    return (f"serial = {path}\nbaud = {baud}\nparity = {parity}\ndata_bits = {data_bits}\n"
-            f"stop_bits = {stop_bits}\n")
+    return {"serial": str(path), "baud": baud, "parity": parity, "data_bits": data_bits,
+            "stop_bits": stop_bits}
 
 
-def outstation_config(trm_port, host="127.0.0.1", comment="", retain="", serial=None, unit=1,
-                      status_first=False, fc23=False, channel=False):
-    """retain: a retain_section(...) or "". serial: serial_keys(...) for an RTU link (then
-    trm_port and host are not used), unit: the TRM's unit id. channel: the ranges are the
-    vendor stand-ins' request channel (the program sets address, quantity and unit id)."""
+def _link(serial, host, port, fc23):
+    return {**(serial or {"host": host, "port": port}), **({"fc23": "yes"} if fc23 else {})}
+
+
+def outstation_model(trm_port, host="127.0.0.1", comment="", retain=None, serial=None, unit=1,
+                     status_first=False, fc23=False, channel=False):
+    """The outstation's plcrt config (plcharness.config.Config). comment: lines of text
+    written as comments. retain: a retain_section(...) or None. serial: serial_keys(...) for
+    an RTU link (then trm_port and host are not used), unit: the TRM's unit id. channel: the
+    ranges are the vendor stand-ins' request channel (the program sets address, quantity and
+    unit id)."""
     if channel:
         unit = f"%QW{CHANNEL_UNIT}"
-    link = serial if serial else f"host = {host}\nport = {trm_port}\n"
-    if fc23:
-        link += "fc23 = yes\n"
-    return (f"# plcrt config of the outstation (plc/outstation*.st): the TRM-810 of its station.\n"
-            f"{comment}" + MASTER + f"""
-[device trm]
-{link}unit_id = {unit}
-errors = %IW30
-online = %IX9.0
-""" + _read_write_ranges("trm", 1, TRM810.read_status, TRM810.write_data, status_first, channel) + retain)
+    cfg = _config(comment, "plcrt config of the outstation (plc/outstation*.st): the TRM-810 of "
+                  "its station.")
+    cfg.add("device", "trm", **_link(serial, host, trm_port, fc23), unit_id=unit,
+            errors="%IW30", online="%IX9.0")
+    _read_write_ranges(cfg, "trm", 1, TRM810.read_status, TRM810.write_data, status_first, channel)
+    _add_retain(cfg, retain)
+    return cfg
 
 
-def central_config(mdp_port, stations, host="127.0.0.1", comment="", retain="", serial=None,
-                   status_first=False, fc23=False, channel=False):
-    """serial: serial_keys(...) for an RTU link to the MDP-810 (the devices share the line);
-    status_first: the read ranges read the status word alone until it shows new data
-    (runtime_shim README, docs/serial.md)."""
-    text = (f"# plcrt config of the central (plc/central*.st): the MDP-810, one device per\n"
-            f"# outstation (unit id = station address).\n{comment}" + MASTER + retain)
-    link = serial if serial else f"host = {host}\nport = {mdp_port}\n"
-    if fc23:
-        link += "fc23 = yes\n"
+def outstation_config(*args, **kw):
+    """outstation_model(...) as the file's text."""
+    return outstation_model(*args, **kw).text()
+
+
+def central_model(mdp_port, stations, host="127.0.0.1", comment="", retain=None, serial=None,
+                  status_first=False, fc23=False, channel=False):
+    """The central's plcrt config. serial: serial_keys(...) for an RTU link to the MDP-810 (the
+    devices share the line); status_first: the read ranges read the status word alone until
+    it shows new data (runtime_shim README, docs/serial.md)."""
+    cfg = _config(comment, "plcrt config of the central (plc/central*.st): the MDP-810, one "
+                  "device per\noutstation (unit id = station address).")
+    _add_retain(cfg, retain)
     for s in range(1, stations + 1):
-        text += f"""
-[device mdp{s}]
-{link}unit_id = {f"%QW{CHANNEL_UNIT}" if channel and s == 1 else s}
-errors = %IW{30 + s}
-online = %IX9.{s}
-""" + _read_write_ranges(f"mdp{s}", s, MDP810.read_status, MDP810.write_data, status_first,
-                               channel and s == 1)
-    return text
+        cfg.add("device", f"mdp{s}", **_link(serial, host, mdp_port, fc23),
+                unit_id=f"%QW{CHANNEL_UNIT}" if channel and s == 1 else s,
+                errors=f"%IW{30 + s}", online=f"%IX9.{s}")
+        _read_write_ranges(cfg, f"mdp{s}", s, MDP810.read_status, MDP810.write_data, status_first,
+                           channel and s == 1)
+    return cfg
+
+
+def central_config(*args, **kw):
+    """central_model(...) as the file's text."""
+    return central_model(*args, **kw).text()
 
 
 # The central of a large network (plc/central_many.st, plc/gen_programs.py central_many()):
@@ -310,50 +311,24 @@ M_STATIONS, M_READS, M_READ_ERRS, M_WRITES, M_WRITE_ERRS, M_REC_LO, \
     M_REC_HI, M_TRANSFERS, M_FAILED, M_ERR_STATION, M_ROUNDS = range(100, 111)
 
 
-def central_many_config(mdp_port, host="127.0.0.1", comment="", retain=""):
+def central_many_config(mdp_port, host="127.0.0.1", comment="", retain=None):
     """plcrt config of plc/central_many.st: two devices on the MDP-810, one for the reads and
     one for the acknowledgement writes, each taking its unit id (the station) from the image
     at the trigger's rising edge; a read and a write may so start in the same scan."""
-    return (f"# plcrt config of the central of a large network (plc/central_many.st): ONE\n"
-            f"# Modbus client for all stations; the program chooses the unit id per request.\n"
-            f"{comment}" + MASTER + retain + f"""
-[device mdp]
-host = {host}
-port = {mdp_port}
-unit_id = %QW2
-errors = %IW31
-online = %IX9.1
-
-[device mdp_ack]
-host = {host}
-port = {mdp_port}
-unit_id = %QW3
-errors = %IW32
-online = %IX9.2
-
-[read mdp_read]
-device = mdp
-start = {MDP810.read_status}
-size = 125
-image = %IW100
-policy = trigger
-trigger = %QX1.0
-done = %IX1.0
-error = %IX1.1
-status = %IW11
-
-[write mdp_write]
-device = mdp_ack
-start = {MDP810.write_data}
-size = 123
-image = %QW100
-policy = trigger
-trigger = %QX1.1
-done = %IX1.2
-error = %IX1.3
-status = %IW21
-length = %QW1
-""")
+    cfg = _config(comment, "plcrt config of the central of a large network (plc/central_many.st)"
+                  ": ONE\nModbus client for all stations; the program chooses the unit id per "
+                  "request.")
+    _add_retain(cfg, retain)
+    cfg.add("device", "mdp", host=host, port=mdp_port, unit_id="%QW2", errors="%IW31",
+            online="%IX9.1")
+    cfg.add("device", "mdp_ack", host=host, port=mdp_port, unit_id="%QW3", errors="%IW32",
+            online="%IX9.2")
+    cfg.add("read", "mdp_read", device="mdp", start=MDP810.read_status, size=125, image="%IW100",
+            policy="trigger", trigger="%QX1.0", done="%IX1.0", error="%IX1.1", status="%IW11")
+    cfg.add("write", "mdp_write", device="mdp_ack", start=MDP810.write_data, size=123, image="%QW100",
+            policy="trigger", trigger="%QX1.1", done="%IX1.2", error="%IX1.3", status="%IW21",
+            length="%QW1")
+    return cfg.text()
 
 
 # the PLC-to-modem link of the demo and mip-cosim: "tcp" or "rtu:BAUD" (docs/serial.md)

@@ -19,6 +19,7 @@ import re
 import sys
 
 from mipdocs.stdecl import StError, parse_doc, parse_file
+from stc import oneline
 
 LABEL = re.compile(r"^[A-Z][A-Za-z ()/-]{0,40}:(\s|$)")
 DIR_OF = {"VAR_INPUT": "in", "VAR_OUTPUT": "out", "VAR_IN_OUT": "in_out"}
@@ -441,13 +442,7 @@ def main(argv=None):
     dirs = {os.path.dirname(f) or "." for f in a.files}
     label = " ".join(f"`{d}/*.st`" for d in sorted(dirs))
     text = render(units, label)
-    try:
-        with open(a.output, "w", encoding="utf-8") as f:
-            f.write(text)
-    except OSError as e:
-        print(f"blockref: error: {a.output}: {e.strerror}", file=sys.stderr)
-        return 1
-    return 1 if problems else 0
+    return oneline.write_output("blockref", a.output, text, status=1 if problems else 0)
 
 
 if __name__ == "__main__":

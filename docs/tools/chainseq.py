@@ -20,6 +20,8 @@ import sys
 from pathlib import Path
 from xml.sax.saxutils import escape
 
+from mipcosim.trace import read_trace
+
 REPO = Path(__file__).resolve().parents[2]
 LANES = ["relay", "outstation", "trm", "mdp", "central", "scada"]
 TITLES = {"relay": "relay (SIPROTEC)", "outstation": "outstation PLC", "trm": "TRM-810",
@@ -93,8 +95,7 @@ def make_trace(workdir):
         left = ch.relay.stats()["entries"]
         if len(ch.rows) != 1 or left:
             raise ChainSeqError(f"the event did not make the trip: {len(ch.rows)} taken, {left} left")
-    for line in emu.read_text().splitlines():
-        ev = json.loads(line)
+    for ev in read_trace(emu):
         if ev["ev"] == "modbus" and ev["fc"] == 16 and ev.get("exc") == 0 and ev["t"] > 100_000_000:
             plc, modem = ("outstation", "trm") if ev["ep"] == "trm" else ("central", "mdp")
             what = ("record 16#FFFF (end of transfer)" if ev["w0"] == 0xFFFF and ev["ep"] == "trm"

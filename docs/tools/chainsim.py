@@ -32,6 +32,7 @@ from mipcosim import sim as _sim
 from mipcosim.kernel import MS, CosimError, Kernel, Radio
 from mipcosim.layout import LIB_FILES, st_enums   # import order, the one list
 from mipprobe.regmap import MDP810, TRM810
+from plcharness.config import Config
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -81,23 +82,23 @@ def plc_config(side) -> str:
     central = side.name == "central"
     regs = MDP810 if central else TRM810
     rd, wr = regs.read_status, regs.write_data
+    cfg = Config(comment=f"{side.name} of docs/tools/chainsim.py (written by it)")
+    cfg.add("master", timeout="1s")
     if side.cyclic_ms:
         size = side.chunk                        # the fixed write range (the static length)
-        pol_r = pol_w = "policy = cycle\n"
-        poll = f"polling_period = {side.cyclic_ms}ms\n"
+        pol_r = pol_w = {"policy": "cycle"}
     else:
         size = 123
-        pol_r = "policy = trigger\ntrigger = %QX1.0\ndone = %IX1.0\nerror = %IX1.1\n"
-        pol_w = ("policy = trigger\ntrigger = %QX1.1\ndone = %IX1.2\nerror = %IX1.3\n"
-                 "length = %QW1\n")
-        poll = ""
-    return (f"# {side.name} of docs/tools/chainsim.py (written by it)\n"
-            "[master]\ntimeout = 1s\n\n"
-            f"[device modem]\nhost = 127.0.0.1\nport = 502\nunit_id = 1\n{poll}\n"
-            f"[read modem_read]\ndevice = modem\nstart = {rd}\nsize = 125\n"
-            f"image = %IW{READ_IMAGE}\n{pol_r}\n"
-            f"[write modem_write]\ndevice = modem\nstart = {wr}\nsize = {size}\n"
-            f"image = %QW{WRITE_IMAGE}\n{pol_w}")
+        pol_r = {"policy": "trigger", "trigger": "%QX1.0", "done": "%IX1.0", "error": "%IX1.1"}
+        pol_w = {"policy": "trigger", "trigger": "%QX1.1", "done": "%IX1.2", "error": "%IX1.3",
+                 "length": "%QW1"}
+    cfg.add("device", "modem", host="127.0.0.1", port=502, unit_id=1,
+            polling_period=f"{side.cyclic_ms}ms" if side.cyclic_ms else None)
+    cfg.add("read", "modem_read", device="modem", start=rd, size=125, image=f"%IW{READ_IMAGE}",
+            **pol_r)
+    cfg.add("write", "modem_write", device="modem", start=wr, size=size,
+            image=f"%QW{WRITE_IMAGE}", **pol_w)
+    return cfg.text()
 
 
 @dataclass

@@ -27,6 +27,8 @@ import tempfile
 from pathlib import Path
 
 from mipcosim.kernel import MS
+from mipcosim.trace import parse
+from stc import oneline
 
 REPO = Path(__file__).resolve().parents[2]
 LOSSES = [0.0, 0.05, 0.1, 0.2, 0.3, 0.4]
@@ -39,8 +41,7 @@ class DataError(RuntimeError):
 
 
 def first_record_start(trace_lines):
-    for line in trace_lines:
-        d = json.loads(line)
+    for d in parse(trace_lines):
         if d.get("ev") == "radio" and d.get("dir") == "up" and d.get("regs") \
                 and d.get("r0") == 1:
             return d["t0"]
@@ -143,13 +144,8 @@ def main(argv=None):
            "plc": plc, "measured": "first telegram of record 1 to the end of the transfer",
            "limit_s": LIMIT_S,
            "series": series}
-    try:
-        Path(a.output).parent.mkdir(parents=True, exist_ok=True)
-        Path(a.output).write_text(json.dumps(out, indent=1) + "\n")
-    except OSError as e:
-        print(f"gen_lossdata: error: {a.output}: {e.strerror}", file=sys.stderr)
-        return 1
-    return 0
+    return oneline.write_output("gen_lossdata", a.output, json.dumps(out, indent=1) + "\n",
+                                make_dir=True)
 
 
 if __name__ == "__main__":

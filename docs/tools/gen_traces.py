@@ -9,11 +9,11 @@ runs it; the tests run it again and compare (tests/docs/test_docs_traces.py).
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 from pathlib import Path
 
+from mipcosim.trace import parse
 from mipdocs.chainsim import FFFF, Chain, ChainError, Side
 
 REPO = Path(__file__).resolve().parents[2]
@@ -27,7 +27,7 @@ def logger_data(n, seed=1):
 
 
 def radio(lines):
-    return [json.loads(x) for x in lines if '"ev":"radio"' in x]
+    return [d for d in parse(lines) if d["ev"] == "radio"]
 
 
 def note_211(seed, loss_up=0.2, burst=4):
@@ -130,7 +130,7 @@ def pipelined(window=2, central_read_ms=100):
     ch.run_until(lambda: False, 300)
     lines = ch.trace()
     ch.close()
-    done_ms = next((d["t"] // 1_000_000 for d in map(json.loads, lines) if d["ev"] == "plc"
+    done_ms = next((d["t"] // 1_000_000 for d in parse(lines) if d["ev"] == "plc"
                     and d["what"] == "done"), None)
     want = list(range(1, PIPE_RECORDS)) + [FFFF]
     ok = ok and [n for n, _ in c.received] == want and not o.errors and not c.errors
@@ -147,7 +147,7 @@ def pipe_story(lines):
     ack_skipped: acknowledgements the central wrote that never went on air (a later one
       replaced them in the MDP);
     ignored / goback: the receiver's ignored records, the records the sender went back to."""
-    ev = [json.loads(x) for x in lines]
+    ev = parse(lines)
     plc = [e for e in ev if e["ev"] == "plc"]
     writes = [(e["t"], e["value"][0]) for e in plc if e["side"] == "outstation"
               and e["what"] == "write"]

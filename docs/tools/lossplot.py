@@ -14,6 +14,8 @@ import sys
 import textwrap
 from xml.sax.saxutils import escape
 
+from stc import oneline
+
 W = 760
 L, R, T = 80, 190, 50
 PLOT_H = 335
@@ -137,13 +139,7 @@ def main(argv=None):
         caption.append(f"Not finished within {data.get('limit_s', '?')} s and left out: "
                        + "; ".join(stuck) + ".")
     svg = render(data, caption)
-    try:
-        with open(a.output, "w", encoding="utf-8") as f:
-            f.write(svg)
-    except OSError as e:
-        print(f"lossplot: error: {a.output}: {e.strerror}", file=sys.stderr)
-        return 1
-    return 0
+    return oneline.write_output("lossplot", a.output, svg)
 
 
 if __name__ == "__main__":

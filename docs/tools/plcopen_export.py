@@ -12,12 +12,12 @@ The output is deterministic: the creation date is fixed (--date, default
 from __future__ import annotations
 
 import argparse
-import os
 import re
 import sys
 
 from mipdocs.blockref import dependency_order
 from mipdocs.stdecl import StError, TypeSpec, parse_file
+from stc import oneline
 
 NS = "http://www.plcopen.org/xml/tc6_0201"
 XHTML = "http://www.w3.org/1999/xhtml"
@@ -273,14 +273,7 @@ def main(argv=None):
         print(e, file=sys.stderr)
         return 1
     xml = export(units, a.name, a.date)
-    try:
-        os.makedirs(os.path.dirname(os.path.abspath(a.output)), exist_ok=True)
-        with open(a.output, "w", encoding="utf-8") as f:
-            f.write(xml)
-    except OSError as e:
-        print(f"plcopen_export: error: {a.output}: {e.strerror}", file=sys.stderr)
-        return 1
-    return 0
+    return oneline.write_output("plcopen_export", a.output, xml, make_dir=True)
 
 
 if __name__ == "__main__":

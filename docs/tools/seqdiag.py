@@ -23,11 +23,13 @@ trace: the same trace gives the same bytes.
 from __future__ import annotations
 
 import argparse
-import json
 import re
 import sys
 import textwrap
 from xml.sax.saxutils import escape
+
+from mipcosim.trace import TraceError, read_trace
+from stc import oneline
 
 W = 980
 X_TIME = 62
@@ -48,33 +50,9 @@ NOTE_FILL = {"deliver": "#e8f6ef", "done": "#d5f5e3", "error": "#fadbd8", "resta
              "goback": "#fdebd0"}
 
 
-class TraceError(Exception):
-    pass
-
-
 def load(path):
-    events = []
-    try:
-        f = sys.stdin if path == "-" else open(path, encoding="utf-8")
-    except OSError as e:
-        raise TraceError(f"seqdiag: error: {path}: {e.strerror}")
-    with f:
-        for n, line in enumerate(f, 1):
-            line = line.strip()
-            if not line:
-                continue
-            try:
-                d = json.loads(line)
-            except json.JSONDecodeError as e:
-                raise TraceError(f"{path}:{n}:{e.colno}: error: not a JSON line: {e.msg}")
-            if not isinstance(d, dict) or "t" not in d or "ev" not in d:
-                raise TraceError(f"{path}:{n}:1: error: a trace line needs \"t\" and \"ev\"")
-            if not isinstance(d["t"], int) or isinstance(d["t"], bool) or d["t"] < 0:
-                raise TraceError(f"{path}:{n}:1: error: \"t\" must be a non-negative integer "
-                                 f"(ns)")
-            d["_line"] = n
-            events.append(d)
-    return events
+    """The events of the trace file `path` ("-": standard input), each with its "_line"."""
+    return read_trace(path, line_numbers=True, prog="seqdiag")
 
 
 def fmt_ms(t_ns):
@@ -400,13 +378,7 @@ def main(argv=None):
     caption = a.caption or ("From the trace " + a.trace.split("/")[-1]
                             + "; empty polls/answers and PLC reads without new data omitted.")
     svg = render(rows, a.title, caption)
-    try:
-        with open(a.output, "w", encoding="utf-8") as f:
-            f.write(svg)
-    except OSError as e:
-        print(f"seqdiag: error: {a.output}: {e.strerror}", file=sys.stderr)
-        return 1
-    return 0
+    return oneline.write_output("seqdiag", a.output, svg)
 
 
 if __name__ == "__main__":

@@ -125,3 +125,14 @@ void cli_rtu_allow_127_check(const mipemu_config *c, int n_rtu)
                         "RTU frame (MODBUS over Serial Line V1.02, section 2.5.1); use --allow-127 "
                         "without --rtu");
 }
+
+char *cli_script_line(FILE *f, char *buf, int size, int *lineno)
+{
+    if (!fgets(buf, size, f))
+        return NULL;
+    ++*lineno;
+    char *hash = strchr(buf, '#');
+    if (hash)
+        *hash = 0;
+    return buf;
+}

@@ -5,6 +5,8 @@
 
 #include "mipemu.h"
 
+#include <stdio.h>
+
 /* The front's name for messages ("mip-emulator: error: ..."). Set before any other call. */
 extern const char *cli_prog;
 
@@ -37,5 +39,9 @@ void cli_rtu_line_check(const char *spec, long baud, int data_bits, char parity,
 /* --allow-127 together with an --rtu line: a usage error (an FC16 of 124..127 registers, an FC23
  * write of 122..127 or a read answer of 126..127 is longer than an RTU frame may be). */
 void cli_rtu_allow_127_check(const mipemu_config *c, int n_rtu);
+
+/* The next line of the script file f into buf (size bytes) with its '#' comment cut off, and
+ * *lineno counted up; NULL at the end of the file. */
+char *cli_script_line(FILE *f, char *buf, int size, int *lineno);
 
 #endif

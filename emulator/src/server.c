@@ -441,6 +441,16 @@ static int listen_on(const char *host, int port, int *bound_port)
     return fd;
 }
 
+/* The value v of the --relay key: 0 for a, 1 for b, else a usage error that names both. */
+static int relay_choice(const char *key, const char *v, const char *a, const char *b)
+{
+    if (!strcmp(v, a))
+        return 0;
+    if (!strcmp(v, b))
+        return 1;
+    cli_usage_error("--relay %s: '%s' is not %s or %s", key, v, a, b);
+}
+
 /* Script file of --relay: one event a line, "SECONDS W0 W1 W2 W3" (time since start; register
  * type / bit offset, address, cause / type, value; decimal or 0x..); '#' starts a comment. */
 static void relay_load_script(siprotec_relay *r, const char *path)
@@ -450,11 +460,7 @@ static void relay_load_script(siprotec_relay *r, const char *path)
         cli_usage_error("--relay script=%s: %s", path, strerror(errno));
     char line[512];
     int ln = 0;
-    while (fgets(line, sizeof line, f)) {
-        ln++;
-        char *h = strchr(line, '#');
-        if (h)
-            *h = 0;
+    while (cli_script_line(f, line, sizeof line, &ln)) {
         char *p = line, *e;
         while (*p == ' ' || *p == '\t')
             p++;
@@ -507,23 +513,15 @@ static siprotec_relay *relay_parse(const char *spec, int *port)
             c.base = (uint16_t)cli_long("--relay base", v, 0, 65535 - SIPROTEC_MAP_REGS + 1);
         else if (!strcmp(kv, "cap"))
             c.capacity = (uint32_t)cli_long("--relay cap", v, SIPROTEC_BLOCKS, 1000000);
-        else if (!strcmp(kv, "overflow")) {
-            if (!strcmp(v, "drop-oldest"))
-                c.overflow = SIPROTEC_OVF_DROP_OLDEST;
-            else if (!strcmp(v, "drop-new"))
-                c.overflow = SIPROTEC_OVF_DROP_NEW;
-            else
-                cli_usage_error("--relay overflow: '%s' is not drop-oldest or drop-new", v);
-        } else if (!strcmp(kv, "seq-bits"))
+        else if (!strcmp(kv, "overflow"))
+            c.overflow = relay_choice(kv, v, "drop-oldest", "drop-new") ? SIPROTEC_OVF_DROP_NEW
+                                                                        : SIPROTEC_OVF_DROP_OLDEST;
+        else if (!strcmp(kv, "seq-bits"))
             c.seq_bits = (int)cli_long("--relay seq-bits", v, 2, 8);
-        else if (!strcmp(kv, "bad-ack")) {
-            if (!strcmp(v, "exc03"))
-                c.bad_ack = SIPROTEC_BAD_ACK_EXC03;
-            else if (!strcmp(v, "ignore"))
-                c.bad_ack = SIPROTEC_BAD_ACK_IGNORE;
-            else
-                cli_usage_error("--relay bad-ack: '%s' is not exc03 or ignore", v);
-        } else if (!strcmp(kv, "rate"))
+        else if (!strcmp(kv, "bad-ack"))
+            c.bad_ack = relay_choice(kv, v, "exc03", "ignore") ? SIPROTEC_BAD_ACK_IGNORE
+                                                               : SIPROTEC_BAD_ACK_EXC03;
+        else if (!strcmp(kv, "rate"))
             c.rate = cli_double("--relay rate", v, 0, 1e6);
         else if (!strcmp(kv, "burst")) {
             char *sl = strchr(v, '/');

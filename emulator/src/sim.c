@@ -73,6 +73,17 @@ static double tok_seconds(const tok_t *t)
 
 static void put16(uint8_t *p, long v) { p[0] = (uint8_t)(v >> 8); p[1] = (uint8_t)v; }
 
+/* the quantity, the byte count and the values of a write of n registers (fc16, and fc23's
+ * write part) at w; returns the bytes written */
+static size_t put_regs(uint8_t *w, const tok_t *vals, int n)
+{
+    put16(w, n);
+    w[2] = (uint8_t)(2 * n);
+    for (int i = 0; i < n; i++)
+        put16(w + 3 + 2 * i, tok_num(&vals[i], 0, 65535));
+    return 3 + 2 * (size_t)n;
+}
+
 static void request(mipemu_net *net, tok_t *tk, int nt, unsigned tid)
 {
     int is_mdp = !strcmp(tk[0].s, "mdp");
@@ -100,22 +111,14 @@ static void request(mipemu_net *net, tok_t *tk, int nt, unsigned tid)
         if (nargs < 2 || nargs > 128)
             script_error(tk[2].col, "fc16 takes an address and 1..127 values");
         put16(pdu + 1, tok_num(&a[0], 0, 65535));
-        put16(pdu + 3, nargs - 1);
-        pdu[5] = (uint8_t)(2 * (nargs - 1));
-        for (int i = 1; i < nargs; i++)
-            put16(pdu + 6 + 2 * (i - 1), tok_num(&a[i], 0, 65535));
-        plen = 6 + 2 * (size_t)(nargs - 1);
+        plen = 3 + put_regs(pdu + 3, a + 1, nargs - 1);
     } else if (fc == 23) {
         if (nargs < 4 || nargs > 130)
             script_error(tk[2].col, "fc23 takes read address, read count, write address and 1..127 values");
         put16(pdu + 1, tok_num(&a[0], 0, 65535));
         put16(pdu + 3, tok_num(&a[1], 0, 65535));
         put16(pdu + 5, tok_num(&a[2], 0, 65535));
-        put16(pdu + 7, nargs - 3);
-        pdu[9] = (uint8_t)(2 * (nargs - 3));
-        for (int i = 3; i < nargs; i++)
-            put16(pdu + 10 + 2 * (i - 3), tok_num(&a[i], 0, 65535));
-        plen = 10 + 2 * (size_t)(nargs - 3);
+        plen = 7 + put_regs(pdu + 7, a + 3, nargs - 3);
     } else {
         script_error(tk[2].col, "function code %d is not one the script knows (3, 4, 6, 16, 23)", fc);
     }
@@ -178,11 +181,7 @@ int main(int argc, char **argv)
     mipemu_net_set_trace(net, trace_out, NULL);
     char line[4096];
     unsigned tid = 0;
-    while (fgets(line, sizeof line, f)) {
-        g_line++;
-        char *hash = strchr(line, '#');
-        if (hash)
-            *hash = 0;
+    while (cli_script_line(f, line, sizeof line, &g_line)) {
         tok_t tk[140];
         int nt = 0;
         for (char *p = line; *p;) {

@@ -10,6 +10,7 @@
 
 #define UNIT_CLASS "emulator.unit"
 #include "unit.h"
+#include "pdu.h"
 
 /* ---- request helpers ---- */
 
@@ -36,22 +37,13 @@ static int rd(mipemu_net *n, int ep, unsigned unit, unsigned fc, unsigned a, uns
     uint8_t p[5] = { (uint8_t)fc, (uint8_t)(a >> 8), (uint8_t)a, (uint8_t)(q >> 8), (uint8_t)q };
     if (send_pdu(n, ep, unit, p, 5) < 9)
         return -1;
-    if (g_resp[7] & 0x80)
-        return g_resp[8];
-    if (g_resp[8] != 2 * q || g_rlen != 9 + 2 * (long)q)
-        return -2;
-    for (unsigned i = 0; vals && i < q; i++)
-        vals[i] = (uint16_t)(g_resp[9 + 2 * i] << 8 | g_resp[10 + 2 * i]);
-    return 0;
+    return pdu_read_reply(g_resp, g_rlen, q, vals);
 }
 
 static int wr16(mipemu_net *n, int ep, unsigned unit, unsigned a, unsigned q, const uint16_t *vals)
 {
     uint8_t p[6 + 2 * 130];
-    p[0] = 16; p[1] = (uint8_t)(a >> 8); p[2] = (uint8_t)a; p[3] = (uint8_t)(q >> 8); p[4] = (uint8_t)q;
-    p[5] = (uint8_t)(2 * q);
-    for (unsigned i = 0; i < q; i++) { p[6 + 2 * i] = (uint8_t)(vals[i] >> 8); p[7 + 2 * i] = (uint8_t)vals[i]; }
-    if (send_pdu(n, ep, unit, p, 6 + 2 * q) < 9)
+    if (send_pdu(n, ep, unit, p, pdu_write_regs(p, a, q, vals)) < 9)
         return -1;
     return g_resp[7] & 0x80 ? g_resp[8] : 0;
 }

@@ -8,6 +8,7 @@
 
 #define UNIT_CLASS "emulator.siprotec"
 #include "unit.h"
+#include "pdu.h"
 
 static uint8_t g_resp[SIPROTEC_RESPONSE_MAX];
 static long g_rlen;
@@ -29,13 +30,7 @@ static int rd(siprotec_relay *r, unsigned fc, unsigned a, unsigned q, uint16_t *
     uint8_t p[5] = { (uint8_t)fc, (uint8_t)(a >> 8), (uint8_t)a, (uint8_t)(q >> 8), (uint8_t)q };
     if (send_pdu(r, p, 5) < 9)
         return -1;
-    if (g_resp[7] & 0x80)
-        return g_resp[8];
-    if (g_resp[8] != 2 * q || g_rlen != 9 + 2 * (long)q)
-        return -2;
-    for (unsigned i = 0; vals && i < q; i++)
-        vals[i] = (uint16_t)(g_resp[9 + 2 * i] << 8 | g_resp[10 + 2 * i]);
-    return 0;
+    return pdu_read_reply(g_resp, g_rlen, q, vals);
 }
 
 static int wr6(siprotec_relay *r, unsigned a, uint16_t v)
@@ -51,10 +46,7 @@ static int wr6(siprotec_relay *r, unsigned a, uint16_t v)
 static int wr16(siprotec_relay *r, unsigned a, unsigned q, const uint16_t *vals)
 {
     uint8_t p[6 + 2 * 130];
-    p[0] = 16; p[1] = (uint8_t)(a >> 8); p[2] = (uint8_t)a; p[3] = (uint8_t)(q >> 8); p[4] = (uint8_t)q;
-    p[5] = (uint8_t)(2 * q);
-    for (unsigned i = 0; i < q; i++) { p[6 + 2 * i] = (uint8_t)(vals[i] >> 8); p[7 + 2 * i] = (uint8_t)vals[i]; }
-    if (send_pdu(r, p, 6 + 2 * q) < 9)
+    if (send_pdu(r, p, pdu_write_regs(p, a, q, vals)) < 9)
         return -1;
     return g_resp[7] & 0x80 ? g_resp[8] : 0;
 }

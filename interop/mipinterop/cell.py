@@ -6,7 +6,6 @@ neither (issue 45: the kernel.py <-> matrix.py cycle)."""
 from __future__ import annotations
 
 import itertools
-import signal
 import subprocess
 import sys
 import threading
@@ -17,6 +16,7 @@ from pathlib import Path
 from mipcosim import layout as L
 from mipdemo import common as demo            # noqa: F401  (Procs, Slave, free_port, TraceStats: for matrix, kernel, timing)
 from mippeer.cli import logger_records
+from plcharness.procs import stop
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -172,13 +172,7 @@ class PeerProc:
             raise MatrixError(f"mip-peer exited with {self.p.returncode}: {' '.join(tail)}")
 
     def stop(self):
-        if self.p.poll() is None:
-            self.p.send_signal(signal.SIGTERM)
-            try:
-                self.p.wait(timeout=5)
-            except subprocess.TimeoutExpired:
-                self.p.kill()
-                self.p.wait()
+        stop(self.p, timeout=5)
         self.t.join(timeout=2)
 
 

@@ -32,6 +32,8 @@ import time
 from dataclasses import asdict
 from pathlib import Path
 
+from plcharness.procs import stop
+
 # the matrix's names, defined in cell.py (shared with kernel.py) and used from here by
 # __main__ and the tests
 from .cell import (EMU, FAST_RADIO, FAULTS, LAYOUTS, MODES, OURS, READINGS, REALISTIC_RADIO,  # noqa: F401
@@ -90,8 +92,7 @@ class RealtimeRun(CellRun):
     def stop_plc(self):
         for i, (n, p, f, _) in enumerate(self.procs.procs):
             if n == self.plc_name:
-                p.terminate()
-                p.wait(timeout=10)
+                stop(p, timeout=10)
                 f.close()
                 del self.procs.procs[i]
                 break

@@ -26,12 +26,12 @@ tests/interop/test_interop_timing.py.
 """
 from __future__ import annotations
 
-import json
 import statistics
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from mipcosim.trace import read_trace
 from mipprobe.regmap import TRM810
 
 from .cell import (FAST_RADIO, REALISTIC_RADIO, MatrixError, PeerProc, build_programs, L,
@@ -68,7 +68,7 @@ class Readout:
 
 def analyse(trace: Path, pair: str, radio: str, records: int) -> Readout:
     """The figures of one read-out from the emulator's JSON-lines trace (station 1)."""
-    ev = [json.loads(x) for x in trace.read_text().splitlines() if x.strip()]
+    ev = read_trace(trace)
     trm = [e for e in ev if e.get("ev") == "modbus" and e.get("ep") == "trm" and e.get("st") == 1]
     if not trm:
         raise MatrixError(f"{pair}: the sender never talked to its modem")

@@ -2,8 +2,6 @@
 type of the scan callback a stand-in hooks into the kernel's lockstep loop."""
 from __future__ import annotations
 
-import re
-
 from mipcosim.kernel import MS, SCAN_FN, SEC  # noqa: F401 (the kit's names for them)
 
 RESPONSE_MAX = 300
@@ -23,11 +21,3 @@ class KitWarning(UserWarning):
 def _warn(line):
     import warnings
     warnings.warn(KitWarning(line), stacklevel=3)
-
-
-def _duration_ns(v):
-    """A plcrt config duration (100ms, 2s, 500us, 10ns; a bare number is ms), or None."""
-    m = re.fullmatch(r"\s*(\d+(?:\.\d*)?)\s*(ms|s|us|ns)?\s*", v)
-    if not m:
-        return None
-    return int(float(m.group(1)) * {"ms": MS, "s": SEC, "us": 1000, "ns": 1, None: MS}[m.group(2)])

@@ -254,24 +254,20 @@ def slave_config(config: Path, workdir: Path) -> Path:
     would share it): a copy with port = 0, every other line where it was (plcrt's messages keep
     their line numbers; a [slave] without a port key gets the line after its header). Other
     configs as they are."""
-    lines = config.read_text().splitlines()
-    section, header, changed = None, None, False
-    for i, raw in enumerate(lines):
-        line = raw.split("#", 1)[0].strip()
-        if line.startswith("["):
-            section = line.strip("[] ").lower()
-            if section == "slave":
-                header = i
-        elif section == "slave" and "=" in line and line.split("=", 1)[0].strip() == "port":
-            lines[i], changed = "port = 0", True
-    if header is None:
+    from .program import _read_config
+    cfg = _read_config(config)
+    slave = cfg.section("slave") if cfg else None
+    if slave is None:
         return config
-    if not changed:
-        lines.insert(header + 1, "port = 0")
+    lines = config.read_text().split("\n")
+    if "port" in slave.key_lines:
+        lines[slave.key_lines["port"] - 1] = "port = 0"
+    else:
+        lines.insert(slave.line, "port = 0")
     out = Path(workdir) / "configs" / hashlib.sha1(str(config.resolve()).encode()).hexdigest()[:10]
     out.mkdir(parents=True, exist_ok=True)
     out = out / config.name
-    out.write_text("\n".join(lines) + "\n")
+    out.write_text("\n".join(lines))
     return out
 
 

@@ -110,7 +110,7 @@ def pytest_runtest_makereport(item, call):
     import re
     import shutil
     from pathlib import Path
-    from .report import failure_report
+    from .failure import failure_report
     cfg = item.config
     results = Path(cfg.getoption("--mip-results"))
     if not results.is_absolute():

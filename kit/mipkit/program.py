@@ -7,23 +7,29 @@ import re
 from pathlib import Path
 
 from plcharness.build import BuildError, build_program
+from plcharness.config import LOCATED as _LOCATED
+from plcharness.config import ConfigError, duration_ns, read_file
 from stc.semantics import SEMANTICS
 
-from .base import KitError, _duration_ns, _warn
+from .base import KitError, _warn
+
+
+def _read_config(path: Path):
+    """The plcrt config as plcharness.config reads it; None for an OpenPLC mbconfig.cfg or a
+    config plcrt refuses (it says what is wrong, file:line, when the PLC loads it)."""
+    try:
+        return read_file(path)
+    except ConfigError:
+        return None
 
 
 def _retain_period(path: Path):
     """(line, value, ns) of a plcrt config's [retain] period, or None."""
-    section = None
-    for n, raw in enumerate(path.read_text().splitlines(), 1):
-        line = raw.split("#", 1)[0].strip()
-        if line.startswith("["):
-            section = line.strip("[] ").lower()
-        elif section == "retain" and "=" in line:
-            key, val = (p.strip() for p in line.split("=", 1))
-            if key == "period":
-                return n, val, _duration_ns(val)
-    return None
+    cfg = _read_config(path)
+    retain = cfg.section("retain") if cfg else None
+    if retain is None or "period" not in retain.keys:
+        return None
+    return retain.key_lines["period"], retain["period"], duration_ns(retain["period"])
 
 
 def _mapped(config: Path) -> set:
@@ -39,33 +45,11 @@ def _mapped(config: Path) -> set:
     return out
 
 
-_LOCATED = re.compile(r"%([IQM])([XBWDL])(\d+)(?:\.(\d+))?", re.I)
-_RANGE_KEYS = {"image"}
-_SIZE_KEY = "size"
-
-
 def _config_addresses(path: Path):
     """(line number, key, address, count) of every located address a plcrt config maps:
     count > 1 for a range's image (its size), 1 for handshake bits and words."""
-    out = []
-    section, size, pending = None, 1, []
-    for n, raw in enumerate(path.read_text().splitlines(), 1):
-        line = raw.split("#", 1)[0].strip()
-        if not line:
-            continue
-        if line.startswith("["):
-            out += [(ln, k, a, size if k in _RANGE_KEYS else 1) for ln, k, a in pending]
-            section, size, pending = line, 1, []
-            continue
-        if "=" not in line:
-            continue
-        key, val = (p.strip() for p in line.split("=", 1))
-        if key == _SIZE_KEY and val.isdigit():
-            size = int(val)
-        elif _LOCATED.fullmatch(val):
-            pending.append((n, key, val.upper()))
-    out += [(ln, k, a, size if k in _RANGE_KEYS else 1) for ln, k, a in pending]
-    return out
+    cfg = _read_config(path)
+    return [(line, key, addr, count) for _, key, line, addr, count in cfg.located()] if cfg else []
 
 
 def _declared(build) -> set:
@@ -96,7 +80,7 @@ def check_config(build, config: Path):
         if key in OPTIONAL_OUTPUTS:
             continue
         m = _LOCATED.fullmatch(addr)
-        area, size, a, b = m.group(1), m.group(2), int(m.group(3)), m.group(4)
+        area, size, a = m.group(1), m.group(2), int(m.group(3))
         if count > 1 and size != "X":
             if not any(f"%{area}{size}{a + i}" in declared for i in range(count)):
                 raise KitError(f"{config}:{line}: error: {key} = {addr} (size {count}): the program "

@@ -536,7 +536,7 @@ def main(argv=None):
 def _run_one(doc, path, work, results_dir, a, name, seed, tag, say_warnings=lambda: None):
     """One run of the scenario (one seed): prints its lines; (results, properties, report
     lines per failed expectation), or None when interrupted."""
-    from .report import failure_report
+    from .failure import failure_report
     results, props, run, ran = [], [], None, False
     head, sections = [], []
     try:

@@ -24,7 +24,6 @@ the answer to a wrong acknowledgement, read-only blocks beyond the count read as
     python -m mippeer.siprotec --port 15030 --script events.txt --origin 1767225600000
 """
 import argparse
-import socket
 import socketserver
 import struct
 import sys

@@ -5,22 +5,17 @@ from __future__ import annotations
 
 import json
 import signal
-import socket
 import subprocess
 import sys
 import time
 from pathlib import Path
 
+from plcharness.procs import Processes, free_port  # noqa: F401 (free_port: the demos')
+
 REPO = Path(__file__).resolve().parents[2]        # the checkout (this package is plc/mipdemo/)
 
 class DemoError(Exception):
     pass
-
-
-def free_port():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 class Slave:
@@ -60,38 +55,14 @@ class Slave:
         self.c.close()
 
 
-class Procs:
+class Procs(Processes):
     """Every process the demo starts; stop() ends them all (SIGTERM, then SIGKILL)."""
 
-    def __init__(self):
-        self.procs = []
-
-    def start(self, name, cmd, log, **kw):
-        f = open(log, "w")
-        p = subprocess.Popen(cmd, stdout=kw.pop("stdout", f), stderr=f, stdin=subprocess.DEVNULL,
-                             start_new_session=True, **kw)
-        self.procs.append((name, p, f, log))
-        return p
-
     def check_alive(self):
-        for name, p, _, log in self.procs:
-            if p.poll() is not None:
-                tail = Path(log).read_text().strip().splitlines()[-3:]
-                raise DemoError(f"{name} exited with {p.returncode}: {' | '.join(tail)}")
-
-    def stop(self):
-        for _, p, _, _ in self.procs:
-            if p.poll() is None:
-                p.send_signal(signal.SIGTERM)
-        deadline = time.monotonic() + 5
-        for _, p, f, _ in self.procs:
-            try:
-                p.wait(timeout=max(0.1, deadline - time.monotonic()))
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait()
-            f.close()
-        self.procs = []
+        gone = self.exited()
+        if gone:
+            name, code, tail = gone
+            raise DemoError(f"{name} exited with {code}: {' | '.join(tail)}")
 
 
 class TraceStats:

@@ -104,7 +104,7 @@ def lost_record_clause(a):
 
 def run(a):
     rundir = fresh_rundir(a.rundir)
-    print(f"demo: building plc/outstation.st and plc/central.st ...", flush=True)
+    print("demo: building plc/outstation.st and plc/central.st ...", flush=True)
     # into the run's own directory: two demos at once (tests side by side) must not replace
     # each other's programs while they run (the harness's cache makes a rebuild a copy)
     progs = build_programs(rundir / "programs")

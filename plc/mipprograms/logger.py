@@ -18,16 +18,16 @@ def outstation(bidi):
     code = [PARAM_CODE]
     code += io_before(1)
     code.append("(* the logger: station pStation, records 1..udiTotal *)")
-    code.append(f"src(xRun := xRun, udiTotal := udiTotal, uPerTransfer := uPerTransfer, "
-                f"uPayload := uPayload,\n    wSession := pSession, wStation := pStation, "
-                f"tLogPeriod := tLogPeriod, udiStart := udiStart,\n"
-                + (f"    xChunkRequest := link.xChunkRequest, udiChunkIndex := link.udiChunkIndex, "
-                   f"uChunkMax := link.uChunkMax,\n    xSendDone := link.xSendDone, "
-                   f"xSendError := link.xSendError, eSendError := link.eSendErrorId);"
+    code.append("src(xRun := xRun, udiTotal := udiTotal, uPerTransfer := uPerTransfer, "
+                "uPayload := uPayload,\n    wSession := pSession, wStation := pStation, "
+                "tLogPeriod := tLogPeriod, udiStart := udiStart,\n"
+                + ("    xChunkRequest := link.xChunkRequest, udiChunkIndex := link.udiChunkIndex, "
+                   "uChunkMax := link.uChunkMax,\n    xSendDone := link.xSendDone, "
+                   "xSendError := link.xSendError, eSendError := link.eSendErrorId);"
                    if bidi else
-                   f"    xChunkRequest := snd.xChunkRequest, udiChunkIndex := snd.udiChunkIndex, "
-                   f"uChunkMax := snd.uChunkMax,\n    xSendDone := snd.xDone, "
-                   f"xSendError := snd.xError, eSendError := snd.eErrorId);"))
+                   "    xChunkRequest := snd.xChunkRequest, udiChunkIndex := snd.udiChunkIndex, "
+                   "uChunkMax := snd.uChunkMax,\n    xSendDone := snd.xDone, "
+                   "xSendError := snd.xError, eSendError := snd.eErrorId);"))
     if bidi:
         code.append(
             "link(xEnable := xRun, xExecute := src.xExecute, xCentral := FALSE, xPolled := xPolled,\n"
@@ -287,7 +287,7 @@ END_IF;
                  f"  IF (store{s}.wFlags AND 2) <> 0 THEN uFailed := uFailed + 1; mErrStation := WORD#{s}; END_IF;",
                  "END_IF;",
                  f"axWrReq[{s}] := rcv{s}.xWriteReq;"]
-    code += [f"""\
+    code += ["""\
 snapReq := FALSE;   (* not RETAIN: no snapshots wanted *)
 (* 3. start requests: the next write asked for (round robin), the next station's read *)
 IF xRun AND xWrIdle THEN

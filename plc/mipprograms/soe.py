@@ -240,7 +240,7 @@ def central_push():
              "    xWriteDone := xWrDone1, xWriteError := wrErr1, xRetained := xRetain,",
              "    wSnapshots := snapSaved);",
              "(* flags bit 3, read every scan: driver B is the active one (a fail-over) *)",
-             f"uni(xEnable := xRun, aRecord := rcv.aRecord, uRecordLen := rcv.uRecordLen,",
+             "uni(xEnable := xRun, aRecord := rcv.aRecord, uRecordLen := rcv.uRecordLen,",
              f"    xRecordValid := rcv.xRecordValid, wMarker := WORD#{UNICOS_MARKER},",
              "    xRedundant := xRedundant, xActiveB := (pFlags AND 16#0008) <> 0,",
              "    xWriteDoneA := uniADone, xWriteErrorA := uniAErr, wWriteStatusA := uniASt,",

@@ -36,7 +36,7 @@ def measured(results):
 
 
 def params_lines(p):
-    return ([f"recommended (docs/commissioning.md, \"What the probe recommends\"):"]
+    return (["recommended (docs/commissioning.md, \"What the probe recommends\"):"]
             + [f"  {k:<20}{p[k]:>8}  {p['why'][k]}" for k in p["why"]])
 
 
@@ -52,6 +52,7 @@ def report_json(path, results, params, meta):
                 m[d] = {"delivered_ms": stats_ms(x["delivered_s"]),
                         "confirmed_ms": stats_ms(x["confirmed_s"]),
                         "repeated": x["duplicates"], "lost": x["lost"], "damaged": x["damaged"],
+                        "slots": x["slots"],
                         "samples_ms": [round(t * 1000, 2) for t in x["delivered_s"]]}
         bad = r.verdict()
         doc["stations"].append({

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 
 from .link import ModbusExc, NoLink
 from .regmap import MDP810, NEW_DATA, TRM810, WRITE_UNCONFIRMED
+from .slots import slots_seen, slots_text
 
 CHECKS = ["answers", "quiet", "unit id", "address base", "transfer mode", "block down",
           "bit 4 down", "block up", "bit 4 up"]
@@ -402,7 +403,7 @@ class StationProbe:
             d = recv.read(recv_status, 2 + L)
             return d if d[2:2 + L] == b[:L] else None
         if self.wait(arrived) is None:
-            return None, None, 0, False
+            return None, None, 0, False, t0
         delivered = time.monotonic() - t0
         whole = recv.read(recv_status + 2, n)
         intact = whole == b
@@ -415,7 +416,7 @@ class StationProbe:
             s = send.read(send_status, 1)[0]
             return True if not s & WRITE_UNCONFIRMED else None
         ok = self.wait(confirmed)
-        return delivered, (time.monotonic() - t0) if ok else None, dup[0], intact
+        return delivered, (time.monotonic() - t0) if ok else None, dup[0], intact, t0
 
     def measure(self):
         n = self.static or self.o.registers
@@ -429,8 +430,11 @@ class StationProbe:
                 ("up", self.trm, self.mdp, TRM810.write_data, TRM810.read_status,
                  MDP810.read_status)):
             deliv, conf, dups, lost, damaged = [], [], 0, 0, 0
+            writes, arrivals = [], []
             for _ in range(self.o.blocks):
-                t, c, dup, intact = self.one_way(send, recv, wreg, sstat, rstat, n)
+                t, c, dup, intact, w = self.one_way(send, recv, wreg, sstat, rstat, n)
+                writes.append(w)
+                arrivals.append(None if t is None else w + t)
                 if t is None:
                     lost += 1
                     continue
@@ -439,8 +443,12 @@ class StationProbe:
                 damaged += not intact
                 if c is not None:
                     conf.append(c)
+            # an arrival is seen up to a read period and a read late (and the write takes one)
+            answers = sorted(send.latencies + recv.latencies)
+            resolution = self.o.poll + 2 * answers[len(answers) // 2]
             res[d] = {"delivered_s": deliv, "confirmed_s": conf, "duplicates": dups,
-                      "lost": lost, "damaged": damaged}
+                      "lost": lost, "damaged": damaged,
+                      "slots": slots_seen(writes, arrivals, resolution)}
         self.r.measure = res
         from .sizing import stats_ms
         bad = [f"{d}: {res[d]['lost']} of {self.o.blocks} never arrived" for d in ("down", "up")
@@ -448,7 +456,8 @@ class StationProbe:
                                      if res[d]["damaged"]]
         text = "; ".join(
             f"{d} " + "/".join(f"{v:g}" for v in stats_ms(res[d]["delivered_s"]).values())
-            + f" ms (min/median/p99/max), {res[d]['duplicates']} repeated"
+            + f" ms (min/median/p99/max), {res[d]['duplicates']} repeated, "
+            + slots_text(res[d]["slots"])
             for d in ("down", "up") if res[d]["delivered_s"])
         text = f"{self.o.blocks} blocks of {n} registers each way: " + text
         if bad:

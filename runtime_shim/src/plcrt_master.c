@@ -312,6 +312,16 @@ void plcrt_range_publish(struct plcrt_master *m, plcrt_range_t *r, const request
     munlock(m);
 }
 
+/* A request that is not sent (its unit id, address or length word is out of range): an error of
+ * its device, and a transport error EINVAL for the range's status. */
+static int not_sent(struct plcrt_master *m, plcrt_device_t *d)
+{
+    mlock(m);
+    d->n_errors++;
+    munlock(m);
+    return STATUS_TRANSPORT(EINVAL);
+}
+
 static void step(plcrt_t *rt, struct plcrt_master *m, uint64_t now, int writes_only)
 {
     request_t *q = &m->q; /* large: not on the stack */
@@ -396,28 +406,19 @@ static void step(plcrt_t *rt, struct plcrt_master *m, uint64_t now, int writes_o
         int status;
         if (q->unit < 0 || q->unit > 255) {
             /* unit_id = %QWn held a value that is no unit id: the request is not sent */
-            mlock(m);
-            d->n_errors++;
-            munlock(m);
+            status = not_sent(m, d);
             plcrt_dev_log(rt, d, LOG_UNIT, now, "device %s: unit id %d from %%QW%d out of range (0..255): request of range %s not sent",
                         d->name, q->unit, d->unit_word, r->name);
-            status = STATUS_TRANSPORT(EINVAL);
         } else if (q->addr + q->count > 65536 && q->count <= r->size) {
             /* the address word puts the request past Modbus address 65535: not sent */
-            mlock(m);
-            d->n_errors++;
-            munlock(m);
+            status = not_sent(m, d);
             plcrt_dev_log(rt, d, LOG_LENGTH, now, "range %s: address %d + %d registers runs past 65535",
                         r->name, q->addr, q->count);
-            status = STATUS_TRANSPORT(EINVAL);
         } else if (q->count < 1 || q->count > r->size) {
             /* the length word asks for more than the range has */
-            mlock(m);
-            d->n_errors++;
-            munlock(m);
+            status = not_sent(m, d);
             plcrt_dev_log(rt, d, LOG_LENGTH, now, "range %s: length word %%QW%d = %d is outside 1..%d",
                         r->name, r->length, q->count, r->size);
-            status = STATUS_TRANSPORT(EINVAL);
         } else if (line) {
             /* on the wire from now on; the answer comes in a later step */
             if (plcrt_line_start(rt, m, line, r, q, now, pair) == 0) {

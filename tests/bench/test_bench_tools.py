@@ -8,6 +8,7 @@ import pytest
 REPO = Path(__file__).resolve().parents[2]
 BUILD = REPO / "build" / "bench"
 from mipbench import common, goodput, scan_cost, translator
+from plcharness.procs import free_port
 
 
 def test_model_at_no_loss_is_the_bound():
@@ -39,7 +40,7 @@ def test_c_tools_bad_arguments(prog, args):
 
 
 def test_mb_client_connection_refused():
-    port = common.free_port()      # nobody listens there
+    port = free_port()      # nobody listens there
     p = subprocess.run([BUILD / "mb_client", "127.0.0.1", str(port), "1", "0", "125", "10"],
                        capture_output=True, text=True, timeout=10)
     assert p.returncode == 1 and "connect" in p.stderr and len(p.stderr.strip().splitlines()) == 1

@@ -1,7 +1,6 @@
 """The CI matrix in co-simulation: the example programs (plc/) and the emulator core in one
 process, lockstep virtual time. Every case asserts exact delivery (mipcosim.check)."""
 import itertools
-import sys
 from pathlib import Path
 
 import pytest

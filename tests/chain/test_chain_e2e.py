@@ -2,7 +2,6 @@
 outstation PLC (plc/outstation_soe.st) -> radio -> central PLC (plc/central_soe.st) -> the SCADA
 stand-in, one virtual time. Every relay event must reach the SCADA once, in order, with its
 time stamp and value, and the relay's recorder must be empty at the end."""
-import sys
 from pathlib import Path
 
 import pytest
@@ -13,7 +12,6 @@ from mipcosim.sim import MS, SEC
 from plcharness.build import build_program, matiec_available
 
 REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO / "peers"))
 
 
 def run_chain(workdir, events, loss, faults=(), retain=True, ack_on_receipt=False, seed=1,

@@ -10,7 +10,6 @@ seconds and milliseconds (mipprograms.common: ms_to_time). These tests check
   where iec2c is installed, under matiec (stock OpenPLC made 737 with the old expression).
 """
 import re
-import sys
 from pathlib import Path
 
 import pytest
@@ -22,7 +21,7 @@ from mipcosim.check import check
 from mipcosim.sim import MS, SEC, Chain, Setup
 
 REPO = Path(__file__).resolve().parents[2]
-from mipprograms.common import ms_to_time, s_to_time
+from mipprograms.common import config, ms_to_time, s_to_time
 
 INT_MAX = 2**31 - 1
 WORD_MAX = 65535
@@ -121,13 +120,7 @@ END_VAR
 tMs := {ms};
 tS := {s};
 END_PROGRAM
-CONFIGURATION Config0
-  RESOURCE Res0 ON PLC
-    TASK tMain(INTERVAL := T#10ms, PRIORITY := 0);
-    PROGRAM p0 WITH tMain : Probe;
-  END_RESOURCE
-END_CONFIGURATION
-"""
+""" + config("Probe", "p0")
 
 
 def test_generated_time_expressions_give_the_time_under_stc(tmp_path):

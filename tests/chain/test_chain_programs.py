@@ -1,7 +1,6 @@
 """The example programs: generated files up to date, compile with matiec too (where
 installed), and the committed runtime configs load."""
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest

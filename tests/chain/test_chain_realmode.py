@@ -64,9 +64,10 @@ def test_chain_demo_of_one_or_two_records_claims_no_lost_record_2_and_times_the_
     """A transfer of 2 records is numbered 1, 16#FFFF on the radio, so the default scripted
     loss of record 2 cannot fire: the banner says so (it said "record 2 lost once", then
     "radio lost 0 telegrams"), in the singular for 1 record; and seconds= is the read-out,
-    not the build of the programs before it (a cold build here)."""
-    env = dict(os.environ, PLCRT_CACHE="off")
+    not the build of the programs before it (a cold build for 1 record: one cold build is
+    enough to tell the two apart, and each takes 20 s)."""
     for n in (1, 2):
+        env = dict(os.environ, PLCRT_CACHE="off") if n == 1 else dict(os.environ)
         start = time.monotonic()
         p = subprocess.Popen([sys.executable, str(REPO / "plc" / "demo.py"), "--rundir",
                               str(tmp_path / f"run{n}"), "--records", str(n)],
@@ -85,7 +86,8 @@ def test_chain_demo_of_one_or_two_records_claims_no_lost_record_2_and_times_the_
         assert "there is no record 2" in banner, banner
         assert "demo: radio lost 0 telegrams" in text
         seconds = float(text.strip().splitlines()[-1].rsplit("seconds=", 1)[1])
-        assert built - start > 2, "the build was not cold: the check below cannot tell"
+        if n == 1:
+            assert built - start > 2, "the build was not cold: the check below cannot tell"
         assert seconds <= end - built + 0.5, (seconds, built - start, end - built)
 
 

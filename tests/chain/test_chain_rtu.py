@@ -2,12 +2,12 @@
 a pty of the emulator; the trace shows the requests came over RTU (the outstation's unit id 1 on
 its TRM line, the central's station unit ids on the MDP line) and the data arrive register for
 register (the demo's own check)."""
-import json
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+from mipcosim.trace import read_trace
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -54,7 +54,7 @@ def check(p, tmp_path, records, stations=1):
     last = p.stdout.strip().splitlines()[-1]
     assert last.startswith(f"result: ok records={records * stations} "), last
     assert "PLCs on Modbus RTU at" in p.stdout
-    trace = [json.loads(l) for l in (tmp_path / "run" / "emulator-trace.jsonl").read_text().splitlines()]
+    trace = read_trace(tmp_path / "run" / "emulator-trace.jsonl")
     modbus = [e for e in trace if e["ev"] == "modbus"]
     assert {e["ep"] for e in modbus} == {"mdp", "trm"}
     assert all(e["exc"] == 0 for e in modbus), [e for e in modbus if e["exc"]][:3]
@@ -87,7 +87,6 @@ def test_chain_demo_rejects_a_bad_link(tmp_path):
 
 # ---------------------------------------------------------------- co-simulation (virtual time)
 
-sys.path.insert(0, str(REPO / "cosim"))
 from mipcosim.check import check as cosim_check, summary  # noqa: E402
 from mipcosim.sim import MS, SEC, Chain, Radio, Setup  # noqa: E402
 from mipcosim.cli import link_timeout_ms  # noqa: E402
@@ -131,7 +130,7 @@ def test_chain_cosim_rtu_line_time_is_paid_in_virtual_time(tmp_path, baud):
         assert ch.run_to_end(300 * SEC)
     c = 11 / baud * 1e9
     gap = 3.5 * c
-    trm = [json.loads(l) for l in trace.read_text().splitlines()]
+    trm = read_trace(trace)
     trm = [e for e in trm if e["ev"] == "modbus" and e["ep"] == "trm"]
     assert len(trm) > 10
     writes = 0
@@ -175,7 +174,7 @@ def test_chain_cosim_status_first_exact_delivery(tmp_path, baud, bidi, loss):
         tot = summary(reps)
     assert [p for r in reps for p in r.problems] == []
     assert tot["lost"] == 0
-    reads = [e for e in map(json.loads, trace.read_text().splitlines())
+    reads = [e for e in read_trace(trace)
              if e["ev"] == "modbus" and e["fc"] == 3]
     status_only = sum(1 for e in reads if e["rq"] == 2)
     assert status_only > len(reads) / 2, (status_only, len(reads))
@@ -194,7 +193,7 @@ def test_chain_cosim_rtu_records_follow_their_ack_reads(tmp_path):
         reps = cosim_check(ch)
         tot = summary(reps)
     assert [p for r in reps for p in r.problems] == [] and tot["records"] == 8
-    ev = [json.loads(l) for l in trace.read_text().splitlines()]
+    ev = read_trace(trace)
     assert records_follow_their_ack_reads(ev) == 7
     reads = [e for e in ev if e["ev"] == "modbus" and e["ep"] == "trm" and e["fc"] == 3]
     # every acknowledgement came in a 3-register status read but those of 3 registers (P24:
@@ -216,7 +215,7 @@ def test_chain_cosim_fc23_exact_delivery(tmp_path, status_first):
         tot = summary(reps)
     assert [p for r in reps for p in r.problems] == []
     assert tot["lost"] == 0 and tot["records"] == 10
-    fc23 = [e for e in map(json.loads, trace.read_text().splitlines())
+    fc23 = [e for e in read_trace(trace)
             if e["ev"] == "modbus" and e["fc"] == 23]
     assert len(fc23) >= 5
     assert all(e["exc"] == 0 and e["wa"] in (10, 2001) and e["ra"] in (198, 2198) for e in fc23)

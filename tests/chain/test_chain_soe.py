@@ -3,21 +3,20 @@ the program below reads 26 registers at 40601 and writes SOE_Control, as an outs
 next to a relay would (docs/chain.md "The reader"). Against the C relay in the co-simulation
 (the runtime's in-process transport, virtual time) and, in real time, against
 `mip-emulator --relay` over Modbus TCP."""
-import socket
 import subprocess
-import sys
-import time
 from pathlib import Path
 
 import pytest
 
 from mipcosim.layout import lib_sources
 from mipcosim.relay import Relay, RelayKernel
+from miptest.soe import Entry, expected, script
+from mipprograms.common import config as st_config
 from plcharness import Plc
+from plcharness.config import Config
+from plcharness.procs import free_port, wait_port
 
 REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO / "tests" / "st_lib"))
-from soe_bench import Entry, expected, script  # noqa: E402
 
 ORIGIN = 1767225600000
 LOG = 64            # entries the program's log holds
@@ -65,51 +64,20 @@ wrTrig := rdr.xWriteReq;
 wrLen := 1;
 wrVal := rdr.wWriteValue;
 END_PROGRAM
-
-CONFIGURATION Config0
-  RESOURCE Res0 ON PLC
-    TASK tMain(INTERVAL := T#10ms, PRIORITY := 0);
-    PROGRAM inst0 WITH tMain : MAIN;
-  END_RESOURCE
-END_CONFIGURATION
-"""
+""" + st_config("MAIN", "inst0")
 
 
 def config(port):
     """plcrt config: device `relay`, SOE_Control written with FC16 of one register at 40602,
     the 26 registers read at 40601 (PDU addresses 601, 600)."""
-    return f"""[master]
-timeout = 500ms
-reconnect_min = 100ms
-reconnect_max = 1s
-
-[device relay]
-host = 127.0.0.1
-port = {port}
-unit_id = 1
-
-[write soe_control]
-device = relay
-start = 601
-size = 1
-image = %QW100
-policy = trigger
-trigger = %QX0.1
-done = %IX0.2
-error = %IX0.3
-length = %QW1
-
-[read soe]
-device = relay
-start = 600
-size = 26
-image = %IW100
-policy = trigger
-trigger = %QX0.0
-done = %IX0.0
-error = %IX0.1
-status = %IW10
-"""
+    cfg = Config()
+    cfg.add("master", timeout="500ms", reconnect_min="100ms", reconnect_max="1s")
+    cfg.add("device", "relay", host="127.0.0.1", port=port, unit_id=1)
+    cfg.add("write", "soe_control", device="relay", start=601, size=1, image="%QW100",
+            policy="trigger", trigger="%QX0.1", done="%IX0.2", error="%IX0.3", length="%QW1")
+    cfg.add("read", "soe", device="relay", start=600, size=26, image="%IW100", policy="trigger",
+            trigger="%QX0.0", done="%IX0.0", error="%IX0.1", status="%IW10")
+    return cfg.text()
 
 
 def build(tmp_path, port):
@@ -159,12 +127,6 @@ def test_generated_events_follow_virtual_time(tmp_path):
     assert [e.value for e in log] == list(range(1, len(log) + 1))   # docs/chain.md: value n + 1
 
 
-def free_port():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 @pytest.mark.slow
 def test_soe_reader_in_real_time_against_mip_emulator_relay(tmp_path):
     """The runtime in real time, Modbus TCP to `mip-emulator --relay` (its wall clock)."""
@@ -177,13 +139,7 @@ def test_soe_reader_in_real_time_against_mip_emulator_relay(tmp_path):
                             f"{port}:origin={ORIGIN},script={scr}"],
                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
-        deadline = time.monotonic() + 5
-        while time.monotonic() < deadline:
-            try:
-                socket.create_connection(("127.0.0.1", port), timeout=0.2).close()
-                break
-            except OSError:
-                time.sleep(0.05)
+        wait_port(port, timeout=5)
         plc = build(tmp_path, port)
         plc.run_realtime(200)        # 2 s
         got = logged(plc)

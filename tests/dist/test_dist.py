@@ -11,6 +11,7 @@ import zipfile
 from pathlib import Path
 
 import pytest
+from mipprograms.common import config
 from plcharness import Plc
 
 REPO = Path(__file__).resolve().parents[2]
@@ -30,13 +31,7 @@ udiMajor := MIP_Version(1);
 udiMinor := MIP_Version(2);
 udiPatch := MIP_Version(3);
 END_PROGRAM
-CONFIGURATION Config0
-  RESOURCE Res0 ON PLC
-    TASK tMain(INTERVAL := T#10ms, PRIORITY := 0);
-    PROGRAM p0 WITH tMain : Probe;
-  END_RESOURCE
-END_CONFIGURATION
-"""
+""" + config("Probe", "p0")
 
 
 def mkdist(*args, cwd=REPO):
@@ -211,8 +206,7 @@ def test_missing_version_constant_is_one_line_with_the_file(tmp_path):
 def test_a_function_called_in_a_body_is_imported_before_its_caller(tmp_path):
     """The import order (docs/blocks.md, the archive, the one-file library) also follows
     FUNCTION calls, not only declared types: matiec reads one file front to back."""
-    sys.path.insert(0, str(REPO / "dist"))
-    import mkdist
+    from mipdist import mkdist as mkdist_module
     (tmp_path / "st_lib").mkdir()
     (tmp_path / "st_lib" / "A_User.st").write_text(
         "FUNCTION_BLOCK A_User\nVAR_OUTPUT x : UDINT; END_VAR\nx := Z_Helper(1);\n"
@@ -220,7 +214,7 @@ def test_a_function_called_in_a_body_is_imported_before_its_caller(tmp_path):
     (tmp_path / "st_lib" / "Z_Helper.st").write_text(
         "FUNCTION Z_Helper : UDINT\nVAR_INPUT u : UINT; END_VAR\nZ_Helper := UINT_TO_UDINT(u);\n"
         "END_FUNCTION\n")
-    order, _ = mkdist.import_order(tmp_path)
+    order, _ = mkdist_module.import_order(tmp_path)
     assert order == ["st_lib/Z_Helper.st", "st_lib/A_User.st"]
 
 

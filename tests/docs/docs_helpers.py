@@ -22,3 +22,11 @@ def tool(name, *args, cwd=REPO):
 
 def rel(paths):
     return [str(Path(p).relative_to(REPO)) for p in paths]
+
+
+def refused(name, *args, cwd=REPO):
+    """Runs docs/tools/<name>.py on input it must refuse: exit 1; returns the CompletedProcess
+    (the caller checks its one line)."""
+    r = tool(name, *args, cwd=cwd)
+    assert r.returncode == 1, r.stderr
+    return r

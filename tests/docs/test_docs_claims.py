@@ -6,14 +6,11 @@ from __future__ import annotations
 
 import re
 import subprocess
-import sys
 
 import pytest
+from mipdist import mkdist
 
 from docs_helpers import REPO
-
-sys.path.insert(0, str(REPO / "dist"))
-import mkdist  # noqa: E402
 
 NUMBERS = {w: i for i, w in enumerate("zero one two three four five six seven eight nine ten "
                                       "eleven twelve".split())}
@@ -57,7 +54,7 @@ def tracked_top_folders():
     if out.returncode != 0:
         pytest.skip(f"not a git checkout (git ls-files: {out.stderr.strip()[:80]})")
     return {p.split("/")[0] for p in out.stdout.splitlines()
-            if "/" in p and not p.startswith(".")}
+            if "/" in p and not p.startswith(".git")}
 
 
 # ----------------------------------------------------------------------- lists of what exists
@@ -200,8 +197,8 @@ def test_kit_openplc_configs_get_no_address_check(tmp_path):
     cfg = tmp_path / "mbconfig.cfg"
     cfg.write_text((REPO / "plc" / "openplc" / "central-mbconfig.cfg").read_text())
     conf = tmp_path / "plcrt.conf"
-    conf.write_text("[device mdp]\nhost = 127.0.0.1\nport = 1502\n[read]\ndevice = mdp\n"
-                    "address = 198\nsize = 125\nimage = %IW100\ntrigger = %QX1.0\n")
+    conf.write_text("[device mdp]\nhost = 127.0.0.1\nport = 1502\n[read up]\ndevice = mdp\ntable = holding\n"
+                    "start = 198\nsize = 125\nimage = %IW100\ntrigger = %QX1.0\n")
     build = SimpleNamespace(outdir=tmp_path / "build")
     with pytest.raises(Exception, match="the program declares none of %IW100"):
         check_config(build, conf)          # the check works on a plcrt config ...

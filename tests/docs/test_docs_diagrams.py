@@ -2,10 +2,10 @@
 up to date; the generators are deterministic and reject bad input with one line."""
 import json
 
-import pytest
 from lxml import etree
+from mipcosim.trace import read_trace
 
-from docs_helpers import REPO, tool
+from docs_helpers import REPO, refused, tool
 
 IMG = REPO / "docs" / "img"
 TRACES = REPO / "docs" / "traces"
@@ -36,17 +36,8 @@ def svg_texts(path):
     return [t.text for t in root.iter("{http://www.w3.org/2000/svg}text")]
 
 
-@pytest.fixture(scope="module")
-def fresh(tmp_path_factory):
-    """The diagrams as the code draws them now (docs/img/ may wait for `make docs-diagrams`)."""
-    out = tmp_path_factory.mktemp("seq")
-    r = tool("mkdiagrams", "--outdir", out)
-    assert r.returncode == 0, r.stderr
-    return out
-
-
-def test_note_diagram_shows_the_lost_record_and_the_repeated_request(fresh):
-    texts = svg_texts(fresh / "seq-note-2-1-1.svg")
+def test_note_diagram_shows_the_lost_record_and_the_repeated_request(diagrams):
+    texts = svg_texts(diagrams / "seq-note-2-1-1.svg")
     assert "answer: record 2 (123 regs): LOST" in texts
     # the central asks again with the old acknowledgement, as in the note
     assert texts.count("write ack 1 (3 regs)") >= 2   # [ack, 16#4D50, check] (P8)
@@ -57,8 +48,8 @@ def test_note_diagram_shows_the_lost_record_and_the_repeated_request(fresh):
     assert "xDone: last record acknowledged" in texts
 
 
-def test_restart_diagram_shows_record_1_again_and_the_receiver_error(fresh):
-    texts = svg_texts(fresh / "seq-restart.svg")
+def test_restart_diagram_shows_record_1_again_and_the_receiver_error(diagrams):
+    texts = svg_texts(diagrams / "seq-restart.svg")
     assert "PLC restarted" in texts
     i = texts.index("PLC restarted")
     # the restarted sender opens with record 1 at once (P6); the central reports the open
@@ -76,14 +67,14 @@ def texts_by_row(path):
     return [s for _, _, s in sorted(els)]
 
 
-def test_pipelined_diagrams_show_the_writes_ahead_and_the_go_back(fresh):
-    texts = texts_by_row(fresh / "seq-pipelined.svg")
+def test_pipelined_diagrams_show_the_writes_ahead_and_the_go_back(diagrams):
+    texts = texts_by_row(diagrams / "seq-pipelined.svg")
     # record 4 goes up in the answer to the poll that brings acknowledgement 3 down
     i = texts.index("poll: ack 3 (1 reg)")
     assert next(t for t in texts[i:] if t.startswith("answer:")) == "answer: record 4 (123 regs)"
     assert texts.index("write record 4 (123 regs), before ack 3") < i
     assert "write record 2 (123 regs)" in texts and "write record 65535 (123 regs)" in texts
-    texts = texts_by_row(fresh / "seq-pipelined-slow-central.svg")
+    texts = texts_by_row(diagrams / "seq-pipelined-slow-central.svg")
     assert texts.index("record 5 ignored: not the next one (4)") < texts.index(
         "no ack within tTimeout: back to record 4, window closed")
     i = texts.index("no ack within tTimeout: back to record 4, window closed")
@@ -95,8 +86,7 @@ def test_pipelined_diagrams_show_the_writes_ahead_and_the_go_back(fresh):
 def test_a_trace_line_that_is_not_json_is_reported_with_its_line(tmp_path):
     bad = tmp_path / "t.jsonl"
     bad.write_text('{"t":0,"seq":0,"ev":"modbus"}\nnot json\n')
-    r = tool("seqdiag", bad, "-o", tmp_path / "o.svg")
-    assert r.returncode == 1
+    r = refused("seqdiag", bad, "-o", tmp_path / "o.svg")
     assert r.stderr.startswith(f"{bad}:2:1: error: not a JSON line")
     assert "Traceback" not in r.stderr
 
@@ -104,7 +94,7 @@ def test_a_trace_line_that_is_not_json_is_reported_with_its_line(tmp_path):
 def test_an_emulator_server_trace_renders(tmp_path):
     """A trace without the chain's "plc" lines (as mip-emulator --trace writes it) still gives
     a diagram: writes labelled by their first register, blocks by r0."""
-    lines = [json.loads(x) for x in (TRACES / "note-2-1-1.jsonl").read_text().splitlines()]
+    lines = read_trace(TRACES / "note-2-1-1.jsonl")
     plain = tmp_path / "server.jsonl"
     plain.write_text("".join(json.dumps(d) + "\n" for d in lines if d["ev"] != "plc"))
     r = tool("seqdiag", plain, "-o", tmp_path / "o.svg")
@@ -125,8 +115,7 @@ def test_throughput_plot_is_up_to_date(tmp_path):
 def test_plot_rejects_a_file_that_is_not_throughput_data(tmp_path):
     bad = tmp_path / "d.json"
     bad.write_text('{"series": {"x": [{"loss": "a lot"}]}}')
-    r = tool("lossplot", bad, "-o", tmp_path / "p.svg")
-    assert r.returncode == 1
+    r = refused("lossplot", bad, "-o", tmp_path / "p.svg")
     assert r.stderr.startswith(f"lossplot: error: {bad}: not a throughput data file")
     assert len(r.stderr.strip().splitlines()) == 1
 
@@ -134,6 +123,5 @@ def test_plot_rejects_a_file_that_is_not_throughput_data(tmp_path):
 def test_a_trace_line_with_a_bad_time_is_reported(tmp_path):
     bad = tmp_path / "t.jsonl"
     bad.write_text('{"t":"soon","seq":0,"ev":"radio"}\n')
-    r = tool("seqdiag", bad, "-o", tmp_path / "o.svg")
-    assert r.returncode == 1
+    r = refused("seqdiag", bad, "-o", tmp_path / "o.svg")
     assert r.stderr.strip() == f'{bad}:1:1: error: "t" must be a non-negative integer (ns)'

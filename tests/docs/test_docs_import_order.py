@@ -6,15 +6,12 @@ from __future__ import annotations
 import os
 import re
 import subprocess
-import sys
 
 import pytest
+from mipdist import mkdist
 
 from docs_helpers import PY, REPO
 from test_docs_commands import PAGES, rel
-
-sys.path.insert(0, str(REPO / "dist"))
-import mkdist  # noqa: E402
 
 FILE = re.compile(r"\bMIP_\w+\.st\b")
 LISTED = re.compile(r"^\s*\d+\.\s+`(st_lib/MIP_\w+\.st)`", re.M)

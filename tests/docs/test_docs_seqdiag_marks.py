@@ -14,14 +14,6 @@ NAMES = ["note-2-1-1", "bidirectional", "restart", "static-openplc", "pipelined"
          "pipelined-slow-central"]
 
 
-@pytest.fixture(scope="module")
-def diagrams(tmp_path_factory):
-    out = tmp_path_factory.mktemp("seq")
-    r = tool("mkdiagrams", "--outdir", out)
-    assert r.returncode == 0, r.stderr
-    return out
-
-
 def parse(path):
     root = etree.parse(str(path)).getroot()
     texts = [(t.text, float(t.get("x")), float(t.get("y")), t.get("fill"), t.get("text-anchor"),

@@ -4,6 +4,7 @@ always show what the code does; and the scenarios must show what the guide says 
 import json
 
 import pytest
+from mipcosim.trace import read_trace
 
 from docs_helpers import KERNEL_SO, REPO, tool
 
@@ -31,7 +32,7 @@ def test_trace_is_what_the_code_does_now(fresh, name):
 
 
 def load(name):
-    return [json.loads(x) for x in (TRACES / f"{name}.jsonl").read_text().splitlines()]
+    return read_trace(TRACES / f"{name}.jsonl")
 
 
 def test_trace_is_ordered_and_numbered():

@@ -1,13 +1,11 @@
 """The SIPROTEC event recorder of mip-emulator (--relay) for tests, and a Modbus master doing the
 SOE_Control handshake through pymodbus. Facts and our choices: docs/chain.md, "The relay"."""
-import re
-import signal
-import subprocess
 import time
 
+from plcharness.procs import NotReady, Server
 from pymodbus.client import ModbusTcpClient
 
-from emu_support import BINARY
+from miptest.emu import BINARY
 
 BASE = 600                  # PDU address of register 40601 (our default base)
 ORIGIN_MS = 1767225600000   # 2026-01-01T00:00:00Z: the time stamp of the relay's time 0
@@ -19,30 +17,20 @@ def write_script(path, events):
     return path
 
 
-class RelayServer:
+class RelayServer(Server):
     def __init__(self, opts="", args=()):
         spec = "0:origin=%d" % ORIGIN_MS + ("," + opts if opts else "")
         cmd = [str(BINARY), "--mdp-port", "0", "--trm-base-port", "0", "--relay", spec, *args]
-        self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        line = self.proc.stdout.readline()
-        m = re.search(r" relay=(\d+)$", line.strip())
-        if not m:
-            self.proc.kill()
-            raise RuntimeError(f"relay did not start: {line!r} {self.proc.stderr.read()!r}")
-        self.port = int(m.group(1))
+        try:
+            super().__init__(cmd, r" relay=(\d+)$", timeout=30)
+        except NotReady as e:
+            raise RuntimeError(f"relay did not start: {e}") from None
+        self.port = int(self.match.group(1))
         self.started = time.monotonic()   # the relay's time 0 is a little after this
 
     def sleep_past(self, seconds, margin=0.3):
         """Waits until the relay's clock is surely past `seconds` (scripted events happened)."""
         time.sleep(max(0.0, self.started + seconds + margin - time.monotonic()))
-
-    def stop(self):
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGTERM)
-            self.proc.wait(timeout=10)
-        self.proc.stdout.close()
-        self.proc.stderr.close()
-        return self.proc.returncode
 
 
 def exc(r):

@@ -5,7 +5,7 @@ import subprocess
 
 import pytest
 
-from emu_support import FAST, Emulator, wait_until
+from miptest.emu import FAST, Emulator, wait_until
 
 MBPOLL = shutil.which("mbpoll")
 pytestmark = pytest.mark.skipif(MBPOLL is None, reason="mbpoll is not installed (Debian package mbpoll)")

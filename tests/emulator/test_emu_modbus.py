@@ -2,7 +2,7 @@
 import pytest
 from pymodbus.client import ModbusTcpClient
 
-from emu_support import FAST, Emulator, wait_until
+from miptest.emu import FAST, Emulator, wait_until
 
 STATIONS = 3
 

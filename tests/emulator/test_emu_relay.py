@@ -2,11 +2,10 @@
 the SOE_Control handshake: what a master sees, as docs/chain.md "The relay" describes it."""
 import socket
 import struct
-import subprocess
 
 import pytest
 
-from emu_support import BINARY, connect, wait_until
+from miptest.emu import connect, run_cli, wait_until
 from relay_support import BASE, ORIGIN_MS, Master, RelayServer, exc, write_script
 
 EVENTS = [(k / 1000, 0x0102, 100 + k, 0x0101, k) for k in range(1, 8)]  # 7 events at k ms
@@ -167,7 +166,7 @@ def test_generated_events_at_a_rate():
     ("0:script=/nonexistent/x", "script=/nonexistent/x"),
 ])
 def test_bad_relay_options_one_line(spec, msg):
-    p = subprocess.run([str(BINARY), "--relay", spec], capture_output=True, text=True, timeout=10)
+    p = run_cli("--relay", spec)
     assert p.returncode == 2
     lines = p.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("mip-emulator: error:") and msg in lines[0], p.stderr

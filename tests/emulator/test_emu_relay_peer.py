@@ -9,6 +9,15 @@ from relay_support import ORIGIN_MS, Master, RelayServer, exc, write_script
 EVENTS = [(k / 1000, 0x0100 | k, 200 + k, 0x0201 if k % 2 else 0x0102, 1000 * k) for k in range(1, 10)]
 
 
+def run_master(port, base, scenario):
+    """scenario(master) against the relay at port, the master closed after it."""
+    m = Master(port, base=base)
+    try:
+        return scenario(m)
+    finally:
+        m.close()
+
+
 def scenario(m):
     """A master that does everything once: reads, repeats, partial and wrong acknowledgements,
     write to read-only registers, FC16 acknowledgement, reset list. -> what it saw."""
@@ -48,11 +57,7 @@ def test_emulator_and_independent_relay_answer_alike(tmp_path, opts):
     emu = RelayServer(f"script={script}" + ("," + opts if opts else ""))
     try:
         emu.sleep_past(max(e[0] for e in EVENTS))
-        m = Master(emu.port, base=base)
-        try:
-            ours = scenario(m)
-        finally:
-            m.close()
+        ours = run_master(emu.port, base, scenario)
     finally:
         assert emu.stop() == 0
 
@@ -65,11 +70,7 @@ def test_emulator_and_independent_relay_answer_alike(tmp_path, opts):
     rec.advance(1.0)
     peer = PeerServer(rec).start()
     try:
-        m = Master(peer.port, base=base)
-        try:
-            theirs = scenario(m)
-        finally:
-            m.close()
+        theirs = run_master(peer.port, base, scenario)
     finally:
         peer.shutdown()
         peer.server_close()

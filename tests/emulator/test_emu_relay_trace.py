@@ -5,13 +5,15 @@ docs/view.md)."""
 import json
 import time
 
+from mipcosim.trace import read_trace
+
 from relay_support import BASE, Master, RelayServer, write_script
 
 EVENTS = [(k / 1000, 0x0102, 100 + k, 0x0101, k) for k in range(1, 5)]  # 4 events at k ms
 
 
 def lines(path):
-    return [json.loads(x) for x in path.read_text().splitlines()]
+    return read_trace(path)
 
 
 def test_reads_and_acknowledgements_of_the_relay_are_traced_on_the_trace_clock(tmp_path):

@@ -8,8 +8,8 @@ import time
 
 import pytest
 
-from emu_support import BINARY, FAST, Emulator, connect, tcp_read
-from rtu_support import RtuLine, char_s, check_frame, crc16, fc3, fc16, frame
+from miptest.emu import BINARY, FAST, Emulator, connect, run_cli, tcp_read
+from miptest.rtu import RtuLine, char_s, check_frame, crc16, fc3, fc16, frame
 
 
 class RtuEmulator(Emulator):
@@ -163,7 +163,7 @@ def test_rtu_only_without_tcp(tmp_path):
     ("pty=modem", "device 'modem' is not 'mdp' or 'trmS@UNIT'"),
 ])
 def test_rtu_bad_specs_are_one_line(spec, msg):
-    p = subprocess.run([str(BINARY), "--rtu", spec], capture_output=True, text=True, timeout=10)
+    p = run_cli("--rtu", spec)
     assert p.returncode == 2
     assert p.stderr.count("\n") == 1 and msg in p.stderr, p.stderr
 

@@ -8,7 +8,7 @@ import subprocess
 
 import pytest
 
-from emu_support import BINARY, FAST, Emulator
+from miptest.emu import BINARY, FAST, Emulator
 
 
 @pytest.mark.parametrize("args,msg", [

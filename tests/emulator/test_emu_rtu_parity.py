@@ -10,8 +10,8 @@ import time
 
 import pytest
 
-from emu_support import BINARY
-from rtu_support import check_frame, fc3, frame
+from miptest.emu import BINARY
+from miptest.rtu import check_frame, fc3, frame
 
 serial = pytest.importorskip("serial", reason="pyserial is pinned in requirements.txt")
 

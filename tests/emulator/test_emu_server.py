@@ -1,7 +1,6 @@
 """The server front: framing, pipelining, malformed frames, many clients, CLI, trace file.
 
 Raw sockets here only where a conformant client cannot produce the bytes."""
-import json
 import resource
 import socket
 import struct
@@ -10,8 +9,8 @@ import subprocess
 import pytest
 from pymodbus.client import ModbusTcpClient
 
-from emu_support import (BINARY, FAST, Emulator, closed_by_peer, connect, frame, recv_frame,
-                         wait_until)
+from miptest.emu import (BINARY, FAST, Emulator, closed_by_peer, connect, frame, recv_frame,
+                         run_cli, wait_until)
 
 
 @pytest.fixture
@@ -268,10 +267,6 @@ def test_trace_file_lines(tmp_path):
 
 
 # ---- CLI ----
-
-def run_cli(*args):
-    return subprocess.run([str(BINARY), *map(str, args)], capture_output=True, text=True, timeout=10)
-
 
 def test_help_documents_every_option():
     r = run_cli("--help")

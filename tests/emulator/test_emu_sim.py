@@ -5,7 +5,7 @@ import subprocess
 
 import pytest
 
-from emu_support import ROOT
+from miptest.emu import ROOT
 
 SIM = ROOT / "build" / "emulator" / "mipemu-sim"
 

@@ -1,13 +1,9 @@
 import json
-import sys
 from pathlib import Path
 
 import pytest
 
 REPO = Path(__file__).resolve().parents[2]
-for p in (REPO / "interop", REPO / "cosim", REPO / "peers"):
-    if str(p) not in sys.path:
-        sys.path.insert(0, str(p))   # also before `make venv` installed them
 
 RESULTS = REPO / "build" / "interop" / "pytest-matrix.json"
 

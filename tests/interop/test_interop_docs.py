@@ -1,7 +1,6 @@
 """The interop table in docs/protocol.md: generated from the committed results of a matrix run
 (interop/results.json), complete (every cell of the matrix) and well-formed; the generator
 touches nothing outside its markers and fails with one line where it cannot work."""
-import itertools
 import json
 import re
 import subprocess

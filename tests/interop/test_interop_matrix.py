@@ -10,11 +10,11 @@ Also here: the same seed gives the same cell (result and emulator trace, byte fo
 side of a restart goes on in virtual time while the other is down, and one cell of the
 real-time run (--realtime) still works.
 """
-import json
 import time
 from dataclasses import asdict
 
 import pytest
+from mipcosim.trace import read_trace
 
 from mipcosim.kernel import SEC
 from mipinterop import kernel
@@ -60,7 +60,7 @@ def test_same_seed_same_cell(key, progs, tmp_path):
 
 
 def _requests(trace, ep):
-    return [e["t"] for e in map(json.loads, trace.read_text().splitlines())
+    return [e["t"] for e in read_trace(trace)
             if e.get("ev") == "modbus" and e.get("ep") == ep]
 
 

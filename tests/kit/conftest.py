@@ -1,10 +1,6 @@
-import sys
-from pathlib import Path
-
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from kit_helpers import copy_example  # noqa: E402
+from kit_helpers import copy_example
 
 
 @pytest.fixture

@@ -11,8 +11,6 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[2]
 KIT = REPO / "kit"
 EXAMPLE = KIT / "example"
-if str(KIT) not in sys.path:
-    sys.path.insert(0, str(KIT))     # mipkit in process (the repository's venv has the rest)
 BUG = "  IF udiN = 7 THEN aChunk[0] := WORD#17; END_IF;   (* the deliberate bug: record 7 says 17 *)\n"
 
 
@@ -52,6 +50,13 @@ def kit_env(**extra):
 def run(cmd, cwd, env=None, timeout=900):
     return subprocess.run([str(c) for c in cmd], cwd=cwd, env=env or kit_env(),
                           capture_output=True, text=True, timeout=timeout)
+
+
+def kit_pytest(args, cwd, tmp_path):
+    """pytest with the kit's plugin in an integrator's project (cwd), quiet, its temporary
+    files under tmp_path/bt: the CompletedProcess."""
+    return run([sys.executable, "-m", "pytest", "-p", "mipkit.plugin", "-p", "no:cacheprovider", "-q",
+                *args, f"--basetemp={tmp_path / 'bt'}"], cwd, kit_env())
 
 
 def mipkit_cli(args, cwd):

@@ -10,7 +10,7 @@ import re
 
 import pytest
 
-import kit_helpers  # noqa: F401 - puts kit/ on sys.path
+import kit_helpers
 from mipkit.scenario import main
 
 

@@ -5,9 +5,8 @@ the hop where they stopped (relay -> reader -> logger -> sender -> radio -> rece
 hand-over -> control system), not a record of the radio's numbering; a failing test's
 artifacts stay under 200 KB, pytest's temporary folders under 5 MB."""
 import re
-import sys
 
-from kit_helpers import REPO, kit_env, mipkit_cli, run
+from kit_helpers import REPO, kit_pytest, mipkit_cli
 
 MB = 1_000_000
 PAGE = (REPO / "docs" / "test-kit.md").read_text()
@@ -87,8 +86,7 @@ def test_the_plugin_starts_with_the_hop_and_says_what_differs(example, tmp_path)
     report's first line names the logger, the assertion what WinCC OA took; the failing test's
     artifacts stay under 200 KB and pytest's temporary folders under 5 MB."""
     drop_address(example)
-    r = run([sys.executable, "-m", "pytest", "-p", "mipkit.plugin", "-p", "no:cacheprovider", "-q",
-             "-k", "test_every_relay_event", f"--basetemp={tmp_path / 'bt'}"], example, kit_env())
+    r = kit_pytest(["-k", "test_every_relay_event"], example, tmp_path)
     out = r.stdout + r.stderr
     assert r.returncode == 1, out
     head = out[out.index("_ test_every_relay_event_reaches_wincc_once_with_its_time_stamp _"):]

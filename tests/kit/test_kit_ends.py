@@ -6,7 +6,6 @@ from pathlib import Path
 
 import pytest
 
-import kit_helpers  # noqa: F401 - puts kit/ on sys.path
 from mipkit import KitError, Net
 from mipkit.ends import missing
 
@@ -224,11 +223,9 @@ def test_the_plugins_network_has_the_ends(tmp_path):
     """Through the pytest plugin (mip_network), as an integrator's test uses them: green, and a
     stand-in given a device the config lacks fails with its one line."""
     import re
-    import sys
-    from kit_helpers import kit_env, run
+    from kit_helpers import kit_pytest
     (tmp_path / "test_user.py").write_text(PLUGIN_TEST.format(here=HERE))
-    r = run([sys.executable, "-m", "pytest", "-p", "mipkit.plugin", "-p", "no:cacheprovider", "-q",
-             "test_user.py", f"--basetemp={tmp_path / 'bt'}"], tmp_path, kit_env())
+    r = kit_pytest(["test_user.py"], tmp_path, tmp_path)
     out = r.stdout + r.stderr
     assert r.returncode == 1 and "1 passed" in out and "1 failed" in out, out
     m = re.search(r"_+ test_wrong_device _+\n(.*?)\n(?:-|=)", out, re.S)

@@ -6,7 +6,7 @@ import shutil
 
 import pytest
 
-import kit_helpers  # noqa: F401 - puts kit/ on sys.path
+import kit_helpers
 from mipkit.scenario import main
 
 from test_kit_ends import HERE

@@ -9,21 +9,15 @@ from pathlib import Path
 
 import pytest
 
-from kit_helpers import EXAMPLE, KIT, REPO, run
+from kit_helpers import KIT, REPO, run
 from mipcosim import layout as L
+from mipprograms.common import config
 from plcharness.build import matiec_available
 from plcharness.plc import Plc
 
 GLUE = Path(sys.executable).parent / "mip-glue"   # installed by `make venv` (plc/pyproject.toml)
 LIB = [L.ST_LIB / f for f in L.LIB_FILES]
-CONFIG = """
-CONFIGURATION Config0
-  RESOURCE Res0 ON PLC
-    TASK t(INTERVAL := T#10ms, PRIORITY := 0);
-    PROGRAM g WITH t : PROG;
-  END_RESOURCE
-END_CONFIGURATION
-"""
+CONFIG = config("PROG", "g", task="t")
 
 
 def glue(*args, cwd=None):

@@ -17,6 +17,20 @@ import pytest
 
 from kit_helpers import KIT, REPO, break_logger, ci_commands, copy_example
 
+
+def outside_env(kit, base):
+    """The environment of an integrator's machine: MIP_KIT (what the project's CI installs: the
+    kit's folder or its archive), nothing of this checkout, the build cache under base."""
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("PYTHONPATH", "VIRTUAL_ENV", "PYTEST_ADDOPTS", "PYTEST_XDIST_WORKER",
+                        "PLCRT_CACHE", "PLCRT_COMPILER", "PLCRT_SEMANTICS")}
+    # the venv of this checkout must not leak in: only the system's python3 on PATH
+    env["PATH"] = os.pathsep.join(p for p in env.get("PATH", "").split(os.pathsep)
+                                  if not p.startswith(str(REPO)))
+    env["MIP_KIT"] = str(kit)
+    env["XDG_CACHE_HOME"] = str(base / "cache")      # the installed harness's build cache
+    return env
+
 pytestmark = pytest.mark.slow
 
 
@@ -37,14 +51,7 @@ def test_example_project_installs_and_runs_outside_the_checkout(tmp_path_factory
     base = tmp_path_factory.mktemp("integrator")
     assert REPO not in base.parents, "the project must live outside the checkout"
     project = copy_example(base / "project")
-    env = {k: v for k, v in os.environ.items()
-           if k not in ("PYTHONPATH", "VIRTUAL_ENV", "PYTEST_ADDOPTS", "PYTEST_XDIST_WORKER",
-                        "PLCRT_CACHE", "PLCRT_COMPILER", "PLCRT_SEMANTICS")}
-    # the venv of this checkout must not leak in: only the system's python3 on PATH
-    env["PATH"] = os.pathsep.join(p for p in env.get("PATH", "").split(os.pathsep)
-                                  if not p.startswith(str(REPO)))
-    env["MIP_KIT"] = str(KIT)
-    env["XDG_CACHE_HOME"] = str(base / "cache")      # the installed harness's build cache
+    env = outside_env(KIT, base)
     gitlab, github = ci_commands(project)
     assert gitlab == github and len(gitlab) == 4
     for cmd in gitlab:
@@ -98,13 +105,7 @@ def test_kit_installs_from_its_source_archive(tmp_path_factory):
     archive = base / r.stdout.strip().splitlines()[-1]
     assert archive.name.startswith("mip_logger_kit-") and archive.suffixes[-2:] == [".tar", ".gz"]
     project = copy_example(base / "project")
-    env = {k: v for k, v in os.environ.items()
-           if k not in ("PYTHONPATH", "VIRTUAL_ENV", "PYTEST_ADDOPTS", "PYTEST_XDIST_WORKER",
-                        "PLCRT_CACHE", "PLCRT_COMPILER", "PLCRT_SEMANTICS")}
-    env["PATH"] = os.pathsep.join(p for p in env.get("PATH", "").split(os.pathsep)
-                                  if not p.startswith(str(REPO)))
-    env["MIP_KIT"] = str(archive)
-    env["XDG_CACHE_HOME"] = str(base / "cache")
+    env = outside_env(archive, base)
     gitlab, _ = ci_commands(project)
     for cmd in gitlab[:3]:                    # venv, install, the project's tests
         r = sh(cmd, project, env)

@@ -7,8 +7,9 @@ import sys
 import warnings
 
 import pytest
+from mipprograms.common import config
 
-from kit_helpers import EXAMPLE, kit_env, mipkit_cli, run
+from kit_helpers import EXAMPLE, kit_env, kit_pytest, mipkit_cli, run
 from test_kit_quick import SMALL, one_line_failure, scenario
 
 SOURCES = [EXAMPLE / "st" / "FieldLogger.st", EXAMPLE / "st" / "Outstation.st"]
@@ -26,14 +27,7 @@ t := T#1ms * WORD_TO_DINT(n);
 s := TIME_TO_DINT(t);
 END_PROGRAM
 """
-CONFIG = """
-CONFIGURATION Config0
-  RESOURCE Res0 ON PLC
-    TASK tMain(INTERVAL := T#10ms, PRIORITY := 0);
-    PROGRAM p0 WITH tMain : P;
-  END_RESOURCE
-END_CONFIGURATION
-"""
+CONFIG = config("P", "p0")
 
 
 PERIOD = "tLogPeriod := T#1s * (WORD_TO_DINT(pLogPeriod) / 1000) + T#1ms * (WORD_TO_DINT(pLogPeriod) MOD 1000);"
@@ -152,8 +146,7 @@ def test_stc_warnings_once_per_build_in_mip_kit(example):
 
 def test_stc_warnings_in_pytest(example, tmp_path):
     non_portable(example)
-    r = run([sys.executable, "-m", "pytest", "-p", "mipkit.plugin", "-p", "no:cacheprovider", "-q",
-             "-k", "kill9", f"--basetemp={tmp_path / 'bt'}"], example, kit_env())
+    r = kit_pytest(["-k", "kill9"], example, tmp_path)
     out = r.stdout + r.stderr
     assert r.returncode == 0, out
     assert re.search(r"KitWarning: \S+" + WARNING, out), out
@@ -194,9 +187,7 @@ def test_warnings_as_errors_are_one_line_too(example, tmp_path):
     """A project that makes the kit's warnings errors (-W error::mipkit.KitWarning) gets stc's
     portability warning as the test's one-line failure."""
     non_portable(example)
-    r = run([sys.executable, "-m", "pytest", "-p", "mipkit.plugin", "-p", "no:cacheprovider", "-q",
-             "-k", "kill9", "-W", "error::mipkit.KitWarning", f"--basetemp={tmp_path / 'bt'}"],
-            example, kit_env())
+    r = kit_pytest(["-k", "kill9", "-W", "error::mipkit.KitWarning"], example, tmp_path)
     out = r.stdout + r.stderr
     assert r.returncode == 1, out
     m = re.search(r"_+ test_kill9_and_lost_answers _+\n(.*?)\n(?:-|=)", out, re.S)

@@ -7,8 +7,8 @@ import xml.etree.ElementTree as ET
 
 import pytest
 
-from kit_helpers import (EXAMPLE, REPO, break_logger, ci_commands, forget_retain, kit_env, mipkit_cli,
-                         run)
+from kit_helpers import (EXAMPLE, REPO, break_logger, ci_commands, forget_retain, kit_env, kit_pytest,
+                         mipkit_cli, run)
 
 REPO_PLC = REPO / "plc"
 
@@ -82,15 +82,22 @@ def report_head(lines, first):
     return lines[i:]
 
 
-def test_scenario_broken_variant_names_the_record_and_attaches_the_diagram(example, tmp_path):
-    break_logger(example)
+def failing_scenario(example, tmp_path, first, fault):
+    """The scenario on a broken variant, JUnit to tmp_path/results/j.xml: exit 1, its first line
+    `first`, then the fault (a regex) and the blocks at the fault; returns (the run, its lines)."""
     r = mipkit_cli([scenario(example), "--junit", tmp_path / "results" / "j.xml"], example)
     assert r.returncode == 1, r.stdout + r.stderr
     lines = r.stdout.splitlines()
-    assert lines[0] == "FAIL numbered records at central: record 7: its registers say record 17 " \
-                       "(first words [17, 0, 21, 28])", r.stdout
-    assert re.fullmatch(FAULT_7, lines[1]), r.stdout
+    assert lines[0] == first, r.stdout
+    assert re.fullmatch(fault, lines[1]), r.stdout
     assert re.fullmatch(r"mip-kit: the blocks at the fault \(\d+\.\d{3} s\):", lines[2]), r.stdout
+    return r, lines
+
+
+def test_scenario_broken_variant_names_the_record_and_attaches_the_diagram(example, tmp_path):
+    break_logger(example)
+    r, lines = failing_scenario(example, tmp_path, "FAIL numbered records at central: record 7: its "
+                                "registers say record 17 (first words [17, 0, 21, 28])", FAULT_7)
     assert re.fullmatch(SENDER, lines[3]), r.stdout
     tests, fails, props = junit(tmp_path / "results" / "j.xml")
     assert fails == ["record 7: its registers say record 17 (first words [17, 0, 21, 28])"], fails
@@ -119,13 +126,8 @@ SNAPSHOT = r"  outstation FIELDSTATION\.SND \(MIP_Sender\): eState=MIP_SND_\w+ "
 
 def test_scenario_forgotten_retain_section_names_the_wait_for_a_snapshot(example, tmp_path):
     forget_retain(example)
-    r = mipkit_cli([scenario(example), "--junit", tmp_path / "results" / "j.xml"], example)
-    assert r.returncode == 1, r.stdout + r.stderr
-    lines = r.stdout.splitlines()
-    assert lines[0] == "FAIL complete within 300 s (delivered = logged): not complete within " \
-                       "300 s: judge logged 120, delivered 0", r.stdout
-    assert re.fullmatch(FAULT_1, lines[1]), r.stdout
-    assert re.fullmatch(r"mip-kit: the blocks at the fault \(\d+\.\d{3} s\):", lines[2]), r.stdout
+    r, lines = failing_scenario(example, tmp_path, "FAIL complete within 300 s (delivered = logged): "
+                                "not complete within 300 s: judge logged 120, delivered 0", FAULT_1)
     assert re.fullmatch(SNAPSHOT, lines[3]), r.stdout
     assert lines[4].startswith("    MIP_WAIT_SNAPSHOT: with xRetained := TRUE the block waits") and \
         "[retain] section" in lines[4], r.stdout
@@ -145,8 +147,7 @@ def test_scenario_forgotten_retain_section_names_the_wait_for_a_snapshot(example
 def test_plugin_forgotten_retain_section_names_the_wait_for_a_snapshot(example, tmp_path):
     """The example's own tests (tests/test_outstation.py) on the broken variant."""
     forget_retain(example)
-    r = run([sys.executable, "-m", "pytest", "-p", "mipkit.plugin", "-p", "no:cacheprovider", "-q",
-             "-k", "kill9", f"--basetemp={tmp_path / 'bt'}"], example, kit_env())
+    r = kit_pytest(["-k", "kill9"], example, tmp_path)
     out = r.stdout + r.stderr
     assert r.returncode == 1, out
     head = out[out.index("_ test_kill9_and_lost_answers _"):].splitlines()[1:5]
@@ -313,8 +314,7 @@ def test_passing_run_leaves_only_the_junit_files_in_results(example, tmp_path):
     (what CI uploads) holds the JUnit files and nothing else: no build products, no trace,
     under 50 KB; pytest's temporary folders keep under 5 MB (each test's network folder, its
     builds and whole trace, is removed after it)."""
-    r = run([sys.executable, "-m", "pytest", "-p", "mipkit.plugin", "-p", "no:cacheprovider", "-q",
-             "--junitxml=results/pytest.xml", f"--basetemp={tmp_path / 'bt'}"], example, kit_env())
+    r = kit_pytest(["--junitxml=results/pytest.xml"], example, tmp_path)
     assert r.returncode == 0, r.stdout + r.stderr
     r = mipkit_cli([scenario(example), "--junit", "results/scenario.xml"], example)
     assert r.returncode == 0, r.stdout + r.stderr

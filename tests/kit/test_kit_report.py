@@ -96,7 +96,7 @@ def test_the_fault_at_an_integrators_own_central(tmp_path):
     """No peer receives: the records are those the central PLC's MIP_Receiver delivered."""
     from mipcosim import layout as L
     from mipkit import Net
-    from mipkit.report import failure_report
+    from mipkit.failure import failure_report
     conf = tmp_path / "central.conf"
     conf.write_text(L.central_config(502, 2))
     records = [[n, 100 + n, 200 + n] for n in range(1, 8)]

@@ -2,5 +2,4 @@ import sys
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO / "tests" / "emulator"))   # emu_support: the emulator for a test
-sys.path.insert(0, str(REPO / "tests" / "runtime"))    # rt_helpers.free_port
+sys.path.insert(0, str(REPO / "tests" / "runtime"))    # rt_helpers.TINY (test_probe_sizing)

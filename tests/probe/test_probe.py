@@ -3,7 +3,6 @@ check; each wrong setting of docs/commissioning.md, produced on purpose (wrongne
 in the first line of its station, and the other stations stay ok; the failures a field engineer
 meets (unreachable, refused, a station that never answers, bad arguments) are one line each."""
 import json
-import os
 import re
 import signal
 import socket
@@ -15,8 +14,8 @@ from pathlib import Path
 
 import pytest
 
-from emu_support import FAST, Emulator
-from rt_helpers import free_port
+from miptest.emu import FAST, Emulator
+from plcharness.procs import free_port
 from wrongnet import FaultProxy, WritingPlc
 
 PROBE = Path(sys.executable).parent / "mip-probe"
@@ -29,6 +28,25 @@ def probe(*args, timeout=120):
                        timeout=timeout)
     assert "Traceback" not in r.stdout + r.stderr, r.stdout + r.stderr
     return r
+
+
+def probe_mdp(e, *args, **kw):
+    """The probe of the emulator e's MDP, with args (its TRMs, options)."""
+    return probe("--mdp", f"127.0.0.1:{e.mdp_port}", *args, **kw)
+
+
+def probe_writing(e, plc, *args):
+    """The probe of e's stations (args: its options) while plc writes to a TRM; plc stopped."""
+    try:
+        return probe_mdp(e, *trms(e), *args)
+    finally:
+        plc.stop()
+
+
+def failed(r):
+    """The first line of each station of a probe that found a fault (exit 1)."""
+    assert r.returncode == 1
+    return firsts(r.stdout)
 
 
 def firsts(out):
@@ -59,7 +77,7 @@ def trms(e, ports=None):
 def test_a_correct_network_passes_every_check_and_leaves_its_evidence(emu, tmp_path):
     e = emu("--stations", 3)
     t0 = time.monotonic()
-    r = probe("--mdp", f"127.0.0.1:{e.mdp_port}", *trms(e), "--report", tmp_path / "r.json",
+    r = probe_mdp(e, *trms(e), "--report", tmp_path / "r.json",
               "--trace", tmp_path / "t.jsonl", "--junit", tmp_path / "j.xml",
               "--st", tmp_path / "p.st", "--plcrt", tmp_path / "p.conf")
     took = time.monotonic() - t0
@@ -76,6 +94,9 @@ def test_a_correct_network_passes_every_check_and_leaves_its_evidence(emu, tmp_p
     rt = rep["stations"][0]["round_trips"]
     assert rt["registers"] == 123 and len(rt["down"]["samples_ms"]) == 10
     assert rt["down"]["delivered_ms"]["min"] <= rt["down"]["delivered_ms"]["max"]
+    # the fast radio's slots (1 ms gaps) are shorter than the probe's reads tell apart
+    assert rt["down"]["slots"]["resolved"] is False and rt["down"]["slots"]["cycle_ms"] is None
+    assert "its slots: faster than the probe tells apart" in r.stdout
     p = rep["recommended"]
     assert p["tTimeout_ms"] >= 2 * p["round_trip_ms"] and p["tTransferTimeout_ms"] == 5 * p["tTimeout_ms"]
     assert f"MIP_tTimeout : TIME := T#{p['tTimeout_ms']}ms;" in (tmp_path / "p.st").read_text()
@@ -108,7 +129,7 @@ def test_a_correct_network_passes_every_check_and_leaves_its_evidence(emu, tmp_p
 
 def test_a_static_network_passes_with_its_count(emu):
     e = emu("--stations", 1, "--mode", "static", "--static-registers", 100)
-    r = probe("--mdp", f"127.0.0.1:{e.mdp_port}", *trms(e), *QUICK)
+    r = probe_mdp(e, *trms(e), *QUICK)
     assert r.returncode == 0, r.stdout
     assert "static with 100 registers on both modems" in r.stdout
     assert "3 blocks of 100 registers each way" in r.stdout
@@ -120,8 +141,7 @@ def test_a_one_based_trm_is_named_and_the_others_pass(emu):
     r = probe("--mdp", f"127.0.0.1:{e.mdp_port}",
               *trms(e, [e.trm_port(1), px.port, e.trm_port(3)]), *QUICK)
     px.close()
-    assert r.returncode == 1
-    first = firsts(r.stdout)
+    first = failed(r)
     assert first[2].startswith("station 2: FAIL address base: the TRM counts its register "
                                "addresses from 1"), first[2]
     assert first[1] == first[1].replace("2:", "1:") == "station 1: ok: every check passed"
@@ -142,10 +162,9 @@ def test_a_one_based_mdp_is_named(emu):
 def test_a_static_trm_with_a_dynamic_mdp_is_named(emu):
     e = emu("--stations", 2)
     px = FaultProxy(e.trm_port(1), static=123)
-    r = probe("--mdp", f"127.0.0.1:{e.mdp_port}", *trms(e, [px.port, e.trm_port(2)]), *QUICK)
+    r = probe_mdp(e, *trms(e, [px.port, e.trm_port(2)]), *QUICK)
     px.close()
-    assert r.returncode == 1
-    first = firsts(r.stdout)
+    first = failed(r)
     assert first[1].startswith("station 1: FAIL transfer mode: static / dynamic mismatch: the "
                                "MDP is dynamic"), first[1]
     assert "the TRM static (2000 = 123 idle, a block of 8 arrives as 123)" in first[1]
@@ -156,7 +175,7 @@ def test_static_counts_that_differ_are_named(emu):
     """Static modems, 100 registers at the MDP (the emulator), 123 at the TRM (the wrapper)."""
     e = emu("--stations", 1, "--mode", "static", "--static-registers", 100)
     px = FaultProxy(e.trm_port(1), static=123)
-    r = probe("--mdp", f"127.0.0.1:{e.mdp_port}", *trms(e, [px.port]), *QUICK)
+    r = probe_mdp(e, *trms(e, [px.port]), *QUICK)
     px.close()
     assert r.returncode == 1
     assert firsts(r.stdout)[1].startswith("station 1: FAIL transfer mode: static on both, but the "
@@ -166,9 +185,8 @@ def test_static_counts_that_differ_are_named(emu):
 def test_a_missing_station_is_named_and_the_probe_goes_on(emu):
     e = emu("--stations", 2)
     port = free_port()                      # a port nothing listens on
-    r = probe("--mdp", f"127.0.0.1:{e.mdp_port}", "--trm", f"3=127.0.0.1:{port}", *trms(e), *QUICK)
-    assert r.returncode == 1
-    first = firsts(r.stdout)
+    r = probe_mdp(e, "--trm", f"3=127.0.0.1:{port}", *trms(e), *QUICK)
+    first = failed(r)
     assert first[3].startswith("station 3: FAIL answers: the MDP has no station 3: it answers "
                                "unit id 3 with exception 0B"), first[3]
     assert f"TRM 127.0.0.1:{port}: connection refused" in first[3]
@@ -178,9 +196,8 @@ def test_a_missing_station_is_named_and_the_probe_goes_on(emu):
 def test_a_wrong_unit_id_is_named(emu):
     """The TRMs' station addresses swapped: the MDP's unit id 1 reaches the TRM given as 2."""
     e = emu("--stations", 2)
-    r = probe("--mdp", f"127.0.0.1:{e.mdp_port}", *trms(e, [e.trm_port(2), e.trm_port(1)]), *QUICK)
-    assert r.returncode == 1
-    first = firsts(r.stdout)
+    r = probe_mdp(e, *trms(e, [e.trm_port(2), e.trm_port(1)]), *QUICK)
+    first = failed(r)
     for s, other in ((1, 2), (2, 1)):
         assert first[s].startswith(f"station {s}: FAIL unit id: the block written to the MDP "
                                    f"under unit id {s} arrived at the TRM given for station "
@@ -191,12 +208,8 @@ def test_a_client_that_splits_its_blocks_is_named(emu):
     """Static modems (FC6 is taken there): a PLC writing its block a register a cycle."""
     e = emu("--stations", 2, "--mode", "static", "--static-registers", 123)
     plc = WritingPlc(e.trm_port(2), split=True)
-    try:
-        r = probe("--mdp", f"127.0.0.1:{e.mdp_port}", *trms(e), "--watch", "1", "--blocks", "3")
-    finally:
-        plc.stop()
-    assert r.returncode == 1
-    first = firsts(r.stdout)
+    r = probe_writing(e, plc, "--watch", "1", "--blocks", "3")
+    first = failed(r)
     assert first[2].startswith("station 2: FAIL quiet: a client writes station 2's block at the "
                                "TRM in parts"), first[2]
     assert "note §1.1.3" in first[2]
@@ -206,10 +219,7 @@ def test_a_client_that_splits_its_blocks_is_named(emu):
 def test_a_plc_writing_stops_the_probe_of_its_station(emu):
     e = emu("--stations", 1)
     plc = WritingPlc(e.trm_port(1), cycle=0.02)
-    try:
-        r = probe("--mdp", f"127.0.0.1:{e.mdp_port}", *trms(e), "--watch", "1", "--blocks", "3")
-    finally:
-        plc.stop()
+    r = probe_writing(e, plc, "--watch", "1", "--blocks", "3")
     assert r.returncode == 1
     assert firsts(r.stdout)[1].startswith("station 1: FAIL quiet: a PLC writes to station 1: TRM ("), r.stdout
     assert "--force" in firsts(r.stdout)[1]
@@ -218,11 +228,7 @@ def test_a_plc_writing_stops_the_probe_of_its_station(emu):
 def test_force_probes_a_station_a_plc_writes_to(emu):
     e = emu("--stations", 1)
     plc = WritingPlc(e.trm_port(1), cycle=0.02)
-    try:
-        r = probe("--mdp", f"127.0.0.1:{e.mdp_port}", *trms(e), "--watch", "0.5", "--blocks", "1",
-                  "--timeout", "1", "--force")
-    finally:
-        plc.stop()
+    r = probe_writing(e, plc, "--watch", "0.5", "--blocks", "1", "--timeout", "1", "--force")
     assert re.search(r"^  ok   quiet         a PLC writes \(TRM \(\d+ changes in 0.5 s\)\): probing "
                      r"anyway \(--force\)$", r.stdout, re.M), r.stdout
 
@@ -230,7 +236,7 @@ def test_force_probes_a_station_a_plc_writes_to(emu):
 def test_bit_4_that_never_clears_is_named(emu):
     e = emu("--stations", 1)
     px = FaultProxy(e.trm_port(1), sticky_bit4=True)
-    r = probe("--mdp", f"127.0.0.1:{e.mdp_port}", *trms(e, [px.port]), *QUICK, "--timeout", "1")
+    r = probe_mdp(e, *trms(e, [px.port]), *QUICK, "--timeout", "1")
     px.close()
     assert r.returncode == 1
     assert firsts(r.stdout)[1].startswith("station 1: FAIL bit 4 up: bit 4 (write data "
@@ -240,7 +246,7 @@ def test_bit_4_that_never_clears_is_named(emu):
 
 def test_a_station_that_never_answers_on_the_radio(emu):
     e = emu("--stations", 1, "--loss-down", 1, "--loss-up", 1)
-    r = probe("--mdp", f"127.0.0.1:{e.mdp_port}", *trms(e), *QUICK, "--timeout", "0.5")
+    r = probe_mdp(e, *trms(e), *QUICK, "--timeout", "0.5")
     assert r.returncode == 1
     assert firsts(r.stdout)[1].startswith("station 1: FAIL block down: a block written to the "
                                           "MDP for station 1 never arrived at the TRM"), r.stdout
@@ -267,7 +273,7 @@ def test_unreachable_and_silent_are_one_line_each_and_the_probe_goes_on(emu, tmp
     silent.listen(4)
     port = silent.getsockname()[1]
     # 192.0.2.1: TEST-NET-1 (RFC 5737), routed nowhere (refused or unanswered, by the network)
-    r = probe("--mdp", f"127.0.0.1:{e.mdp_port}", "--trm", f"2=127.0.0.1:{port}",
+    r = probe_mdp(e, "--trm", f"2=127.0.0.1:{port}",
               "--trm", "3=192.0.2.1:502", *trms(e), *QUICK,
               "--request-timeout", "0.3", "--report", tmp_path / "no" / "r.json")
     silent.close()
@@ -315,7 +321,7 @@ def test_a_second_run_takes_the_first_runs_blocks_for_nothing(emu):
     probe of the same network is ok again (it once called them damaged)."""
     e = emu("--stations", 1)
     for _ in range(2):
-        r = probe("--mdp", f"127.0.0.1:{e.mdp_port}", *trms(e), *QUICK)
+        r = probe_mdp(e, *trms(e), *QUICK)
         assert r.returncode == 0 and firsts(r.stdout) == {1: "station 1: ok: every check passed"}, r.stdout
 
 
@@ -326,7 +332,7 @@ def test_three_stations_on_the_realistic_radio_within_three_minutes(tmp_path):
     e = Emulator("--stations", 3)
     try:
         t0 = time.monotonic()
-        r = probe("--mdp", f"127.0.0.1:{e.mdp_port}", *trms(e), "--report", tmp_path / "r.json",
+        r = probe_mdp(e, *trms(e), "--report", tmp_path / "r.json",
                   timeout=400)
         took = time.monotonic() - t0
     finally:
@@ -334,7 +340,15 @@ def test_three_stations_on_the_realistic_radio_within_three_minutes(tmp_path):
     assert r.returncode == 0, r.stdout + r.stderr
     assert took < 180, took
     assert firsts(r.stdout) == {s: f"station {s}: ok: every check passed" for s in (1, 2, 3)}
-    p = json.loads((tmp_path / "r.json").read_text())["recommended"]
+    rep = json.loads((tmp_path / "r.json").read_text())
+    p = rep["recommended"]
+    # the station's cycle (emulator/README.md "Radio model"): its slot with a block down (215
+    # + 20 + 10 + 20 ms) or up and its ack (10 + 20 + 215 + 20 + 10 + 20 ms), and the two
+    # other stations' empty slots (60 ms each)
+    for st in rep["stations"]:
+        for d, want in (("down", 385), ("up", 415)):
+            s = st["round_trips"][d]["slots"]
+            assert s["resolved"] and abs(s["cycle_ms"] - want) <= 25, (st["station"], d, s)
     # a 123-register block each way plus the ack: 500 ms a slot (emulator/README.md); the
     # deliveries of three stations' blocks take up to a poll cycle or two
     assert 250 <= p["poll_cycle_ms"] <= 3000, p
@@ -343,7 +357,7 @@ def test_three_stations_on_the_realistic_radio_within_three_minutes(tmp_path):
 
 def test_blocks_0_checks_without_measuring(emu, tmp_path):
     e = emu("--stations", 1)
-    r = probe("--mdp", f"127.0.0.1:{e.mdp_port}", *trms(e), "--watch", "0.2", "--blocks", "0",
+    r = probe_mdp(e, *trms(e), "--watch", "0.2", "--blocks", "0",
               "--junit", tmp_path / "j.xml", "--st", tmp_path / "p.st")
     assert r.returncode == 0, r.stdout
     assert "  -    round trips   not measured (--blocks 0)" in r.stdout

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from emu_support import Emulator
+from miptest.emu import Emulator
 
 pytestmark = pytest.mark.slow
 PROBE = Path(sys.executable).parent / "mip-probe"

@@ -1,5 +1,11 @@
 """Fixtures of the runtime tests (helpers that tests import live in rt_helpers.py)."""
+import sys
+from pathlib import Path
+
 import pytest
+
+# the emulator tests' helpers (emu_support: the mip-emulator process, tcp_read) for the RTU tests
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "emulator"))
 
 from rt_helpers import ModbusServer
 

@@ -7,35 +7,7 @@ import subprocess
 import pytest
 
 from plcharness import build_program
-from rt_helpers import TINY, compiler_param
-
-
-GOOD = """[master]
-polling_period = 100ms
-timeout = 1s
-[device d]
-host = 127.0.0.1
-port = 5020
-unit_id = 3
-errors = %IW90
-[read r]
-device = d
-table = input
-start = 0
-size = 10
-image = %IW100
-[write w]
-device = d
-start = 100
-size = 123
-image = %QW100
-policy = trigger
-trigger = %QX10.0
-done = %IX10.0
-error = %IX10.1
-status = %IW60
-length = %QW99
-"""
+from rt_helpers import GOOD, TINY, compiler_param, mangle
 
 MBCONFIG = """Num_Devices = "1"
 Polling_Period = "100"
@@ -50,25 +22,6 @@ device0.Holding_Registers_Read_Size = "8"
 device0.Holding_Registers_Start = "0"
 device0.Holding_Registers_Size = "8"
 """
-
-TOKENS = ["[", "]", "=", "%", "%IW", "%QX1.", "..", "#", '"', "-1", "99999999999999999999",
-          "0x10", "1e9s", " ", "\t", "\n", "ms", "[read", "[device", "policy = trigger",
-          "size = 0", "image = %IW1023", "device = d", "\x00", "é", "device0.", "Num_Devices ="]
-
-
-def mangle(text, rng):
-    chars = list(text)
-    for _ in range(rng.randint(1, 6)):
-        op = rng.randrange(3)
-        pos = rng.randrange(len(chars) + 1)
-        if op == 0 and chars:
-            del chars[pos:pos + rng.randint(1, 8)]
-        elif op == 1:
-            chars[pos:pos] = list(rng.choice(TOKENS))
-        else:
-            src = rng.randrange(len(chars) or 1)
-            chars[pos:pos] = chars[src:src + rng.randint(1, 20)]
-    return "".join(chars)
 
 
 @pytest.mark.parametrize("compiler", [compiler_param("stc")])

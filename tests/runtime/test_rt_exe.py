@@ -4,20 +4,15 @@ import subprocess
 import pytest
 
 from plcharness import build_program
-from rt_helpers import COMPILERS, COUNTER
+from plcharness.procs import free_port
+from rt_helpers import COMPILERS, COUNTER, tcp_device
 
 
-CONFIG = """
-[device out]
-host = 127.0.0.1
-port = {port}
-[write count]
-device = out
-start = 0
-size = 1
-image = %QW100
-policy = change
-"""
+def config(port) -> str:
+    """%QW100 written to holding register 0 of the server whenever it changes."""
+    cfg = tcp_device(port)
+    cfg.add("write", "count", device="out", start=0, size=1, image="%QW100", policy="change")
+    return cfg.text()
 
 
 def run(exe, *args):
@@ -29,7 +24,7 @@ def run(exe, *args):
 def test_program_runs_in_both_modes_and_writes_its_outputs(compiler, mode, server, st_file,
                                                            conf_file, tmp_path):
     res = build_program([st_file(COUNTER)], tmp_path / "out", compiler=compiler)
-    cfg = conf_file(CONFIG.format(port=server.port))
+    cfg = conf_file(config(server.port))
     proc = run(res.executable, "-m", mode, "-n", "20", "-c", str(cfg))
     assert proc.returncode == 0, proc.stderr
     assert "20 scans" in proc.stderr
@@ -112,9 +107,7 @@ def test_real_time_slave_serves_the_image_until_sigterm(compiler, st_file, tmp_p
     import time
 
     res = build_program([st_file(COUNTER)], tmp_path / "out", compiler=compiler)
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        port = probe.getsockname()[1]
+    port = free_port()
     proc = subprocess.Popen([str(res.executable), "-m", "real", "-s", f"127.0.0.1:{port}"],
                             stderr=subprocess.PIPE, text=True)
     try:

@@ -1,5 +1,5 @@
 """A program compiled by matiec (iec2c) links with the runtime and runs in virtual time."""
-from plcharness import Plc, PlcError
+from plcharness import Plc
 import pytest
 
 from rt_helpers import needs_matiec, one_task

@@ -3,7 +3,8 @@ harness in virtual time against a Modbus TCP server on 127.0.0.1."""
 import pytest
 
 from plcharness import Plc, PlcError
-from rt_helpers import COMPILERS, ModbusServer, compiler_param, one_task
+from plcharness.config import Config
+from rt_helpers import COMPILERS, ModbusServer, compiler_param, one_task, trigger_range
 
 HANDSHAKE = one_task("""
 PROGRAM MAIN
@@ -36,43 +37,23 @@ END_IF;
 END_PROGRAM
 """)
 
-CONFIG = """
-[master]
-polling_period = 100ms
-timeout = 1s
-
-[device modem]
-host = 127.0.0.1
-port = {port}
-unit_id = 1
-errors = %IW61
-
-[write block]
-device = modem
-start = 10
-size = 3
-image = %QW200
-policy = trigger
-trigger = %QX10.0
-done = %IX10.0
-error = %IX10.1
-status = %IW60
-length = %QW250
-
-[read status]
-device = modem
-table = input
-start = 5
-size = 1
-image = %IW300
-policy = cycle
-"""
+def config(port, start=10) -> str:
+    """The handshake's [write block] (FC16 of wLen registers from %QW200 at `start`) and a
+    cyclic [read status] of one input register."""
+    cfg = Config()
+    cfg.add("master", polling_period="100ms", timeout="1s")
+    cfg.add("device", "modem", host="127.0.0.1", port=port, unit_id=1, errors="%IW61")
+    trigger_range(cfg, "write", "block", "modem", start, "%QW200",
+                  ("%QX10.0", "%IX10.0", "%IX10.1"), "%IW60", size=3, length="%QW250")
+    cfg.add("read", "status", device="modem", table="input", start=5, size=1, image="%IW300",
+            policy="cycle")
+    return cfg.text()
 
 
 
 @pytest.mark.parametrize("compiler", COMPILERS)
 def test_st_handshake_writes_one_request_per_trigger(compiler, server, st_file, conf_file, tmp_path):
-    cfg = conf_file(CONFIG.format(port=server.port))
+    cfg = conf_file(config(server.port))
     plc = Plc.build([st_file(HANDSHAKE)], workdir=tmp_path, compiler=compiler, config=cfg)
     plc["MAIN.wOut0"] = 11
     plc["MAIN.wOut1"] = 22
@@ -97,7 +78,7 @@ def test_st_handshake_writes_one_request_per_trigger(compiler, server, st_file, 
 
 @pytest.mark.parametrize("compiler", COMPILERS)
 def test_st_handshake_reports_errors_and_status(compiler, server, st_file, conf_file, tmp_path):
-    cfg = conf_file(CONFIG.format(port=server.port).replace("start = 10", "start = 999"))
+    cfg = conf_file(config(server.port, start=999))
     plc = Plc.build([st_file(HANDSHAKE)], workdir=tmp_path, compiler=compiler, config=cfg)
     plc["MAIN.wLen"] = 3
     plc["MAIN.xStart"] = True
@@ -111,7 +92,7 @@ def test_st_handshake_reports_errors_and_status(compiler, server, st_file, conf_
 @pytest.mark.parametrize("compiler", COMPILERS)
 def test_cycle_reads_run_in_virtual_time(compiler, server, st_file, conf_file, tmp_path):
     server.input[5] = 4711
-    cfg = conf_file(CONFIG.format(port=server.port))
+    cfg = conf_file(config(server.port))
     plc = Plc.build([st_file(HANDSHAKE)], workdir=tmp_path, compiler=compiler, config=cfg)
     plc.scan()
     assert plc["MAIN.wIn0"] == 4711
@@ -147,7 +128,7 @@ def test_socketpair_seam_answers_in_lockstep(compiler, st_file, conf_file, tmp_p
         theirs.sendall(struct.pack(">HHHB", tid, 0, len(reply) + 1, unit) + reply)
         calls.append(plc.time_ns)
 
-    cfg = conf_file(CONFIG.format(port=1))   # the port is never used
+    cfg = conf_file(config(1))   # the port is never used
     plc = Plc.build([st_file(HANDSHAKE)], workdir=tmp_path, compiler=compiler, config=cfg)
     with pytest.raises(PlcError, match="no device 'nosuch'"):
         plc.set_device_fd("nosuch", ours.fileno())

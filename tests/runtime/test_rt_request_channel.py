@@ -5,7 +5,7 @@ MB_DATA_LEN. What goes on the wire is checked at a Modbus TCP server's log."""
 import pytest
 
 from plcharness import Plc, PlcError
-from rt_helpers import compiler_param, one_task
+from rt_helpers import compiler_param, one_task, tcp_device, trigger_range
 
 PROG = one_task("""
 PROGRAM MAIN
@@ -41,42 +41,24 @@ END_IF;
 END_PROGRAM
 """)
 
-CONFIG = """
-[device modem]
-host = 127.0.0.1
-port = {port}
-timeout = 1s
-
-[write wr]
-device = modem
-start = 0
-size = 2
-image = %QW200
-policy = trigger
-trigger = %QX1.1
-done = %IX1.2
-error = %IX1.3
-address = %QW42
-length = %QW43
-
-[read rd]
-device = modem
-start = 0
-size = 3
-image = %IW100
-policy = trigger
-trigger = %QX1.0
-done = %IX1.0
-error = %IX1.1
-status = %IW11
-address = %QW40
-length = %QW41
-"""
+def config(port, channel=True) -> str:
+    """[write wr] and [read rd] of the modem with address and length from the image (channel);
+    without channel, [read rd] is a cyclic read that still has an address key (a mistake)."""
+    cfg = tcp_device(port, "modem", timeout="1s")
+    trigger_range(cfg, "write", "wr", "modem", 0, "%QW200", ("%QX1.1", "%IX1.2", "%IX1.3"),
+                  size=2, address="%QW42", length="%QW43")
+    if channel:
+        trigger_range(cfg, "read", "rd", "modem", 0, "%IW100", ("%QX1.0", "%IX1.0", "%IX1.1"),
+                      "%IW11", size=3, address="%QW40", length="%QW41")
+    else:
+        cfg.add("read", "rd", device="modem", start=0, size=3, image="%IW100", policy="cycle",
+                status="%IW11", address="%QW40")
+    return cfg.text()
 
 
-def _build(server, st_file, tmp_path, config=CONFIG):
+def _build(server, st_file, tmp_path, channel=True):
     cfg = tmp_path / "plc.conf"
-    cfg.write_text(config.format(port=server.port))
+    cfg.write_text(config(server.port, channel))
     return Plc.build([st_file(PROG)], workdir=tmp_path, compiler="stc", config=cfg)
 
 
@@ -119,8 +101,5 @@ def test_bad_address_or_quantity_fails_the_request_with_a_status(compiler, serve
 
 @pytest.mark.parametrize("compiler", [compiler_param("stc")])
 def test_address_key_needs_the_trigger_policy(compiler, server, st_file, tmp_path):
-    bad = CONFIG.replace("trigger = %QX1.0\ndone = %IX1.0\nerror = %IX1.1\n", "") \
-                .replace("policy = trigger\nstatus = %IW11", "policy = cycle\nstatus = %IW11") \
-                .replace("length = %QW41\n", "")
     with pytest.raises(PlcError, match=r"plc.conf:\d+: error: .*address: needs policy = trigger"):
-        _build(server, st_file, tmp_path, bad)
+        _build(server, st_file, tmp_path, channel=False)

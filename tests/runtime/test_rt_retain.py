@@ -1,5 +1,4 @@
 """RETAIN in the thin executable: warm / cold starts, atomic snapshots, kill -9, bad files."""
-import os
 import signal
 import subprocess
 import time
@@ -7,7 +6,8 @@ import time
 import pytest
 
 from plcharness import build_program
-from rt_helpers import ModbusServer, compiler_param, one_task
+from plcharness.config import read_file
+from rt_helpers import ModbusServer, compiler_param, one_task, tcp_device
 
 PROG = one_task("""
 FUNCTION_BLOCK ACC
@@ -27,17 +27,11 @@ out := UINT_TO_WORD(cnt); out2 := UINT_TO_WORD(kept.total); out3 := UINT_TO_WORD
 END_PROGRAM
 """)
 
-CONFIG = """
-[device out]
-host = 127.0.0.1
-port = {port}
-[write count]
-device = out
-start = 0
-size = 3
-image = %QW100
-policy = cycle
-"""
+def config(port) -> str:
+    """out, out2, out3 (%QW100..102) written to holding registers 0..2 every cycle."""
+    cfg = tcp_device(port)
+    cfg.add("write", "count", device="out", start=0, size=3, image="%QW100", policy="cycle")
+    return cfg.text()
 
 
 @pytest.fixture
@@ -49,7 +43,7 @@ def server():
 
 @pytest.fixture
 def plc(tmp_path, st_file, conf_file, server):
-    cfg = conf_file(CONFIG.format(port=server.port))
+    cfg = conf_file(config(server.port))
 
     def make(extra="", compiler="stc", name="out"):
         res = build_program([st_file(PROG.replace("{extra}", extra), name=f"{name}.st")],
@@ -69,14 +63,20 @@ def virtual(plc, exe, scans, *args):
     return run(exe, plc.cfg, "-m", "virtual", "-n", str(scans), "--retain", str(plc.retain), *args)
 
 
-def test_warm_start_restores_retained_variables_and_whole_retained_fb_instances(plc, server):
-    exe = plc()
+def cold_then_warm(plc, exe, server):
+    """20 scans from no retain file (a cold start), then 5 from its snapshot: the second run."""
     first = virtual(plc, exe, 20)
     assert first.returncode == 0, first.stderr
     assert "cold start: no retain file" in first.stderr
     assert server.holding[0:3] == [20, 20, 20]
     second = virtual(plc, exe, 5)
     assert second.returncode == 0, second.stderr
+    return second
+
+
+def test_warm_start_restores_retained_variables_and_whole_retained_fb_instances(plc, server):
+    exe = plc()
+    second = cold_then_warm(plc, exe, server)
     assert "warm start: 4 retained variables restored" in second.stderr
     # cnt and the instance in the RETAIN section (its own non-RETAIN n included) go on;
     # the instance in a plain VAR section starts again
@@ -178,12 +178,7 @@ def test_sigterm_saves_on_a_clean_stop(plc, server):
 @pytest.mark.parametrize("compiler", [compiler_param("matiec")])
 def test_matiec_programs_keep_their_retained_variables_on_a_warm_start(plc, server, compiler):
     exe = plc("hist : ARRAY[0..3] OF UINT;", compiler=compiler, name="m")
-    first = virtual(plc, exe, 20)
-    assert first.returncode == 0, first.stderr
-    assert "cold start: no retain file" in first.stderr
-    assert server.holding[0:3] == [20, 20, 20]
-    second = virtual(plc, exe, 5)
-    assert second.returncode == 0, second.stderr
+    second = cold_then_warm(plc, exe, server)
     # the same as an stc build keeps (cnt, kept's inc, total and n) and the array, which
     # matiec cannot mark retained
     assert "warm start: 5 retained variables restored" in second.stderr, second.stderr
@@ -207,7 +202,9 @@ def test_an_unwritable_retain_path_is_reported_without_flooding_or_crashing(plc,
 def test_the_config_can_name_the_retain_file_and_period(plc, server, tmp_path):
     exe = plc()
     cfg = tmp_path / "with-retain.conf"
-    cfg.write_text(plc.cfg.read_text() + f"[retain]\nfile = {plc.retain}\nperiod = 50ms\n")
+    conf = read_file(plc.cfg)
+    conf.add("retain", file=plc.retain, period="50ms")
+    conf.write(cfg)
     first = run(exe, cfg, "-m", "virtual", "-n", "20")
     assert first.returncode == 0, first.stderr
     assert "cold start: no retain file" in first.stderr

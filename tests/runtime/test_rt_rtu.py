@@ -3,20 +3,16 @@ OpenPLC mbconfig.cfg with two RTU devices on one line (they take the line in tur
 format with trigger handshakes, unknown unit ids ending in a named error (timeout), and the line
 unplugged for 5 s (the emulator stopped): timeouts, then the same data again, never wrong data."""
 import os
-import re
 import signal
 import subprocess
-import sys
 import time
-from pathlib import Path
 
 import pytest
 
 from plcharness import Plc
-from rt_helpers import REPO, compiler_param, one_task, read_write_ranges
+from rt_helpers import REPO, TRIGGER, compiler_param, handshake, one_task, rtu_conf, write_read_back
 
-sys.path.insert(0, str(REPO / "tests" / "emulator"))
-from emu_support import Emulator, tcp_read  # noqa: E402
+from emu_support import Emulator, tcp_read
 
 EMU = REPO / "build" / "emulator" / "mip-emulator"
 
@@ -106,51 +102,9 @@ def test_openplc_mbconfig_with_rtu_devices_sharing_a_line(compiler, emu_rtu, tmp
     assert all(e["exc"] == 0 for e in rtu)
 
 
-TRIGGER = one_task("""
-PROGRAM MAIN
-VAR
-  wData AT %QW41 : WORD;
-  xRd AT %QX1.0 : BOOL; xWr AT %QX1.1 : BOOL;
-  xRdDone AT %IX1.0 : BOOL; xRdErr AT %IX1.1 : BOOL;
-  xWrDone AT %IX1.2 : BOOL; xWrErr AT %IX1.3 : BOOL;
-  wRdStatus AT %IW11 : WORD; wWrStatus AT %IW21 : WORD;
-  wRd AT %IW100 : WORD;
-END_VAR
-VAR
-  x : INT;
-END_VAR
-x := x + 1;
-END_PROGRAM
-""")
-
-CONF = """
-[device trm]
-serial = {tty}
-baud = 19200
-parity = even
-unit_id = {unit}
-timeout = 300ms
-errors = %IW30
-
-""" + read_write_ranges("trm", 2001)
-
-
-def handshake(plc, trig, done, err, scans=50):
-    plc.force(trig, True)
-    for _ in range(scans):
-        plc.scan()
-        if plc[done] or plc[err]:
-            break
-    res = (plc[done], plc[err])
-    plc.force(trig, False)
-    plc.scan(2)
-    plc.unforce(trig)
-    return res
-
-
 def build(tmp_path, link, unit, compiler="stc"):
     cfg = tmp_path / "rtu.conf"
-    cfg.write_text(CONF.format(tty=link, unit=unit))
+    cfg.write_text(rtu_conf(link, unit))
     src = tmp_path / "prog.st"
     src.write_text(TRIGGER)
     return Plc.build([src], workdir=tmp_path, compiler=compiler, config=cfg)
@@ -211,10 +165,7 @@ def test_rtu_line_unplugged_for_5_s_gives_timeouts_then_right_data(compiler, emu
         else:
             pytest.fail("no read succeeded after the line came back")
         assert plc["%IW100"] == 1111      # nothing of the unplugged time was taken
-        plc.force("%QW41", 3333)
-        assert handshake(plc, "%QX1.1", "%IX1.2", "%IX1.3") == (True, False)
-        assert handshake(plc, "%QX1.0", "%IX1.0", "%IX1.1") == (True, False)
-        assert plc["%IW100"] == 3333
+        write_read_back(plc, 3333)
     finally:
         plc.close()
 

@@ -16,11 +16,11 @@ import time
 import pytest
 
 from plcharness import Plc, build_program
-from rt_helpers import COUNTER, REPO, TINY, compiler_param, one_task, read_range
+from plcharness.config import Config
+from rt_helpers import (COUNTER, REPO, TINY, TRIGGER, compiler_param, handshake, one_task,
+                        read_range, rtu_conf, rtu_device, trigger_range, write_read_back)
 
-sys.path.insert(0, str(REPO / "tests" / "emulator"))
-from emu_support import Emulator, tcp_read  # noqa: E402
-from test_rt_rtu import CONF, TRIGGER, handshake  # noqa: E402
+from emu_support import Emulator, tcp_read
 
 
 def emulator(link):
@@ -28,25 +28,12 @@ def emulator(link):
                     "--rtu", f"pty:{link}:19200:8E1=trm1@5")
 
 
-CYCLE_CONF = """
-[master]
-reconnect_min = 50ms
-reconnect_max = 200ms
-
-[device trm]
-serial = {tty}
-baud = 19200
-parity = even
-unit_id = 5
-timeout = 300ms
-polling_period = 20ms
-
-[write count]
-device = trm
-start = 2001
-size = 1
-image = %QW100
-"""
+def cycle_conf(tty) -> str:
+    """A cyclic [write count] of %QW100 to the TRM's 2001 every 20 ms."""
+    cfg = rtu_device(tty, master={"reconnect_min": "50ms", "reconnect_max": "200ms"},
+                     timeout="300ms", polling_period="20ms")
+    cfg.add("write", "count", device="trm", start=2001, size=1, image="%QW100")
+    return cfg.text()
 
 
 def test_plcrt_killed_with_sigkill_talks_again_on_a_pty_at_8e1(tmp_path):
@@ -58,7 +45,7 @@ def test_plcrt_killed_with_sigkill_talks_again_on_a_pty_at_8e1(tmp_path):
     try:
         exe = build_program([_write(tmp_path / "counter.st", COUNTER)], tmp_path / "out").executable
         cfg = tmp_path / "plc.conf"
-        cfg.write_text(CYCLE_CONF.format(tty=link))
+        cfg.write_text(cycle_conf(link))
         first = subprocess.Popen([str(exe), "-c", str(cfg), "-m", "real"],
                                  stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
         try:
@@ -94,7 +81,7 @@ def test_a_ptys_missing_parity_is_stated_once_at_start(tmp_path, mode):
     try:
         exe = build_program([_write(tmp_path / "prog.st", TRIGGER)], tmp_path / "out").executable
         cfg = tmp_path / "rtu.conf"
-        cfg.write_text(CONF.format(tty=link, unit=5))
+        cfg.write_text(rtu_conf(link))
         p = subprocess.run([str(exe), "-c", str(cfg), "-m", mode, "-n", "5"], capture_output=True,
                            text=True, timeout=60)
         assert p.returncode == 0, p.stderr
@@ -115,7 +102,7 @@ def test_a_serial_line_that_went_away_is_reopened_without_a_restart(compiler, tm
     link = tmp_path / "ttyMIP"
     emu = emulator(link)
     cfg = tmp_path / "rtu.conf"
-    cfg.write_text("[master]\nreconnect_min = 50ms\nreconnect_max = 100ms\n" + CONF.format(tty=link, unit=5))
+    cfg.write_text(rtu_conf(link, master={"reconnect_min": "50ms", "reconnect_max": "100ms"}))
     plc = Plc.build([_write(tmp_path / "prog.st", TRIGGER)], workdir=tmp_path, compiler=compiler, config=cfg)
     try:
         plc.force("%QW41", 4242)
@@ -132,10 +119,7 @@ def test_a_serial_line_that_went_away_is_reopened_without_a_restart(compiler, tm
         else:
             pytest.fail(f"no read succeeded after the line came back: statuses {statuses}")
         assert all(s > 1000 for s in statuses), statuses       # failures are named, never 0
-        plc.force("%QW41", 4343)
-        assert handshake(plc, "%QX1.1", "%IX1.2", "%IX1.3") == (True, False)
-        assert handshake(plc, "%QX1.0", "%IX1.0", "%IX1.1") == (True, False)
-        assert plc["%IW100"] == 4343
+        write_read_back(plc, 4343)
     finally:
         plc.close()
         emu.stop()
@@ -152,7 +136,7 @@ def test_a_tty_set_otherwise_beneath_the_runtime_is_configured_again(compiler, t
     link = tmp_path / "ttyMIP"
     emu = emulator(link)
     cfg = tmp_path / "rtu.conf"
-    cfg.write_text(CONF.format(tty=link, unit=5))
+    cfg.write_text(rtu_conf(link))
     plc = Plc.build([_write(tmp_path / "prog.st", TRIGGER)], workdir=tmp_path, compiler=compiler, config=cfg)
     try:
         plc.force("%QW41", 5151)
@@ -188,8 +172,8 @@ def test_a_trigger_in_the_reconnect_wait_names_why_the_line_did_not_open(compile
     """No such tty: the first request fails with 1002 (ENOENT), and so does the next one while the
     runtime waits to try again (before: 1107, 'not connected', which hid the reason)."""
     cfg = tmp_path / "rtu.conf"
-    cfg.write_text("[master]\nreconnect_min = 60s\nreconnect_max = 60s\n" +
-                   CONF.format(tty=tmp_path / "no-such-tty", unit=5))
+    cfg.write_text(rtu_conf(tmp_path / "no-such-tty",
+                            master={"reconnect_min": "60s", "reconnect_max": "60s"}))
     plc = Plc.build([_write(tmp_path / "prog.st", TRIGGER)], workdir=tmp_path, compiler=compiler, config=cfg)
     try:
         for _ in range(3):
@@ -200,25 +184,15 @@ def test_a_trigger_in_the_reconnect_wait_names_why_the_line_did_not_open(compile
         plc.close()
 
 
-POLLED = """
-[master]
-reconnect_min = 50ms
-reconnect_max = 100ms
-
-[device trm]
-{where}
-unit_id = 5
-timeout = 200ms
-polling_period = 50ms
-
-[read poll]
-device = trm
-start = 2001
-size = 1
-image = %IW100
-error = %IX2.0
-status = %IW12
-"""
+def polled(**link) -> str:
+    """A cyclic [read poll] of the TRM's 2001 every 50 ms with error and status; link: the
+    device's serial or host / port keys."""
+    cfg = Config()
+    cfg.add("master", reconnect_min="50ms", reconnect_max="100ms")
+    cfg.add("device", "trm", **link, unit_id=5, timeout="200ms", polling_period="50ms")
+    cfg.add("read", "poll", device="trm", start=2001, size=1, image="%IW100", error="%IX2.0",
+            status="%IW12")
+    return cfg.text()
 
 
 @pytest.mark.parametrize("compiler", [compiler_param("stc")])
@@ -230,7 +204,7 @@ def test_a_polled_read_that_keeps_failing_is_an_error_the_program_sees(compiler,
     link = tmp_path / "ttyMIP"
     emu = emulator(link)
     cfg = tmp_path / "poll.conf"
-    cfg.write_text(POLLED.format(where=f"serial = {link}\nbaud = 19200\nparity = even"))
+    cfg.write_text(polled(serial=link, baud=19200, parity="even"))
     plc = Plc.build([_write(tmp_path / "prog.st", TRIGGER)], workdir=tmp_path, compiler=compiler, config=cfg)
     try:
         plc.scan(20)
@@ -254,9 +228,9 @@ def test_a_polled_read_that_keeps_failing_is_an_error_the_program_sees(compiler,
 @pytest.mark.parametrize("compiler", [compiler_param("stc")])
 def test_a_polled_read_of_a_tcp_device_that_is_not_there_is_an_error(compiler, tmp_path):
     """The same over TCP: nothing listens on the port, the program sees 1111 (refused)."""
-    from rt_helpers import free_port
+    from plcharness.procs import free_port
     cfg = tmp_path / "poll.conf"
-    cfg.write_text(POLLED.format(where=f"host = 127.0.0.1\nport = {free_port()}"))
+    cfg.write_text(polled(host="127.0.0.1", port=free_port()))
     plc = Plc.build([_write(tmp_path / "prog.st", TRIGGER)], workdir=tmp_path, compiler=compiler, config=cfg)
     try:
         plc.scan(30)
@@ -282,29 +256,13 @@ st(aRead := rd, xReadValid := rdDone, xReadError := rdErr, wReadStatus := rdStat
 END_PROGRAM
 """)
 
-STATUS_CONF = """
-[master]
-reconnect_min = 50ms
-reconnect_max = 100ms
-
-[device trm]
-serial = {tty}
-baud = 19200
-parity = even
-unit_id = 1
-timeout = 200ms
-
-[read trm_read]
-device = trm
-start = 2198
-size = 2
-image = %IW100
-policy = trigger
-trigger = %QX1.0
-done = %IX1.0
-error = %IX1.1
-status = %IW11
-"""
+def status_conf(tty) -> str:
+    """A trigger read of the TRM's status word and record count (2198, 2 registers)."""
+    cfg = rtu_device(tty, 1, {"reconnect_min": "50ms", "reconnect_max": "100ms"},
+                     timeout="200ms")
+    trigger_range(cfg, "read", "trm_read", "trm", 2198, "%IW100", ("%QX1.0", "%IX1.0", "%IX1.1"),
+                  "%IW11", size=2)
+    return cfg.text()
 
 
 @pytest.mark.parametrize("compiler", [compiler_param("stc")])
@@ -318,7 +276,7 @@ def test_mip_status_shows_a_dead_serial_line_with_the_runtimes_reason(compiler, 
     emu = Emulator("--stations", "1", "--bitrate", "1000000", "--slot-gap-ms", "1",
                    "--rtu", f"pty:{link}:19200:8E1=trm1@1")
     cfg = tmp_path / "st.conf"
-    cfg.write_text(STATUS_CONF.format(tty=link))
+    cfg.write_text(status_conf(link))
     plc = Plc.build([str(REPO / p) for p in lib] + [str(_write(tmp_path / "prog.st", STATUS_PROG))],
                     workdir=tmp_path, compiler=compiler, config=cfg)
     try:
@@ -339,7 +297,7 @@ def test_mip_status_shows_a_dead_serial_line_with_the_runtimes_reason(compiler, 
         plc.close()
         assert emu.stop() == 0
     (tmp_path / "gone").mkdir()
-    cfg.write_text(STATUS_CONF.format(tty=tmp_path / "no-such-tty"))
+    cfg.write_text(status_conf(tmp_path / "no-such-tty"))
     plc = Plc.build([str(REPO / p) for p in lib] + [str(tmp_path / "prog.st")],
                     workdir=tmp_path / "gone", compiler=compiler, config=cfg)
     try:

@@ -13,8 +13,9 @@ import time
 
 import pytest
 
-from rt_helpers import COUNTER, free_port
 from plcharness import build_program
+from plcharness.procs import free_port, wait_port
+from rt_helpers import COUNTER
 
 
 def read_counter(sock, tid):
@@ -36,14 +37,7 @@ def plc(st_file, tmp_path):
     port = free_port()
     proc = subprocess.Popen([str(res.executable), "-m", "real", "-s", f"127.0.0.1:{port}"],
                             stderr=subprocess.PIPE, text=True)
-    deadline = time.monotonic() + 30
-    while True:
-        try:
-            socket.create_connection(("127.0.0.1", port), timeout=1).close()
-            break
-        except OSError:
-            assert time.monotonic() < deadline and proc.poll() is None, "slave did not start"
-            time.sleep(0.05)
+    assert wait_port(port, timeout=30, proc=proc), "slave did not start"
     yield port
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=30)

@@ -11,6 +11,7 @@ from pathlib import Path
 import pytest
 
 from plcharness import Plc, PlcError, build_program
+from plcharness.config import Config
 
 from mippeer.scada import Client, ScadaError, SoeMaster
 from mipcosim.layout import LIB_FILES, ST_LIB, enum_values
@@ -63,17 +64,13 @@ xReq := srv.xSnapshotReq;
 {COPY}
 END_PROGRAM
 """)
-CONFIG = """
-[slave]
-port = 0
-watch = %QW601
-watch_count = %IW9
-[retain]
-file = {file}
-period = 0
-request = %QX8.0
-saved = %IW8
-"""
+def config(retain_file) -> str:
+    """The slave on a free port counting the SCADA's writes to SOE_Control (%QW601) in %IW9;
+    snapshots on request only (the program's handshake %QX8.0 / %IW8)."""
+    cfg = Config()
+    cfg.add("slave", port=0, watch="%QW601", watch_count="%IW9")
+    cfg.add("retain", file=retain_file, period=0, request="%QX8.0", saved="%IW8")
+    return cfg.text()
 
 
 @pytest.fixture(scope="module")
@@ -86,7 +83,7 @@ def build(tmp_path_factory):
 
 def start(build, tmp_path, total, retained=False, silent=False, snap=None):
     cfg = tmp_path / "plc.conf"
-    cfg.write_text(CONFIG.format(file=tmp_path / "plc.retain"))
+    cfg.write_text(config(tmp_path / "plc.retain"))
     plc = Plc(build, tmp_path, config=cfg)
     plc.retain_in_memory(0)              # snapshots on the block's request only
     if snap is not None:
@@ -265,7 +262,7 @@ def test_in_real_time_the_scada_command_takes_every_entry_once(build, tmp_path):
     import subprocess
     import json
     cfg = tmp_path / "rt.conf"
-    cfg.write_text(CONFIG.format(file=tmp_path / "rt.retain"))
+    cfg.write_text(config(tmp_path / "rt.retain"))
     plc = subprocess.Popen([str(build.executable), "-c", str(cfg), "-m", "real"],
                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     try:

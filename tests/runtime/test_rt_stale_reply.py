@@ -3,7 +3,7 @@ first answer twice) is dropped and counted, and never lands in the next range's 
 import pytest
 
 from plcharness import Plc
-from rt_helpers import COMPILERS, ModbusServer, one_task
+from rt_helpers import COMPILERS, ModbusServer, one_task, tcp_device
 
 PROG = one_task("""
 PROGRAM MAIN
@@ -13,21 +13,12 @@ n := n + 1;   (* matiec rejects a PROGRAM without statements *)
 END_PROGRAM
 """)
 
-CONFIG = """
-[device modem]
-host = 127.0.0.1
-port = {port}
-[read a]
-device = modem
-start = 0
-size = 1
-image = %IW500
-[read b]
-device = modem
-start = 10
-size = 1
-image = %IW510
-"""
+def config(port) -> str:
+    """Two cyclic reads of one register each: a into %IW500, b into %IW510."""
+    cfg = tcp_device(port, "modem")
+    cfg.add("read", "a", device="modem", start=0, size=1, image="%IW500")
+    cfg.add("read", "b", device="modem", start=10, size=1, image="%IW510")
+    return cfg.text()
 
 
 @pytest.mark.parametrize("compiler", COMPILERS)
@@ -38,7 +29,7 @@ def test_duplicated_reply_is_dropped_not_put_into_the_next_range(compiler, st_fi
         server.holding[10] = 222
         server.duplicate_replies = 1
         plc = Plc.build([st_file(PROG)], workdir=tmp_path, compiler=compiler,
-                        config=conf_file(CONFIG.format(port=server.port)))
+                        config=conf_file(config(server.port)))
         plc.scan(1)
         assert plc["MAIN.a"] == 111
         assert plc["MAIN.b"] == 222  # before: 111, the duplicate of a's reply

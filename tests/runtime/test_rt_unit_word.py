@@ -2,15 +2,11 @@
 the unit id (station address) of each request. An ST program walks the stations through one
 [device] with one write and one read range, against the real mip-emulator; its trace shows the
 unit id every request arrived with."""
-import json
-import re
-import signal
-import subprocess
-
 import pytest
 
+from emu_support import Emulator
 from plcharness import Plc
-from rt_helpers import REPO, compiler_param, one_task, read_write_ranges
+from rt_helpers import REPO, compiler_param, one_task, read_write_ranges, tcp_device
 
 EMU = REPO / "build" / "emulator" / "mip-emulator"
 
@@ -69,50 +65,33 @@ END_CASE;
 END_PROGRAM
 """)
 
-CONFIG = """
-[device mdp]
-host = 127.0.0.1
-port = {port}
-unit_id = %QW40
-timeout = 2s
-errors = %IW30
-
-""" + read_write_ranges("mdp", 10)
+def config(port) -> str:
+    """The MDP as one device whose unit id the program sets (%QW40), with [read rd] and
+    [write wr] of one register at 10 (rt_helpers.read_write_ranges)."""
+    return read_write_ranges("mdp", 10, tcp_device(port, "mdp", unit_id="%QW40", timeout="2s",
+                                                   errors="%IW30"))
 
 
 @pytest.fixture
 def mdp(tmp_path):
     if not EMU.exists():
         pytest.fail(f"{EMU} is missing: run `make` first", pytrace=False)
-    trace = tmp_path / "emu.jsonl"
-    proc = subprocess.Popen([str(EMU), "--mdp-port", "0", "--trm-base-port", "0", "--stations", "3",
-                             "--trace", str(trace)], stdout=subprocess.PIPE, text=True)
-    line = proc.stdout.readline()
-    m = re.match(r"mip-emulator: listening mdp=[\d.]+:(\d+)", line)
-    assert m, f"emulator did not start: {line!r}"
-    requests = []
+    emu = Emulator("--stations", "3", trace=tmp_path / "emu.jsonl")
 
     def stop():
         """stops the emulator; its MDP requests in order (the trace is complete at exit)"""
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGTERM)
-            proc.wait(timeout=10)
-        with open(trace) as f:
-            requests[:] = [e for e in map(json.loads, f) if e["ev"] == "modbus" and e["ep"] == "mdp"]
-        return requests
+        emu.stop()
+        return [e for e in emu.trace() if e["ev"] == "modbus" and e["ep"] == "mdp"]
 
-    yield int(m.group(1)), stop
-    if proc.poll() is None:
-        proc.kill()
-        proc.wait()
-    proc.stdout.close()
+    yield emu.mdp_port, stop
+    emu.stop()
 
 
 @pytest.mark.parametrize("compiler", [compiler_param("stc")])
 def test_program_chooses_the_station_of_each_request(compiler, mdp, tmp_path):
     port, stop = mdp
     cfg = tmp_path / "central.conf"
-    cfg.write_text(CONFIG.format(port=port))
+    cfg.write_text(config(port))
     src = tmp_path / "prog.st"
     src.write_text(PROG)
     plc = Plc.build([src], workdir=tmp_path, compiler=compiler, config=cfg)

@@ -14,18 +14,16 @@ of one PLC and `retain_load` into a fresh one.
 from __future__ import annotations
 
 import struct
-import sys
-from dataclasses import dataclass
 from pathlib import Path
 
-from mipcosim.layout import enum_values
 from mipcosim.kernel import MS
+from mipcosim.layout import enum_values
+from mippeer import siprotec as pyrelay
+from miptest.soe import Entry, expected, script  # noqa: F401 (the tests import them from here)
 from plcharness import Plc  # noqa: F401 (the type build() returns)
 from stlib_sim import Fb, RunUntil, build_text, lib_type
 
 REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO / "peers"))
-from mippeer import siprotec as pyrelay  # noqa: E402
 
 SOE_TYPES = REPO / "st_lib" / "MIP_TypesSoe.st"
 ERR = enum_values("E_MIP_SoeError", SOE_TYPES)
@@ -70,15 +68,6 @@ class PyRelay:
 
     def entries(self):
         return len(self.rec.entries)
-
-
-@dataclass
-class Entry:
-    type_bit: int
-    address: int
-    cause_type: int
-    value: int
-    time_ms: int
 
 
 class Client:
@@ -278,17 +267,3 @@ class Bench(RunUntil):
 
     def acks(self):
         return [v for v, exc in self.client.writes if exc is None]
-
-
-def script(n, start_s=0.05, every_s=0.013, seed=0):
-    """n events at distinct times: (t_s, [type/bit, address, cause/type, value])."""
-    out = []
-    for k in range(n):
-        out.append((start_s + k * every_s,
-                    [0x0100 + (k * 7 + seed) % 16, 100 + (k * 13 + seed) % 900, 0x0101 + (k % 3),
-                     (k * 31 + seed) & 0xFFFF]))
-    return out
-
-
-def expected(events, origin_ms=1767225600000):
-    return [Entry(*w, origin_ms + int(round(t * 1e9)) // 1000000) for t, w in events]

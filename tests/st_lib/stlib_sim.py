@@ -15,7 +15,6 @@ import ctypes
 import functools
 import os
 import random
-import shutil
 import struct
 import weakref
 from dataclasses import dataclass

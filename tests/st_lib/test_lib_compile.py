@@ -1,6 +1,5 @@
 """st_lib compiles with stc, and with matiec's iec2c (plain flags and OpenPLC's flags) where
 iec2c is installed; every block carries the documentation header the docs generator reads."""
-import os
 import re
 import shutil
 import subprocess
@@ -8,6 +7,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from plcharness.matiec import matiec_paths
 
 from stlib_sim import LIB, LIB_FILES, LIB_PATHS
 
@@ -47,14 +47,6 @@ END_CONFIGURATION
 OPENPLC_FLAGS = ["-f", "-l", "-p", "-r", "-R", "-a"]
 
 
-def _iec2c():
-    exe = os.environ.get("IEC2C") or shutil.which("iec2c")
-    if not exe:
-        return None, None
-    lib = os.environ.get("MATIEC_LIB") or str(Path(exe).resolve().parent / "lib")
-    return exe, lib
-
-
 def _combined(tmp_path):
     text = "".join(Path(p).read_text() + "\n" for p in LIB_PATHS) + USE_ALL
     f = tmp_path / "st_lib_all.st"
@@ -64,7 +56,7 @@ def _combined(tmp_path):
 
 @pytest.mark.parametrize("flags", [[], OPENPLC_FLAGS], ids=["plain", "openplc-flags"])
 def test_matiec_compiles_st_lib(tmp_path, flags):
-    exe, lib = _iec2c()
+    exe, lib = matiec_paths()
     if not exe:
         pytest.skip("iec2c not found on PATH or in $IEC2C: matiec check not run "
                     "(set PATH and MATIEC_LIB to run it)")

@@ -1,8 +1,8 @@
 """The internal blocks MIP_Layout and MIP_ReadDecoder on their own: the tables the sender, the
 receiver and the link rely on (st_lib/PROTOCOL.md section 1, note 2.1 and 2.2)."""
-from pathlib import Path
 
 import pytest
+from mipprograms.common import config
 from plcharness import Plc
 
 from stlib_sim import LIB_PATHS, compiler
@@ -20,14 +20,7 @@ lay(xBidirectional := xBidi, xDownstream := xDown);
 dec(xEnable := xEnable, xReset := xReset, xReadValid := xReadValid, wStatus := wStatus,
     wCount := wCount, wNumber := wNumber, uStream := uStream);
 END_PROGRAM
-
-CONFIGURATION Config0
-  RESOURCE Res0 ON PLC
-    TASK tMain(INTERVAL := T#10ms, PRIORITY := 0);
-    PROGRAM inst0 WITH tMain : MAIN;
-  END_RESOURCE
-END_CONFIGURATION
-"""
+""" + config("MAIN", "inst0")
 
 
 @pytest.fixture(scope="module")

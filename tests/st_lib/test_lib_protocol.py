@@ -238,17 +238,24 @@ def test_ack_by_caller_holds_the_acknowledgement(wd):
 
 # ---------------------------------------------------------------- restarts
 
+def restarted_after(wd, old, records, new):
+    """A transfer of `old` whose outstation PLC restarts once the receiver has `records`
+    records; the new sender's data is `new`."""
+    u = Uni(wd, old)
+    u.bench.step(3)
+    u.snd["xExecute"] = True
+    assert u.bench.run_until(lambda: u.rcv["udiRecords"] >= records, 2000)
+    u.restart_outstation()
+    u.src.data = new
+    return u
+
+
 def test_sender_restart_mid_transfer(wd):
     """The outstation PLC restarts after 2 of 5 records: the new sender starts with record 1
     at once (no reset record); the receiver takes record 1 as a new transfer (P18), reports
     the open one failed; the new transfer arrives whole."""
     old, new = pattern(5 * 122, seed=13), pattern(3 * 122, seed=14)
-    u = Uni(wd, old)
-    u.bench.step(3)
-    u.snd["xExecute"] = True
-    assert u.bench.run_until(lambda: u.rcv["udiRecords"] >= 2, 2000)
-    u.restart_outstation()
-    u.src.data = new
+    u = restarted_after(wd, old, 2, new)
     u.bench.step(5)
     assert u.send() == "done"
     assert u.rcv["udiFailedTransfers"] == 1
@@ -261,12 +268,7 @@ def test_sender_restart_first_record_lost(wd):
     """The first record 1 after the restart is lost for good: it is sent again, the receiver
     still takes it as a new transfer."""
     old, new = pattern(6 * 122, seed=15), pattern(2 * 122, seed=16)
-    u = Uni(wd, old)
-    u.bench.step(3)
-    u.snd["xExecute"] = True
-    assert u.bench.run_until(lambda: u.rcv["udiRecords"] >= 3, 2000)
-    u.restart_outstation()
-    u.src.data = new
+    u = restarted_after(wd, old, 3, new)
     u.radio.fate = drop_first("O", 1)
     u.bench.step(5)
     assert u.send() == "done"

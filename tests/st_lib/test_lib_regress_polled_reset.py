@@ -11,13 +11,11 @@ checked exactly once.
 
 Since sessions open with record 1 (st_lib/PROTOCOL.md P6) there is no reset phase any more; the
 schedules stay as polled, lossy liveness cases of the whole chain."""
-import sys
 from pathlib import Path
 
 import pytest
 
 REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO / "cosim"))
 
 if not (REPO / "build" / "cosim" / "libmipcosim.so").is_file():
     pytest.fail("build/cosim/libmipcosim.so not built: run make first (these tests cannot run without it)", pytrace=False)

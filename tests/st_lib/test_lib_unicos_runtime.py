@@ -6,6 +6,7 @@ import pytest
 from mipcosim.pydevice import PyDevice
 from mippeer.unicos import UnicosConfig, UnicosDriver
 from plcharness import Plc
+from plcharness.config import Config
 from stlib_sim import compiler, lib_sources, lib_type
 from unicos_bench import UERR, entry
 
@@ -32,32 +33,19 @@ def program():
             "    PROGRAM inst0 WITH tMain : MAIN;\n  END_RESOURCE\nEND_CONFIGURATION\n")
 
 
-CONFIG = f"""[master]
-timeout = 50ms
-
-[device unicos]
-host = 127.0.0.1
-port = 502
-
-[write unicos_events]
-device = unicos
-start = {MARKER}
-size = 123
-image = %QW100
-policy = trigger
-trigger = %QX1.0
-done = %IX1.0
-error = %IX1.1
-status = %IW10
-length = %QW1
-"""
+CONFIG = Config()
+CONFIG.add("master", timeout="50ms")
+CONFIG.add("device", "unicos", host="127.0.0.1", port=502)
+CONFIG.add("write", "unicos_events", device="unicos", start=MARKER, size=123, image="%QW100",
+           policy="trigger", trigger="%QX1.0", done="%IX1.0", error="%IX1.1", status="%IW10",
+           length="%QW1")
 
 
 @pytest.fixture(scope="module")
 def built(tmp_path_factory):
     d = tmp_path_factory.mktemp("unicos_runtime")
     (d / "prog.st").write_text(program())
-    (d / "plcrt.conf").write_text(CONFIG)
+    CONFIG.write(d / "plcrt.conf")
     plc = Plc.build(lib_sources(d) + [str(d / "prog.st")], workdir=d, compiler=compiler(),
                     config=d / "plcrt.conf")
     return plc.build_result, d

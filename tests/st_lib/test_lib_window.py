@@ -10,7 +10,7 @@ import pytest
 from stlib_sim import FFFF, Uni, enum_values, pattern
 
 WIN = enum_values("E_MIP_WindowState")
-from test_lib_interop import NoteCentral, uni_vs_note_central
+from test_lib_interop import uni_vs_note_central
 
 
 @pytest.fixture(scope="module")

@@ -7,6 +7,8 @@ import shutil
 import subprocess
 import sys
 
+from mipprograms.common import config
+
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 HERE = os.path.dirname(os.path.abspath(__file__))
 CFLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-O0"]
@@ -142,13 +144,7 @@ VAR f : F_TRIG; q : BOOL; END_VAR
 f(CLK := FALSE);
 q := f.Q;
 END_PROGRAM
-CONFIGURATION Config0
-RESOURCE Res0 ON PLC
-TASK t(INTERVAL := T#10ms, PRIORITY := 0);
-PROGRAM Main0 WITH t : Main;
-END_RESOURCE
-END_CONFIGURATION
-"""
+""" + config("Main", "Main0", task="t")
 _FLAVOUR_MAIN = """#include <stdio.h>
 #include "iec_std_lib.h"
 #include "POUS.h"

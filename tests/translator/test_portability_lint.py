@@ -14,13 +14,10 @@ import os
 import re
 
 import pytest
+from stc.compiler import compile_files
+from stc.diag import Diagnostics
 
 import stc_harness as H
-import sys
-
-sys.path.insert(0, os.path.join(H.ROOT, "translator"))
-from stc.compiler import compile_files  # noqa: E402
-from stc.diag import Diagnostics  # noqa: E402
 
 STLIB = sorted(glob.glob(os.path.join(H.ROOT, "st_lib", "*.st")))
 PLC_DIR = os.path.join(H.ROOT, "plc")

@@ -11,15 +11,12 @@ import glob
 import os
 import re
 import subprocess
-import sys
 
 import pytest
+from stc.compiler import compile_files
+from stc.diag import Diagnostics
 
 import stc_harness as H
-
-sys.path.insert(0, os.path.join(H.ROOT, "translator"))
-from stc.compiler import compile_files  # noqa: E402
-from stc.diag import Diagnostics  # noqa: E402
 
 IEC2C, MATIEC_LIB = H.find_iec2c()
 ACCEPT = sorted(glob.glob(os.path.join(H.HERE, "accept", "*.st")))

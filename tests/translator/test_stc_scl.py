@@ -14,13 +14,13 @@ import sys
 from pathlib import Path
 
 import pytest
+from mipcosim.layout import LIB_FILES
+from mipprograms.common import config
+from stc.scl_out import array_aliases, generate_files, library_version
 
 import stc_harness as H
 
 REPO = Path(H.HERE).resolve().parents[1]
-sys.path.insert(0, str(REPO / "cosim"))
-from mipcosim.layout import LIB_FILES  # noqa: E402
-from stc.scl_out import array_aliases, generate_files, library_version  # noqa: E402
 
 ACCEPT = sorted(glob.glob(os.path.join(H.HERE, "scl_accept", "*.scl")))
 REJECT = sorted(glob.glob(os.path.join(H.HERE, "scl_reject", "*.scl")))
@@ -183,13 +183,7 @@ fb(xGo := go);
 cnt := fb.uCount; w3 := fb.aOut[3]; done := fb.xDone; pa := fb.pair.a;
 MODE_OUT
 END_PROGRAM
-CONFIGURATION Config0
-RESOURCE Res0 ON PLC
-TASK t(INTERVAL := T#10ms, PRIORITY := 0);
-PROGRAM Main0 WITH t : Main;
-END_RESOURCE
-END_CONFIGURATION
-"""
+""" + config("Main", "Main0", task="t")
 
 
 def test_generated_scl_computes_what_the_st_computes(tmp_path):

@@ -6,17 +6,11 @@ import sys
 import textwrap
 
 import pytest
+from mipprograms.common import config
 
 import stc_harness as H
 
-CONFIG = """
-CONFIGURATION Config0
-RESOURCE Res0 ON PLC
-TASK t(INTERVAL := T#10ms, PRIORITY := 0);
-PROGRAM Main0 WITH t : Main;
-END_RESOURCE
-END_CONFIGURATION
-"""
+CONFIG = config("Main", "Main0", task="t")
 
 # one program, the values matiec's library and C give, and the IEC 61131-3 values
 DIFFERS = """PROGRAM Main
@@ -153,7 +147,7 @@ def test_unclosed_comments_are_one_located_error_in_linear_time(tmp_path):
     rc, rss, err = _stc_under_limits(tmp_path, "PROGRAM Main\nVAR x : INT; END_VAR\n" +
                                      "(* " * 20000 + "\nx := 1;\nEND_PROGRAM\n")
     assert rc == 1
-    assert f"big.st:3:1: error: comment '(*' is not closed: missing '*)'" in err
+    assert "big.st:3:1: error: comment '(*' is not closed: missing '*)'" in err
     assert "internal" not in err and rss < 200 * 1024
 
 

@@ -2,7 +2,6 @@
 // comments, library namespaces, STRING(n), END_IF without ';', POINTER TO, ADR, SIZEOF, p^,
 MEMCPY) is read, translated and runs; the same constructs stay errors in .st files, with the
 position of the construct."""
-from pathlib import Path
 
 import pytest
 
@@ -82,17 +81,24 @@ def test_generated_c_compiles_without_warnings(tmp_path):
     assert p.returncode == 0, p.stderr
 
 
+def refused(src, text):
+    """stc on the source `text` (written to src), which it must refuse: exit 1, no traceback;
+    returns (src, the CompletedProcess)."""
+    src.write_text(text)
+    r = translate(["-o", str(src.parent / "gen"), str(src)])
+    assert r.returncode == 1
+    assert "Traceback" not in r.stderr
+    return src, r
+
+
 @pytest.mark.parametrize("body,where,msg", [
     ("p : POINTER TO INT;", (3, 13), "POINTER TO is not portable"),
     ("x : INT := ADR(y);", (3, 12), "unknown function 'ADR'"),
     ("s : STRING(15);", None, "syntax"),
 ])
 def test_vendor_constructs_stay_errors_in_st(tmp_path, body, where, msg):
-    src = tmp_path / "p.st"
-    src.write_text(f"PROGRAM Main\nVAR\n{body}\ny : INT;\nEND_VAR\ny := 1;\nEND_PROGRAM\n")
-    r = translate(["-o", str(tmp_path / "gen"), str(src)])
-    assert r.returncode == 1
-    assert "Traceback" not in r.stderr
+    src, r = refused(tmp_path / "p.st",
+                     f"PROGRAM Main\nVAR\n{body}\ny : INT;\nEND_VAR\ny := 1;\nEND_PROGRAM\n")
     if where:
         assert f"{src}:{where[0]}:{where[1]}: error: " in r.stderr and msg in r.stderr, r.stderr
     else:
@@ -107,11 +113,8 @@ def test_vendor_constructs_stay_errors_in_st(tmp_path, body, where, msg):
     ("y := UDINT_TO_INT(SIZEOF(1));", (6, 26), "SIZEOF takes a variable"),
 ])
 def test_vendor_errors_point_at_the_construct(tmp_path, body, where, msg):
-    src = tmp_path / "p.twincat.st"
-    src.write_text(f"PROGRAM Main\nVAR\np : POINTER TO INT;\ny : INT;\nEND_VAR\n{body}\nEND_PROGRAM\n")
-    r = translate(["-o", str(tmp_path / "gen"), str(src)])
-    assert r.returncode == 1
-    assert "Traceback" not in r.stderr
+    src, r = refused(tmp_path / "p.twincat.st",
+                     f"PROGRAM Main\nVAR\np : POINTER TO INT;\ny : INT;\nEND_VAR\n{body}\nEND_PROGRAM\n")
     assert f"{src}:{where[0]}:{where[1]}: error: {msg}" in r.stderr, r.stderr
 
 

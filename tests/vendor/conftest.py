@@ -4,7 +4,6 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO / "cosim"))   # mipcosim, also before `make venv` installed it
 sys.path.insert(0, str(REPO / "tests" / "runtime"))   # rt_helpers (the stand-in tests' server)
 
 if not (REPO / "build" / "cosim" / "libmipcosim.so").is_file():

@@ -17,17 +17,15 @@ request, and two instances on one connection id.
 """
 import socket
 import struct
-import sys
 import threading
 from pathlib import Path
 
 import pytest
 
-REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO / "tests" / "runtime"))
+from plcharness import Plc
+from rt_helpers import ModbusServer
 
-from plcharness import Plc  # noqa: E402
-from rt_helpers import ModbusServer  # noqa: E402
+REPO = Path(__file__).resolve().parents[2]
 
 STANDINS = [REPO / "standins" / "StandIn_Channel.twincat.st",
             REPO / "standins" / "s7" / "MB_CLIENT.codesys.st"]
@@ -111,7 +109,6 @@ class ExceptionServer(ModbusServer):
 
 
 def build(tmp_path, port, timeout="1s"):
-    sys.path.insert(0, str(REPO / "cosim"))
     from mipcosim import layout as L
     tmp_path.mkdir(parents=True, exist_ok=True)
     src = tmp_path / "main.codesys.st"

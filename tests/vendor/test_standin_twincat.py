@@ -5,18 +5,16 @@ from pSrcAddr), and the requests go on the wire as the program asked (the server
 Every nErrId of the table in docs/wiring-twincat.md#the-stand-ins is reached here; ERRIDS below
 says which test reaches which."""
 import socket
-import sys
 import threading
 from pathlib import Path
 
 import pytest
 
-REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO / "tests" / "runtime"))
+from plcharness import Plc
+from rt_helpers import ModbusServer
+from standin_server import ScriptedServer
 
-from plcharness import Plc  # noqa: E402
-from rt_helpers import ModbusServer  # noqa: E402
-from standin_server import ScriptedServer  # noqa: E402
+REPO = Path(__file__).resolve().parents[2]
 
 # nErrId -> the test that reaches it (docs/wiring-twincat.md#the-stand-ins has the same codes)
 ERRIDS = {
@@ -87,8 +85,6 @@ def config(port, timeout="1s", fc23=False):
 
 @pytest.fixture
 def build(tmp_path):
-    sys.path.insert(0, str(REPO / "cosim"))
-
     def make(port, timeout="1s", fc23=False):
         src = tmp_path / "main.twincat.st"
         src.write_text(PROG)

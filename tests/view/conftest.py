@@ -2,15 +2,13 @@
 a browser. The PLCs of the docs' chain are built in a directory of the test process (as
 tests/docs does: two workers building in build/docs/plc would remove each other's builds)."""
 import shutil
-import sys
 from pathlib import Path
 
 import pytest
 
-REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO / "view"))     # before `make venv` installed it
+from view_helpers import CHROMIUM
 
-from view_helpers import CHROMIUM  # noqa: E402
+REPO = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="session")

@@ -15,6 +15,7 @@ from pathlib import Path
 import pytest
 
 from view_helpers import all_chunks_drawn, needs_browser
+from mipcosim.trace import parse, read_trace
 from mipview import session as S
 from mipview import shots
 
@@ -39,7 +40,7 @@ def page(browser, server):
 
 
 def trace(server):
-    return [json.loads(x) for x in server.get("api/trace").splitlines() if x]
+    return parse(server.get("api/trace").splitlines(), "api/trace")
 
 
 def svg_texts(pg):
@@ -194,7 +195,7 @@ def test_follow_mode_shows_a_growing_trace(browser, view_workdir, tmp_path):
         assert pg.locator("#restart-central-cold").is_hidden()     # read-only
         with open(path, "a") as f:
             f.write("".join(lines[len(lines) // 2:]))
-        want = [d["text"] for _, _, d in S.rows_of([json.loads(x) for x in lines])]
+        want = [d["text"] for _, _, d in S.rows_of(parse(lines))]
         deadline = time.time() + 10
         while time.time() < deadline and want[-1] not in svg_texts(pg):
             time.sleep(0.1)
@@ -240,7 +241,7 @@ def test_demo_in_real_time_is_followed_and_stopped_with_the_view(browser):
                              timeout=120_000)
         assert pg.inner_text("#note").startswith("result: ok records=3 ")
         trace_file = REPO / "build" / "view" / "demo" / "emulator-trace.jsonl"
-        events = [json.loads(x) for x in trace_file.read_text().splitlines() if x]
+        events = read_trace(trace_file)
         settle(pg, srv)
         lost = [d for d in events if d["ev"] == "radio" and d.get("lost")]
         assert [d["r0"] for d in lost] == [2]          # the demo's record 2, lost once

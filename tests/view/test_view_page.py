@@ -15,6 +15,7 @@ from pathlib import Path
 import pytest
 
 from view_helpers import all_chunks_drawn, needs_browser
+from mipcosim.trace import parse
 from mipview import session as S
 from mipview import shots
 
@@ -180,7 +181,7 @@ def test_a_followed_trace_with_a_byte_not_utf8_goes_on_and_shows_the_line(browse
             f.write(b"".join(lines[100:]))
         pg.wait_for_function(f"document.getElementById('radio').textContent"
                              f".includes('{len(lines)} trace lines')")
-        want_rows = S.rows_of([json.loads(x) for x in lines])
+        want_rows = S.rows_of(parse(lines))
         assert want_rows[-1][2]["text"] == "answer + radio ack: block confirmed"
         settle(pg, srv)
         assert svg_texts(pg).count("write ack 16#FFFF (last) (1 reg)") == 1   # after line 101

@@ -2,12 +2,12 @@
 trace: without a browser, quick."""
 from __future__ import annotations
 
-import json
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+from mipcosim.trace import read_trace
 
 from mipview import session as S
 
@@ -62,7 +62,7 @@ def test_our_retransmission_is_marked_apart_from_the_modems_repeat(view_workdir,
 def test_a_trace_of_the_emulator_alone_says_record_and_ack(tmp_path):
     """The real-time demo's and the chain demo's traces have no PLC lines: the blocks are
     labelled from the write registers (2001 a record, 10 an acknowledgement)."""
-    events = [json.loads(x) for x in NOTE.read_text().splitlines()]
+    events = read_trace(NOTE)
     raw = [d for d in events if d["ev"] != "plc"]
     t = texts(S.rows_of(raw))
     assert not any(x.startswith("FC16 write") for x in t)

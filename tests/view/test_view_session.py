@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from mipcosim.trace import parse
 from mipview import session as S
 
 REPO = Path(__file__).resolve().parents[2]
@@ -26,7 +27,7 @@ def run_to_end(s, limit_ms=60_000):
 
 
 def lines(trace):
-    return [json.loads(x) for x in trace]
+    return parse(trace)
 
 
 def test_a_preset_is_the_exercise_run_of_mipsim(view_workdir, tmp_path):

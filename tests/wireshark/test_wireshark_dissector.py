@@ -10,7 +10,6 @@ captures (pcapcraft.py): what no well-behaved PLC sends.
 """
 from __future__ import annotations
 
-import json
 import os
 import re
 import shutil
@@ -20,6 +19,7 @@ from collections import defaultdict
 from pathlib import Path
 
 import pytest
+from mipcosim.trace import read_trace
 
 from pcapcraft import Capture
 
@@ -78,10 +78,6 @@ exit $st
     assert r.returncode == 0, f"{r.stderr}\n{text}\n{log.read_text() if log.exists() else ''}"
     assert "result: ok" in text, text
     return pcap, text
-
-
-def read_trace(path):
-    return [json.loads(line) for line in Path(path).read_text().splitlines()]
 
 
 def run_demo(tmp: Path, *demo_args):

@@ -5,8 +5,8 @@ import os
 import sys
 import threading
 
-from . import __version__
-from .diag import CompileError, Diagnostics
+from . import __version__, oneline
+from .diag import Diagnostics
 from .semantics import SEMANTICS
 
 USAGE_EPILOG = """\
@@ -161,12 +161,10 @@ def run(files, libdirs, outdir, semantics="matiec", werror_portability=False, st
             print(line, file=sys.stderr)
         return 1
     from .cgen import Gen
-    try:
+
+    def generate():
         Gen(project, [f for f, _, _ in texts]).generate(outdir)
-    except OSError as e:
-        print(f"stc: error: {outdir}: {e.strerror}", file=sys.stderr)
-        return 1
-    return 0
+    return oneline.run("stc", generate, where=outdir)
 
 
 if __name__ == "__main__":

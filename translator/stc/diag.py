@@ -12,20 +12,19 @@ class Diagnostics:
         self._seen = set()
 
     def warn(self, file, pos, message):
-        line, col = pos if pos else (0, 0)
-        key = (file, line, col, message)
-        if key in self._seen:
-            return
-        self._seen.add(key)
-        self.warnings.append(key)
+        self._add(self.warnings, file, pos, message)
 
     def error(self, file, pos, message):
+        self._add(self.errors, file, pos, message)
+
+    def _add(self, into, file, pos, message):
+        """One message once: the same text at the same place is reported the first time."""
         line, col = pos if pos else (0, 0)
         key = (file, line, col, message)
         if key in self._seen:
             return
         self._seen.add(key)
-        self.errors.append(key)
+        into.append(key)
 
     def __bool__(self):
         return bool(self.errors)

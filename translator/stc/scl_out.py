@@ -28,7 +28,7 @@ import os
 import re
 import sys
 
-from . import parser
+from . import oneline, parser
 from . import syntax as S
 from .diag import Diagnostics
 
@@ -197,16 +197,10 @@ class _Pou:
 
     # ---- expressions
     def expr(self, e):
-        if isinstance(e, S.IntLit):
-            return e.text
-        if isinstance(e, S.RealLit):
-            return e.text
-        if isinstance(e, S.TimeLit):
-            return e.text
+        if isinstance(e, (S.IntLit, S.RealLit, S.TimeLit, S.StringLit)):
+            return e.text           # as written
         if isinstance(e, S.BoolLit):
             return "TRUE" if e.value else "FALSE"
-        if isinstance(e, S.StringLit):
-            return e.text
         if isinstance(e, S.TypedLit):
             if e.kind == "ident" and e.type_name in self.lib.enums:
                 return self.enum_ref(e.value)
@@ -300,6 +294,12 @@ class _Pou:
             self.flush_comments(s.pos[0], ind)
             self.stmt(s, ind)
 
+    def orelse(self, body, ind):
+        """An IF's or a CASE's ELSE at ind and its statements one level in, when it has one."""
+        if body is not None:
+            self.out.append(f"{ind}ELSE")
+            self.stmts(body, ind + "    ")
+
     def regions(self, before_line, ind):
         """A section comment `(* ---- name ---- *)` between the body's top-level statements
         starts a REGION named so (TIA folds it), up to the next one or the end of the body."""
@@ -340,9 +340,7 @@ class _Pou:
                 o.append(f"{ind}{'IF' if i == 0 else 'ELSIF'} {self.expr(cond)} THEN")
                 self.trail(cond.pos[0])
                 self.stmts(body, ind + "    ")
-            if s.orelse is not None:
-                o.append(f"{ind}ELSE")
-                self.stmts(s.orelse, ind + "    ")
+            self.orelse(s.orelse, ind)
             o.append(f"{ind}END_IF;")
         elif isinstance(s, S.Case):
             o.append(f"{ind}CASE {self.expr(s.selector)} OF")
@@ -353,9 +351,7 @@ class _Pou:
                 else:
                     self.flush_comments(item.pos[0], ind + "        ")
                     self.stmt(item, ind + "        ")
-            if s.orelse is not None:
-                o.append(f"{ind}    ELSE")
-                self.stmts(s.orelse, ind + "        ")
+            self.orelse(s.orelse, ind + "    ")
             o.append(f"{ind}END_CASE;")
         elif isinstance(s, S.For):
             by = f" BY {self.expr(s.step)}" if s.step is not None else ""
@@ -659,20 +655,15 @@ def main(argv=None):
                          "default: the constants uMajor, uMinor, uPatch in the inputs")
     ap.add_argument("files", nargs="+", metavar="FILE.st")
     a = ap.parse_args(argv)
-    try:
+
+    def convert():
         out = generate_files(a.files, a.libversion or library_version(a.files))
-    except SclError as e:
-        print(e, file=sys.stderr)
-        return 1
-    except OSError as e:
-        print(f"stc.scl_out: error: {e.filename}: {e.strerror}", file=sys.stderr)
-        return 1
-    os.makedirs(a.outdir, exist_ok=True)
-    for p, text in out.items():
-        dst = os.path.join(a.outdir, os.path.splitext(os.path.basename(p))[0] + ".scl")
-        with open(dst, "wb") as f:
-            f.write(tia_bytes(text))
-    return 0
+        os.makedirs(a.outdir, exist_ok=True)
+        for p, text in out.items():
+            dst = os.path.join(a.outdir, os.path.splitext(os.path.basename(p))[0] + ".scl")
+            with open(dst, "wb") as f:
+                f.write(tia_bytes(text))
+    return oneline.run("stc.scl_out", convert, located=(SclError,))
 
 
 if __name__ == "__main__":

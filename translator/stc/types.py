@@ -164,7 +164,8 @@ class PointerT(Elem):
 def same_type(a, b, array_names=True):
     """IEC type equality. Arrays are equal only when both are of the same named TYPE (matiec
     rejects assigning or passing anonymous ARRAY[..] OF .. even with identical bounds), unless
-    array_names is False (structural, used for VAR_EXTERNAL against VAR_GLOBAL)."""
+    array_names is False (structural: the VAR_EXTERNAL check tells a shape mismatch apart from
+    two anonymous arrays of one shape)."""
     if isinstance(a, PointerT) or isinstance(b, PointerT):
         # as TwinCAT and CODESYS: any pointer takes any pointer (ADR's result, PVOID)
         return isinstance(a, PointerT) and isinstance(b, PointerT)

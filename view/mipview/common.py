@@ -4,9 +4,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from mipcosim.kernel import MS  # noqa: F401 (the view's modules take it from here)
+from mipcosim.kernel import MS as MS  # re-exported to the view's modules
 from mipcosim.layout import st_enums
-from mipdocs import chainsim, seqdiag
+from mipdocs import chainsim
+# re-exported to follow.py and session.py (the redundant alias says so to ruff)
+from mipdocs import seqdiag as seqdiag
+
+from .rows import row_data, rows_of
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -25,7 +29,6 @@ def enum_name(type_name, value):
 def diagram(history, events, title, station=1):
     """What the page shows of a trace's diagram: the whole history in chunks (rows.History),
     the last chunk's SVG and rows inline (the page fetches the others by key)."""
-    from .rows import row_data, rows_of
     rows = rows_of(events, station)
     chunks = history.update(rows, title)
     last = chunks[-1]

@@ -26,9 +26,9 @@ from __future__ import annotations
 import hashlib
 import re
 
+from mipcosim.kernel import MS
+from mipdocs import seqdiag
 from mipprobe.regmap import MDP810, TRM810
-
-from .common import MS, seqdiag
 
 CHUNK = 100                  # rows per chunk of the history (our choice: a few screens)
 FFFF = 0xFFFF

@@ -18,6 +18,9 @@ import urllib.request
 import zlib
 from pathlib import Path
 
+from plcharness.procs import stop
+from stc import oneline
+
 from .session import CHAINS, PRESETS
 
 CHROMIUM = os.environ.get("MIP_VIEW_CHROMIUM", "/usr/bin/chromium")
@@ -67,12 +70,7 @@ class Server:
             return f.read().decode()
 
     def close(self):
-        self.proc.terminate()
-        try:
-            self.proc.wait(10)
-        except subprocess.TimeoutExpired:
-            self.proc.kill()
-            self.proc.wait()
+        stop(self.proc, timeout=10)
 
 
 def launch(pw):
@@ -169,13 +167,10 @@ def main(argv=None):
         print(f"mipview.shots: error: {CHROMIUM} missing (Debian package chromium)",
               file=sys.stderr)
         return 2
-    try:
+    def shoot():
         for name, (path, st) in take(a.outdir, a.preset).items():
             print(f"{path}: {describe(name, st['t_ms'])}")
-    except RuntimeError as e:
-        print(f"mipview.shots: error: {e}", file=sys.stderr)
-        return 1
-    return 0
+    return oneline.run("mipview.shots", shoot, errors=(RuntimeError,))
 
 
 if __name__ == "__main__":

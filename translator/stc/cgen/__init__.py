@@ -3,6 +3,7 @@
 The generator is one class put together from one part per output concern (declarations.py,
 statements.py, calls.py, expressions.py, runtime_files.py); this module holds its state, the
 output buffer and the list of files it writes (generate)."""
+import contextlib
 import os
 
 from .calls import CallGen
@@ -29,6 +30,16 @@ class Gen(DeclarationGen, StatementGen, CallGen, ExpressionGen, RuntimeFilesGen)
     # ---- output helpers
     def w(self, s=""):
         self.lines.append(("    " * self.ind + s) if s else "")
+
+    @contextlib.contextmanager
+    def braced(self, head):
+        """head (a C function's signature), then what the with block writes in { }, one level in."""
+        self.w(head)
+        self.w("{")
+        self.ind += 1
+        yield
+        self.ind -= 1
+        self.w("}")
 
     def take(self):
         out = "\n".join(self.lines) + "\n"

@@ -79,7 +79,7 @@ class DeclarationGen:
             done.add(key)
             for ft, _, _ in t.fields.values():
                 self.emit_type(ft, done)
-            self.w(f"typedef struct {{")
+            self.w("typedef struct {")
             for fname, (ft, _, _) in t.fields.items():
                 self.w(f"    {cdecl(ft, fname)};")
             self.w(f"}} {t.name};")
@@ -100,7 +100,7 @@ class DeclarationGen:
         done.add(key)
         for v in pou.vars.values():
             self.emit_type(v.type, done)
-        self.w(f"typedef struct {{")
+        self.w("typedef struct {")
         any_field = False
         if pou.kind == "function_block":
             self.w("    uint8_t EN;")
@@ -147,14 +147,10 @@ class DeclarationGen:
         self.w()
         for name, t in self.p.types.items():
             if t is not None and t.is_struct:
-                self.w(f"void {t.name}_init__({t.name} *p)")
-                self.w("{")
-                self.ind += 1
-                self.w("memset(p, 0, sizeof *p);")
-                for fname, (ft, finit, _) in t.fields.items():
-                    self.init_storage(f"p->{fname}", ft, finit)
-                self.ind -= 1
-                self.w("}")
+                with self.braced(f"void {t.name}_init__({t.name} *p)"):
+                    self.w("memset(p, 0, sizeof *p);")
+                    for fname, (ft, finit, _) in t.fields.items():
+                        self.init_storage(f"p->{fname}", ft, finit)
                 self.w()
         for pou in self.user_pous():
             if pou.kind == "function":
@@ -193,78 +189,75 @@ class DeclarationGen:
         self.acc = self.access_map(pou)
         self.pou = pou
         self.tmp = 0
-        self.w(self.func_proto(pou))
-        self.w("{")
-        self.ind += 1
-        rt = pou.rtype
-        res = self.acc["\0result"]
-        if not rt.is_array:
-            self.w(f"{cdecl(rt, pou.name + '__RESULT')};")
-        for v in pou.vars.values():
-            if v.kind in ("VAR", "VAR_TEMP"):
-                self.w(f"{cdecl(v.type, v.name)};")
-        for v in pou.vars.values():
-            if v.kind in ("VAR_INPUT", "VAR_IN_OUT", "VAR_OUTPUT"):
-                self.w(f"(void){v.name};  /* parameters may be unused */")
-        if "EN" in getattr(pou, "implicit", {}):
-            self.w("uint8_t EN = 1;  /* the body runs only when EN is TRUE */")
-            self.w("(void)EN;")
-        if _body_eno(pou):
-            self.w("uint8_t ENO = 1;")
-        self.w(f"memset(&{res}, 0, sizeof {res});")
-        self.init_storage(res, rt, None)
-        for v in pou.vars.values():
-            if v.kind in ("VAR", "VAR_TEMP", "VAR_OUTPUT"):
-                lv = self.acc[v.name]
-                self.w(f"memset(&{lv}, 0, sizeof {lv});")
-                self.init_storage(lv, v.type, v.init)
-        self.stmts(pou.node.body)
-        if _body_eno(pou):
-            self.w("*ENO__p = ENO;")
-        self.w("return;" if rt.is_array else f"return {pou.name}__RESULT;")
-        self.ind -= 1
-        self.w("}")
+        with self.braced(self.func_proto(pou)):
+            rt = pou.rtype
+            res = self.acc["\0result"]
+            if not rt.is_array:
+                self.w(f"{cdecl(rt, pou.name + '__RESULT')};")
+            for v in pou.vars.values():
+                if v.kind in ("VAR", "VAR_TEMP"):
+                    self.w(f"{cdecl(v.type, v.name)};")
+            for v in pou.vars.values():
+                if v.kind in ("VAR_INPUT", "VAR_IN_OUT", "VAR_OUTPUT"):
+                    self.w(f"(void){v.name};  /* parameters may be unused */")
+            if "EN" in getattr(pou, "implicit", {}):
+                self.w("uint8_t EN = 1;  /* the body runs only when EN is TRUE */")
+                self.w("(void)EN;")
+            if _body_eno(pou):
+                self.w("uint8_t ENO = 1;")
+            self.w(f"memset(&{res}, 0, sizeof {res});")
+            self.init_storage(res, rt, None)
+            for v in pou.vars.values():
+                if v.kind in ("VAR", "VAR_TEMP", "VAR_OUTPUT"):
+                    lv = self.acc[v.name]
+                    self.w(f"memset(&{lv}, 0, sizeof {lv});")
+                    self.init_storage(lv, v.type, v.init)
+            self.stmts(pou.node.body)
+            if _body_eno(pou):
+                self.w("*ENO__p = ENO;")
+            self.w("return;" if rt.is_array else f"return {pou.name}__RESULT;")
         self.w()
 
     def fb_or_program(self, pou):
         self.acc = self.access_map(pou)
         self.pou = pou
         self.tmp = 0
-        self.w(f"void {pou.name}_init__({pou.name} *data)")
-        self.w("{")
-        self.ind += 1
-        self.w("memset(data, 0, sizeof *data);")
-        if pou.kind == "function_block":
-            self.w("data->EN = 1;")
-            self.w("data->ENO = 1;")
-        for v in pou.vars.values():
-            if v.kind == "VAR_IN_OUT" and _own_copy(v):
-                # until a call binds it, an in-out refers to the instance's own copy
-                self.w(f"data->{v.name} = &data->{v.name}__COPY;")
-            if v.kind in ("VAR_EXTERNAL", "VAR_IN_OUT") or v.location is not None:
-                continue
-            self.init_storage(self.acc[v.name], v.type, v.init)
-        for v in pou.vars.values():
-            if v.location is not None and v.init is not None:
+        with self.braced(f"void {pou.name}_init__({pou.name} *data)"):
+            self.w("memset(data, 0, sizeof *data);")
+            if pou.kind == "function_block":
+                self.w("data->EN = 1;")
+                self.w("data->ENO = 1;")
+            for v in pou.vars.values():
+                if v.kind == "VAR_IN_OUT" and _own_copy(v):
+                    # until a call binds it, an in-out refers to the instance's own copy
+                    self.w(f"data->{v.name} = &data->{v.name}__COPY;")
+                if v.kind in ("VAR_EXTERNAL", "VAR_IN_OUT") or v.location is not None:
+                    continue
                 self.init_storage(self.acc[v.name], v.type, v.init)
-        self.ind -= 1
-        self.w("}")
+            for v in pou.vars.values():
+                if v.location is not None and v.init is not None:
+                    self.init_storage(self.acc[v.name], v.type, v.init)
         self.w()
-        self.w(f"void {pou.name}_body__({pou.name} *data)")
-        self.w("{")
-        self.ind += 1
-        self.w("(void)data;")
-        for v in pou.vars.values():
-            if v.kind == "VAR_TEMP":
-                lv = self.acc[v.name]
-                self.w(f"memset(&{lv}, 0, sizeof {lv});")
-                self.init_storage(lv, v.type, v.init)
-        self.stmts(pou.node.body)
-        self.ind -= 1
-        self.w("}")
+        with self.braced(f"void {pou.name}_body__({pou.name} *data)"):
+            self.w("(void)data;")
+            for v in pou.vars.values():
+                if v.kind == "VAR_TEMP":
+                    lv = self.acc[v.name]
+                    self.w(f"memset(&{lv}, 0, sizeof {lv});")
+                    self.init_storage(lv, v.type, v.init)
+            self.stmts(pou.node.body)
         self.w()
 
     # ---- initialisation
+    def _init_loop(self, lo, hi, elem, et, val):
+        """A C loop over the elements lo..hi-1 that initialises each (elem(i): its lvalue)."""
+        i = self.new_tmp("i")
+        self.w(f"{{ int {i}; for ({i} = {lo}; {i} < {hi}; {i}++) {{")
+        self.ind += 1
+        self.init_storage(elem(i), et, val)
+        self.ind -= 1
+        self.w("} }")
+
     def init_storage(self, lv, t, init):
         """Statements giving storage lv (already zeroed) its initial value."""
         if init is None:
@@ -279,13 +272,8 @@ class DeclarationGen:
                 elif t.is_array:
                     et = t.elem
                     if et.is_struct or et.is_enum and et.default or getattr(et, "default", None) is not None:
-                        n = t.count()
-                        i = self.new_tmp("i")
-                        self.w(f"{{ int {i}; for ({i} = 0; {i} < {n}; {i}++) {{")
-                        self.ind += 1
-                        self.init_storage(f"(({_c_elem(et)} *)&{lv})[{i}]", et, None)
-                        self.ind -= 1
-                        self.w("} }")
+                        self._init_loop(0, t.count(), lambda i: f"(({_c_elem(et)} *)&{lv})[{i}]",
+                                        et, None)
                 return
             if isinstance(init, str):   # enum default value name
                 self.w(f"{lv} = {t.name}__{init};")
@@ -307,12 +295,7 @@ class DeclarationGen:
                     for j in range(n):
                         self.init_storage(f"{flat}[{k + j}]", et, val)
                 else:
-                    i = self.new_tmp("i")
-                    self.w(f"{{ int {i}; for ({i} = {k}; {i} < {k + n}; {i}++) {{")
-                    self.ind += 1
-                    self.init_storage(f"{flat}[{i}]", et, val)
-                    self.ind -= 1
-                    self.w("} }")
+                    self._init_loop(k, k + n, lambda i: f"{flat}[{i}]", et, val)
                 k += n
             return
         if isinstance(init, S.StructInit):

@@ -5,6 +5,28 @@ from functools import reduce
 from .helpers import _type_tag, cdecl
 
 
+def retain_table(rows):
+    """The lines of the table of retained variables the runtime walks (plcrt_gen_retain_*: names,
+    type tags, addresses, sizes; plcrt_retain.c saves and restores them) for rows of (IEC path,
+    type tag, C lvalue). The end of stc's RETAIN.c, and of the plcrt_retain_gen.c that
+    plcharness writes for a matiec build. Addresses and sizes come from functions evaluated at
+    run time: a located variable's lvalue (*pointer) is set when the program is loaded."""
+    out = ["const char *const plcrt_gen_retain_names[] = {"]
+    out += [f'  "{p.upper()}",' for p, _, _ in rows]
+    out.append("  0 };")
+    out.append("const char *const plcrt_gen_retain_types[] = {")
+    out += [f'  "{t}",' for _, t, _ in rows]
+    out.append("  0 };")
+    out.append(f"const size_t plcrt_gen_n_retain = {len(rows)};")
+    out.append("void *plcrt_gen_retain_addr(size_t i) {\n  switch (i) {")
+    out += [f"  case {i}: return (void *)&({ref});" for i, (_, _, ref) in enumerate(rows)]
+    out.append("  default: return 0;\n  }\n}")
+    out.append("size_t plcrt_gen_retain_size(size_t i) {\n  switch (i) {")
+    out += [f"  case {i}: return sizeof({ref});" for i, (_, _, ref) in enumerate(rows)]
+    out.append("  default: return 0;\n  }\n}")
+    return out
+
+
 class RuntimeFilesGen:
     """A part of Gen (cgen/__init__.py): its methods call the other parts' through self."""
     # ---- configuration: Config0.c and one file per resource
@@ -31,27 +53,19 @@ class RuntimeFilesGen:
                 self.w(f"void {r.name}_init__(void);")
                 self.w(f"void {r.name}_run__(unsigned long tick);")
         self.w()
-        self.w("void config_init__(void)")
-        self.w("{")
-        self.ind += 1
-        if cfg is not None:
-            for v in cfg.globals.values():
-                self.global_init(v)
-            for r in cfg.resources:
-                self.w(f"{r.name}_init__();")
-        self.ind -= 1
-        self.w("}")
+        with self.braced("void config_init__(void)"):
+            if cfg is not None:
+                for v in cfg.globals.values():
+                    self.global_init(v)
+                for r in cfg.resources:
+                    self.w(f"{r.name}_init__();")
         self.w()
-        self.w("void config_run__(unsigned long tick)")
-        self.w("{")
-        self.ind += 1
-        if cfg is not None and cfg.resources:
-            for r in cfg.resources:
-                self.w(f"{r.name}_run__(tick);")
-        else:
-            self.w("(void)tick;")
-        self.ind -= 1
-        self.w("}")
+        with self.braced("void config_run__(unsigned long tick)"):
+            if cfg is not None and cfg.resources:
+                for r in cfg.resources:
+                    self.w(f"{r.name}_run__(tick);")
+            else:
+                self.w("(void)tick;")
         files["Config0.c"] = self.take()
         if cfg is None:
             return files
@@ -65,51 +79,39 @@ class RuntimeFilesGen:
             for inst in r.instances:
                 self.w(f"{inst.pou.name} {r.name}__{inst.name};")
             self.w()
-            self.w(f"void {r.name}_init__(void)")
-            self.w("{")
-            self.ind += 1
-            for v in r.globals.values():
-                self.global_init(v)
-            for inst in r.instances:
-                self.w(f"{inst.pou.name}_init__(&{r.name}__{inst.name});")
-            self.ind -= 1
-            self.w("}")
+            with self.braced(f"void {r.name}_init__(void)"):
+                for v in r.globals.values():
+                    self.global_init(v)
+                for inst in r.instances:
+                    self.w(f"{inst.pou.name}_init__(&{r.name}__{inst.name});")
             self.w()
-            self.w(f"void {r.name}_run__(unsigned long tick)")
-            self.w("{")
-            self.ind += 1
-            self.w("(void)tick;")
-            runs = False
-            if self.matiec:
-                # matiec: the program instances in declaration order, each when its task is
-                # due; PRIORITY plays no part
-                for i in r.instances:
-                    runs = True
-                    if i.task is None:
-                        self.w(f"{i.pou.name}_body__(&{r.name}__{i.name});  /* no task: every tick */")
-                        continue
-                    period = max(1, i.task.interval_ns // tick) if tick else 1
-                    self.w(f"if (tick % {period}u == 0u) {{  /* task {i.task.name}, {i.task.interval_ns} ns */")
-                    self.w(f"    {i.pou.name}_body__(&{r.name}__{i.name});")
-                    self.w("}")
-            else:
-                # IEC: tasks due in the same tick run in PRIORITY order (0 first)
-                for task in sorted(r.tasks, key=lambda tk: tk.priority):
-                    insts = [i for i in r.instances if i.task is task]
-                    if not insts:
-                        continue
-                    runs = True
-                    period = max(1, task.interval_ns // tick) if tick else 1
-                    self.w(f"if (tick % {period}u == 0u) {{  /* task {task.name}, {task.interval_ns} ns */")
-                    for i in insts:
+            with self.braced(f"void {r.name}_run__(unsigned long tick)"):
+                self.w("(void)tick;")
+                if self.matiec:
+                    # matiec: the program instances in declaration order, each when its task is
+                    # due; PRIORITY plays no part
+                    for i in r.instances:
+                        if i.task is None:
+                            self.w(f"{i.pou.name}_body__(&{r.name}__{i.name});  /* no task: every tick */")
+                            continue
+                        period = max(1, i.task.interval_ns // tick) if tick else 1
+                        self.w(f"if (tick % {period}u == 0u) {{  /* task {i.task.name}, {i.task.interval_ns} ns */")
                         self.w(f"    {i.pou.name}_body__(&{r.name}__{i.name});")
-                    self.w("}")
-                for i in r.instances:
-                    if i.task is None:
-                        runs = True
-                        self.w(f"{i.pou.name}_body__(&{r.name}__{i.name});  /* no task: every tick */")
-            self.ind -= 1
-            self.w("}")
+                        self.w("}")
+                else:
+                    # IEC: tasks due in the same tick run in PRIORITY order (0 first)
+                    for task in sorted(r.tasks, key=lambda tk: tk.priority):
+                        insts = [i for i in r.instances if i.task is task]
+                        if not insts:
+                            continue
+                        period = max(1, task.interval_ns // tick) if tick else 1
+                        self.w(f"if (tick % {period}u == 0u) {{  /* task {task.name}, {task.interval_ns} ns */")
+                        for i in insts:
+                            self.w(f"    {i.pou.name}_body__(&{r.name}__{i.name});")
+                        self.w("}")
+                    for i in r.instances:
+                        if i.task is None:
+                            self.w(f"{i.pou.name}_body__(&{r.name}__{i.name});  /* no task: every tick */")
             files[f"{r.name}.c"] = self.take()
         return files
 
@@ -137,19 +139,9 @@ class RuntimeFilesGen:
         decls = []
         body = []
         if cfg is not None:
-            for v in cfg.globals.values():
-                self.sym_rows(body, f"{cfg.name}.{v.name}", v.type,
-                              "LOCATED" if v.location else "VAR_GLOBAL",
-                              f"(*{v.cname})" if v.location else v.cname)
-                if v.location is None:
-                    decls.append(f"extern {cdecl(v.type, v.cname)};")
+            self.global_rows(body, decls, cfg.name, cfg.globals)
             for r in cfg.resources:
-                for v in r.globals.values():
-                    self.sym_rows(body, f"{cfg.name}.{r.name}.{v.name}", v.type,
-                                  "LOCATED" if v.location else "VAR_GLOBAL",
-                                  f"(*{v.cname})" if v.location else v.cname)
-                    if v.location is None:
-                        decls.append(f"extern {cdecl(v.type, v.cname)};")
+                self.global_rows(body, decls, f"{cfg.name}.{r.name}", r.globals)
                 for inst in r.instances:
                     cname = f"{r.name}__{inst.name}"
                     decls.append(f"extern {inst.pou.name} {cname};")
@@ -159,6 +151,16 @@ class RuntimeFilesGen:
         rows.append("path\ttype\tkind\tc_ref")
         rows += body
         return "\n".join(rows) + "\n"
+
+    def global_rows(self, body, decls, prefix, globs):
+        """The rows of the globals of a configuration or a resource (prefix: its path), and
+        the declarations of those not located."""
+        for v in globs.values():
+            self.sym_rows(body, f"{prefix}.{v.name}", v.type,
+                          "LOCATED" if v.location else "VAR_GLOBAL",
+                          f"(*{v.cname})" if v.location else v.cname)
+            if v.location is None:
+                decls.append(f"extern {cdecl(v.type, v.cname)};")
 
     # ---- RETAIN.c: the table of retained variables the runtime walks (plcrt_gen_retain_*).
     # Addresses and sizes come from functions evaluated at run time (no static address
@@ -189,19 +191,7 @@ class RuntimeFilesGen:
         out = ["/* generated by stc: the program's RETAIN variables, for the runtime */",
                "#include <stddef.h>", '#include "POUS.h"']
         out += decls
-        out.append("const char *const plcrt_gen_retain_names[] = {")
-        out += [f'  "{p.upper()}",' for p, _, _ in rows]
-        out.append("  0 };")
-        out.append("const char *const plcrt_gen_retain_types[] = {")
-        out += [f'  "{t}",' for _, t, _ in rows]
-        out.append("  0 };")
-        out.append(f"const size_t plcrt_gen_n_retain = {len(rows)};")
-        out.append("void *plcrt_gen_retain_addr(size_t i) {\n  switch (i) {")
-        out += [f"  case {i}: return (void *)&({ref});" for i, (_, _, ref) in enumerate(rows)]
-        out.append("  default: return 0;\n  }\n}")
-        out.append("size_t plcrt_gen_retain_size(size_t i) {\n  switch (i) {")
-        out += [f"  case {i}: return sizeof({ref});" for i, (_, _, ref) in enumerate(rows)]
-        out.append("  default: return 0;\n  }\n}")
+        out += retain_table(rows)
         return "\n".join(out) + "\n"
 
     def retain_rows(self, rows, path, pou, cbase, whole):

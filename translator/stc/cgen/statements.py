@@ -15,6 +15,13 @@ class StatementGen:
         for s in lst:
             self.stmt(s)
 
+    def block(self, head, body):
+        """The line head (it opens a C block), then the statements of body one level in."""
+        self.w(head)
+        self.ind += 1
+        self.stmts(body)
+        self.ind -= 1
+
     def stmt(self, s):
         if isinstance(s, S.Assign):
             self.store(self.lv(s.target), s.target.ty, s.value)
@@ -23,16 +30,10 @@ class StatementGen:
         elif isinstance(s, S.If):
             first = True
             for cond, body in s.branches:
-                self.w(f"{'if' if first else '} else if'} ({self.cond(cond)}) {{")
+                self.block(f"{'if' if first else '} else if'} ({self.cond(cond)}) {{", body)
                 first = False
-                self.ind += 1
-                self.stmts(body)
-                self.ind -= 1
             if s.orelse:
-                self.w("} else {")
-                self.ind += 1
-                self.stmts(s.orelse)
-                self.ind -= 1
+                self.block("} else {", s.orelse)
             self.w("}")
         elif isinstance(s, S.Case):
             self.case(s)
@@ -90,19 +91,10 @@ class StatementGen:
                     b = self.label_value(hi, st)
                     conds.append(f"(stc_ge_{fam}({sel}, {self.case_lit(a, ctype)}) && "
                                  f"stc_le_{fam}({sel}, {self.case_lit(b, ctype)}))")
-            self.w(f"{'if' if first else '} else if'} ({' || '.join(conds)}) {{")
+            self.block(f"{'if' if first else '} else if'} ({' || '.join(conds)}) {{", body)
             first = False
-            self.ind += 1
-            self.stmts(body)
-            self.ind -= 1
         if s.orelse:
-            if first:
-                self.w("{")
-            else:
-                self.w("} else {")
-            self.ind += 1
-            self.stmts(s.orelse)
-            self.ind -= 1
+            self.block("{" if first else "} else {", s.orelse)
         if not first or s.orelse:
             self.w("}")
         else:

@@ -67,7 +67,9 @@ class DeclarationChecks:
         if constant and kind not in ("VAR", "VAR_GLOBAL", "VAR_EXTERNAL"):
             self.err(blk.pos, f"CONSTANT is not allowed on {kind}")
         located = [d for d in blk.decls if d.location is not None]
-        if located and len(located) != len(blk.decls):
+        # matiec (upstream and OpenPLC's fork) accepts the mix in a VAR_GLOBAL of a
+        # CONFIGURATION or RESOURCE and rejects it in a POU's VAR block
+        if located and len(located) != len(blk.decls) and kind != "VAR_GLOBAL":
             self.err(blk.pos, "located and unlocated variables in one VAR block are not portable "
                      "(matiec rejects it): put the AT variables in a VAR block of their own")
         target = pou.vars if pou is not None else where
@@ -142,8 +144,11 @@ class DeclarationChecks:
         area, size, addr = m.group(1), m.group(2) or "X", m.group(3)
         parts = [int(x) for x in addr.split(".")]
         if v.type.is_array:
-            self.err(pos, "a located ARRAY is not portable (matiec rejects it): declare one "
-                     "located variable per address")
+            # matiec rejects it in a POU; in a VAR_GLOBAL it accepts an array of a named TYPE,
+            # and stock OpenPLC's glue generator then binds only the first register to its I/O
+            self.err(pos, "a located ARRAY is not portable (matiec rejects it in a POU; stock "
+                     "OpenPLC binds only its first register): declare one located variable "
+                     "per address")
             return
         if not v.type.is_elem or v.type.kind in ("time", "real") and size in ("X", "B", "W"):
             if not v.type.is_elem:
@@ -301,6 +306,13 @@ class DeclarationChecks:
         g = cands[0]
         if not T.same_type(g.type, v.type, array_names=False):
             self.err(v.pos, f"VAR_EXTERNAL '{v.name}' is {v.type} but the VAR_GLOBAL is {g.type}")
+            return
+        if not T.same_type(g.type, v.type):
+            # matiec (both flavours): "Data type mismatch between external and global variable
+            # declarations" for two anonymous ARRAY[..] OF .., even with the same bounds
+            self.err(v.pos, f"VAR_EXTERNAL '{v.name}' and its VAR_GLOBAL are anonymous ARRAYs: "
+                     "not portable (matiec rejects it): declare a named array TYPE and use it "
+                     "in both")
             return
         if g.constant and not v.constant:
             self.err(v.pos, f"VAR_GLOBAL '{v.name}' is CONSTANT: declare the VAR_EXTERNAL CONSTANT too")

@@ -71,9 +71,7 @@ class ExpressionChecks:
         if isinstance(e, S.Index):
             self._check_base_assignable(e.base)
             return self.expr(e, None)
-        if isinstance(e, S.BitAccess):
-            return self.expr(e, None)
-        if isinstance(e, S.Deref):
+        if isinstance(e, (S.BitAccess, S.Deref)):
             return self.expr(e, None)
         self.fail(e.pos, "the left side of ':=' must be a variable")
 
@@ -369,7 +367,7 @@ class ExpressionChecks:
         if not t.is_elem:
             self.fail(e.pos, f"'{op}' on {t}")
         if op == "/" and t.is_int and self.const_value(e.right) == 0:
-            self.fail(e.right.pos, f"division by constant zero (matiec rejects it)")
+            self.fail(e.right.pos, "division by constant zero (matiec rejects it)")
         if op == "MOD":
             if not t.is_int:
                 self.fail(e.pos, f"MOD needs an integer type, not {t}")

@@ -116,18 +116,14 @@ class StdlibChecks:
             if t.is_array:
                 self.fail(c.pos, "MOVE of an ARRAY is not supported: assign the array variable")
             return t
-        if n in ("MIN", "MAX"):
-            if len(args) < 2:
+        if n in ("MIN", "MAX", "LIMIT"):
+            if n == "LIMIT":
+                need(3)
+            elif len(args) < 2:
                 self.fail(c.pos, f"{n} takes at least 2 arguments")
             t = same(args, expected)
             if not t.is_elem or t.kind == "string":
                 self.fail(c.pos, f"{n} needs a number, bit string or TIME, not {t}")
-            return t
-        if n == "LIMIT":
-            need(3)
-            t = same(args, expected)
-            if not t.is_elem or t.kind == "string":
-                self.fail(c.pos, f"LIMIT needs a number, bit string or TIME, not {t}")
             return t
         if n == "SEL":
             need(3)

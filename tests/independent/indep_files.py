@@ -1,4 +1,4 @@
-"""What the independent checks (tests/indep/, issue 36 item 5) run on and with: the vendor glue
+"""What the independent checks (tests/independent/, issue 36 item 5) run on and with: the vendor glue
 files found by glob (dist/glue/<family>/, picked up as they land), the generated TIA SCL
 (stc.scl_out, when the tree has it) and the independent tools, each found or skipped with the
 reason a user can act on."""

@@ -5,7 +5,7 @@ does not check types or what TIA's block generation refuses).
 
 The files are checked together (a block may use one defined in another file) with declarations
 of MB_CLIENT, TCON_IP_v4 and of the shift/rotate instructions (SHR, SHL, ROL, ROR), which its
-built-in library lacks (tests/indep/stubs/s7/). The checker takes one block per file, so it runs
+built-in library lacks (tests/independent/stubs/s7/). The checker takes one block per file, so it runs
 on the per-block files (scl/*.scl), not on the one-file library (test_one_block_per_file).
 
 Two of its errors are its own limits, shown on minimal files by test_checker_limits, and are
