@@ -28,8 +28,8 @@ from __future__ import annotations
 
 import statistics
 
-MS = 1_000_000
-SEC = 1_000_000_000
+from mipcosim.kernel import MS, SEC
+
 REGS = 8            # registers of one relay entry (a message block)
 
 

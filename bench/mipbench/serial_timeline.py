@@ -21,9 +21,10 @@ from pathlib import Path
 import mipcosim.layout as L
 import mipcosim.sim as S
 from mipcosim.cli import link_timeout_ms
+from mipcosim.kernel import MS
 from mipcosim.trace import read_trace
+from mipprobe.regmap import TRM810
 
-MS = 1_000_000
 STEPS = [
     ("write", "outstation: record written -> the radio answer with it starts"),
     ("air_up", "answer on air"),
@@ -80,7 +81,7 @@ def timeline(trace):
     mb = [e for e in ev if e["ev"] == "modbus"]
     writes = {}
     for e in mb:
-        if e["ep"] == "trm" and e.get("wa") == 2001 and "w0" in e:
+        if e["ep"] == "trm" and e.get("wa") == TRM810.write_data and "w0" in e:
             writes.setdefault(e["w0"], e["t"])
     ups = {}
     for e in ev:

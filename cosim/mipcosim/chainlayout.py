@@ -30,7 +30,7 @@ def program_sources(role, handover="pull"):
     """The st_lib files, the programs' helpers and the chain's program of `role` ("out" |
     "cen"; the central of the push way with handover "push")."""
     name = PUSH_PROGRAM if role == "cen" and handover == "push" else PROGRAMS[role]
-    return ([str(L.ST_LIB / f) for f in L.LIB_FILES] + [str(L.PLC_DIR / h) for h in HELPERS]
+    return (L.lib_sources() + [str(L.PLC_DIR / h) for h in HELPERS]
             + [str(L.PLC_DIR / name)])
 
 

@@ -26,13 +26,13 @@ import sys
 import tempfile
 from pathlib import Path
 
+from mipcosim.kernel import MS
 from mipcosim.trace import parse
 from stc import oneline
 
 REPO = Path(__file__).resolve().parents[2]
 LOSSES = [0.0, 0.05, 0.1, 0.2, 0.3, 0.4]
 PAYLOAD = 122
-MS = 1_000_000
 LIMIT_S = 300          # a 20-record transfer takes well under 30 s; after 300 s it is stuck
 
 

@@ -14,7 +14,6 @@ the blocks' own diagnosis and the radio traffic around that moment (docs/test-ki
 """
 from __future__ import annotations
 
-import ctypes
 import functools
 import json
 import re
@@ -133,9 +132,7 @@ class Observer:
         self._vars = {}         # plc name -> (plc object, [(path, type, diag, [_Var])])
         self.failed = None
         self._fn = SCAN_FN(self._tick)
-        lib = net.lib
-        self.pid = lib.mipcosim_plc_add(net.sim, ctypes.cast(self._fn, ctypes.c_void_p), 1,
-                                        int(period_ms * MS))
+        self.pid = net.kernel.add_scan(self._fn, int(period_ms * MS))
 
     def _tick(self, _rt, _n):
         try:

@@ -17,7 +17,7 @@ EVENTS = [(0.05, [0x0102, 101, 0x0101, 1]), (0.06, [0x0102, 102, 0x0101, 0]),
 
 def lib():
     from mipcosim import layout as L
-    return [str(L.ST_LIB / f) for f in L.LIB_FILES]
+    return L.lib_sources()
 
 
 def logged(kp):

@@ -376,7 +376,7 @@ def _cold_restart_run(tmp_path, lenient):
     from mipkit import Net
     src = [EXAMPLE / "st" / "FieldLogger.st", EXAMPLE / "st" / "Outstation.st"]
     from mipcosim import layout as L
-    lib = [str(L.ST_LIB / f) for f in L.LIB_FILES]
+    lib = L.lib_sources()
     net = Net(tmp_path / ("lenient" if lenient else "strict"), radio="fast", seed=1)
     out = net.plc("outstation", lib + src, EXAMPLE / "plcrt" / "outstation.conf", at=1)
     central = net.peer("central", lenient=lenient)
@@ -460,7 +460,7 @@ def test_restarts_say_whether_retain_was_restored(tmp_path, compiler):
     marks retained, and the arrays it cannot mark)."""
     from mipcosim import layout as L
     from mipkit import Net
-    lib = [str(L.ST_LIB / f) for f in L.LIB_FILES]
+    lib = L.lib_sources()
     with Net(tmp_path / "net", radio="fast", compiler=compiler) as net:
         out = net.plc("outstation", lib + [EXAMPLE / "st" / "FieldLogger.st", EXAMPLE / "st" / "Outstation.st"],
                       EXAMPLE / "plcrt" / "outstation.conf", at=1, retain_period_ms=200)
@@ -514,7 +514,7 @@ def test_one_record_at_a_time_passes_assert_records_against_the_note_peer(tmp_pa
     ends a transfer but is no record, for the note peer as for MIP_Receiver."""
     from mipkit import Net, assert_records
     from mipcosim import layout as L
-    lib = [str(L.ST_LIB / f) for f in L.LIB_FILES]
+    lib = L.lib_sources()
     src = [EXAMPLE / "st" / "FieldLogger.st", EXAMPLE / "st" / "Outstation.st"]
     with Net(tmp_path, radio="fast", seed=3) as net:
         out = net.plc("outstation", lib + src, EXAMPLE / "plcrt" / "outstation.conf", at=1)
@@ -537,7 +537,7 @@ def test_delivered_taps_the_integrators_own_central(tmp_path):
     from mipkit import KitError, Net, assert_records
     conf = tmp_path / "central.conf"
     conf.write_text(L.central_config(502, 1, retain=L.retain_section(tmp_path / "c.retain", 1000)))
-    lib = [str(L.ST_LIB / f) for f in L.LIB_FILES]
+    lib = L.lib_sources()
     src = [EXAMPLE / "st" / "FieldLogger.st", EXAMPLE / "st" / "Outstation.st"]
     want = lambda n: [n % 65536, n // 65536] + [(n * k) % 65536 for k in range(3, 9)]  # noqa: E731
     with Net(tmp_path / "net", 1, radio="fast", loss_up=0.2, seed=4) as net:

@@ -8,7 +8,7 @@ from kit_helpers import EXAMPLE
 
 def lib():
     from mipcosim import layout as L
-    return [str(L.ST_LIB / f) for f in L.LIB_FILES]
+    return L.lib_sources()
 
 
 def blocks_of(sources, tmp_path):
