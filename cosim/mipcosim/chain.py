@@ -165,17 +165,7 @@ class SoeChain(_Kernel):
         if who == "cen" and self.push:      # before its first scan (pydevice.py)
             from .pydevice import PyDevice
             self.pydevs = [PyDevice(plc, f"unicos_{d}", self._driver(d)) for d in "ab"]
-        if snapshot is not None:
-            plc.retain_load(snapshot)
-        old = self.plcs.get(who)
-        self.plcs[who] = plc
-        if who in self.ids:
-            self.kernel.replace(self.ids[who], plc, self.tick_ns, name=who)
-        else:
-            self.ids[who] = self.kernel.add_plc(plc, self.tick_ns, name=who)
-        if old is not None:
-            self.snapshots_before += old.retain_saves
-            old.close()
+        self.put_named(who, plc, snapshot)
         if who == "out":
             self.kernel.connect(self.ids[who], plc, "trm", 1)
             self.relay.connect(self.ids[who], plc, "relay")

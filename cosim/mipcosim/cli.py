@@ -17,6 +17,7 @@ from pathlib import Path
 
 from .check import check, summary
 from . import layout as L
+from . import result
 from .sim import SEC, Chain, CosimError, Radio, Setup
 
 
@@ -186,12 +187,8 @@ def main(argv=None):
                 return 1
             print(f"result: ok {line}")
             return 0
-    except CosimError as e:
-        print(f"result: FAIL {e}")
-        return 1
-    except KeyboardInterrupt:
-        print("result: FAIL interrupted")
-        return 1
+    except (CosimError, KeyboardInterrupt) as e:
+        return result.failed(e)
 
 
 if __name__ == "__main__":

@@ -236,6 +236,13 @@ class Kernel:
         self._names[pid] = (name, plc)
         return pid
 
+    def put_plc(self, pid, plc, tick_ns=None, name=None):
+        """add_plc when pid is None (the first start), else replace (a restart); returns its id."""
+        if pid is None:
+            return self.add_plc(plc, tick_ns, name=name)
+        self.replace(pid, plc, tick_ns, name=name)
+        return pid
+
     def add_scan(self, fn, period_ns):
         """A participant that is not a plcrt PLC: fn (a SCAN_FN, kept alive here) called every
         period_ns of virtual time from now on; returns its id."""
@@ -348,3 +355,4 @@ class Kernel:
 
 def _scan_of(plc):
     return ctypes.cast(plc.library.plcrt_scan, ctypes.c_void_p)
+

@@ -127,6 +127,20 @@ class _Kernel:
     kernel: Kernel | None = None
     plcs: dict = {}
 
+    def put_named(self, who, plc, snapshot=None):
+        """Starts or restarts PLC `who` as `plc` (a warm restart: with its snapshot, loaded
+        after config_init__, before the first scan); returns its id (self.ids). The PLC it
+        replaces is closed and its snapshots counted (self.snapshots_before)."""
+        if snapshot is not None:
+            plc.retain_load(snapshot)
+        old = self.plcs.get(who)
+        self.plcs[who] = plc
+        self.ids[who] = self.kernel.put_plc(self.ids.get(who), plc, self.tick_ns, name=who)
+        if old is not None:
+            self.snapshots_before += old.retain_saves
+            old.close()
+        return self.ids[who]
+
     @property
     def lib(self):
         return self.kernel.lib
@@ -209,7 +223,7 @@ class Chain(_Kernel):
         self.warm = []               # (t, which, graceful) of the warm restarts that restored
         self.last_snapshot = {}      # who -> the last snapshot any instance of it took
         self._taps_of = {}           # who -> [(tap slot, seq address name)]
-        self._snapshots_before = 0   # snapshots of PLC instances that are gone
+        self.snapshots_before = 0   # snapshots of PLC instances that are gone
         for s in range(1, setup.stations + 1):
             self._start(("out", s))
         self._start(("cen", 0))
@@ -226,18 +240,7 @@ class Chain(_Kernel):
         if plc.tick_ns != self.tick_ns:
             raise CosimError(f"{who}: the program scans every {plc.tick_ns} ns, the kernel every {self.tick_ns}")
         plc.retain_in_memory(self.s.retain_period_ms * MS)
-        if snapshot is not None:              # a warm restart (restart() checked it applies)
-            plc.retain_load(snapshot)         # after config_init__, before the first scan
-        old = self.plcs.get(who)
-        self.plcs[who] = plc
-        if who in self.ids:
-            self.kernel.replace(self.ids[who], plc, self.tick_ns, name=who)
-        else:
-            self.ids[who] = self.kernel.add_plc(plc, self.tick_ns, name=who)
-        if old is not None:
-            self._snapshots_before += old.retain_saves
-            old.close()
-        pid = self.ids[who]
+        pid = self.put_named(who, plc, snapshot)     # snapshot: restart() checked it applies
         if role == "out":
             self.kernel.connect(pid, plc, "trm", s, self.s.transport)
         else:
@@ -352,7 +355,7 @@ class Chain(_Kernel):
         """{"snapshots": RETAIN snapshots taken by all PLCs (all their restarts included),
         "warm_restarts": warm restarts, "restored": those that restored a snapshot (the others
         were cold: no RETAIN variables, or no snapshot yet)}."""
-        return {"snapshots": self._snapshots_before + sum(p.retain_saves for p in self.plcs.values()),
+        return {"snapshots": self.snapshots_before + sum(p.retain_saves for p in self.plcs.values()),
                 "warm_restarts": self.warm_restarts, "restored": len(self.warm)}
 
     def sender_windows(self):
