@@ -75,7 +75,7 @@ def middle_hop_regs_per_s(workdir, records, window=1):
     """Payload registers per virtual second of plc/outstation.st -> plc/central.st alone, records
     of 120 registers (as the chain's 15 entries), realistic radio, 0 % loss; window: its
     sender's uWindow (the baseline is window 1, stop and wait, as plc/outstation.st runs)."""
-    import mipcosim.layout as L
+    import mipcosim.programs as L
     import mipcosim.sim as S
     s = S.Setup(stations=1, records=records, payload=15 * REGS, radio=S.Radio.realistic(),
                 timeout_ms=3000, window=window)

@@ -13,7 +13,7 @@ import tempfile
 from pathlib import Path
 
 from mipcosim.kernel import MS, SEC  # noqa: F401 (the bench modules take them from here)
-from mipcosim.layout import LIB_FILES   # st_lib in import order, the one list
+from mipcosim.programs import LIB_FILES   # st_lib in import order, the one list
 from plcharness import procs
 
 REPO = Path(__file__).resolve().parents[2]   # bench/mipbench/common.py, installed editable

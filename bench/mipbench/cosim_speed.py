@@ -10,14 +10,14 @@ from .common import BenchError, MS, PAYLOAD, SEC, cosim_missing, error, failure,
 
 def cosim_speed_run(virt_s, workdir: Path, stations=8, transport="inproc", tick_ms=100):
     """`stations` outstation soft-PLCs (plc/outstation.st) and ceil(stations / 4) central
-    soft-PLCs (plc/central.st holds 4 receivers, cosim/mipcosim/layout.py MAX_STATIONS = 4; the
+    soft-PLCs (plc/central.st holds 4 receivers, cosim/mipcosim/programs.py MAX_STATIONS = 4; the
     k-th central serves stations 4k+1..4k+4 with those unit ids) with `tick_ms` scans over one
     emulated network (one MDP-810) in libmipcosim's lockstep virtual time. transport "inproc":
     the kernel (request ADUs handed to the emulator core); "socketpair" / "tcp": libmodbus
     over socketpairs (what the co-simulation used before) / TCP on 127.0.0.1."""
     import resource
 
-    import mipcosim.layout as L
+    import mipcosim.programs as L
     import mipcosim.sim as S
     from plcharness import Plc
 

@@ -19,7 +19,7 @@ def goodput_model(p, payload=PAYLOAD):
 def goodput_cosim(p, records, seed, workdir):
     """Polls and payload registers of the window from the 5th record (past the start-up: the
     sender's quiet wait before record 1) to the sender's last acknowledgement."""
-    import mipcosim.layout as L
+    import mipcosim.programs as L
     import mipcosim.sim as S
     s = S.Setup(stations=1, records=records, payload=PAYLOAD, loss=p, seed=seed,
                 radio=S.Radio.realistic())

@@ -12,7 +12,7 @@ def records_per_s(baud, records, seed, workdir, status_first=False, window=1, fc
     """Records per virtual second from the 5th record (past the start-up) to the end of one
     transfer; the PLCs on Modbus TCP (baud 0) or RTU 8E1 at baud (the line's time counted in
     virtual time), realistic radio, 122-register records."""
-    import mipcosim.layout as L
+    import mipcosim.programs as L
     import mipcosim.sim as S
     from mipcosim.cli import link_timeout_ms
     s = S.Setup(stations=1, records=records, payload=payload, seed=seed, radio=S.Radio.realistic(),
@@ -65,7 +65,7 @@ def rtu_cycle_bound_ms(baud, payload=PAYLOAD):
 
 
 def fig_goodput_rtu(quick, workdir):
-    import mipcosim.layout as L
+    import mipcosim.programs as L
     name = "goodput_rtu"
     if cosim_missing(name, pending=False):
         return

@@ -18,7 +18,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-import mipcosim.layout as L
+import mipcosim.programs as L
 import mipcosim.sim as S
 from mipcosim.cli import link_timeout_ms
 from mipcosim.kernel import MS

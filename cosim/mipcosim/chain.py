@@ -26,11 +26,11 @@ from pathlib import Path
 
 from plcharness import Plc
 
-from . import layout as L
+from . import programs as L
 from .relay import Relay
 from .kernel import MS, SEC, SCAN_FN, CosimError, Kernel, Radio
 from .sim import _Kernel, build
-from .chainlayout import (  # noqa: F401 (the chain's API, one import for its users)
+from .chainprograms import (  # noqa: F401 (the chain's API, one import for its users)
     ORIGIN_MS, SOE_BASE, PROGRAMS, PUSH_PROGRAM, UNICOS_MARKER, UNICOS_IMAGE,
     HELPERS, OUT_STORED, OUT_SENT, OUT_LEVEL, OUT_DONE, OUT_FAILED,
     OUT_ERROR, OUT_FLAGS, OUT_RETRANS, CEN_RECORDS, CEN_PUT, CEN_ACKED,

@@ -21,7 +21,7 @@ from __future__ import annotations
 from collections import Counter
 from dataclasses import dataclass, field
 
-from . import layout as L
+from . import programs as L
 from .sim import RESTART, WARM, Chain
 
 

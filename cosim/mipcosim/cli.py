@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 
 from .check import check, summary
-from . import layout as L
+from . import programs as L
 from . import result
 from .sim import SEC, Chain, CosimError, Radio, Setup
 

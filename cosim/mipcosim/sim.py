@@ -9,7 +9,7 @@ from pathlib import Path
 from plcharness import Plc, PlcError
 from plcharness.build import build_program
 
-from . import layout as L
+from . import programs as L
 from .kernel import (FATE_FN, LIBDIR, MS, SEC, SCAN_FN, TRACE_FN, CosimError, Kernel,  # noqa: F401
                      Radio, Stats, kernel_lib, radio_stats, read_taps)
 
@@ -94,7 +94,7 @@ class Setup:
     window: int = 1
     # role ("outstation" / "central") -> ST files replacing the example program (tests)
     sources: dict = field(default_factory=dict)
-    # station 1's ranges are the vendor stand-ins' request channel (mipcosim/glue.py): True for
+    # station 1's ranges are the vendor stand-ins' request channel (mipcosim/vendor_glue.py): True for
     # both sides, or the roles ("outstation", "central") whose program has the glue
     channel: bool | tuple = False
 

@@ -30,7 +30,7 @@ from pathlib import Path
 
 from mipcosim import sim as _sim
 from mipcosim.kernel import MS, CosimError, Kernel, Radio
-from mipcosim.layout import LIB_FILES, st_enums   # import order, the one list
+from mipcosim.programs import LIB_FILES, st_enums   # import order, the one list
 from mipprobe.regmap import MDP810, TRM810
 from plcharness.config import Config
 

@@ -49,10 +49,10 @@ def first_record_start(trace_lines):
 
 
 def run_cosim(p, drive, seed, records, workdir):
-    from mipcosim import layout
+    from mipcosim import programs
     from mipcosim.sim import Chain, CosimError, Radio, Setup
     if os.environ.get("MIP_STLIB_DIR"):          # as in chainsim: st_lib from elsewhere
-        layout.ST_LIB = Path(os.environ["MIP_STLIB_DIR"])
+        programs.ST_LIB = Path(os.environ["MIP_STLIB_DIR"])
     st = Setup(loss=p, seed=seed, records=records, payload=PAYLOAD, timeout_ms=1500,
                polled=drive == "polled", radio=Radio.realistic())
     with tempfile.TemporaryDirectory() as tmp:

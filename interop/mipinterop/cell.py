@@ -13,7 +13,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from mipcosim import layout as L
+from mipcosim import programs as L
 from mipdemo import common as demo            # noqa: F401  (Procs, Slave, free_port, TraceStats: for matrix, kernel, timing)
 from mippeer.cli import logger_records
 from plcharness.procs import stop

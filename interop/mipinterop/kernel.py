@@ -23,7 +23,7 @@ import contextlib
 import ctypes
 from pathlib import Path
 
-from mipcosim import layout as L
+from mipcosim import programs as L
 from mipcosim import sim as S
 from mippeer.cli import Loop, received
 from mippeer.modem import Modem

@@ -69,7 +69,7 @@ def mip_compiler(request):
 
 @pytest.fixture
 def mip_st_lib():
-    from mipcosim import layout as L
+    from mipcosim import programs as L
     return L.lib_sources()
 
 

@@ -175,7 +175,7 @@ class Run:
             for k in ("name", "sources", "config", "station"):
                 if k not in p:
                     raise ScenarioError(f"[[plc]] {p.get('name', '')}: '{k}' missing")
-            from mipcosim import layout as L
+            from mipcosim import programs as L
             srcs = []
             for s in p["sources"]:
                 if s == "@st_lib":

@@ -16,7 +16,7 @@ import pytest
 from plcharness import Plc
 from plcharness.build import matiec_available
 
-from mipcosim import layout as L
+from mipcosim import programs as L
 from mipcosim.check import check
 from mipcosim.sim import MS, SEC, Chain, Setup
 

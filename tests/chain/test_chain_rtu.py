@@ -90,7 +90,7 @@ def test_chain_demo_rejects_a_bad_link(tmp_path):
 from mipcosim.check import check as cosim_check, summary  # noqa: E402
 from mipcosim.sim import MS, SEC, Chain, Radio, Setup  # noqa: E402
 from mipcosim.cli import link_timeout_ms  # noqa: E402
-import mipcosim.layout as L  # noqa: E402
+import mipcosim.programs as L  # noqa: E402
 
 
 def rtu_chars(e):

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from mipcosim.layout import lib_sources
+from mipcosim.programs import lib_sources
 from mipcosim.relay import Relay, RelayKernel
 from miptest.soe import Entry, expected, script
 from mipprograms.common import config as st_config

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from mipcosim import layout as L
+from mipcosim import programs as L
 from mipcosim.check import check, summary
 from mipcosim.sim import SEC, Chain, Setup
 

@@ -7,7 +7,7 @@ import struct
 import subprocess
 
 from docs_helpers import KERNEL_SO, REPO
-from mipcosim.layout import LIB_FILES
+from mipcosim.programs import LIB_FILES
 
 SRC = REPO / "docs" / "examples" / "glue_outstation.st"
 LIB = LIB_FILES

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from docs_helpers import REPO
 
-from mipcosim import layout as L
+from mipcosim import programs as L
 from mipcosim.cli import link_timeout_ms as demo_link_timeout_ms
 from mipprobe.sizing import exchange_s, link_timeout_ms, timeout_table
 

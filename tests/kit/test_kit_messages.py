@@ -43,7 +43,7 @@ def non_portable(project):
 
 
 def lib():
-    from mipcosim import layout as L
+    from mipcosim import programs as L
     return L.lib_sources()
 
 

@@ -21,7 +21,7 @@ PROBE = Path(sys.executable).parent / "mip-probe"
 
 
 def cosim(timeout_ms, transfer_timeout_ms, loss, seed=3):
-    from mipcosim import layout as L
+    from mipcosim import programs as L
     from mipcosim.sim import SEC, Chain, Radio, Setup
     st = Setup(radio=Radio.realistic(), records=12, payload=122, timeout_ms=timeout_ms,
                transfer_timeout_s=math.ceil(transfer_timeout_ms / 1000), loss=loss, seed=seed)

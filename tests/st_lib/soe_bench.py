@@ -17,7 +17,7 @@ import struct
 from pathlib import Path
 
 from mipcosim.kernel import MS
-from mipcosim.layout import enum_values
+from mipcosim.programs import enum_values
 from mippeer import siprotec as pyrelay
 from miptest.soe import Entry, expected, script  # noqa: F401 (the tests import them from here)
 from plcharness import Plc  # noqa: F401 (the type build() returns)

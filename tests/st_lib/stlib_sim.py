@@ -20,7 +20,7 @@ import weakref
 from dataclasses import dataclass
 from pathlib import Path
 
-from mipcosim.layout import enum_values  # noqa: F401 (the tests import it from here)
+from mipcosim.programs import enum_values  # noqa: F401 (the tests import it from here)
 from mipcosim.kernel import FATE_FN as _FATE_FN, MS, CosimError, Kernel, Stats as _Stats, kernel_lib
 from mipcosim.kernel import Radio as KernelRadio
 from plcharness import Plc, PlcError
@@ -34,7 +34,7 @@ RCV = enum_values("E_MIP_ReceiverState")
 
 REPO = Path(__file__).resolve().parents[2]
 LIB = REPO / "st_lib"
-from mipcosim.layout import LIB_FILES   # import order, the one list
+from mipcosim.programs import LIB_FILES   # import order, the one list
 LIB_PATHS = [str(LIB / f) for f in LIB_FILES]
 
 HAS_WRITE = {"MIP_Sender", "MIP_Receiver", "MIP_Link", "MIP_BufferSender"}

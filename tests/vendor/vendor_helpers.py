@@ -1,8 +1,8 @@
 """What the vendor families' tests share: a transfer of the example programs with a family's
-glue and stand-ins (mipcosim/glue.py) in co-simulation, and the record-for-record check."""
+glue and stand-ins (mipcosim/vendor_glue.py) in co-simulation, and the record-for-record check."""
 from pathlib import Path
 
-from mipcosim import glue
+from mipcosim import vendor_glue as glue
 from mipcosim.check import check, summary
 from mipcosim.sim import SEC, Chain, Setup
 

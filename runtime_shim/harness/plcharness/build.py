@@ -368,9 +368,9 @@ def _build_into(sources, out: Path, compiler: str, cflags, semantics=None, cache
         _write_retain_c(out / "plcrt_retain_gen.c", retained, decls)
         _compile(ret_cmd, "compiling the table of RETAIN variables")
         objs.append(o)
-    o = out / "plcrt_glue.o"
+    o = out / "plcrt_abi.o"
     _compile([cc, "-std=gnu11", "-Wall", *base, core_inc, f"-I{gen}", "-c",
-              str(src / "plcrt_glue.c"), "-o", str(o)], "compiling the located variables")
+              str(src / "plcrt_abi.c"), "-o", str(o)], "compiling the located variables")
     objs.append(o)
     core_objs, main_o = _core_objects(cache, cc, ["-std=gnu11", "-Wall", *base, core_inc], mb_cflags,
                                      out)

@@ -1,4 +1,5 @@
-"""The example programs' register layout (plc/README.md), the logger's data, runtime configs."""
+"""The example programs (plc/) as the co-simulation runs them: their register layout (plc/README.md),
+the logger's data, their runtime configs and st_lib's files in import order."""
 from __future__ import annotations
 
 import re

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from mipprobe.regmap import MDP810, TRM810
 
-from . import layout as L
+from . import programs as L
 
 REPO = L.REPO
 FAMILIES = ("twincat", "codesys", "s7")
