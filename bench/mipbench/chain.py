@@ -79,7 +79,7 @@ def middle_hop_regs_per_s(workdir, records, window=1):
     import mipcosim.sim as S
     s = S.Setup(stations=1, records=records, payload=15 * REGS, radio=S.Radio.realistic(),
                 timeout_ms=3000, window=window)
-    with S.Chain(s, workdir) as ch:
+    with S.LoggerLink(s, workdir) as ch:
         got = lambda: ch.mw(("cen", 0), L.peer_base(1) + L.R_REC_LO)  # noqa: E731
         t0 = r0 = None
         while not ch.finished():

@@ -24,7 +24,7 @@ def goodput_cosim(p, records, seed, workdir):
     s = S.Setup(stations=1, records=records, payload=PAYLOAD, loss=p, seed=seed,
                 radio=S.Radio.realistic())
     warm = 5
-    with S.Chain(s, workdir) as ch:
+    with S.LoggerLink(s, workdir) as ch:
         step = 50 * MS
         limit = records * 60 * SEC
         got = lambda: ch.mw(("cen", 0), L.peer_base(1) + L.R_REC_LO)  # noqa: E731

@@ -18,7 +18,7 @@ def records_per_s(baud, records, seed, workdir, status_first=False, window=1, fc
     s = S.Setup(stations=1, records=records, payload=payload, seed=seed, radio=S.Radio.realistic(),
                 link_baud=baud, timeout_ms=3000 + link_timeout_ms(baud), status_first=status_first,
                 window=window, fc23=fc23)
-    with S.Chain(s, workdir) as ch:
+    with S.LoggerLink(s, workdir) as ch:
         got = lambda: ch.mw(("cen", 0), L.peer_base(1) + L.R_REC_LO)  # noqa: E731
         t0 = r0 = None
         while not ch.finished():

@@ -118,7 +118,7 @@ def main(argv=None):
                 timeout_ms=3000 + link_timeout_ms(a.baud), status_first=a.sf, fc23=a.fc23)
     with tempfile.TemporaryDirectory(prefix="serial-timeline-") as tmp:
         trace = Path(tmp) / "trace.jsonl"
-        with S.Chain(s, Path(tmp), trace=trace) as ch:
+        with S.LoggerLink(s, Path(tmp), trace=trace) as ch:
             if not ch.run_to_end(a.records * 60 * S.SEC, step_ns=100 * MS, settle_ns=0):
                 print(f"mipbench.serial_timeline: error: {a.records} records not read out after "
                       f"{ch.now // S.SEC} virtual s", file=sys.stderr)

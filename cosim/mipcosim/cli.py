@@ -1,4 +1,5 @@
-"""mip-cosim: run the chain in co-simulation from the command line; `soak` is the long run.
+"""mip-cosim: run the logger link (outstations, radio, central) in co-simulation from the command
+line; `soak` is the long run.
 
     python -m mipcosim.cli run  [--records N] [--loss P] [--seed S] [--bidi] [--static] [--polled]
     python -m mipcosim.cli soak [--records 100000] [--loss 0.3] [--restart-every 120] [--warm] ...
@@ -18,11 +19,11 @@ from pathlib import Path
 from .check import check, summary
 from . import programs as L
 from . import result
-from .sim import SEC, Chain, CosimError, Radio, Setup
+from .sim import SEC, LoggerLink, CosimError, Radio, Setup
 
 
 def parse(argv):
-    p = argparse.ArgumentParser(prog="mip-cosim", description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(prog="mip-cosim", description=" ".join(__doc__.split("\n\n")[0].split()))
     p.add_argument("what", choices=["run", "soak"])
     p.add_argument("--records", type=int, help="records per sender (run: 5, soak: 100000)")
     p.add_argument("--per-transfer", type=int, help="records per transfer (run: all, soak: 500)")
@@ -108,7 +109,7 @@ def main(argv=None):
                         / (1 - a.loss) ** 2)
     t0 = time.monotonic()
     try:
-        with Chain(st, workdir, trace=a.trace) as ch:
+        with LoggerLink(st, workdir, trace=a.trace) as ch:
             kind = "warm" if a.warm else "cold"
             restarts = f", a {kind} restart every {a.restart_every:g} s" if a.restart_every else ""
             print(f"mip-cosim: {a.what}: {a.stations} station(s), {a.records} records each, "

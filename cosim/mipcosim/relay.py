@@ -60,7 +60,7 @@ class Relay:
     address of 40601), capacity, overflow ("drop-oldest" | "drop-new"), seq_bits (2..8),
     bad_ack ("exc03" | "ignore"), rate (events/s), burst (N, every S seconds), origin_ms (the
     time stamp of virtual time 0). `events`: scripted (t_s, [type/bit, address, cause/type,
-    value]). `kernel`: the Kernel it joins (a Chain's or Network's .kernel); None: a kernel of
+    value]). `kernel`: the Kernel it joins (a LoggerLink's or Network's .kernel); None: a kernel of
     its own, moved on by advance()."""
 
     def __init__(self, events=(), *, kernel=None, base=600, capacity=200,

@@ -121,7 +121,7 @@ WARM = -2     # a warm restart: words = [tap, restored seq, ...] of the PLC's ta
 
 
 class _Kernel:
-    """What Chain, Network and SoeChain share: their Kernel (self.kernel) and PLCs
+    """What LoggerLink, Network and SoeChain share: their Kernel (self.kernel) and PLCs
     (self.plcs), virtual time, closing (the PLCs first, then the kernel)."""
 
     kernel: Kernel | None = None
@@ -172,8 +172,9 @@ class _Kernel:
         self.close()
 
 
-class Chain(_Kernel):
-    """Outstation PLC(s) + central PLC + emulator network in one process."""
+class LoggerLink(_Kernel):
+    """The logger link: outstation PLC(s), central PLC and the emulator network in one process
+    (the SOE chain of issue 35 is mipcosim.chain.SoeChain)."""
 
     def __init__(self, setup: Setup, workdir: Path, trace=None):
         if not 1 <= setup.stations <= L.MAX_STATIONS:
@@ -404,7 +405,7 @@ class Network(_Kernel):
     n receivers behind one shared Modbus client) on one MDP-810, in lockstep virtual time.
     Stations per central and the scan tick are parameters. Delivery is checked per station
     from the central's record stores: registers committed and their Fletcher sums against
-    what each logger wrote (check()); Chain's per-event taps need a %MW block per station,
+    what each logger wrote (check()); LoggerLink's per-event taps need a %MW block per station,
     which 247 stations do not have."""
 
     def __init__(self, stations, workdir: Path, *, records=5, per_transfer=0, payload=16,

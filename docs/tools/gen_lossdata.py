@@ -50,7 +50,7 @@ def first_record_start(trace_lines):
 
 def run_cosim(p, drive, seed, records, workdir):
     from mipcosim import programs
-    from mipcosim.sim import Chain, CosimError, Radio, Setup
+    from mipcosim.sim import LoggerLink, CosimError, Radio, Setup
     if os.environ.get("MIP_STLIB_DIR"):          # as in chainsim: st_lib from elsewhere
         programs.ST_LIB = Path(os.environ["MIP_STLIB_DIR"])
     st = Setup(loss=p, seed=seed, records=records, payload=PAYLOAD, timeout_ms=1500,
@@ -58,7 +58,7 @@ def run_cosim(p, drive, seed, records, workdir):
     with tempfile.TemporaryDirectory() as tmp:
         trace = Path(tmp) / "t.jsonl"
         try:
-            with Chain(st, workdir, trace=trace) as ch:
+            with LoggerLink(st, workdir, trace=trace) as ch:
                 ok = ch.run_to_end(LIMIT_S * 1000 * MS, step_ns=10 * MS, settle_ns=0)
                 t_end = ch.now
         except CosimError as e:
@@ -71,7 +71,7 @@ def run_cosim(p, drive, seed, records, workdir):
 
 
 def run_blocks(p, drive, seed, records, workdir=None):
-    from mipdocs.chainsim import Chain, ChainError, Side
+    from mipdocs.chainsim import LoggerLink, ChainError, Side
     from mipdocs.gen_traces import WORK, logger_data
     polled = drive == "polled"
     data = logger_data(records * PAYLOAD, seed)
@@ -79,7 +79,7 @@ def run_blocks(p, drive, seed, records, workdir=None):
     c = Side("central", "receiver", polled=polled, timeout_ms=1500, read_ms=100,
              read_phase_ms=50)
     try:
-        ch = Chain(WORK, o, c, loss_up=p, loss_down=p, seed=seed)
+        ch = LoggerLink(WORK, o, c, loss_up=p, loss_down=p, seed=seed)
     except ChainError as e:
         raise DataError(str(e)) from None
     ok = ch.run_until(lambda: o.send_done, LIMIT_S * 1000)

@@ -2,7 +2,7 @@
 and the classification, the same for both ways of running a cell).
 
 Our side is the example program (plc/outstation*.st or plc/central*.st) as a soft-PLC of
-mipcosim.sim.Chain: the kernel's builds, runtime configs, in-process transport and restart. The
+mipcosim.sim.LoggerLink: the kernel's builds, runtime configs, in-process transport and restart. The
 chain's other PLC is switched off before it ever scans; the note-only peer takes its place as a
 participant of the same lockstep loop (a scan function of its own, mipcosim_plc_add): every
 peer_period_s of virtual time it runs one round of mippeer.cli.Loop (read its modem,
@@ -36,7 +36,7 @@ RESPONSE_MAX = 300               # MIPEMU_RESPONSE_MAX: room for any response AD
 
 def build_programs(outdir):
     """The four example programs, built once per process by the kernel's build (cached by
-    mipcosim.sim.build; every Chain after this takes them from there)."""
+    mipcosim.sim.build; every LoggerLink after this takes them from there)."""
     from plcharness.build import BuildError
     for role in ("outstation", "central"):
         for bidi in (False, True):
@@ -71,7 +71,7 @@ class KernelRun(CellRun):
                         records=cfg.records, payload=self.payload, timeout_ms=cfg.timeout_ms,
                         radio=S.Radio())          # the fast radio (matrix.FAST_RADIO)
         self.trace = self.dir / "trace.jsonl"
-        self.chain = c = S.Chain(setup, self.dir, trace=self.trace)
+        self.chain = c = S.LoggerLink(setup, self.dir, trace=self.trace)
         self.tick = c.tick_ns
         self._rsp = ctypes.create_string_buffer(RESPONSE_MAX)
         self.ours = ("out", 1) if cell.ours == "sender" else ("cen", 0)
@@ -165,9 +165,9 @@ class KernelRun(CellRun):
         self._run_to(self.chain.now + self.tick)
 
     def restart_ours(self):
-        """Chain's cold restart (off for down_s while the peer goes on, then a fresh instance of
+        """LoggerLink's cold restart (off for down_s while the peer goes on, then a fresh instance of
         the program), with the interop's parameters: all state is lost, the logger's read-out
-        pointer too (Chain's own restart resumes there in a new session), as when the real-time
+        pointer too (LoggerLink's own restart resumes there in a new session), as when the real-time
         run starts the process again."""
         t_off = self.chain.now
         with self._peer_errors():

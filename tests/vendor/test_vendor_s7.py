@@ -11,7 +11,7 @@ import pytest
 from mipcosim import vendor_glue as glue
 from mipcosim import programs as L
 from mipcosim.check import check, summary
-from mipcosim.sim import SEC, Chain, Radio, Setup
+from mipcosim.sim import SEC, LoggerLink, Radio, Setup
 from vendor_helpers import assert_exact, run, run_outstation, sources
 
 FAMILY = "s7"
@@ -132,7 +132,7 @@ def test_s7_each_error_once_and_the_transfer_recovers(vendor_workdir, realistic)
                radio=Radio.realistic() if realistic else Radio(),
                timeout_ms=3000 if realistic else 300)
     seen = []
-    with Chain(st, wd) as ch:
+    with LoggerLink(st, wd) as ch:
         o = ch.plcs[("out", 1)]
         for _name, fail, status in INJECTED:
             ch.run_for(SEC // 2)
