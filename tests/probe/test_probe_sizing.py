@@ -51,7 +51,7 @@ def test_the_plcrt_section_is_what_plcrt_loads(tmp_path):
     """plcrt's own --check loads the [master] section with a device of the example's kind."""
     import subprocess
     from plcharness import build_program
-    from rt_helpers import TINY
+    from miptest.rt import TINY
     src = tmp_path / "p.st"
     src.write_text(TINY)
     exe = build_program([src], tmp_path / "out", compiler="stc").executable

@@ -1,13 +1,8 @@
-"""Fixtures of the runtime tests (helpers that tests import live in rt_helpers.py)."""
-import sys
-from pathlib import Path
+"""Fixtures of the runtime tests (helpers that tests import live in miptest.rt, tests/support/)."""
 
 import pytest
 
-# the emulator tests' helpers (emu_support: the mip-emulator process, tcp_read) for the RTU tests
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "emulator"))
-
-from rt_helpers import ModbusServer
+from miptest.rt import ModbusServer
 
 
 def _writer(tmp_path, default_name):
@@ -32,7 +27,7 @@ def conf_file(tmp_path):
 
 @pytest.fixture
 def server():
-    """A Modbus TCP server on 127.0.0.1 (rt_helpers.ModbusServer), closed after the test."""
+    """A Modbus TCP server on 127.0.0.1 (miptest.rt.ModbusServer), closed after the test."""
     srv = ModbusServer()
     yield srv
     srv.close()

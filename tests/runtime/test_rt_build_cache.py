@@ -5,7 +5,7 @@ import os
 import subprocess
 
 from plcharness import build_program
-from rt_helpers import COUNTER, TINY
+from miptest.rt import COUNTER, TINY
 
 CORE = ("plcrt_core.c", "plcrt_image.c", "plcrt_config.c", "plcrt_master.c", "plcrt_transport.c",
         "plcrt_serial_line.c", "plcrt_slave.c", "plcrt_retain.c", "plcrt_main.c")

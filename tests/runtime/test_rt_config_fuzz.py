@@ -7,7 +7,7 @@ import subprocess
 import pytest
 
 from plcharness import build_program
-from rt_helpers import GOOD, TINY, compiler_param, mangle
+from miptest.rt import GOOD, TINY, compiler_param, mangle
 
 MBCONFIG = """Num_Devices = "1"
 Polling_Period = "100"

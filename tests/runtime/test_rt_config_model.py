@@ -9,7 +9,7 @@ import pytest
 
 from plcharness import build_program
 from plcharness import config as model
-from rt_helpers import GOOD, REPO, compiler_param, mangle, one_task
+from miptest.rt import GOOD, REPO, compiler_param, mangle, one_task
 
 C_PARSER = REPO / "runtime_shim" / "src" / "plcrt_config.c"
 

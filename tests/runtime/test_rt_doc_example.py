@@ -1,5 +1,5 @@
 """The example test of docs/runtime-harness.md, verbatim, so the page stays true."""
-from rt_helpers import one_task
+from miptest.rt import one_task
 from plcharness import Plc
 
 PROG = one_task("""

@@ -5,7 +5,7 @@ import pytest
 
 from plcharness import build_program
 from plcharness.procs import free_port
-from rt_helpers import COMPILERS, COUNTER, tcp_device
+from miptest.rt import COMPILERS, COUNTER, tcp_device
 
 
 def config(port) -> str:

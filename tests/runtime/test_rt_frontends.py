@@ -7,7 +7,7 @@ import sys
 
 import pytest
 
-from rt_helpers import TINY
+from miptest.rt import TINY
 from plcharness import build_program
 
 

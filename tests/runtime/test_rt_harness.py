@@ -2,7 +2,7 @@
 import pytest
 
 from plcharness import BuildError, Plc, PlcError
-from rt_helpers import COMPILERS, compiler_param, one_task
+from miptest.rt import COMPILERS, compiler_param, one_task
 
 PROG = one_task("""
 TYPE E_State : (ST_IDLE, ST_BUSY); END_TYPE

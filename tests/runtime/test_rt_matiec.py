@@ -2,7 +2,7 @@
 from plcharness import Plc
 import pytest
 
-from rt_helpers import needs_matiec, one_task
+from miptest.rt import needs_matiec, one_task
 
 PROG = one_task("""
 TYPE E_St : (IDLE, BUSY); END_TYPE

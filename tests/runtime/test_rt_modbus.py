@@ -4,7 +4,7 @@ import pytest
 
 from plcharness import Plc, PlcError
 from plcharness.config import Config
-from rt_helpers import COMPILERS, ModbusServer, compiler_param, one_task, trigger_range
+from miptest.rt import COMPILERS, ModbusServer, compiler_param, one_task, trigger_range
 
 HANDSHAKE = one_task("""
 PROGRAM MAIN

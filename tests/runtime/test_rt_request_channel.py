@@ -5,7 +5,7 @@ MB_DATA_LEN. What goes on the wire is checked at a Modbus TCP server's log."""
 import pytest
 
 from plcharness import Plc, PlcError
-from rt_helpers import compiler_param, one_task, tcp_device, trigger_range
+from miptest.rt import compiler_param, one_task, tcp_device, trigger_range
 
 PROG = one_task("""
 PROGRAM MAIN

@@ -7,7 +7,7 @@ import pytest
 
 from plcharness import build_program
 from plcharness.config import read_file
-from rt_helpers import ModbusServer, compiler_param, one_task, tcp_device
+from miptest.rt import ModbusServer, compiler_param, one_task, tcp_device
 
 PROG = one_task("""
 FUNCTION_BLOCK ACC

@@ -8,7 +8,7 @@ import time
 import pytest
 
 from plcharness import Plc, build_program
-from rt_helpers import COMPILERS, one_task
+from miptest.rt import COMPILERS, one_task
 
 EVERY = 5   # the program requests a snapshot every EVERY scans (of its retained counter)
 
@@ -155,7 +155,7 @@ def test_handshake_config_errors_are_one_line_and_exit_2(prog, tmp_path, text, m
 
 def test_the_handshake_with_a_program_that_retains_nothing_is_refused(tmp_path, st_file):
     """saved would count snapshots holding none of the program's state."""
-    from rt_helpers import COUNTER
+    from miptest.rt import COUNTER
     exe = build_program([st_file(COUNTER, name="counter.st")], tmp_path / "counter").executable
     cfg = tmp_path / "plc.conf"
     cfg.write_text(HANDSHAKE.format(file=tmp_path / "plc.retain", period="1s"))

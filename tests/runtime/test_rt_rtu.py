@@ -10,9 +10,9 @@ import time
 import pytest
 
 from plcharness import Plc
-from rt_helpers import REPO, TRIGGER, compiler_param, handshake, one_task, rtu_conf, write_read_back
+from miptest.rt import REPO, TRIGGER, compiler_param, handshake, one_task, rtu_conf, write_read_back
 
-from emu_support import Emulator, tcp_read
+from miptest.emu import Emulator, tcp_read
 
 EMU = REPO / "build" / "emulator" / "mip-emulator"
 

@@ -17,10 +17,10 @@ import pytest
 
 from plcharness import Plc, build_program
 from plcharness.config import Config
-from rt_helpers import (COUNTER, REPO, TINY, TRIGGER, compiler_param, handshake, one_task,
+from miptest.rt import (COUNTER, REPO, TINY, TRIGGER, compiler_param, handshake, one_task,
                         read_range, rtu_conf, rtu_device, trigger_range, write_read_back)
 
-from emu_support import Emulator, tcp_read
+from miptest.emu import Emulator, tcp_read
 
 
 def emulator(link):

@@ -11,7 +11,7 @@ import pytest
 
 from plcharness import Plc
 from plcharness.build import BuildError, build_program, is_openplc_config
-from rt_helpers import one_task, stc_works
+from miptest.rt import one_task, stc_works
 
 pytestmark = pytest.mark.skipif(not stc_works(), reason="stc (.venv/bin/stc) is not installed: "
                                 "run `make venv`")

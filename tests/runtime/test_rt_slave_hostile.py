@@ -15,7 +15,7 @@ import pytest
 
 from plcharness import build_program
 from plcharness.procs import free_port, wait_port
-from rt_helpers import COUNTER
+from miptest.rt import COUNTER
 
 
 def read_counter(sock, tid):

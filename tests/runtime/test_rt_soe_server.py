@@ -15,7 +15,7 @@ from plcharness.config import Config
 
 from mippeer.scada import Client, ScadaError, SoeMaster
 from mipcosim.programs import LIB_FILES, ST_LIB, enum_values
-from rt_helpers import one_task
+from miptest.rt import one_task
 
 REPO = Path(__file__).resolve().parents[2]
 

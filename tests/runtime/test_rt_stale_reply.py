@@ -3,7 +3,7 @@ first answer twice) is dropped and counted, and never lands in the next range's 
 import pytest
 
 from plcharness import Plc
-from rt_helpers import COMPILERS, ModbusServer, one_task, tcp_device
+from miptest.rt import COMPILERS, ModbusServer, one_task, tcp_device
 
 PROG = one_task("""
 PROGRAM MAIN

@@ -4,9 +4,9 @@ the unit id (station address) of each request. An ST program walks the stations 
 unit id every request arrived with."""
 import pytest
 
-from emu_support import Emulator
+from miptest.emu import Emulator
 from plcharness import Plc
-from rt_helpers import REPO, compiler_param, one_task, read_write_ranges, tcp_device
+from miptest.rt import REPO, compiler_param, one_task, read_write_ranges, tcp_device
 
 EMU = REPO / "build" / "emulator" / "mip-emulator"
 
@@ -67,7 +67,7 @@ END_PROGRAM
 
 def config(port) -> str:
     """The MDP as one device whose unit id the program sets (%QW40), with [read rd] and
-    [write wr] of one register at 10 (rt_helpers.read_write_ranges)."""
+    [write wr] of one register at 10 (miptest.rt.read_write_ranges)."""
     return read_write_ranges("mdp", 10, tcp_device(port, "mdp", unit_id="%QW40", timeout="2s",
                                                    errors="%IW30"))
 

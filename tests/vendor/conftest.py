@@ -1,10 +1,8 @@
-import sys
 from pathlib import Path
 
 import pytest
 
 REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO / "tests" / "runtime"))   # rt_helpers (the stand-in tests' server)
 
 if not (REPO / "build" / "cosim" / "libmipcosim.so").is_file():
     pytest.fail("build/cosim/libmipcosim.so not built: run make first", pytrace=False)

@@ -1,10 +1,10 @@
-"""The stand-in tests' Modbus server: rt_helpers.ModbusServer (FC 3/4/6/16) with function 23
+"""The stand-in tests' Modbus server: miptest.rt.ModbusServer (FC 3/4/6/16) with function 23
 (write, then read, as the Modbus spec orders it) and a scripted exception reply, so that every
 documented error of the vendor blocks can be reached."""
 import struct
 import time
 
-from rt_helpers import ModbusServer
+from miptest.rt import ModbusServer
 
 
 class ScriptedServer(ModbusServer):

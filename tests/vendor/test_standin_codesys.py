@@ -12,7 +12,7 @@ import pytest
 REPO = Path(__file__).resolve().parents[2]
 
 from plcharness import Plc
-from rt_helpers import ModbusServer
+from miptest.rt import ModbusServer
 from standin_server import ScriptedServer
 
 STANDINS = [REPO / "standins" / "StandIn_Channel.twincat.st",

@@ -23,7 +23,7 @@ from pathlib import Path
 import pytest
 
 from plcharness import Plc
-from rt_helpers import ModbusServer
+from miptest.rt import ModbusServer
 
 REPO = Path(__file__).resolve().parents[2]
 

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from plcharness import Plc
-from rt_helpers import ModbusServer
+from miptest.rt import ModbusServer
 from standin_server import ScriptedServer
 
 REPO = Path(__file__).resolve().parents[2]

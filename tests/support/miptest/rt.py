@@ -8,7 +8,7 @@ import pytest
 from plcharness.build import matiec_available
 from plcharness.config import Config
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]   # tests/support/miptest/rt.py -> the repository
 
 
 def stc_works() -> bool:
