@@ -5,9 +5,8 @@ opens again after going back. The sender's behaviour with them runs in test_lib_
 test_lib_warm.py."""
 import pytest
 from mipprograms.common import config
-from plcharness import Plc
 
-from stlib_sim import LIB_PATHS, compiler, enum_values
+from stlib_sim import build_text, enum_values
 
 OP = enum_values("E_MIP_Internal_WindowOp")
 WIN = enum_values("E_MIP_WindowState")
@@ -41,18 +40,9 @@ END_PROGRAM
 """ + config("MAIN", "inst0")
 
 
-@pytest.fixture(scope="module")
-def built(tmp_path_factory):
-    wd = tmp_path_factory.mktemp("stlib_internal_sender")
-    prog = wd / "prog.st"
-    prog.write_text(PROGRAM)
-    return Plc.build(LIB_PATHS + [str(prog)], workdir=wd, compiler=compiler()).build_result, wd
-
-
 @pytest.fixture
-def plc(built):
-    result, wd = built
-    return Plc(result, wd)
+def plc(tmp_path):
+    return build_text(PROGRAM, tmp_path)     # built once, a fresh instance per test
 
 
 def gate(plc, arm, retained=True, snapshots=None):
