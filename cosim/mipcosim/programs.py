@@ -18,12 +18,14 @@ if (Path(__file__).resolve().parent / "_st_lib").is_dir():
 # st_lib in the import order of `dist/mkdist.py --import-order` (the release archive's and
 # docs/blocks.md's): the list the Python tools build from (tests, docs, benchmarks); a copy,
 # checked against that order by tests/docs/test_docs_import_order.py
-LIB_FILES = ["MIP_CheckStep.st", "MIP_EchoMagic.st", "MIP_Layout.st", "MIP_Types.st",
-             "MIP_TypesSoe.st", "MIP_TypesSoeServer.st", "MIP_UnicosTypes.st", "MIP_Version.st",
-             "MIP_WriteChannel.st", "MIP_SoeReader.st", "MIP_SoeServer.st", "MIP_StatusBit.st",
-             "MIP_UnicosChannel.st", "MIP_UnicosEvents.st", "MIP_UnicosStatus.st",
-             "MIP_ReadDecoder.st", "MIP_Receiver.st", "MIP_Sender.st", "MIP_Status.st",
-             "MIP_BufferSender.st", "MIP_Link.st"]
+LIB_FILES = ["MIP_CheckStep.st", "MIP_EchoMagic.st", "MIP_Internal_SnapshotGate.st",
+             "MIP_Layout.st", "MIP_Types.st", "MIP_TypesSoe.st", "MIP_TypesSoeServer.st",
+             "MIP_UnicosTypes.st", "MIP_Version.st", "MIP_WriteChannel.st",
+             "MIP_Internal_RecordBlock.st", "MIP_Internal_SenderWait.st", "MIP_Internal_Window.st",
+             "MIP_SoeReader.st", "MIP_SoeServer.st", "MIP_StatusBit.st", "MIP_UnicosChannel.st",
+             "MIP_UnicosEvents.st", "MIP_UnicosStatus.st", "MIP_ReadDecoder.st", "MIP_Receiver.st",
+             "MIP_Status.st", "MIP_Internal_SenderAck.st", "MIP_Sender.st", "MIP_BufferSender.st",
+             "MIP_Link.st"]
 MAX_STATIONS = 4
 WINDOW = 160
 FFFF = 0xFFFF

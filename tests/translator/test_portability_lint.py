@@ -31,7 +31,7 @@ ALLOWED = [
     ("st_lib/MIP_Receiver.st", "time-sum", "PT := tCfgTimeout + tCfgTimeout + tCfgTimeout",
      "three equal terms: the nanosecond part of the sum is never exactly 1e9 (n + n + n = 1e9 "
      "has no integer n, and an unnormalised n + n = 1e9 is normalised by the third addition)"),
-    ("st_lib/MIP_Sender.st", "time-sum", "tStepBound := tCfgTimeout + tCfgTimeout + tCfgTimeout",
+    ("st_lib/MIP_Sender.st", "time-sum", "PT := tCfgTimeout + tCfgTimeout + tCfgTimeout",
      "three equal terms: as in MIP_Receiver, the sum is always normalised"),
     ("plc/*.st", "time-sum", "T#1s * (WORD_TO_DINT(",
      "whole seconds plus at most 999 ms: the nanosecond part stays below 1e9"),
