@@ -9,9 +9,8 @@ import random
 import pytest
 from mipcosim.layout import enum_values
 from mipprograms.common import config
-from plcharness import Plc
 
-from stlib_sim import LIB_PATHS, compiler, lib_type
+from stlib_sim import build_text, lib_type
 from test_lib_interop import MAGIC, check
 
 CLS = enum_values("E_MIP_RcvClass")
@@ -63,11 +62,7 @@ END_PROGRAM
 
 @pytest.fixture(scope="module")
 def plc(tmp_path_factory):
-    wd = tmp_path_factory.mktemp("stlib_internal_rcv")
-    prog = wd / "prog.st"
-    prog.write_text(PROGRAM)
-    result = Plc.build(LIB_PATHS + [str(prog)], workdir=wd, compiler=compiler()).build_result
-    return Plc(result, wd)
+    return build_text(PROGRAM, tmp_path_factory.mktemp("stlib_internal_rcv"))
 
 
 def run(plc, **values):

@@ -6,9 +6,8 @@ inputs -> result, compiled from st_lib and run like test_lib_internal.py's block
 import pytest
 from mipcosim.layout import ST_LIB, enum_values
 from mipprograms.common import config
-from plcharness import Plc
 
-from stlib_sim import LIB_PATHS, compiler, lib_type
+from stlib_sim import build_text, lib_type
 
 CLS = enum_values("E_MIP_SoeReadClass", ST_LIB / "MIP_TypesSoe.st")
 STATE = enum_values("E_MIP_SoeState", ST_LIB / "MIP_TypesSoe.st")
@@ -45,11 +44,7 @@ END_PROGRAM
 
 @pytest.fixture(scope="module")
 def plc(tmp_path_factory):
-    wd = tmp_path_factory.mktemp("stlib_internal_soe")
-    prog = wd / "prog.st"
-    prog.write_text(PROGRAM)
-    result = Plc.build(LIB_PATHS + [str(prog)], workdir=wd, compiler=compiler()).build_result
-    return Plc(result, wd)
+    return build_text(PROGRAM, tmp_path_factory.mktemp("stlib_internal_soe"))
 
 
 def blocks(tag, n, junk):
