@@ -34,7 +34,7 @@ VAR
   uChkCount, uOther, uWriteLen : UINT;
   xChkBidi, xRestZero : BOOL;
 {"".join(f"  {n} : {t};{chr(10)}" for n, t in {**CLS_INPUTS, **ACK_INPUTS}.items())}\
-  eCls : E_MIP_RcvClass;
+  eCls : {lib_type('E_MIP_RcvClass')};
   i : UINT;
 END_VAR
 {"".join(f"aRd[{i}] := r{i};{chr(10)}" for i in range(125))}\

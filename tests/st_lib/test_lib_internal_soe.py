@@ -27,10 +27,10 @@ VAR
   {", ".join(f"r{i}" for i in range(26))} : WORD;
   {", ".join(f"o{i}" for i in range(24))} : WORD;
   {", ".join(f"c{i}" for i in range(24))} : WORD;
-{"".join(f"  {n} : {t};{chr(10)}" for n, t in INPUTS.items())}  eClass : E_MIP_SoeReadClass;
+{"".join(f"  {n} : {t};{chr(10)}" for n, t in INPUTS.items())}  eClass : {lib_type('E_MIP_SoeReadClass')};
   {", ".join(WAIT_INPUTS)} : BOOL;
-  eState : E_MIP_SoeState;
-  eWait : E_MIP_SoeWait;
+  eState : {lib_type('E_MIP_SoeState')};
+  eWait : {lib_type('E_MIP_SoeWait')};
 END_VAR
 {"".join(f"aRd[{i}] := r{i};{chr(10)}" for i in range(26))}\
 {"".join(f"aOp[{i}] := o{i};{chr(10)}aCd[{i}] := c{i};{chr(10)}" for i in range(24))}\
