@@ -53,6 +53,9 @@ $(VENV_ABS)/.done: requirements.txt $(foreach p,$(PY_PACKAGES),$(p)/pyproject.to
 	@test -x $(PY) || python3 -m venv $(VENV_ABS)
 	@$(PY) -m pip install -q --disable-pip-version-check -r requirements.txt
 	@$(if $(strip $(PY_PACKAGES)),$(PY) -m pip install -q --disable-pip-version-check --no-deps --no-build-isolation $(foreach p,$(PY_PACKAGES),-e $(p)),true)
+	@# the kit (mipkit) on the venv's path as an editable install puts it, but without its
+	@# pytest11 entry point, which would load the kit's plugin into every pytest run here
+	@echo "$(abspath kit)" > "$$($(PY) -c 'import sysconfig; print(sysconfig.get_path("purelib"))')/mip-logger-kit-source.pth"
 	@touch $@
 
 # The suites, longest first (make starts them in this order): make -k runs every one even

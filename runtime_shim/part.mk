@@ -23,9 +23,9 @@ BUILD_TARGETS += $(RT_BUILD)/libplcrt.a
 RT_TEST_DIR := runtime_shim/tests
 $(RT_BUILD)/test_plcrt: $(RT_TEST_DIR)/test_plcrt.c $(RT_TEST_DIR)/fakeprog/fakeprog.c \
 		$(RT_TEST_DIR)/fakeprog/LOCATED_VARIABLES.h $(RT_TEST_DIR)/minitest.h $(RT_TEST_DIR)/testserver.h \
-		$(RT_SRC)/plcrt_glue.c $(RT_BUILD)/libplcrt.a $(RT_HEADERS)
+		$(RT_SRC)/plcrt_abi.c $(RT_BUILD)/libplcrt.a $(RT_HEADERS)
 	$(CC) $(RT_CFLAGS) -Wno-missing-field-initializers -I$(RT_TEST_DIR)/fakeprog -I$(RT_TEST_DIR) -o $@ \
-		$(RT_TEST_DIR)/test_plcrt.c $(RT_TEST_DIR)/fakeprog/fakeprog.c $(RT_SRC)/plcrt_glue.c \
+		$(RT_TEST_DIR)/test_plcrt.c $(RT_TEST_DIR)/fakeprog/fakeprog.c $(RT_SRC)/plcrt_abi.c \
 		$(RT_BUILD)/libplcrt.a $(RT_LIBS)
 
 .PHONY: runtime-c-tests
@@ -38,9 +38,9 @@ PYTEST_DEPS += $(RT_BUILD)/libplcrt.a
 
 # Benchmark figures (printed): `make bench`, BENCH_QUICK=1 for a short run.
 $(RT_BUILD)/bench_plcrt: $(RT_TEST_DIR)/bench_plcrt.c $(RT_TEST_DIR)/fakeprog/fakeprog.c \
-		$(RT_TEST_DIR)/testserver.h $(RT_SRC)/plcrt_glue.c $(RT_BUILD)/libplcrt.a $(RT_HEADERS)
+		$(RT_TEST_DIR)/testserver.h $(RT_SRC)/plcrt_abi.c $(RT_BUILD)/libplcrt.a $(RT_HEADERS)
 	$(CC) $(RT_CFLAGS) -I$(RT_TEST_DIR)/fakeprog -I$(RT_TEST_DIR) -o $@ \
-		$(RT_TEST_DIR)/bench_plcrt.c $(RT_TEST_DIR)/fakeprog/fakeprog.c $(RT_SRC)/plcrt_glue.c \
+		$(RT_TEST_DIR)/bench_plcrt.c $(RT_TEST_DIR)/fakeprog/fakeprog.c $(RT_SRC)/plcrt_abi.c \
 		$(RT_BUILD)/libplcrt.a $(RT_LIBS)
 
 .PHONY: runtime-bench
@@ -54,7 +54,7 @@ runtime-bench: $(RT_BUILD)/bench_plcrt
 #   build/runtime_shim/fuzz_slave -max_total_time=600 build/runtime_shim/fuzz-slave
 FUZZ_CC      ?= clang
 RT_FUZZ_RUNS ?= 20000
-RT_FUZZ_SRC  := $(foreach f,$(RT_CORE),$(RT_SRC)/$(f).c) $(RT_SRC)/plcrt_glue.c $(RT_TEST_DIR)/fakeprog/fakeprog.c
+RT_FUZZ_SRC  := $(foreach f,$(RT_CORE),$(RT_SRC)/$(f).c) $(RT_SRC)/plcrt_abi.c $(RT_TEST_DIR)/fakeprog/fakeprog.c
 $(RT_BUILD)/fuzz_%: runtime_shim/fuzz/fuzz_%.c $(RT_FUZZ_SRC) $(RT_HEADERS)
 	@mkdir -p $(@D)
 	$(FUZZ_CC) -std=gnu11 -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined \

@@ -28,8 +28,8 @@ from __future__ import annotations
 
 import statistics
 
-MS = 1_000_000
-SEC = 1_000_000_000
+from mipcosim.kernel import MS, SEC
+
 REGS = 8            # registers of one relay entry (a message block)
 
 
@@ -75,11 +75,11 @@ def middle_hop_regs_per_s(workdir, records, window=1):
     """Payload registers per virtual second of plc/outstation.st -> plc/central.st alone, records
     of 120 registers (as the chain's 15 entries), realistic radio, 0 % loss; window: its
     sender's uWindow (the baseline is window 1, stop and wait, as plc/outstation.st runs)."""
-    import mipcosim.layout as L
+    import mipcosim.programs as L
     import mipcosim.sim as S
     s = S.Setup(stations=1, records=records, payload=15 * REGS, radio=S.Radio.realistic(),
                 timeout_ms=3000, window=window)
-    with S.Chain(s, workdir) as ch:
+    with S.LoggerLink(s, workdir) as ch:
         got = lambda: ch.mw(("cen", 0), L.peer_base(1) + L.R_REC_LO)  # noqa: E731
         t0 = r0 = None
         while not ch.finished():

@@ -12,7 +12,8 @@ import sys
 import tempfile
 from pathlib import Path
 
-from mipcosim.layout import LIB_FILES   # st_lib in import order, the one list
+from mipcosim.kernel import MS, SEC  # noqa: F401 (the bench modules take them from here)
+from mipcosim.programs import LIB_FILES   # st_lib in import order, the one list
 from plcharness import procs
 
 REPO = Path(__file__).resolve().parents[2]   # bench/mipbench/common.py, installed editable
@@ -24,8 +25,6 @@ PY = sys.executable
 ST_LIB = [REPO / "st_lib" / f for f in LIB_FILES]
 PAIR_ST = REPO / "bench" / "st" / "bench_pair.st"
 PAYLOAD = 122                      # payload registers of a full chunk (123 - record counter)
-MS = 1_000_000
-SEC = 1_000_000_000
 
 ERRORS: list[str] = []
 

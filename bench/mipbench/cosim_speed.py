@@ -10,46 +10,27 @@ from .common import BenchError, MS, PAYLOAD, SEC, cosim_missing, error, failure,
 
 def cosim_speed_run(virt_s, workdir: Path, stations=8, transport="inproc", tick_ms=100):
     """`stations` outstation soft-PLCs (plc/outstation.st) and ceil(stations / 4) central
-    soft-PLCs (plc/central.st holds 4 receivers, cosim/mipcosim/layout.py MAX_STATIONS = 4; the
+    soft-PLCs (plc/central.st holds 4 receivers, cosim/mipcosim/programs.py MAX_STATIONS = 4; the
     k-th central serves stations 4k+1..4k+4 with those unit ids) with `tick_ms` scans over one
     emulated network (one MDP-810) in libmipcosim's lockstep virtual time. transport "inproc":
     the kernel (request ADUs handed to the emulator core); "socketpair" / "tcp": libmodbus
     over socketpairs (what the co-simulation used before) / TCP on 127.0.0.1."""
-    import ctypes
     import resource
 
-    import mipcosim.layout as L
+    import mipcosim.programs as L
     import mipcosim.sim as S
     from plcharness import Plc
 
     workdir.mkdir(parents=True, exist_ok=True)
-    lib = S._lib()
-    radio = S.Radio.realistic()
-    err = ctypes.create_string_buffer(256)
-    sim = lib.mipcosim_new_args(stations, 0, 123, 0.0, 0.0, 0.0, 1, radio.bitrate,
-                                radio.slot_gap_ns, radio.overhead_bytes, err, len(err))
-    if not sim:
-        raise BenchError(err.value.decode())
+    kernel = S.Kernel(stations, radio=S.Radio.realistic(), error=BenchError)
     plcs = []
-
-    def check(rc):
-        if rc < 0:
-            raise BenchError(lib.mipcosim_errmsg(sim).decode())
-        return rc
 
     def add(build, conf, params, wires):
         plc = Plc(build, workdir, config=conf)
         plcs.append(plc)
-        scan = ctypes.cast(plc._lib.plcrt_scan, ctypes.c_void_p)
-        pid = check(lib.mipcosim_plc_add(sim, scan, plc._rt, tick_ms * MS))
-        if transport == "inproc":
-            setter = ctypes.cast(plc._lib.plcrt_device_set_transport, ctypes.c_void_p)
-            connect = lib.mipcosim_connect_inproc
-        else:
-            setter = ctypes.cast(plc._lib.plcrt_device_set_fd, ctypes.c_void_p)
-            connect = lib.mipcosim_connect_tcp if transport == "tcp" else lib.mipcosim_connect
+        pid = kernel.add_plc(plc, tick_ms * MS)
         for dev, ep in wires:
-            check(connect(sim, pid, setter, dev.encode(), ep))
+            kernel.connect(pid, plc, dev, ep, transport)
         for i, w in enumerate(params.words()):
             plc[f"%MW{i}"] = w
 
@@ -74,19 +55,19 @@ def cosim_speed_run(virt_s, workdir: Path, stations=8, transport="inproc", tick_
                 [(f"mdp{i}", 0) for i in range(1, n + 1)])
         ru0 = resource.getrusage(resource.RUSAGE_SELF)
         t0 = time.perf_counter()
-        check(lib.mipcosim_run(sim, virt_s * SEC))
+        kernel.run_until(virt_s * SEC)
         wall = time.perf_counter() - t0
         ru1 = resource.getrusage(resource.RUSAGE_SELF)
         cpu = (ru1.ru_utime - ru0.ru_utime) + (ru1.ru_stime - ru0.ru_stime)
         sys_cpu = ru1.ru_stime - ru0.ru_stime
-        st = S.radio_stats(lib, sim, range(1, stations + 1))
+        st = kernel.radio_stats()
         return dict(wall=wall, cpu=cpu, sys_cpu=sys_cpu, scans=st["scans"],
                     reqs=st["requests"], polls=st["polls"], blocks=st["blocks_up"],
                     rss_mb=ru1.ru_maxrss / 1024, centrals=(stations + 3) // 4)
     finally:
         for plc in plcs:
             plc.close()
-        lib.mipcosim_free(sim)
+        kernel.close()
 
 
 def fig_cosim_speed(quick, workdir):

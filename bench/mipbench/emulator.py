@@ -6,6 +6,7 @@ import statistics
 import subprocess
 from pathlib import Path
 
+from mipprobe.regmap import TRM810
 from plcharness.procs import free_port
 
 from .common import BUILD, BenchError, EMU, PY, Server, error, line, run
@@ -50,7 +51,7 @@ def fig_emulator_throughput(quick):
         for _ in range(rounds):
             with Server([EMU, "--mdp-port", 0, "--trm-base-port", 0, "--stations", 1]) as s:
                 trm = int(re.search(r"trm=(\d+)", s.first).group(1))
-                note("emu", served(s, trm, 1, 2198, count))
+                note("emu", served(s, trm, 1, TRM810.read_status, count))
             port = free_port()
             with Server([PY, "-m", "mipbench.pymodbus_server", port]) as s:
                 note("pymodbus", served(s, port, 1, 0, count))

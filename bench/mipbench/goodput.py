@@ -19,12 +19,12 @@ def goodput_model(p, payload=PAYLOAD):
 def goodput_cosim(p, records, seed, workdir):
     """Polls and payload registers of the window from the 5th record (past the start-up: the
     sender's quiet wait before record 1) to the sender's last acknowledgement."""
-    import mipcosim.layout as L
+    import mipcosim.programs as L
     import mipcosim.sim as S
     s = S.Setup(stations=1, records=records, payload=PAYLOAD, loss=p, seed=seed,
                 radio=S.Radio.realistic())
     warm = 5
-    with S.Chain(s, workdir) as ch:
+    with S.LoggerLink(s, workdir) as ch:
         step = 50 * MS
         limit = records * 60 * SEC
         got = lambda: ch.mw(("cen", 0), L.peer_base(1) + L.R_REC_LO)  # noqa: E731

@@ -6,6 +6,7 @@ import subprocess
 import tempfile
 from pathlib import Path
 
+from mipprobe.regmap import MDP810, TRM810
 from plcharness.config import Config
 
 from .common import BUILD, BenchError, EMU, RSS_RUN, Server, error, line, read_rss, run_rss
@@ -35,7 +36,7 @@ def fig_memory(quick):
                     cfg.add("master", polling_period="100ms", timeout="1s")
                     for d in range(1, n + 1):
                         cfg.add("device", f"mdp{d}", host="127.0.0.1", port=mdp, unit_id=d)
-                        cfg.add("read", f"r{d}", device=f"mdp{d}", start=198, size=12,
+                        cfg.add("read", f"r{d}", device=f"mdp{d}", start=MDP810.read_status, size=12,
                                 image=f"%IW{100 + 12 * (d - 1)}", policy="cycle")
                     cfg.write(conf)
                     rss = run_rss([exe, "-c", conf, "-m", "virtual", "-n", scans])
@@ -59,8 +60,8 @@ def fig_memory(quick):
                     trms = [int(x) for x in re.search(r"trm=([\d,]+)", srv.first).group(1).split(",")]
                     reqs = 20 if quick else 200
                     for s in range(1, n + 1):        # touch every station's buffers
-                        client_rate(mdp, s, 198, reqs)
-                        client_rate(trms[s - 1], 1, 2198, reqs)
+                        client_rate(mdp, s, MDP810.read_status, reqs)
+                        client_rate(trms[s - 1], 1, TRM810.read_status, reqs)
                 finally:
                     srv.stop()
                 rss = read_rss(Path(f.name))

@@ -3,7 +3,6 @@ example scenario (mipkit) and the chain's figures (mipbench.chain)."""
 from __future__ import annotations
 
 import statistics
-import sys
 import time
 from pathlib import Path
 
@@ -37,11 +36,7 @@ def fig_kit_scenario(quick, workdir):
         return
     records = 1000 if quick else 10000
     try:
-        # mipkit is not installed by `make venv` (kit/setup.py builds the integrator's bundled
-        # wheel; tests/kit/conftest.py reaches it the same way): the kit's one path entry
-        if str(REPO / "kit") not in sys.path:
-            sys.path.insert(0, str(REPO / "kit"))
-        from mipkit import scenario as K
+        from mipkit import scenario as K     # on the venv's path (make venv: a .pth)
         path = REPO / "kit" / "example" / "scenarios" / "readout.toml"
         doc = K.load(path)
         doc["plc"][0]["set"]["%MW1"] = records

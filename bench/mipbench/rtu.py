@@ -12,13 +12,13 @@ def records_per_s(baud, records, seed, workdir, status_first=False, window=1, fc
     """Records per virtual second from the 5th record (past the start-up) to the end of one
     transfer; the PLCs on Modbus TCP (baud 0) or RTU 8E1 at baud (the line's time counted in
     virtual time), realistic radio, 122-register records."""
-    import mipcosim.layout as L
+    import mipcosim.programs as L
     import mipcosim.sim as S
     from mipcosim.cli import link_timeout_ms
     s = S.Setup(stations=1, records=records, payload=payload, seed=seed, radio=S.Radio.realistic(),
                 link_baud=baud, timeout_ms=3000 + link_timeout_ms(baud), status_first=status_first,
                 window=window, fc23=fc23)
-    with S.Chain(s, workdir) as ch:
+    with S.LoggerLink(s, workdir) as ch:
         got = lambda: ch.mw(("cen", 0), L.peer_base(1) + L.R_REC_LO)  # noqa: E731
         t0 = r0 = None
         while not ch.finished():
@@ -65,7 +65,7 @@ def rtu_cycle_bound_ms(baud, payload=PAYLOAD):
 
 
 def fig_goodput_rtu(quick, workdir):
-    import mipcosim.layout as L
+    import mipcosim.programs as L
     name = "goodput_rtu"
     if cosim_missing(name, pending=False):
         return

@@ -18,12 +18,13 @@ import sys
 import tempfile
 from pathlib import Path
 
-import mipcosim.layout as L
+import mipcosim.programs as L
 import mipcosim.sim as S
 from mipcosim.cli import link_timeout_ms
+from mipcosim.kernel import MS
 from mipcosim.trace import read_trace
+from mipprobe.regmap import TRM810
 
-MS = 1_000_000
 STEPS = [
     ("write", "outstation: record written -> the radio answer with it starts"),
     ("air_up", "answer on air"),
@@ -80,7 +81,7 @@ def timeline(trace):
     mb = [e for e in ev if e["ev"] == "modbus"]
     writes = {}
     for e in mb:
-        if e["ep"] == "trm" and e.get("wa") == 2001 and "w0" in e:
+        if e["ep"] == "trm" and e.get("wa") == TRM810.write_data and "w0" in e:
             writes.setdefault(e["w0"], e["t"])
     ups = {}
     for e in ev:
@@ -117,7 +118,7 @@ def main(argv=None):
                 timeout_ms=3000 + link_timeout_ms(a.baud), status_first=a.sf, fc23=a.fc23)
     with tempfile.TemporaryDirectory(prefix="serial-timeline-") as tmp:
         trace = Path(tmp) / "trace.jsonl"
-        with S.Chain(s, Path(tmp), trace=trace) as ch:
+        with S.LoggerLink(s, Path(tmp), trace=trace) as ch:
             if not ch.run_to_end(a.records * 60 * S.SEC, step_ns=100 * MS, settle_ns=0):
                 print(f"mipbench.serial_timeline: error: {a.records} records not read out after "
                       f"{ch.now // S.SEC} virtual s", file=sys.stderr)

@@ -26,10 +26,11 @@ from pathlib import Path
 
 from plcharness import Plc
 
-from . import layout as L
+from . import programs as L
 from .relay import Relay
-from .sim import MS, SEC, CosimError, Radio, _Kernel, build, kernel_lib, radio_stats
-from .chainlayout import (  # noqa: F401 (the chain's API, one import for its users)
+from .kernel import MS, SEC, SCAN_FN, CosimError, Kernel, Radio
+from .sim import _Kernel, build
+from .chainprograms import (  # noqa: F401 (the chain's API, one import for its users)
     ORIGIN_MS, SOE_BASE, PROGRAMS, PUSH_PROGRAM, UNICOS_MARKER, UNICOS_IMAGE,
     HELPERS, OUT_STORED, OUT_SENT, OUT_LEVEL, OUT_DONE, OUT_FAILED,
     OUT_ERROR, OUT_FLAGS, OUT_RETRANS, CEN_RECORDS, CEN_PUT, CEN_ACKED,
@@ -38,8 +39,6 @@ from .chainlayout import (  # noqa: F401 (the chain's API, one import for its us
     PUSH_FAILED, PUSH_FLAGS, program_sources, relay_sections, slave_section, unicos_sections,
     central_push_config, outstation_soe_config, central_soe_config, SoeParams, script, expected)
 from .chaincheck import ChainReport, check_chain  # noqa: F401
-
-_SCAN = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_uint64)
 
 
 class _ScadaClient:
@@ -99,17 +98,10 @@ class SoeChain(_Kernel):
         self.s = setup
         self.workdir = Path(workdir)
         self.workdir.mkdir(parents=True, exist_ok=True)
-        self.lib = kernel_lib()
         self.plcs = {}
-        err = ctypes.create_string_buffer(256)
-        r = setup.radio
-        self.sim = self.lib.mipcosim_new_args(1, 0, 123, setup.loss, setup.loss, 0.0, setup.seed,
-                                              r.bitrate, r.slot_gap_ns, r.overhead_bytes, err, len(err))
-        if not self._handle:
-            raise CosimError(err.value.decode())
+        self.kernel = Kernel(1, loss_down=setup.loss, loss_up=setup.loss, seed=setup.seed,
+                             radio=setup.radio, trace=trace)
         try:
-            if trace:
-                self._check(self.lib.mipcosim_trace_file(self.sim, str(trace).encode()))
             self.tick_ns = setup.tick_ms * MS
             if setup.handover not in ("pull", "push"):
                 raise CosimError(f"handover {setup.handover!r}: pull or push")
@@ -133,7 +125,7 @@ class SoeChain(_Kernel):
                                 for d in "ab"}
             self.exp_keys = [(e[3], e[4] // 10 * 10 if self.push else e[4])
                              for e in expected(setup.events)]
-            self.relay = Relay(setup.events, kernel=self, capacity=setup.relay_capacity,
+            self.relay = Relay(setup.events, kernel=self.kernel, capacity=setup.relay_capacity,
                                origin_ms=ORIGIN_MS)
             self.old_relays = []        # the relay's counters before each restart_relay()
             self.at_risk = set()        # events a relay restart took before the outstation had them
@@ -154,19 +146,13 @@ class SoeChain(_Kernel):
             self.scada = SoeMaster(self.client, SOE_BASE, self._sink, setup.scada_reack_s)
             self._scada_error = None
             if not self.push:           # the pull way's SCADA polls; the push way's drivers wait
-                self._scan_cb = _SCAN(self._scada_round)
-                self.scada_id = self.lib.mipcosim_plc_add(
-                    self.sim, ctypes.cast(self._scan_cb, ctypes.c_void_p), 1, setup.scada_period_ms * MS)
-                self._check(0 if self.scada_id >= 0 else -1)
+                self.scada_id = self.kernel.add_scan(SCAN_FN(self._scada_round),
+                                                     setup.scada_period_ms * MS)
         except BaseException:
             self.close()
             raise
 
     # ------------------------------------------------------------------ wiring
-
-    def _check(self, rc):
-        if rc != 0:
-            raise CosimError(self.lib.mipcosim_errmsg(self.sim).decode())
 
     def _start(self, who, snapshot=None):
         plc = Plc(self.builds[who], self.workdir, config=self.confs[who])
@@ -179,26 +165,12 @@ class SoeChain(_Kernel):
         if who == "cen" and self.push:      # before its first scan (pydevice.py)
             from .pydevice import PyDevice
             self.pydevs = [PyDevice(plc, f"unicos_{d}", self._driver(d)) for d in "ab"]
-        if snapshot is not None:
-            plc.retain_load(snapshot)
-        old = self.plcs.get(who)
-        self.plcs[who] = plc
-        scan = ctypes.cast(lib.plcrt_scan, ctypes.c_void_p)
-        if who in self.ids:
-            self._check(self.lib.mipcosim_plc_replace(self.sim, self.ids[who], scan, plc.handle, self.tick_ns))
-        else:
-            pid = self.lib.mipcosim_plc_add(self.sim, scan, plc.handle, self.tick_ns)
-            self._check(0 if pid >= 0 else -1)
-            self.ids[who] = pid
-        if old is not None:
-            self.snapshots_before += old.retain_saves
-            old.close()
-        setter = ctypes.cast(lib.plcrt_device_set_transport, ctypes.c_void_p)
+        self.put_named(who, plc, snapshot)
         if who == "out":
-            self._check(self.lib.mipcosim_connect_inproc(self.sim, self.ids[who], setter, b"trm", 1))
+            self.kernel.connect(self.ids[who], plc, "trm", 1)
             self.relay.connect(self.ids[who], plc, "relay")
         else:
-            self._check(self.lib.mipcosim_connect_inproc(self.sim, self.ids[who], setter, b"mdp1", 0))
+            self.kernel.connect(self.ids[who], plc, "mdp1", 0)
         for i, w in enumerate(self.s.params.words()):
             plc[f"%MW{i}"] = w
         self.up[who] = True
@@ -297,19 +269,13 @@ class SoeChain(_Kernel):
     # ------------------------------------------------------------------ running
 
     def run_until(self, t_ns):
-        rc = self.lib.mipcosim_run(self.sim, t_ns)
-        if rc != 0:
+        try:
+            self.kernel.run_until(t_ns)
+        except CosimError:
             e, self._scada_error = self._scada_error, None
             if e is not None:
                 raise CosimError(f"the SCADA failed: {type(e).__name__}: {e}") from e
-            msg = self.lib.mipcosim_errmsg(self.sim).decode()
-            failed = self.lib.mipcosim_failed_plc(self.sim)
-            for who, pid in self.ids.items():
-                if pid == failed and who in self.plcs:
-                    plc = self.plcs[who]
-                    why = plc.library.plcrt_errmsg(plc.handle) or b""
-                    msg += f": {who}: {why.decode()}"
-            raise CosimError(msg)
+            raise
 
     def run_for(self, ns):
         self.run_until(self.now + ns)
@@ -367,7 +333,7 @@ class SoeChain(_Kernel):
             snapshot = old.retain_last() or self.last_snapshot.get(who)
         if snapshot is not None:
             self.last_snapshot[who] = snapshot
-        self._check(self.lib.mipcosim_plc_replace(self.sim, self.ids[who], None, None, 0))
+        self.kernel.replace(self.ids[who])
         self.up[who] = False
         if who == "cen":
             self.client.close()
@@ -389,7 +355,7 @@ class SoeChain(_Kernel):
         self.up["scada"] = True
 
     def radio_stats(self):
-        return radio_stats(self.lib, self.sim, [1])
+        return self.kernel.radio_stats([1])
 
     def snapshots(self):
         return self.snapshots_before + sum(p.retain_saves for p in self.plcs.values())

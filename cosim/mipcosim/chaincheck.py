@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .chainlayout import expected
+from .chainprograms import expected
 
 
 @dataclass

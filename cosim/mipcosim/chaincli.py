@@ -18,6 +18,7 @@ from pathlib import Path
 
 from . import chain as C
 from .chain import ChainSetup, SoeChain, SoeParams, check_chain, script
+from . import result
 from .sim import MS, SEC, CosimError, Radio
 
 
@@ -180,9 +181,5 @@ def main(argv=None):
                 return 1
             print(f"result: ok {line}")
             return 0
-    except CosimError as e:
-        print(f"result: FAIL {e}")
-        return 1
-    except KeyboardInterrupt:
-        print("result: FAIL interrupted")
-        return 1
+    except (CosimError, KeyboardInterrupt) as e:
+        return result.failed(e)

@@ -12,7 +12,7 @@ receiver's events give the records it delivered. Demands:
   by a restart of the sender and the receiver reported it (MIP_ERR_SENDER_RESET) or never saw it;
 - at the end every sender has read out all its records and no transfer is open;
 - without restarts: no failure at all, and each record arrives exactly once.
-Warm restarts (Chain.restart(..., warm=True)) roll a PLC back to its last snapshot: what its
+Warm restarts (LoggerLink.restart(..., warm=True)) roll a PLC back to its last snapshot: what its
 taps logged after that snapshot is undone (the store and the logger lost it too) and is not
 counted; with warm restarts only, the demands are those of a run without restarts.
 """
@@ -21,8 +21,8 @@ from __future__ import annotations
 from collections import Counter
 from dataclasses import dataclass, field
 
-from . import layout as L
-from .sim import RESTART, WARM, Chain
+from . import programs as L
+from .sim import RESTART, WARM, LoggerLink
 
 
 @dataclass
@@ -107,7 +107,7 @@ def _record(rep, name, open_tr, last, number, data):
     return open_tr, number
 
 
-def check_stream(chain: Chain, name, sender, sender_tap, receiver, receiver_tap, station,
+def check_stream(chain: LoggerLink, name, sender, sender_tap, receiver, receiver_tap, station,
                  session_of, resumes):
     """session_of(sender session) -> the session word in the data. resumes: a restarted sender
     continues the same logger (a record is then the same record in every session)."""
@@ -209,7 +209,7 @@ def check_stream(chain: Chain, name, sender, sender_tap, receiver, receiver_tap,
     return rep
 
 
-def check(chain: Chain):
+def check(chain: LoggerLink):
     reps = []
     for s in range(1, chain.s.stations + 1):
         reps.append(check_stream(chain, f"station {s} -> central", ("out", s), 20 + s,

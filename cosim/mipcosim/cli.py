@@ -1,4 +1,5 @@
-"""mip-cosim: run the chain in co-simulation from the command line; `soak` is the long run.
+"""mip-cosim: run the logger link (outstations, radio, central) in co-simulation from the command
+line; `soak` is the long run.
 
     python -m mipcosim.cli run  [--records N] [--loss P] [--seed S] [--bidi] [--static] [--polled]
     python -m mipcosim.cli soak [--records 100000] [--loss 0.3] [--restart-every 120] [--warm] ...
@@ -16,12 +17,13 @@ import time
 from pathlib import Path
 
 from .check import check, summary
-from . import layout as L
-from .sim import SEC, Chain, CosimError, Radio, Setup
+from . import programs as L
+from . import result
+from .sim import SEC, LoggerLink, CosimError, Radio, Setup
 
 
 def parse(argv):
-    p = argparse.ArgumentParser(prog="mip-cosim", description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(prog="mip-cosim", description=" ".join(__doc__.split("\n\n")[0].split()))
     p.add_argument("what", choices=["run", "soak"])
     p.add_argument("--records", type=int, help="records per sender (run: 5, soak: 100000)")
     p.add_argument("--per-transfer", type=int, help="records per transfer (run: all, soak: 500)")
@@ -107,7 +109,7 @@ def main(argv=None):
                         / (1 - a.loss) ** 2)
     t0 = time.monotonic()
     try:
-        with Chain(st, workdir, trace=a.trace) as ch:
+        with LoggerLink(st, workdir, trace=a.trace) as ch:
             kind = "warm" if a.warm else "cold"
             restarts = f", a {kind} restart every {a.restart_every:g} s" if a.restart_every else ""
             print(f"mip-cosim: {a.what}: {a.stations} station(s), {a.records} records each, "
@@ -186,12 +188,8 @@ def main(argv=None):
                 return 1
             print(f"result: ok {line}")
             return 0
-    except CosimError as e:
-        print(f"result: FAIL {e}")
-        return 1
-    except KeyboardInterrupt:
-        print("result: FAIL interrupted")
-        return 1
+    except (CosimError, KeyboardInterrupt) as e:
+        return result.failed(e)
 
 
 if __name__ == "__main__":

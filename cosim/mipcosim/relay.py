@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import ctypes
 
-from .sim import CosimError, kernel_lib
+from .kernel import CosimError, Kernel
 
 OVERFLOW = {"drop-oldest": 0, "drop-new": 1}     # SIPROTEC_OVF_*
 BAD_ACK = {"exc03": 0, "ignore": 1}              # SIPROTEC_BAD_ACK_*
@@ -38,40 +38,21 @@ class RelayStats(ctypes.Structure):
                 ("seq", ctypes.c_uint16), ("offered", ctypes.c_uint16)]
 
 
-class RelayKernel:
+class RelayKernel(Kernel):
     """A kernel with one idle radio station, for relays and the PLCs that read them (no
     radio traffic): `add_plc` a plcharness Plc, `Relay(kernel=k)`, `relay.connect(pid, plc,
     device)`, then `run(until_ns)` scans the PLCs and lets the relays' events happen in virtual
     time. A Relay made without a kernel gets one of its own."""
 
     def __init__(self):
-        self.lib = kernel_lib()
-        err = ctypes.create_string_buffer(256)
-        self.sim = self.lib.mipcosim_new_args(1, 0, 148, 0.0, 0.0, 0.0, 1, 1_000_000, 1_000_000,
-                                              12, err, len(err))
-        if not self.sim:
-            raise CosimError(err.value.decode())
-
-    @property
-    def now(self):
-        return self.lib.mipcosim_now(self.sim)
-
-    def add_plc(self, plc):
-        """A plcharness Plc scanned every plc.tick_ns from now on; returns its id."""
-        pid = self.lib.mipcosim_plc_add(self.sim, ctypes.cast(plc.library.plcrt_scan, ctypes.c_void_p),
-                                        plc.handle, plc.tick_ns)
-        if pid < 0:
-            raise CosimError(self.lib.mipcosim_errmsg(self.sim).decode())
-        return pid
+        super().__init__(1, static_registers=148)
 
     def run(self, until_ns):
-        if self.lib.mipcosim_run(self.sim, until_ns) != 0:
-            raise CosimError(self.lib.mipcosim_errmsg(self.sim).decode())
+        self.run_until(until_ns)
 
     def __del__(self):
-        if getattr(self, "sim", None):
-            self.lib.mipcosim_free(self.sim)
-            self.sim = None
+        if getattr(self, "_handle", None) is not None:
+            self.close()
 
 
 class Relay:
@@ -79,8 +60,8 @@ class Relay:
     address of 40601), capacity, overflow ("drop-oldest" | "drop-new"), seq_bits (2..8),
     bad_ack ("exc03" | "ignore"), rate (events/s), burst (N, every S seconds), origin_ms (the
     time stamp of virtual time 0). `events`: scripted (t_s, [type/bit, address, cause/type,
-    value]). `kernel`: a Chain or Network (anything with .lib and .sim); None: a kernel of its
-    own, moved on by advance()."""
+    value]). `kernel`: the Kernel it joins (a LoggerLink's or Network's .kernel); None: a kernel of
+    its own, moved on by advance()."""
 
     def __init__(self, events=(), *, kernel=None, base=600, capacity=200,
                  overflow="drop-oldest", seq_bits=8, bad_ack="exc03", rate=0.0, burst=None,
@@ -100,10 +81,10 @@ class Relay:
         cfg.time_origin_ms = origin_ms
         self.origin_ms = origin_ms
         self._cfg = cfg                   # for restart()
-        self.rid = self.lib.mipcosim_relay_add(self.kernel.sim, ctypes.byref(cfg))
+        self.rid = self.lib.mipcosim_relay_add(self.kernel.handle, ctypes.byref(cfg))
         if self.rid < 0:
-            raise CosimError(self.lib.mipcosim_errmsg(self.kernel.sim).decode())
-        self.core = self.lib.mipcosim_relay(self.kernel.sim, self.rid)
+            raise CosimError(self.lib.mipcosim_errmsg(self.kernel.handle).decode())
+        self.core = self.lib.mipcosim_relay(self.kernel.handle, self.rid)
         self._rsp = ctypes.create_string_buffer(RESPONSE_MAX)
         for t_s, words in events:
             self.add(t_s, words)
@@ -118,9 +99,9 @@ class Relay:
         """A power cycle at the current virtual time (mipcosim_relay_restart): the recorder empty,
         the sequence number 0, the same configuration; `events` scripted anew (t_s not before
         now). Connected PLCs talk to the restarted relay; stats() start from 0."""
-        if self.lib.mipcosim_relay_restart(self.kernel.sim, self.rid, ctypes.byref(self._cfg)) != 0:
-            raise CosimError(self.lib.mipcosim_errmsg(self.kernel.sim).decode())
-        self.core = self.lib.mipcosim_relay(self.kernel.sim, self.rid)
+        if self.lib.mipcosim_relay_restart(self.kernel.handle, self.rid, ctypes.byref(self._cfg)) != 0:
+            raise CosimError(self.lib.mipcosim_errmsg(self.kernel.handle).decode())
+        self.core = self.lib.mipcosim_relay(self.kernel.handle, self.rid)
         for t_s, words in events:
             self.add(t_s, words)
 
@@ -133,7 +114,7 @@ class Relay:
     def handle(self, adu: bytes):
         """One Modbus TCP request frame -> the response frame (None: the relay would close the
         connection)."""
-        n = self.lib.mipcosim_relay_request(self.kernel.sim, self.rid, adu, len(adu),
+        n = self.lib.mipcosim_relay_request(self.kernel.handle, self.rid, adu, len(adu),
                                             self._rsp, len(self._rsp))
         return None if n < 0 else self._rsp.raw[:n]
 
@@ -141,9 +122,9 @@ class Relay:
         """PLC pid of the kernel (its plcharness Plc `plc`): its Modbus device `device` talks
         to this relay in process."""
         setter = ctypes.cast(plc.library.plcrt_device_set_transport, ctypes.c_void_p)
-        if self.lib.mipcosim_connect_relay(self.kernel.sim, pid, setter, device.encode(),
+        if self.lib.mipcosim_connect_relay(self.kernel.handle, pid, setter, device.encode(),
                                            self.rid) != 0:
-            raise CosimError(self.lib.mipcosim_errmsg(self.kernel.sim).decode())
+            raise CosimError(self.lib.mipcosim_errmsg(self.kernel.handle).decode())
 
     def stats(self):
         st = RelayStats()

@@ -2,7 +2,6 @@
 process, in lockstep virtual time (cosim/README.md)."""
 from __future__ import annotations
 
-import ctypes
 import hashlib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -10,133 +9,12 @@ from pathlib import Path
 from plcharness import Plc, PlcError
 from plcharness.build import build_program
 
-from . import layout as L
+from . import programs as L
+from .kernel import (FATE_FN, LIBDIR, MS, SEC, SCAN_FN, TRACE_FN, CosimError, Kernel,  # noqa: F401
+                     Radio, Stats, kernel_lib, radio_stats, read_taps)
 
 REPO = L.REPO
-LIBDIR = REPO / "build" / "cosim"
-if (Path(__file__).resolve().parent / "_lib" / "libmipcosim.so").is_file():
-    LIBDIR = Path(__file__).resolve().parent / "_lib"     # installed by the test kit (kit/)
-MS = 1_000_000
-SEC = 1_000_000_000
-
-
-class CosimError(RuntimeError):
-    pass
-
-
-# the emulator core's scripted-fault hook (mipemu.h: mipemu_fate_fn)
-FATE_FN = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_int, ctypes.c_int,
-                           ctypes.POINTER(ctypes.c_uint16), ctypes.c_int)
-
-
-class Stats(ctypes.Structure):
-    """mipemu_stats: one station's radio counters."""
-    _fields_ = [(n, ctypes.c_uint64) for n in (
-        "polls", "tel_down", "lost_down", "tel_up", "lost_up", "blocks_down", "blocks_up",
-        "dup_down", "dup_up", "confirmed_down", "confirmed_up")]
-
-
-_LIB = None
-
-
-def kernel_lib():
-    """libmipcosim.so with the argument types of the kernel's API (mipcosim.h) and of the
-    emulator core's that it exports (mipemu.h); loaded once. The one binding: the chains here,
-    the docs' tools, the bench and the st_lib test bench use it."""
-    global _LIB
-    if _LIB is not None:
-        return _LIB
-    path = LIBDIR / "libmipcosim.so"
-    if not path.is_file():
-        raise CosimError(f"{path} missing: run `make build/cosim/libmipcosim.so`")
-    lib = ctypes.CDLL(str(path))
-    c = ctypes
-    u16p = c.POINTER(c.c_uint16)
-    for name, res, args in [
-        ("mipcosim_new_args", c.c_void_p, [c.c_int, c.c_int, c.c_int, c.c_double, c.c_double,
-                                           c.c_double, c.c_uint64, c.c_uint32, c.c_uint64,
-                                           c.c_int, c.c_char_p, c.c_size_t]),
-        ("mipcosim_free", None, [c.c_void_p]),
-        ("mipcosim_errmsg", c.c_char_p, [c.c_void_p]),
-        ("mipcosim_net", c.c_void_p, [c.c_void_p]),
-        ("mipcosim_now", c.c_uint64, [c.c_void_p]),
-        ("mipcosim_plc_add", c.c_int, [c.c_void_p, c.c_void_p, c.c_void_p, c.c_uint64]),
-        ("mipcosim_plc_replace", c.c_int, [c.c_void_p, c.c_int, c.c_void_p, c.c_void_p, c.c_uint64]),
-        ("mipcosim_connect", c.c_int, [c.c_void_p, c.c_int, c.c_void_p, c.c_char_p, c.c_int]),
-        ("mipcosim_connect_tcp", c.c_int, [c.c_void_p, c.c_int, c.c_void_p, c.c_char_p, c.c_int]),
-        ("mipcosim_connect_inproc", c.c_int, [c.c_void_p, c.c_int, c.c_void_p, c.c_char_p, c.c_int]),
-        ("mipcosim_tap", c.c_int, [c.c_void_p, c.c_int, c.c_int, c.c_void_p, c.c_void_p, c.c_int,
-                                   c.c_int, c.c_void_p, c.c_int]),
-        ("mipcosim_tap_fields", c.c_int, [c.c_void_p, c.c_int, c.c_int, c.c_void_p, c.c_void_p,
-                                          c.c_int, c.c_int, c.c_void_p, c.c_int]),
-        ("mipcosim_untap", None, [c.c_void_p, c.c_int]),
-        ("mipcosim_tap_read", c.c_size_t, [c.c_void_p, c.c_void_p, c.c_size_t]),
-        ("mipcosim_run", c.c_int, [c.c_void_p, c.c_uint64]),
-        ("mipcosim_failed_plc", c.c_int, [c.c_void_p]),
-        ("mipcosim_requests", c.c_uint64, [c.c_void_p]),
-        ("mipcosim_scans", c.c_uint64, [c.c_void_p]),
-        ("mipcosim_trace_file", c.c_int, [c.c_void_p, c.c_char_p]),
-        # the emulator core, for a caller that drives the network itself (tests/st_lib)
-        ("mipemu_net_stats", c.c_int, [c.c_void_p, c.c_int, c.c_void_p]),
-        ("mipemu_net_advance", c.c_int, [c.c_void_p, c.c_uint64]),
-        ("mipemu_handle", c.c_long, [c.c_void_p, c.c_int, c.c_char_p, c.c_size_t,
-                                     c.c_char_p, c.c_size_t]),
-        ("mipemu_net_set_fate", None, [c.c_void_p, FATE_FN, c.c_void_p]),
-        ("mipemu_net_inject", c.c_int, [c.c_void_p, c.c_int, c.c_int, u16p, c.c_int]),
-        ("mipemu_net_peek", c.c_int, [c.c_void_p, c.c_int, c.c_int, c.c_uint, c.c_uint, u16p]),
-        # SIPROTEC relays in the kernel's virtual time (issue 35; mipcosim.relay wraps them)
-        ("mipcosim_relay_add", c.c_int, [c.c_void_p, c.c_void_p]),
-        ("mipcosim_relay_restart", c.c_int, [c.c_void_p, c.c_int, c.c_void_p]),
-        ("mipcosim_relay", c.c_void_p, [c.c_void_p, c.c_int]),
-        ("mipcosim_connect_relay", c.c_int, [c.c_void_p, c.c_int, c.c_void_p, c.c_char_p, c.c_int]),
-        ("mipcosim_relay_request", c.c_long, [c.c_void_p, c.c_int, c.c_char_p, c.c_size_t,
-                                              c.c_char_p, c.c_size_t]),
-        ("siprotec_config_default", None, [c.c_void_p]),
-        ("siprotec_script", c.c_int, [c.c_void_p, c.c_uint64, u16p]),
-        ("siprotec_next_event", c.c_uint64, [c.c_void_p]),
-        ("siprotec_peek", None, [c.c_void_p, c.c_uint16, c.c_uint, u16p]),
-        ("siprotec_get_stats", None, [c.c_void_p, c.c_void_p]),
-    ]:
-        f = getattr(lib, name)
-        f.restype, f.argtypes = res, args
-    _LIB = lib
-    return lib
-
-
-_lib = kernel_lib          # (the name the modules here and the docs' tools use)
-_Stats = Stats
-
-
 _BUILDS = {}
-
-
-def read_taps(lib, sim):
-    """The entries the kernel's taps logged since the last call, oldest first: (tap slot, PLC
-    id, words) (mipcosim_tap_read's [tap, plc, n, words...])."""
-    buf = (ctypes.c_uint16 * 65536)()
-    while True:
-        n = lib.mipcosim_tap_read(sim, buf, len(buf))
-        if n == 0:
-            return
-        i = 0
-        while i < n:
-            k = buf[i + 2]
-            yield buf[i], buf[i + 1], list(buf[i + 3:i + 3 + k])
-            i += 3 + k
-
-
-def radio_stats(lib, sim, stations):
-    """The emulator's radio counters summed over `stations`, and the kernel's scans and
-    Modbus requests."""
-    tot = {}
-    for s in stations:
-        st = _Stats()
-        lib.mipemu_net_stats(lib.mipcosim_net(sim), s, ctypes.byref(st))
-        for name, _ in _Stats._fields_:
-            tot[name] = tot.get(name, 0) + getattr(st, name)
-    tot["requests"] = lib.mipcosim_requests(sim)
-    tot["scans"] = lib.mipcosim_scans(sim)
-    return tot
 
 
 def build(role, bidi, workdir: Path, compiler="stc", tick_ms=10, sources=None):
@@ -171,18 +49,6 @@ class Event:
     tap: int
     plc: int
     words: list
-
-
-@dataclass
-class Radio:
-    """Radio parameters of the emulator network."""
-    bitrate: int = 1_000_000        # fast: a slot of a few ms
-    slot_gap_ns: int = 1 * MS
-    overhead_bytes: int = 12
-
-    @classmethod
-    def realistic(cls):
-        return cls(9600, 20 * MS, 12)
 
 
 @dataclass
@@ -228,7 +94,7 @@ class Setup:
     window: int = 1
     # role ("outstation" / "central") -> ST files replacing the example program (tests)
     sources: dict = field(default_factory=dict)
-    # station 1's ranges are the vendor stand-ins' request channel (mipcosim/glue.py): True for
+    # station 1's ranges are the vendor stand-ins' request channel (mipcosim/vendor_glue.py): True for
     # both sides, or the roles ("outstation", "central") whose program has the glue
     channel: bool | tuple = False
 
@@ -255,37 +121,49 @@ WARM = -2     # a warm restart: words = [tap, restored seq, ...] of the PLC's ta
 
 
 class _Kernel:
-    """What Chain and Network share: the kernel (self.lib, self.sim) and their PLCs
-    (self.plcs), virtual time, closing."""
+    """What LoggerLink, Network and SoeChain share: their Kernel (self.kernel) and PLCs
+    (self.plcs), virtual time, closing (the PLCs first, then the kernel)."""
 
-    _handle = None          # the C kernel; None before it exists and after close()
-    _end_ns = 0             # virtual time at close()
+    kernel: Kernel | None = None
+    plcs: dict = {}
+
+    def put_named(self, who, plc, snapshot=None):
+        """Starts or restarts PLC `who` as `plc` (a warm restart: with its snapshot, loaded
+        after config_init__, before the first scan); returns its id (self.ids). The PLC it
+        replaces is closed and its snapshots counted (self.snapshots_before)."""
+        if snapshot is not None:
+            plc.retain_load(snapshot)
+        old = self.plcs.get(who)
+        self.plcs[who] = plc
+        self.ids[who] = self.kernel.put_plc(self.ids.get(who), plc, self.tick_ns, name=who)
+        if old is not None:
+            self.snapshots_before += old.retain_saves
+            old.close()
+        return self.ids[who]
+
+    @property
+    def lib(self):
+        return self.kernel.lib
 
     @property
     def sim(self):
-        if self._handle is None:
-            raise CosimError("the co-simulation is closed")
-        return self._handle
-
-    @sim.setter
-    def sim(self, handle):
-        self._handle = handle
+        """The C kernel (mipcosim *), for the emulator core's own API."""
+        return self.kernel.handle
 
     @property
     def now(self):
         """Virtual time in ns; after close() the time it was closed at."""
-        if self._handle is None:
-            return self._end_ns
-        return self.lib.mipcosim_now(self._handle)
+        return self.kernel.now
+
+    def _check(self, rc):
+        self.kernel.check(rc)
 
     def close(self):
         for plc in self.plcs.values():
             plc.close()
         self.plcs = {}
-        if self._handle:
-            self._end_ns = self.lib.mipcosim_now(self._handle)
-            self.lib.mipcosim_free(self._handle)
-            self._handle = None
+        if self.kernel is not None:
+            self.kernel.close()
 
     def __enter__(self):
         return self
@@ -294,8 +172,9 @@ class _Kernel:
         self.close()
 
 
-class Chain(_Kernel):
-    """Outstation PLC(s) + central PLC + emulator network in one process."""
+class LoggerLink(_Kernel):
+    """The logger link: outstation PLC(s), central PLC and the emulator network in one process
+    (the SOE chain of issue 35 is mipcosim.chain.SoeChain)."""
 
     def __init__(self, setup: Setup, workdir: Path, trace=None):
         if not 1 <= setup.stations <= L.MAX_STATIONS:
@@ -306,16 +185,10 @@ class Chain(_Kernel):
         self.s = setup
         self.workdir = Path(workdir)
         self.workdir.mkdir(parents=True, exist_ok=True)
-        self.lib = _lib()
-        err = ctypes.create_string_buffer(256)
-        self.sim = self.lib.mipcosim_new_args(
-            setup.stations, 1 if setup.static else 0, setup.static_registers, setup.loss,
-            setup.loss, setup.burst, setup.seed, setup.radio.bitrate, setup.radio.slot_gap_ns,
-            setup.radio.overhead_bytes, err, len(err))
-        if not self._handle:
-            raise CosimError(err.value.decode())
-        if trace:
-            self._check(self.lib.mipcosim_trace_file(self.sim, str(trace).encode()))
+        self.kernel = Kernel(setup.stations, static=setup.static,
+                             static_registers=setup.static_registers, loss_down=setup.loss,
+                             loss_up=setup.loss, burst=setup.burst, seed=setup.seed,
+                             radio=setup.radio, trace=trace)
         self.tick_ns = setup.tick_ms * MS
         self.out_build = build("outstation", setup.bidi, self.workdir, setup.compiler, setup.tick_ms,
                                setup.sources.get("outstation"))
@@ -351,16 +224,12 @@ class Chain(_Kernel):
         self.warm = []               # (t, which, graceful) of the warm restarts that restored
         self.last_snapshot = {}      # who -> the last snapshot any instance of it took
         self._taps_of = {}           # who -> [(tap slot, seq address name)]
-        self._snapshots_before = 0   # snapshots of PLC instances that are gone
+        self.snapshots_before = 0   # snapshots of PLC instances that are gone
         for s in range(1, setup.stations + 1):
             self._start(("out", s))
         self._start(("cen", 0))
 
     # ------------------------------------------------------------------ wiring
-
-    def _check(self, rc):
-        if rc != 0:
-            raise CosimError(self.lib.mipcosim_errmsg(self.sim).decode())
 
     def session(self, who):
         return 1 + self.boots[who]
@@ -372,35 +241,12 @@ class Chain(_Kernel):
         if plc.tick_ns != self.tick_ns:
             raise CosimError(f"{who}: the program scans every {plc.tick_ns} ns, the kernel every {self.tick_ns}")
         plc.retain_in_memory(self.s.retain_period_ms * MS)
-        if snapshot is not None:              # a warm restart (restart() checked it applies)
-            plc.retain_load(snapshot)         # after config_init__, before the first scan
-        old = self.plcs.get(who)
-        self.plcs[who] = plc
-        scan = ctypes.cast(plc.library.plcrt_scan, ctypes.c_void_p)
-        if self.s.transport == "inproc":
-            set_fd = ctypes.cast(plc.library.plcrt_device_set_transport, ctypes.c_void_p)
-            connect = self.lib.mipcosim_connect_inproc
-        elif self.s.transport in ("socketpair", "tcp"):
-            set_fd = ctypes.cast(plc.library.plcrt_device_set_fd, ctypes.c_void_p)
-            connect = (self.lib.mipcosim_connect if self.s.transport == "socketpair"
-                       else self.lib.mipcosim_connect_tcp)
-        else:
-            raise CosimError(f"transport {self.s.transport!r}: use inproc, socketpair or tcp")
-        if who in self.ids:
-            self._check(self.lib.mipcosim_plc_replace(self.sim, self.ids[who], scan, plc.handle, self.tick_ns))
-        else:
-            pid = self.lib.mipcosim_plc_add(self.sim, scan, plc.handle, self.tick_ns)
-            self._check(0 if pid >= 0 else -1)
-            self.ids[who] = pid
-        if old is not None:
-            self._snapshots_before += old.retain_saves
-            old.close()
-        pid = self.ids[who]
+        pid = self.put_named(who, plc, snapshot)     # snapshot: restart() checked it applies
         if role == "out":
-            self._check(connect(self.sim, pid, set_fd, b"trm", s))
+            self.kernel.connect(pid, plc, "trm", s, self.s.transport)
         else:
             for st in range(1, self.s.stations + 1):
-                self._check(connect(self.sim, pid, set_fd, f"mdp{st}".encode(), 0))
+                self.kernel.connect(pid, plc, f"mdp{st}", 0, self.s.transport)
         if start is None:
             start = 0 if role == "out" else {}
         session = self.session(who)
@@ -432,8 +278,7 @@ class Chain(_Kernel):
             hdr = self._addr(plc, f"%MW{base + 1}")
             data = self._addr(plc, data_path) if data_path else None
             # the %MW words are contiguous in the image
-            self._check(self.lib.mipcosim_tap(self.sim, slot, pid, seq, hdr, nhdr,
-                                              2 if data else -1, data, 122))
+            self.kernel.tap(slot, pid, seq, hdr, nhdr, 2 if data else -1, data, 122)
 
         if role == "out":
             b = L.peer_base(1)
@@ -451,24 +296,17 @@ class Chain(_Kernel):
     # ------------------------------------------------------------------ running
 
     def run_until(self, t_ns):
-        rc = self.lib.mipcosim_run(self.sim, t_ns)
-        self._drain()
-        if rc != 0:
-            msg = self.lib.mipcosim_errmsg(self.sim).decode()
-            failed = self.lib.mipcosim_failed_plc(self.sim)
-            for who, pid in self.ids.items():
-                if pid == failed:
-                    plc = self.plcs[who]
-                    why = plc.library.plcrt_errmsg(plc.handle) or b""
-                    msg += f": {who}: {why.decode()}"
-            raise CosimError(msg)
+        try:
+            self.kernel.run_until(t_ns)
+        finally:
+            self._drain()
 
     def run_for(self, ns):
         self.run_until(self.now + ns)
 
     def _drain(self):
         t = self.now
-        for tap, plc, words in read_taps(self.lib, self.sim):
+        for tap, plc, words in self.kernel.read_taps():
             self.events.append(Event(t, tap, plc, words))
 
     def restart(self, who, down_ns=500 * MS, warm=False, graceful=False):
@@ -488,7 +326,7 @@ class Chain(_Kernel):
         self.warm_restarts += 1 if warm else 0
         if snapshot and self.plcs[who].retain_count() > 0:
             self.last_snapshot[who] = snapshot
-            self._check(self.lib.mipcosim_plc_replace(self.sim, pid, None, None, 0))
+            self.kernel.replace(pid)
             self.warm.append((self.now, who, graceful))
             self.run_for(down_ns)
             self._start(who, None, snapshot, warm=True)
@@ -507,7 +345,7 @@ class Chain(_Kernel):
             for s in range(1, self.s.stations + 1):
                 b = L.peer_base(s)
                 start[s] = self.mw(who, b + L.S_OUT_LO) + (self.mw(who, b + L.S_OUT_HI) << 16)
-        self._check(self.lib.mipcosim_plc_replace(self.sim, pid, None, None, 0))
+        self.kernel.replace(pid)
         self.restarts.append((self.now, who))
         self.events.append(Event(self.now, RESTART, pid, []))   # marker for the checker
         self.run_for(down_ns)
@@ -518,7 +356,7 @@ class Chain(_Kernel):
         """{"snapshots": RETAIN snapshots taken by all PLCs (all their restarts included),
         "warm_restarts": warm restarts, "restored": those that restored a snapshot (the others
         were cold: no RETAIN variables, or no snapshot yet)}."""
-        return {"snapshots": self._snapshots_before + sum(p.retain_saves for p in self.plcs.values()),
+        return {"snapshots": self.snapshots_before + sum(p.retain_saves for p in self.plcs.values()),
                 "warm_restarts": self.warm_restarts, "restored": len(self.warm)}
 
     def sender_windows(self):
@@ -558,7 +396,7 @@ class Chain(_Kernel):
         return False
 
     def radio_stats(self):
-        return radio_stats(self.lib, self.sim, range(1, self.s.stations + 1))
+        return self.kernel.radio_stats()
 
 
 class Network(_Kernel):
@@ -567,7 +405,7 @@ class Network(_Kernel):
     n receivers behind one shared Modbus client) on one MDP-810, in lockstep virtual time.
     Stations per central and the scan tick are parameters. Delivery is checked per station
     from the central's record stores: registers committed and their Fletcher sums against
-    what each logger wrote (check()); Chain's per-event taps need a %MW block per station,
+    what each logger wrote (check()); LoggerLink's per-event taps need a %MW block per station,
     which 247 stations do not have."""
 
     def __init__(self, stations, workdir: Path, *, records=5, per_transfer=0, payload=16,
@@ -584,14 +422,8 @@ class Network(_Kernel):
         self.params = L.Params(records=records, per_transfer=per_transfer, payload=payload,
                                timeout_ms=timeout_ms, transfer_timeout_s=transfer_timeout_s,
                                window=window)
-        self.lib = _lib()
-        radio = radio or Radio.realistic()
-        err = ctypes.create_string_buffer(256)
-        self.sim = self.lib.mipcosim_new_args(stations, 0, 123, loss, loss, 0.0, seed,
-                                              radio.bitrate, radio.slot_gap_ns,
-                                              radio.overhead_bytes, err, len(err))
-        if not self._handle:
-            raise CosimError(err.value.decode())
+        self.kernel = Kernel(stations, loss_down=loss, loss_up=loss, seed=seed,
+                             radio=radio or Radio.realistic())
         self.plcs = {}
         try:
             from mipprograms.logger import central_many
@@ -600,7 +432,7 @@ class Network(_Kernel):
             text = central_many(stations)
             if not src.is_file() or src.read_text() != text:
                 src.write_text(text)
-            lib_src = [str(L.ST_LIB / f) for f in L.LIB_FILES] + [str(L.PLC_DIR / "PLC_Logger.st")]
+            lib_src = L.lib_sources() + [str(L.PLC_DIR / "PLC_Logger.st")]
             out_b = build("outstation", False, self.workdir, compiler, tick_ms)
             cen_b = build("central_many", False, self.workdir, compiler, tick_ms,
                           lib_src + [str(src)])
@@ -622,20 +454,14 @@ class Network(_Kernel):
         self.plcs[who] = plc
         if plc.tick_ns != self.tick_ns:
             raise CosimError(f"{who}: the program scans every {plc.tick_ns} ns, the kernel every {self.tick_ns}")
-        pid = self.lib.mipcosim_plc_add(self.sim, ctypes.cast(plc.library.plcrt_scan, ctypes.c_void_p),
-                                        plc.handle, self.tick_ns)
-        if pid < 0:
-            raise CosimError(self.lib.mipcosim_errmsg(self.sim).decode())
-        setter = ctypes.cast(plc.library.plcrt_device_set_transport, ctypes.c_void_p)
+        pid = self.kernel.add_plc(plc, self.tick_ns, name=who)
         for dev, ep in wires:
-            if self.lib.mipcosim_connect_inproc(self.sim, pid, setter, dev.encode(), ep) != 0:
-                raise CosimError(self.lib.mipcosim_errmsg(self.sim).decode())
+            self.kernel.connect(pid, plc, dev, ep)
         for i, w in enumerate(params.words()):
             plc[f"%MW{i}"] = w
 
     def run_for(self, ns):
-        if self.lib.mipcosim_run(self.sim, self.now + ns) != 0:
-            raise CosimError(self.lib.mipcosim_errmsg(self.sim).decode())
+        self.kernel.run_for(ns)
 
     def central(self, addr):
         """%MW addr of the central (layout M_*: its shared client's statistics)."""
@@ -679,5 +505,5 @@ class Network(_Kernel):
 
     def radio_stats(self, stations=None):
         """Radio counters summed over `stations` (default all), and the kernel's."""
-        return radio_stats(self.lib, self.sim, stations or range(1, self.n + 1))
+        return self.kernel.radio_stats(stations)
 

@@ -23,14 +23,15 @@ variables after the scan), a restart.
 """
 from __future__ import annotations
 
-import ctypes
 import json
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from mipcosim import sim as _sim
-from mipcosim.layout import LIB_FILES, st_enums   # import order, the one list
+from mipcosim.kernel import MS, CosimError, Kernel, Radio
+from mipcosim.programs import LIB_FILES, st_enums   # import order, the one list
+from mipprobe.regmap import MDP810, TRM810
 from plcharness.config import Config
 
 REPO = Path(__file__).resolve().parents[2]
@@ -39,7 +40,6 @@ PROGRAM = Path(__file__).with_name("chain_main.st")
 # MIP_STLIB_DIR: take the blocks from another directory (e.g. an export of the last commit while
 # st_lib/ has work in progress); default st_lib/ of this checkout.
 LIB_DIR = Path(os.environ.get("MIP_STLIB_DIR") or REPO / "st_lib")
-MS = 1_000_000
 FFFF = 0xFFFF
 ROLE = {"sender": 1, "receiver": 2, "link": 3}
 FB = {1: "snd", 2: "rcv", 3: "lnk"}
@@ -50,7 +50,6 @@ EMU_DEFAULTS = {"stations": 1, "mode": 0, "static_registers": 123, "loss_down": 
                 "loss_up": 0.0, "burst": 0.0, "seed": 1, "bitrate": 9600,
                 "slot_gap_ns": 20 * MS, "overhead_bytes": 12}
 
-TRACE_FN = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_char_p, ctypes.c_size_t)
 
 
 class ChainError(RuntimeError):
@@ -81,7 +80,8 @@ def plc_config(side) -> str:
     """The runtime config of one side: its modem as one device with a read and a write range
     (the device's host and port are never used: the kernel's in-process transport)."""
     central = side.name == "central"
-    rd, wr = (198, 10) if central else (2198, 2001)
+    regs = MDP810 if central else TRM810
+    rd, wr = regs.read_status, regs.write_data
     cfg = Config(comment=f"{side.name} of docs/tools/chainsim.py (written by it)")
     cfg.add("master", timeout="1s")
     if side.cyclic_ms:
@@ -311,23 +311,16 @@ class Chain:
         self.tick = tick_ms * MS
         self.sides = [s for s in (outstation, central) if s is not None]
         try:
-            self.lib = _sim._lib()
-        except _sim.CosimError as e:
+            self.kernel = Kernel(cfg["stations"], static=bool(cfg["mode"]),
+                                 static_registers=cfg["static_registers"],
+                                 loss_down=cfg["loss_down"], loss_up=cfg["loss_up"],
+                                 burst=cfg["burst"], seed=cfg["seed"],
+                                 radio=Radio(cfg["bitrate"], cfg["slot_gap_ns"],
+                                             cfg["overhead_bytes"]), error=ChainError)
+        except CosimError as e:
             raise ChainError(str(e)) from None
-        self.lib.mipemu_net_set_trace.argtypes = [ctypes.c_void_p, TRACE_FN, ctypes.c_void_p]
-        self.lib.mipemu_net_set_trace.restype = None
-        err = ctypes.create_string_buffer(256)
-        self.sim = self.lib.mipcosim_new_args(
-            cfg["stations"], cfg["mode"], cfg["static_registers"], cfg["loss_down"],
-            cfg["loss_up"], cfg["burst"], cfg["seed"], cfg["bitrate"], cfg["slot_gap_ns"],
-            cfg["overhead_bytes"], err, len(err))
-        if not self.sim:
-            raise ChainError(err.value.decode())
-        self.net = self.lib.mipcosim_net(self.sim)
         self._batch: list[dict] = []      # the emulator's lines of the current step
-        self._cb = TRACE_FN(lambda user, line, n: self._batch.append(
-            json.loads(ctypes.string_at(line, n))))
-        self.lib.mipemu_net_set_trace(self.net, self._cb, None)
+        self.kernel.on_trace(self._batch_line)
         self.lines: list[dict] = []       # the merged trace so far
         self.ids = {}                     # side name -> kernel PLC id
         self.plcs = []                    # every PLC instance loaded (closed at the end)
@@ -339,14 +332,13 @@ class Chain:
             s.plc, s.received, s.transfers, s.errors = None, [], [], []
             self._start(s)
 
+    def _batch_line(self, line):
+        self._batch.append(line)
+
     @property
     def t(self):
         """Virtual time of the next scan."""
-        return self.lib.mipcosim_now(self.sim)
-
-    def _check(self, rc):
-        if rc != 0:
-            raise ChainError(self.lib.mipcosim_errmsg(self.sim).decode())
+        return self.kernel.now
 
     def _start(self, side: Side):
         """A fresh program instance for side, wired to its modem; the first scan at
@@ -357,26 +349,17 @@ class Chain:
         plc = build_plc(self.workdir, self.confs[side.name])
         self.plcs.append(plc)
         side.attach(plc)
-        scan = ctypes.cast(plc.library.plcrt_scan, ctypes.c_void_p)
         if side.name in self.ids:
-            self._check(self.lib.mipcosim_plc_replace(self.sim, self.ids[side.name], scan,
-                                                      plc.handle, self.tick))
+            self.kernel.replace(self.ids[side.name], plc, self.tick, name=side.name)
         else:
-            pid = self.lib.mipcosim_plc_add(self.sim, scan, plc.handle, self.tick)
-            self._check(0 if pid >= 0 else -1)
-            self.ids[side.name] = pid
-        set_transport = ctypes.cast(plc.library.plcrt_device_set_transport, ctypes.c_void_p)
-        self._check(self.lib.mipcosim_connect_inproc(self.sim, self.ids[side.name], set_transport,
-                                                     b"modem", 0 if side.name == "central" else 1))
+            self.ids[side.name] = self.kernel.add_plc(plc, self.tick, name=side.name)
+        self.kernel.connect(self.ids[side.name], plc, "modem", 0 if side.name == "central" else 1)
 
     def add_plc(self, plc):
         """Another PLC (a plcharness Plc) scanned in the same lockstep from now on, every tick;
         the caller serves its I/O between steps (e.g. a program without the runtime's master)."""
         self.plcs.append(plc)
-        pid = self.lib.mipcosim_plc_add(self.sim, ctypes.cast(plc.library.plcrt_scan, ctypes.c_void_p),
-                                        plc.handle, self.tick)
-        self._check(0 if pid >= 0 else -1)
-        return pid
+        return self.kernel.add_plc(plc, self.tick)
 
     def _emit(self, line):
         self.lines.append(line)
@@ -398,15 +381,7 @@ class Chain:
         for s in live:
             s.before_scan(t)
         self._batch = []
-        rc = self.lib.mipcosim_run(self.sim, t + self.tick)
-        if rc != 0:
-            msg = self.lib.mipcosim_errmsg(self.sim).decode()
-            failed = self.lib.mipcosim_failed_plc(self.sim)
-            for s in live:
-                if self.ids.get(s.name) == failed:
-                    why = s.plc.library.plcrt_errmsg(s.plc.handle) or b""
-                    msg += f": {s.name}: {why.decode()}"
-            raise ChainError(msg)
+        self.kernel.run_until(t + self.tick)
         # the emulator's lines of this step, each request with the plc lines of its PLC,
         # then what the scans left (after every line up to t: the radio's later ones follow)
         by_ep = {s.ep: s for s in live}
@@ -431,7 +406,7 @@ class Chain:
 
     def stats(self, station=1):
         """The emulator's radio counters of `station`."""
-        return _sim.radio_stats(self.lib, self.sim, [station])
+        return self.kernel.radio_stats([station])
 
     def trace(self) -> list[str]:
         """The emulator's lines with the plc lines merged in, numbered."""
@@ -444,9 +419,7 @@ class Chain:
         return out
 
     def close(self):
-        if self.sim:
-            self.lib.mipcosim_free(self.sim)
-            self.sim = None
+        self.kernel.close()
         for p in self.plcs:
             p.close()
         self.plcs = []

@@ -26,13 +26,13 @@ import sys
 import tempfile
 from pathlib import Path
 
+from mipcosim.kernel import MS
 from mipcosim.trace import parse
 from stc import oneline
 
 REPO = Path(__file__).resolve().parents[2]
 LOSSES = [0.0, 0.05, 0.1, 0.2, 0.3, 0.4]
 PAYLOAD = 122
-MS = 1_000_000
 LIMIT_S = 300          # a 20-record transfer takes well under 30 s; after 300 s it is stuck
 
 
@@ -49,16 +49,16 @@ def first_record_start(trace_lines):
 
 
 def run_cosim(p, drive, seed, records, workdir):
-    from mipcosim import layout
-    from mipcosim.sim import Chain, CosimError, Radio, Setup
+    from mipcosim import programs
+    from mipcosim.sim import LoggerLink, CosimError, Radio, Setup
     if os.environ.get("MIP_STLIB_DIR"):          # as in chainsim: st_lib from elsewhere
-        layout.ST_LIB = Path(os.environ["MIP_STLIB_DIR"])
+        programs.ST_LIB = Path(os.environ["MIP_STLIB_DIR"])
     st = Setup(loss=p, seed=seed, records=records, payload=PAYLOAD, timeout_ms=1500,
                polled=drive == "polled", radio=Radio.realistic())
     with tempfile.TemporaryDirectory() as tmp:
         trace = Path(tmp) / "t.jsonl"
         try:
-            with Chain(st, workdir, trace=trace) as ch:
+            with LoggerLink(st, workdir, trace=trace) as ch:
                 ok = ch.run_to_end(LIMIT_S * 1000 * MS, step_ns=10 * MS, settle_ns=0)
                 t_end = ch.now
         except CosimError as e:
@@ -71,7 +71,7 @@ def run_cosim(p, drive, seed, records, workdir):
 
 
 def run_blocks(p, drive, seed, records, workdir=None):
-    from mipdocs.chainsim import Chain, ChainError, Side
+    from mipdocs.chainsim import LoggerLink, ChainError, Side
     from mipdocs.gen_traces import WORK, logger_data
     polled = drive == "polled"
     data = logger_data(records * PAYLOAD, seed)
@@ -79,7 +79,7 @@ def run_blocks(p, drive, seed, records, workdir=None):
     c = Side("central", "receiver", polled=polled, timeout_ms=1500, read_ms=100,
              read_phase_ms=50)
     try:
-        ch = Chain(WORK, o, c, loss_up=p, loss_down=p, seed=seed)
+        ch = LoggerLink(WORK, o, c, loss_up=p, loss_down=p, seed=seed)
     except ChainError as e:
         raise DataError(str(e)) from None
     ok = ch.run_until(lambda: o.send_done, LIMIT_S * 1000)

@@ -181,7 +181,7 @@ def render(layers, edges, folders):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(prog="importgraph", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(prog="importgraph", description=" ".join(__doc__.split("\n\n")[0].split()))
     ap.add_argument("-o", "--output", help="write the SVG of the package graph here")
     ap.add_argument("--cycles", action="store_true",
                     help="print the module cycles, one per line (exit 1 if there is one)")

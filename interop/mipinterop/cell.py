@@ -13,7 +13,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from mipcosim import layout as L
+from mipcosim import programs as L
 from mipdemo import common as demo            # noqa: F401  (Procs, Slave, free_port, TraceStats: for matrix, kernel, timing)
 from mippeer.cli import logger_records
 from plcharness.procs import stop
@@ -120,7 +120,7 @@ class Config:
     cap_loss_s: float = 25.0
     drive: str = "spontaneous"
     peer_period_s: float = 0.02    # the peer reads its modem (and may write) this often
-    # kernel: a restarted side is off this long (the soft-PLC: Chain.restart's down time; the
+    # kernel: a restarted side is off this long (the soft-PLC: LoggerLink.restart's down time; the
     # peer: its process start); "after the fault" counts from when it runs again
     down_s: float = 0.5
 

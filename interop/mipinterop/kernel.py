@@ -2,7 +2,7 @@
 and the classification, the same for both ways of running a cell).
 
 Our side is the example program (plc/outstation*.st or plc/central*.st) as a soft-PLC of
-mipcosim.sim.Chain: the kernel's builds, runtime configs, in-process transport and restart. The
+mipcosim.sim.LoggerLink: the kernel's builds, runtime configs, in-process transport and restart. The
 chain's other PLC is switched off before it ever scans; the note-only peer takes its place as a
 participant of the same lockstep loop (a scan function of its own, mipcosim_plc_add): every
 peer_period_s of virtual time it runs one round of mippeer.cli.Loop (read its modem,
@@ -23,7 +23,7 @@ import contextlib
 import ctypes
 from pathlib import Path
 
-from mipcosim import layout as L
+from mipcosim import programs as L
 from mipcosim import sim as S
 from mippeer.cli import Loop, received
 from mippeer.modem import Modem
@@ -32,12 +32,11 @@ from mippeer.peer import Peer
 from .cell import CellRun, MatrixError, demo
 
 RESPONSE_MAX = 300               # MIPEMU_RESPONSE_MAX: room for any response ADU
-_SCAN = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_uint64)
 
 
 def build_programs(outdir):
     """The four example programs, built once per process by the kernel's build (cached by
-    mipcosim.sim.build; every Chain after this takes them from there)."""
+    mipcosim.sim.build; every LoggerLink after this takes them from there)."""
     from plcharness.build import BuildError
     for role in ("outstation", "central"):
         for bidi in (False, True):
@@ -60,7 +59,7 @@ class KernelRun(CellRun):
         self.peer_life = 0
         self.faults = []             # (switched off at ns, running again at ns, "ours" | "peer")
         self._peer_error = None
-        self._scan = _SCAN(self._peer_round)     # referenced for as long as the kernel may call it
+        self._scan = S.SCAN_FN(self._peer_round)     # referenced for as long as the kernel may call it
         self._words = None
 
     # -- setting up
@@ -72,16 +71,12 @@ class KernelRun(CellRun):
                         records=cfg.records, payload=self.payload, timeout_ms=cfg.timeout_ms,
                         radio=S.Radio())          # the fast radio (matrix.FAST_RADIO)
         self.trace = self.dir / "trace.jsonl"
-        self.chain = c = S.Chain(setup, self.dir, trace=self.trace)
+        self.chain = c = S.LoggerLink(setup, self.dir, trace=self.trace)
         self.tick = c.tick_ns
-        lib = c.lib
-        lib.mipcosim_request.restype = ctypes.c_long
-        lib.mipcosim_request.argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.c_char_p,
-                                         ctypes.c_size_t, ctypes.c_void_p, ctypes.c_size_t]
         self._rsp = ctypes.create_string_buffer(RESPONSE_MAX)
         self.ours = ("out", 1) if cell.ours == "sender" else ("cen", 0)
         other = ("cen", 0) if cell.ours == "sender" else ("out", 1)
-        self._check(lib.mipcosim_plc_replace(c.sim, c.ids[other], None, None, 0))
+        c.kernel.replace(c.ids[other])
         # our program idles one scan (%MW0 = 0) before its parameters say start, as the
         # process does before the real-time run writes them (started with them in its first
         # scan, the bidirectional static programs raise a write of length 0 once); the
@@ -96,10 +91,6 @@ class KernelRun(CellRun):
             self._peer_start()
             self._run_to(c.now + self.tick)
             self._set_params(True)
-
-    def _check(self, rc):
-        if rc != 0:
-            raise S.CosimError(self.chain.lib.mipcosim_errmsg(self.chain.sim).decode())
 
     def _set_params(self, start):
         """Our program's parameters, written before its next scan (the real-time run writes the
@@ -117,12 +108,12 @@ class KernelRun(CellRun):
         """A fresh peer (all state lost), scanned from now on every peer_period_s."""
         role, records, kw = self.peer_args()
         ep = 0 if role == "central" else 1
-        lib, sim, rsp = self.chain.lib, self.chain.sim, self._rsp
+        kernel, rsp = self.chain.kernel, self._rsp
 
         def transact(adu):
-            n = lib.mipcosim_request(sim, ep, adu, len(adu), rsp, len(rsp))
+            n = kernel.request(ep, adu, rsp)
             if n < 0:
-                raise S.CosimError(lib.mipcosim_errmsg(sim).decode())
+                raise S.CosimError(kernel.errmsg())
             return rsp.raw[:n]
 
         modem = Modem.in_process(transact, "mdp" if role == "central" else "trm", unit=1)
@@ -131,12 +122,10 @@ class KernelRun(CellRun):
         self.peer_life += 1
         self._peer_t0 = self.chain.now
         period = round(self.cfg.peer_period_s * S.SEC)
-        scan = ctypes.cast(self._scan, ctypes.c_void_p)
         if self.peer_id is None:
-            self.peer_id = lib.mipcosim_plc_add(sim, scan, 1, period)   # context: any non-NULL
-            self._check(0 if self.peer_id >= 0 else -1)
+            self.peer_id = kernel.add_scan(self._scan, period)
         else:
-            self._check(lib.mipcosim_plc_replace(sim, self.peer_id, scan, 1, period))
+            kernel.replace_scan(self.peer_id, self._scan, period)
 
     def _peer_round(self, _rt, _n):
         """The peer's "scan", called by mipcosim_run at its due virtual time."""
@@ -176,9 +165,9 @@ class KernelRun(CellRun):
         self._run_to(self.chain.now + self.tick)
 
     def restart_ours(self):
-        """Chain's cold restart (off for down_s while the peer goes on, then a fresh instance of
+        """LoggerLink's cold restart (off for down_s while the peer goes on, then a fresh instance of
         the program), with the interop's parameters: all state is lost, the logger's read-out
-        pointer too (Chain's own restart resumes there in a new session), as when the real-time
+        pointer too (LoggerLink's own restart resumes there in a new session), as when the real-time
         run starts the process again."""
         t_off = self.chain.now
         with self._peer_errors():
@@ -191,8 +180,7 @@ class KernelRun(CellRun):
     def restart_peer(self):
         """The peer stopped (not scanned, its modem keeps running) for down_s, then a new one."""
         t_off = self.chain.now
-        self._check(self.chain.lib.mipcosim_plc_replace(self.chain.sim, self.peer_id, None,
-                                                        None, 0))
+        self.chain.kernel.replace(self.peer_id)
         self._run_to(t_off + round(self.cfg.down_s * S.SEC))
         self._peer_start()
         self.faults.append((t_off, self.chain.now, "peer"))

@@ -3,7 +3,7 @@ peer (peers/mippeer) over the emulated modems and radio.
 
 Two ways to run a cell, one judge and one classification (cell.py: CellRun.run):
   kernel    (the default; kernel.py) our program as a soft-PLC of the co-simulation kernel
-            (cosim/, mipcosim.sim.Chain) and the peer as a participant of the same lockstep
+            (cosim/, mipcosim.sim.LoggerLink) and the peer as a participant of the same lockstep
             virtual time, its requests handed to the kernel's emulator core: deterministic by
             seed, every time (bound, caps, "error after t s") in virtual seconds;
   realtime  (--realtime; RealtimeRun) the soft-PLC executable and the `mip-peer` process over

@@ -32,13 +32,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from mipcosim.trace import read_trace
+from mipprobe.regmap import TRM810
 
 from .cell import (FAST_RADIO, REALISTIC_RADIO, MatrixError, PeerProc, build_programs, L,
                      demo, start_emulator)
 
 PAIRS = ("note->note", "ours->note-strict", "ours->note-lenient", "ours->ours")
 FFFF = 0xFFFF
-TRM_READ, TRM_WRITE = 2198, 2001
+TRM_READ, TRM_WRITE = TRM810.read_status, TRM810.write_data
 SCAN_MS = 10                                   # plc/*.st task interval
 
 

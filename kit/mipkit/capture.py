@@ -148,10 +148,10 @@ def wire_device(net, kit_plc, plc, device: str, ep: int):
     would, through Python so that each exchange is recorded (net.capture). Kept on kit_plc
     (the runtime holds the callback)."""
     from mipcosim.pydevice import PyDevice
-    lib, rsp = net.lib, ctypes.create_string_buffer(512)
+    rsp = ctypes.create_string_buffer(512)
 
     def handle(adu):
-        n = lib.mipcosim_request(net.sim, ep, adu, len(adu), rsp, len(rsp))
+        n = net.kernel.request(ep, adu, rsp)
         out = rsp.raw[:n] if n >= 0 else None        # no answer: the runtime sees a timeout
         net.capture.record(net.now, (kit_plc.name, device), ep, adu, out)
         return out
@@ -181,7 +181,7 @@ def save_for_report(net, outdir: Path, message: str = "", t_hint=None,
     the failure's message): (section title, text, JUnit property) after writing outdir/name."""
     cap = net.capture
     centre = None
-    if net._handle is not None:
+    if not net.kernel.closed:
         try:
             from .report import find_fault
             centre = find_fault(net, message, t_hint).t

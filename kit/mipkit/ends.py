@@ -58,7 +58,7 @@ class KitRelay:
         self.origin_ms = kw.get("origin_ms", 0)
         self.scripted = []          # (t_ns, [4 words]) in the order given
         try:
-            self.relay = Relay(kernel=net, **kw)
+            self.relay = Relay(kernel=net.kernel, **kw)
         except (CosimError, TypeError, ValueError) as e:
             raise KitError(f"relay {name}: {e}") from None
         for ev in events:
@@ -331,9 +331,7 @@ class KitScada:
         self.master = SoeMaster(self._client, base, sink, reack)
         self.error = None
         self._scan = SCAN_FN(self._poll)
-        self.pid = net.lib.mipcosim_plc_add(net.sim, ctypes.cast(self._scan, ctypes.c_void_p), 1,
-                                            int(poll_ms * MS))
-        net._check(0 if self.pid >= 0 else -1)
+        self.pid = net.kernel.add_scan(self._scan, int(poll_ms * MS))
 
     def _poll(self, _rt, _n):
         from mippeer.scada import ScadaError

@@ -7,7 +7,6 @@ user's programs and configs to stations, and adds faults and the failure report.
 from __future__ import annotations
 
 import collections
-import ctypes
 import json
 import re
 from pathlib import Path
@@ -41,24 +40,16 @@ class Net:
                 raise KitError(f"{n} {v}: a probability in 0..1 (1 excluded)")
         self.stations, self.compiler, self.seed = stations, compiler, seed
         self.semantics = semantics
-        self.lib = S.kernel_lib()
-        lib = self.lib
-        lib.mipcosim_request.restype = ctypes.c_long
-        lib.mipcosim_request.argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.c_char_p,
-                                         ctypes.c_size_t, ctypes.c_void_p, ctypes.c_size_t]
-        err = ctypes.create_string_buffer(256)
-        self._handle = lib.mipcosim_new_args(stations, 1 if static else 0, static_registers,
-                                             loss_down, loss_up, burst, seed,
-                                             self.radio["bitrate"],
-                                             int(self.radio["slot_gap_ms"] * MS),
-                                             self.radio["overhead_bytes"], err, len(err))
-        if not self._handle:
-            raise KitError(err.value.decode())
         self.trace_path = self.workdir / "emulator-trace.jsonl" if trace else None
+        self.kernel = S.Kernel(stations, static=static, static_registers=static_registers,
+                               loss_down=loss_down, loss_up=loss_up, burst=burst, seed=seed,
+                               radio=S.Radio(self.radio["bitrate"],
+                                             int(self.radio["slot_gap_ms"] * MS),
+                                             self.radio["overhead_bytes"]),
+                               trace=self.trace_path, error=KitError)
+        self.lib = self.kernel.lib
         # the Modbus traffic; a failure's pcapng holds capture_s seconds of it (capture.py)
         self.capture = capture.ModbusCapture(capture_s) if capture_s else None
-        if trace:
-            self._check(lib.mipcosim_trace_file(self._handle, str(self.trace_path).encode()))
         self.plcs: dict[str, KitPlc] = {}
         self.peers: dict[str, KitPeer] = {}
         self.ends: dict = {}        # name -> KitRelay / KitUnicos (ends.py)
@@ -72,17 +63,16 @@ class Net:
 
     @property
     def sim(self):
-        if self._handle is None:
+        if self.kernel.closed:
             raise KitError("the network is closed")
-        return self._handle
+        return self.kernel.handle
 
     @property
     def now(self):
-        return self._end if self._handle is None else self.lib.mipcosim_now(self._handle)
+        return self.kernel.now
 
     def _check(self, rc):
-        if rc != 0:
-            raise KitError(self.lib.mipcosim_errmsg(self.sim).decode())
+        self.kernel.check(rc)
 
     def _where(self, at):
         if at == "mdp" or at == "MDP":
@@ -239,7 +229,7 @@ class Net:
 
     def _drain(self):
         """Hand what the kernel's taps logged to the PLCs' delivery taps."""
-        for slot, _plc, words in S.read_taps(self.lib, self.sim):
+        for slot, _plc, words in self.kernel.read_taps():
             for p in self.plcs.values():
                 if p._taps is not None and p._taps.take(slot, words):
                     break
@@ -247,8 +237,9 @@ class Net:
     def run_until_time(self, t_ns):
         from .report import observer
         observer(self)          # the failure report's eyes: the blocks' diagnosis over time
-        if self.lib.mipcosim_run(self.sim, t_ns) != 0:
-            msg = self.lib.mipcosim_errmsg(self.sim).decode()
+        try:
+            self.kernel.run_until(t_ns)
+        except KitError:
             for p in self.peers.values():
                 if p.error is not None:
                     e, p.error = p.error, None
@@ -257,12 +248,7 @@ class Net:
                 if getattr(p, "error", None) is not None:
                     e, p.error = p.error, None
                     raise KitError(f"{p.name} failed: {type(e).__name__}: {e}") from None
-            failed = self.lib.mipcosim_failed_plc(self.sim)
-            for p in self.plcs.values():
-                if p.pid == failed:
-                    why = p.plc.library.plcrt_errmsg(p.plc.handle) or b""
-                    msg += f": {p.name}: {why.decode()}"
-            raise KitError(msg)
+            raise
         for e in self.ends.values():
             if hasattr(e, "check"):
                 try:
@@ -283,14 +269,14 @@ class Net:
         return Until(False, within_s, self.now / SEC)
 
     def stats(self, station=1):
-        return S.radio_stats(self.lib, self.sim, [station])
+        return self.kernel.radio_stats([station])
 
     # ------------------------------------------------------------------ the report
 
     def flush_trace(self):
         """Close the trace file (it is complete on disk afterwards; tracing stops)."""
-        if self._handle is not None and self.trace_path is not None:
-            self.lib.mipcosim_trace_file(self._handle, None)
+        if not self.kernel.closed and self.trace_path is not None:
+            self.lib.mipcosim_trace_file(self.kernel.handle, None)
 
     def trace_tail(self, lines=40):
         """The last `lines` trace lines that say something: telegrams that carry a block or
@@ -364,10 +350,7 @@ class Net:
         for p in self.plcs.values():
             if p.plc is not None:
                 p.plc.close()
-        if self._handle is not None:
-            self._end = self.lib.mipcosim_now(self._handle)
-            self.lib.mipcosim_free(self._handle)
-            self._handle = None
+        self.kernel.close()
 
     def __enter__(self):
         return self

@@ -25,6 +25,7 @@ traceback.
 from __future__ import annotations
 
 import pytest
+from stc.semantics import SEMANTICS
 
 from .base import KitError, KitWarning
 from .net import Net
@@ -37,7 +38,7 @@ def pytest_addoption(parser):
     g.addoption("--mip-compiler", default="stc", choices=["stc", "matiec", "auto"],
                 help="ST compiler for mip_network PLCs: stc (default), matiec, or auto "
                      "(matiec when iec2c is on PATH): the same tests with the reference compiler")
-    g.addoption("--mip-semantics", default=None, choices=["matiec", "openplc", "iec"],
+    g.addoption("--mip-semantics", default=None, choices=SEMANTICS,
                 help="stc's values where IEC 61131-3 leaves them open: matiec (the default), "
                      "openplc (OpenPLC's matiec fork), iec; default PLCRT_SEMANTICS")
     g.addoption("--mip-diagram-seconds", type=float, default=6.0,
@@ -68,8 +69,8 @@ def mip_compiler(request):
 
 @pytest.fixture
 def mip_st_lib():
-    from mipcosim import layout as L
-    return [str(L.ST_LIB / f) for f in L.LIB_FILES]
+    from mipcosim import programs as L
+    return L.lib_sources()
 
 
 @pytest.fixture
@@ -131,7 +132,7 @@ def pytest_runtest_makereport(item, call):
             except Exception as e:  # noqa: BLE001 - the capture must not hide the failure
                 title, text = "Modbus capture", f"none: {type(e).__name__}: {e}"
             report.sections.append((f"mip-kit network {k}: {title}", text))
-        if net._handle is None:
+        if net.kernel.closed:
             continue
         try:
             head, sections, props = failure_report(

@@ -9,6 +9,7 @@ from pathlib import Path
 from plcharness.build import BuildError, build_program
 from plcharness.config import LOCATED as _LOCATED
 from plcharness.config import ConfigError, duration_ns, read_file
+from stc.semantics import SEMANTICS
 
 from .base import KitError, _warn
 
@@ -86,9 +87,6 @@ def check_config(build, config: Path):
                                f"declares none of %{area}{size}{a}..%{area}{size}{a + count - 1}")
         elif addr not in declared:
             raise KitError(f"{config}:{line}: error: {key} = {addr}: the program does not declare {addr}")
-
-
-SEMANTICS = ("matiec", "openplc", "iec")
 
 
 def build(sources, workdir: Path, compiler="stc", tick_ms=None, semantics=None):

@@ -6,7 +6,7 @@ the blocks' own diagnosis and the radio traffic around that moment (docs/test-ki
   VAR_INPUT and VAR_OUTPUT names) of MIP_Sender, MIP_Receiver, MIP_Link or MIP_BufferSender,
   read from st_lib's own ST; its diagnosis outputs (eState, eWaitReason, wWaitFor, eErrorId;
   MIP_Link's per side) are shown with the enum names of st_lib's MIP_Types.st
-  (mipcosim.layout.st_enums, the one reader of them).
+  (mipcosim.programs.st_enums, the one reader of them).
 - An Observer samples them (and each peer's accepted records) every 100 ms of virtual time,
   so the report can say what the blocks did at the fault, not only at the end.
 - The fault is the record a failure names ("record 7: ..."), else the first record a peer did
@@ -14,7 +14,6 @@ the blocks' own diagnosis and the radio traffic around that moment (docs/test-ki
 """
 from __future__ import annotations
 
-import ctypes
 import functools
 import json
 import re
@@ -41,7 +40,7 @@ def fmt_t(ns):
 # ---------------------------------------------------------------- the blocks, by type
 
 def _st_lib():
-    from mipcosim import layout as L
+    from mipcosim import programs as L
     return L.ST_LIB
 
 
@@ -74,7 +73,7 @@ def signatures():
 
 @functools.lru_cache(maxsize=None)
 def _enums():
-    from mipcosim import layout as L
+    from mipcosim import programs as L
     return {k.upper(): v for k, v in L.st_enums().items()}
 
 
@@ -133,9 +132,7 @@ class Observer:
         self._vars = {}         # plc name -> (plc object, [(path, type, diag, [_Var])])
         self.failed = None
         self._fn = SCAN_FN(self._tick)
-        lib = net.lib
-        self.pid = lib.mipcosim_plc_add(net.sim, ctypes.cast(self._fn, ctypes.c_void_p), 1,
-                                        int(period_ms * MS))
+        self.pid = net.kernel.add_scan(self._fn, int(period_ms * MS))
 
     def _tick(self, _rt, _n):
         try:

@@ -21,6 +21,8 @@ import tomllib
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
+from stc.semantics import SEMANTICS
+
 from .base import SEC, KitError, KitWarning
 from .net import Net
 
@@ -173,11 +175,11 @@ class Run:
             for k in ("name", "sources", "config", "station"):
                 if k not in p:
                     raise ScenarioError(f"[[plc]] {p.get('name', '')}: '{k}' missing")
-            from mipcosim import layout as L
+            from mipcosim import programs as L
             srcs = []
             for s in p["sources"]:
                 if s == "@st_lib":
-                    srcs += [str(L.ST_LIB / f) for f in L.LIB_FILES]
+                    srcs += L.lib_sources()
                 else:
                     srcs.append(str(self.base / s))
             plc = self.net.plc(p["name"], srcs, self.base / p["config"], p["station"],
@@ -366,7 +368,6 @@ class Run:
     def summary(self):
         """One line: virtual time to completion, records, retransmissions, losses, whether the
         scripted faults fired."""
-        from mipcosim import sim as S
         from .report import fmt_t, observer
         net = self.net
         done = f"complete at {fmt_t(self.done_at)}" if self.done_at is not None else \
@@ -385,7 +386,7 @@ class Run:
                     except Exception:  # noqa: BLE001 - a build without the member's symbol
                         pass
         parts.append(f"{retrans} records retransmitted by the blocks")
-        st = S.radio_stats(net.lib, net.sim, range(1, net.stations + 1))
+        st = net.kernel.radio_stats()
         parts.append(f"radio lost {st['lost_down']} of {st['tel_down']} telegrams down, "
                      f"{st['lost_up']} of {st['tel_up']} up")
         if self.scripted:
@@ -453,7 +454,7 @@ def main(argv=None):
     ap.add_argument("--compiler", default=None, choices=["stc", "matiec", "auto"],
                     help="instead of the scenario's network.compiler (default stc); auto: "
                          "matiec when iec2c is on PATH")
-    ap.add_argument("--semantics", default=None, choices=["matiec", "openplc", "iec"],
+    ap.add_argument("--semantics", default=None, choices=SEMANTICS,
                     help="stc's values where IEC 61131-3 leaves them open: matiec, openplc "
                          "(OpenPLC's matiec fork), iec (default: the scenario's "
                          "network.semantics, else PLCRT_SEMANTICS, else matiec)")

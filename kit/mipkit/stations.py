@@ -43,17 +43,13 @@ class KitPlc:
         plc.retain_in_memory(self.retain_period_ns)
         if snapshot is not None:
             plc.retain_load(snapshot)
-        lib, sim = net.lib, net.sim
-        scan = ctypes.cast(plc.library.plcrt_scan, ctypes.c_void_p)
         if self.pid is None:
-            self.pid = lib.mipcosim_plc_add(sim, scan, plc.handle, plc.tick_ns)
-            net._check(0 if self.pid >= 0 else -1)
+            self.pid = net.kernel.add_plc(plc, name=self.name)
         else:
-            net._check(lib.mipcosim_plc_replace(sim, self.pid, scan, plc.handle, plc.tick_ns))
+            net.kernel.replace(self.pid, plc, name=self.name)
         old, self.plc = self.plc, plc
         if old is not None:
             old.close()
-        setter = ctypes.cast(plc.library.plcrt_device_set_transport, ctypes.c_void_p)
         ep = 0 if self.at == "mdp" else int(self.at)
         for i in range(plc.library.plcrt_device_count(plc.handle)):
             dev = plc.library.plcrt_device_name(plc.handle, i)
@@ -62,7 +58,7 @@ class KitPlc:
             elif net.capture is not None:
                 capture.wire_device(net, self, plc, dev.decode(), ep)
             else:
-                net._check(lib.mipcosim_connect_inproc(sim, self.pid, setter, dev, ep))
+                net.kernel.connect(self.pid, plc, dev, ep)
         if self._taps is None:
             self._taps = delivery.Taps(net, self.pid)
         self._taps.bind(plc, restored=snapshot is not None)
@@ -150,7 +146,7 @@ class KitPlc:
             snap = self.plc.retain_last()
         net = self.net
         net._drain()            # what the taps logged of the old instance
-        net._check(net.lib.mipcosim_plc_replace(net.sim, self.pid, None, None, 0))
+        net.kernel.replace(self.pid)
         # (when, mode, whether RETAIN was restored: not without RETAIN variables, nor before
         # the first snapshot; then it is cold)
         self.restarts.append((net.now, mode, snap is not None))
@@ -169,13 +165,13 @@ class KitPeer:
         self.net, self.name, self.at = net, name, at
         ep = 0 if at == "mdp" else int(at)
         unit = unit if at == "mdp" else 1
-        lib, sim = net.lib, net.sim
+        kernel = net.kernel
         rsp = ctypes.create_string_buffer(RESPONSE_MAX)
 
         def transact(adu):
-            n = lib.mipcosim_request(sim, ep, adu, len(adu), rsp, len(rsp))
+            n = kernel.request(ep, adu, rsp)
             if n < 0:
-                raise S.CosimError(lib.mipcosim_errmsg(sim).decode())
+                raise S.CosimError(kernel.errmsg())
             return rsp.raw[:n]
 
         try:
@@ -193,9 +189,7 @@ class KitPeer:
         self.error = None
         self._t0 = net.now
         self._scan = SCAN_FN(self._round)
-        self.pid = lib.mipcosim_plc_add(sim, ctypes.cast(self._scan, ctypes.c_void_p), 1,
-                                        int(period_ms * MS))
-        net._check(0 if self.pid >= 0 else -1)
+        self.pid = net.kernel.add_scan(self._scan, int(period_ms * MS))
 
     def _round(self, _rt, _n):
         try:

@@ -12,7 +12,7 @@ import argparse
 import sys
 import time
 
-from mipcosim import layout as L
+from mipcosim import programs as L
 
 from .common import (REPO, DemoError, Procs, Progress, Slave, TraceStats, bar, free_port,
                      fresh_rundir, modem_port_args, radio_args, result, run_or_fail,

@@ -19,6 +19,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from mipprobe.regmap import MDP810, TRM810
+
 from .common import OPENPLC_STATIONS, MAX_STATIONS, READ_REGS, WRITE_REGS
 from .logger import MANY_STATIONS, MAX_UNIT, central, central_many, outstation
 from .openplc_limits import MAX_MB_IO, LimitError, check as check_openplc
@@ -48,9 +50,12 @@ def mbconfig(devices):
 def openplc_configs(stations):
     """The OpenPLC configurations: the outstation (TRM-810, port 15021) and a central with one
     device per station (MDP-810 port 15020, unit id = station)."""
-    return [("openplc/outstation-mbconfig.cfg", mbconfig([("trm", 1, 15021, 2198, 2001)])),
+    trm, mdp = TRM810, MDP810
+    return [("openplc/outstation-mbconfig.cfg",
+             mbconfig([("trm", 1, 15021, trm.read_status, trm.write_data)])),
             ("openplc/central-mbconfig.cfg",
-             mbconfig([(f"mdp{s}", s, 15020, 198, 10) for s in range(1, stations + 1)]))]
+             mbconfig([(f"mdp{s}", s, 15020, mdp.read_status, mdp.write_data)
+                       for s in range(1, stations + 1)]))]
 
 
 def main(argv=()):

@@ -174,7 +174,7 @@ class StationProbe:
                 if diff or a[0] != b[0]:
                     steps[k].append(diff)
             prev = cur
-        for k, name, first in (("trm", "TRM", 2001), ("mdp", "MDP", 10)):
+        for k, name, first in (("trm", "TRM", TRM810.write_data), ("mdp", "MDP", MDP810.write_data)):
             st = [d for d in steps[k] if d]
             split = any(not (x & y) for x, y in zip(st, st[1:]))
             if split:
@@ -363,9 +363,10 @@ class StationProbe:
                                             "2200 (TRM) and 200 (MDP) after status and count")
             return
         which = " and the ".join(bad)
+        status = (TRM810 if "TRM" in bad else MDP810).read_status
         self.set("address base", False,
                  f"the {which} counts its register addresses from 1: the note's register "
-                 f"{'2198 (the read status) is at 2197' if 'TRM' in bad else '198 (the read status) is at 197'}, "
+                 f"{status} (the read status) is at {status - 1}, "
                  f"every block one register off (note §3.1, §3.2 count from 0); set the modem "
                  f"to 0-based addresses or give every address of the PLC's client one less "
                  f"(docs/wiring.md, check the address base)")

@@ -37,7 +37,7 @@ void *plcrt_image_locate(plcrt_image_t *img, char area, char size, const long *p
 /* Parse "%QW100" / "%IX0.1" (also without '%'); 0 or -1. */
 int plcrt_parse_address(const char *text, char *area, char *size, long parts[2], int *nparts);
 
-/* What a compiled program provides (filled by the generated glue, plcrt_glue.c). */
+/* What a compiled program provides (filled by the generated glue, plcrt_abi.c). */
 typedef struct plcrt_timespec { long tv_sec; long tv_nsec; } plcrt_timespec_t;
 typedef struct plcrt_program {
     void (*init)(void);

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from mipcosim import layout as L
+from mipcosim import programs as L
 from mipdemo import common as demo   # the demos' process and slave helpers
 from mipinterop.matrix import EMU, FAST_RADIO, PEER, start_emulator
 from mippeer.cli import logger_records

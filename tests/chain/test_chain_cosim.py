@@ -6,7 +6,7 @@ from pathlib import Path
 import pytest
 
 from mipcosim.check import check, summary
-from mipcosim.sim import SEC, Chain, Setup
+from mipcosim.sim import SEC, LoggerLink, Setup
 
 if not (Path(__file__).resolve().parents[2] / "build" / "cosim" / "libmipcosim.so").is_file():
     pytest.fail("build/cosim/libmipcosim.so not built: run make first (these tests cannot run without it)", pytrace=False)
@@ -26,7 +26,7 @@ def run_case(workdir, mode, drive, layout, loss, restart, seed=7, records=24, pe
                loss=loss, seed=seed, records=records, per_transfer=per_transfer,
                # record n is logged at n * 50 ms: the read-out runs while the logger fills
                log_period_ms=50)
-    with Chain(st, workdir) as ch:
+    with LoggerLink(st, workdir) as ch:
         if restart != "none":
             ch.run_for(SEC)          # mid read-out
             ch.restart(("out", 1) if restart == "outstation" else ("cen", 0))
@@ -77,7 +77,7 @@ def test_chain_same_seed_same_run(chain_workdir, tmp_path):
     for k in range(2):
         st = Setup(loss=0.2, seed=11, records=12, per_transfer=5, bidi=True)
         trace = tmp_path / f"trace{k}.jsonl"
-        with Chain(st, chain_workdir, trace=trace) as ch:
+        with LoggerLink(st, chain_workdir, trace=trace) as ch:
             ch.run_to_end(300 * SEC)
             events = [(e.t, e.tap, e.words) for e in ch.events]
             stats = ch.radio_stats()
@@ -98,7 +98,7 @@ def test_chain_inproc_transport_same_trace_as_modbus_tcp(chain_workdir, tmp_path
         st = Setup(loss=0.3, seed=23, records=14, per_transfer=5, bidi=True, stations=2,
                    transport=transport)
         trace = tmp_path / f"trace-{transport}.jsonl"
-        with Chain(st, chain_workdir, trace=trace) as ch:
+        with LoggerLink(st, chain_workdir, trace=trace) as ch:
             if restart == "central":
                 ch.run_for(SEC)
                 ch.restart(("cen", 0))
@@ -117,7 +117,7 @@ def test_chain_scan_tick_is_a_parameter(chain_workdir):
     """50 ms scans: the programs are built with that task interval (their timers follow the
     kernel's clock) and the transfer under loss is still exact."""
     st = Setup(loss=0.1, seed=3, records=12, per_transfer=5, tick_ms=50, log_period_ms=100)
-    with Chain(st, chain_workdir) as ch:
+    with LoggerLink(st, chain_workdir) as ch:
         assert all(p.tick_ns == 50_000_000 for p in ch.plcs.values())
         assert ch.run_to_end(600 * SEC)
         scans = ch.radio_stats()["scans"]
@@ -131,13 +131,13 @@ def test_chain_scan_tick_is_a_parameter(chain_workdir):
 
 def test_chain_transport_name_is_checked(chain_workdir):
     with pytest.raises(Exception, match="transport 'udp': use inproc, socketpair or tcp"):
-        Chain(Setup(transport="udp"), chain_workdir)
+        LoggerLink(Setup(transport="udp"), chain_workdir)
 
 
 def test_chain_other_seed_other_losses(chain_workdir):
     stats = []
     for seed in (1, 2):
-        with Chain(Setup(loss=0.3, seed=seed, records=6), chain_workdir) as ch:
+        with LoggerLink(Setup(loss=0.3, seed=seed, records=6), chain_workdir) as ch:
             ch.run_to_end(300 * SEC)
             stats.append(ch.radio_stats())
             assert check(ch)[0].problems == []
@@ -147,7 +147,7 @@ def test_chain_other_seed_other_losses(chain_workdir):
 
 def test_chain_four_stations_one_central(chain_workdir):
     st = Setup(stations=4, loss=0.1, seed=5, records=10, per_transfer=4, bidi=True)
-    with Chain(st, chain_workdir) as ch:
+    with LoggerLink(st, chain_workdir) as ch:
         assert ch.run_to_end(600 * SEC)
         reps = check(ch)
     assert [p for r in reps for p in r.problems] == []
@@ -156,7 +156,7 @@ def test_chain_four_stations_one_central(chain_workdir):
 
 def test_chain_checker_catches_a_corrupted_record(chain_workdir):
     """The check is not blind: alter one delivered register and it fails."""
-    with Chain(Setup(records=5), chain_workdir) as ch:
+    with LoggerLink(Setup(records=5), chain_workdir) as ch:
         ch.run_to_end(60 * SEC)
         ev = next(e for e in ch.events if e.tap == 1 and e.words[0] & 1)
         ev.words[4 + 5] ^= 1
@@ -165,7 +165,7 @@ def test_chain_checker_catches_a_corrupted_record(chain_workdir):
 
 
 def test_chain_checker_catches_a_lost_transfer(chain_workdir):
-    with Chain(Setup(records=10, per_transfer=3), chain_workdir) as ch:
+    with LoggerLink(Setup(records=10, per_transfer=3), chain_workdir) as ch:
         ch.run_to_end(60 * SEC)
         # drop the receiver's events of the second transfer
         rec = [e for e in ch.events if e.tap == 1]
@@ -185,7 +185,7 @@ def test_chain_realistic_timing_and_burst_losses(chain_workdir, radio, burst):
     st = Setup(loss=0.3, burst=burst, seed=4, records=15, per_transfer=6, bidi=True,
                radio=Radio.realistic() if radio == "realistic" else Radio(),
                timeout_ms=3000 if radio == "realistic" else 300)
-    with Chain(st, chain_workdir) as ch:
+    with LoggerLink(st, chain_workdir) as ch:
         assert ch.run_to_end(3600 * SEC)
         reps = check(ch)
         stats = ch.radio_stats()
@@ -203,7 +203,7 @@ def test_chain_programs_compiled_by_matiec(chain_workdir, layout, mode, restart)
     """The same chain with the programs compiled by matiec instead of stc."""
     st = Setup(static=mode == "static", polled=True, bidi=layout == "bidi", loss=0.3, seed=7,
                records=24, per_transfer=7, log_period_ms=50, compiler="matiec")
-    with Chain(st, chain_workdir) as ch:
+    with LoggerLink(st, chain_workdir) as ch:
         if restart != "none":
             ch.run_for(SEC)
             ch.restart(("out", 1) if restart == "outstation" else ("cen", 0))

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from mipcosim import layout as L
+from mipcosim import programs as L
 from mipcosim.sim import SEC, CosimError, Network, Radio
 
 REPO = Path(__file__).resolve().parents[2]

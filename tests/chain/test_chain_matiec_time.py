@@ -16,9 +16,9 @@ import pytest
 from plcharness import Plc
 from plcharness.build import matiec_available
 
-from mipcosim import layout as L
+from mipcosim import programs as L
 from mipcosim.check import check
-from mipcosim.sim import MS, SEC, Chain, Setup
+from mipcosim.sim import MS, SEC, LoggerLink, Setup
 
 REPO = Path(__file__).resolve().parents[2]
 from mipprograms.common import config, ms_to_time, s_to_time
@@ -158,7 +158,7 @@ def test_chain_long_timeout_makes_no_spurious_retransmission(chain_workdir, comp
     (negative) one fires at once and re-sends every record."""
     st = Setup(loss=0.0, seed=3, records=12, per_transfer=4, timeout_ms=timeout_ms,
                compiler=compiler)
-    with Chain(st, chain_workdir) as ch:
+    with LoggerLink(st, chain_workdir) as ch:
         assert ch.run_to_end(600 * SEC), f"not read out after {ch.now / SEC:.0f} s"
         reps = check(ch)
         retrans = ch.mw(("out", 1), L.peer_base(1) + L.S_RETRANS)

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from mipcosim import layout as L
+from mipcosim import programs as L
 from plcharness.build import build_program, matiec_available
 
 REPO = Path(__file__).resolve().parents[2]

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from mipcosim import layout as L
+from mipcosim import programs as L
 from mipdemo import common as demo   # the demos' process and slave helpers
 from mipdemo.logger import build_programs
 

@@ -88,9 +88,9 @@ def test_chain_demo_rejects_a_bad_link(tmp_path):
 # ---------------------------------------------------------------- co-simulation (virtual time)
 
 from mipcosim.check import check as cosim_check, summary  # noqa: E402
-from mipcosim.sim import MS, SEC, Chain, Radio, Setup  # noqa: E402
+from mipcosim.sim import MS, SEC, LoggerLink, Radio, Setup  # noqa: E402
 from mipcosim.cli import link_timeout_ms  # noqa: E402
-import mipcosim.layout as L  # noqa: E402
+import mipcosim.programs as L  # noqa: E402
 
 
 def rtu_chars(e):
@@ -111,7 +111,7 @@ def rtu_setup(baud, **kw):
 
 
 def test_chain_cosim_over_rtu_exact_delivery(tmp_path):
-    with Chain(rtu_setup(19200, loss=0.1, seed=5, records=8, per_transfer=3), tmp_path) as ch:
+    with LoggerLink(rtu_setup(19200, loss=0.1, seed=5, records=8, per_transfer=3), tmp_path) as ch:
         assert ch.run_to_end(600 * SEC)
         reps = cosim_check(ch)
         tot = summary(reps)
@@ -126,7 +126,7 @@ def test_chain_cosim_rtu_line_time_is_paid_in_virtual_time(tmp_path, baud):
     tick: a request reaches the core in the first scan after its last character)."""
     trace = tmp_path / "trace.jsonl"
     st = rtu_setup(baud, seed=3, records=4)
-    with Chain(st, tmp_path, trace=trace) as ch:
+    with LoggerLink(st, tmp_path, trace=trace) as ch:
         assert ch.run_to_end(300 * SEC)
     c = 11 / baud * 1e9
     gap = 3.5 * c
@@ -146,7 +146,7 @@ def test_chain_cosim_rtu_same_seed_same_trace(tmp_path):
     runs = []
     for k in range(2):
         trace = tmp_path / f"t{k}.jsonl"
-        with Chain(rtu_setup(19200, loss=0.2, seed=9, records=6, bidi=True), tmp_path, trace=trace) as ch:
+        with LoggerLink(rtu_setup(19200, loss=0.2, seed=9, records=6, bidi=True), tmp_path, trace=trace) as ch:
             ch.run_to_end(300 * SEC)
         runs.append(trace.read_bytes())
     assert runs[0] == runs[1] and len(runs[0]) > 10_000
@@ -168,7 +168,7 @@ def test_chain_cosim_status_first_exact_delivery(tmp_path, baud, bidi, loss):
     on RTU and on TCP; most reads are the two-register status reads."""
     trace = tmp_path / "trace.jsonl"
     st = rtu_setup(baud, loss=loss, seed=4, records=10, per_transfer=4, bidi=bidi, status_first=True)
-    with Chain(st, tmp_path, trace=trace) as ch:
+    with LoggerLink(st, tmp_path, trace=trace) as ch:
         assert ch.run_to_end(900 * SEC)
         reps = cosim_check(ch)
         tot = summary(reps)
@@ -187,7 +187,7 @@ def test_chain_cosim_rtu_records_follow_their_ack_reads(tmp_path):
     the line at once; over 19,200 baud the records reach the TRM one exchange sooner than with
     the two-register status read and the read listed first (measured: docs/serial.md)."""
     trace = tmp_path / "trace.jsonl"
-    with Chain(rtu_setup(19200, seed=1, records=8, status_first=L.RTU_STATUS_FIRST), tmp_path,
+    with LoggerLink(rtu_setup(19200, seed=1, records=8, status_first=L.RTU_STATUS_FIRST), tmp_path,
                trace=trace) as ch:
         assert ch.run_to_end(300 * SEC)
         reps = cosim_check(ch)
@@ -209,7 +209,7 @@ def test_chain_cosim_fc23_exact_delivery(tmp_path, status_first):
     trace = tmp_path / "trace.jsonl"
     st = rtu_setup(19200, loss=0.1, seed=6, records=10, per_transfer=4, payload=120, fc23=True,
                    status_first=status_first)
-    with Chain(st, tmp_path, trace=trace) as ch:
+    with LoggerLink(st, tmp_path, trace=trace) as ch:
         assert ch.run_to_end(900 * SEC)
         reps = cosim_check(ch)
         tot = summary(reps)
@@ -232,7 +232,7 @@ def test_chain_cosim_rtu_warm_kills_of_the_central_lose_no_record(tmp_path, seed
     st = Setup(link_baud=19200, loss=0.3, seed=seed, records=300, per_transfer=100, retain=True,
                timeout_ms=300 + link_timeout_ms(19200), status_first=L.RTU_STATUS_FIRST)
     kills = 0
-    with Chain(st, tmp_path) as ch:
+    with LoggerLink(st, tmp_path) as ch:
         while ch.now < 600 * SEC and not ch.finished():
             ch.run_for(1300 * MS)
             if not ch.finished():

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from mipcosim.layout import LIB_FILES, ST_LIB
+from mipcosim.programs import lib_sources
 from mipcosim.relay import Relay, RelayKernel
 from miptest.soe import Entry, expected, script
 from mipprograms.common import config as st_config
@@ -85,7 +85,7 @@ def build(tmp_path, port):
     prog.write_text(PROGRAM)
     conf = tmp_path / "soe.conf"
     conf.write_text(config(port))
-    return Plc.build([str(ST_LIB / f) for f in LIB_FILES] + [str(prog)], workdir=tmp_path / "b",
+    return Plc.build(lib_sources() + [str(prog)], workdir=tmp_path / "b",
                      compiler="stc", config=str(conf))
 
 

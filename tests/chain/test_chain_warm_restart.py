@@ -1,13 +1,13 @@
-"""Warm restarts in co-simulation (Chain.restart(who, warm=True)): a PLC comes back with the
+"""Warm restarts in co-simulation (LoggerLink.restart(who, warm=True)): a PLC comes back with the
 RETAIN variables of its last complete snapshot - the kill -9 semantics of plcrt, so everything
 since that snapshot is rolled back; a cold restart resets them (docs/retain.md)."""
 from pathlib import Path
 
 import pytest
 
-from mipcosim import layout as L
+from mipcosim import programs as L
 from mipcosim.check import check, summary
-from mipcosim.sim import SEC, Chain, Setup
+from mipcosim.sim import SEC, LoggerLink, Setup
 
 if not (Path(__file__).resolve().parents[2] / "build" / "cosim" / "libmipcosim.so").is_file():
     pytest.fail("build/cosim/libmipcosim.so not built: run make first", pytrace=False)
@@ -60,7 +60,7 @@ def chain(workdir, sources, central=None):
     srcs = {"outstation": sources}
     if central:
         srcs["central"] = central
-    return Chain(Setup(records=24, per_transfer=7, log_period_ms=50, loss=0.1, seed=3,
+    return LoggerLink(Setup(records=24, per_transfer=7, log_period_ms=50, loss=0.1, seed=3,
                        sources=srcs), workdir)
 
 

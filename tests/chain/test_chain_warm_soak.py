@@ -8,13 +8,13 @@ programs (MIP_Link, W4) likewise, both streams. `make soak SOAK_ARGS=--warm-rest
 import pytest
 
 from mipcosim.check import check, summary
-from mipcosim.sim import Chain, Setup, SEC
+from mipcosim.sim import LoggerLink, Setup, SEC
 
 
 def run(workdir, retain, seed, polled=False, bidi=False, window=1):
     st = Setup(stations=1, loss=0.3, seed=seed, records=600, per_transfer=50, timeout_ms=300,
                retain=retain, polled=polled, bidi=bidi, window=window)
-    with Chain(st, workdir) as ch:
+    with LoggerLink(st, workdir) as ch:
         k = 0
         while ch.now < 900 * SEC and not ch.finished():
             ch.run_for(SEC)

@@ -197,5 +197,5 @@ def test_test_kit_says_where_the_venv_keeps_st_lib():
     from docrun import blocks, not_run_reason
     page = REPO / "docs" / "test-kit.md"
     run = [src for _, info, src in blocks(page) if info.startswith("sh") and not not_run_reason(src)]
-    assert any("layout.ST_LIB" in src and "stc -I \"$ST_LIB\"" in src for src in run), run
+    assert any("programs.ST_LIB" in src and "stc -I \"$ST_LIB\"" in src for src in run), run
     assert "_st_lib/" in page.read_text()

@@ -7,7 +7,7 @@ import struct
 import subprocess
 
 from docs_helpers import KERNEL_SO, REPO
-from mipcosim.layout import LIB_FILES
+from mipcosim.programs import LIB_FILES
 
 SRC = REPO / "docs" / "examples" / "glue_outstation.st"
 LIB = LIB_FILES
@@ -26,10 +26,8 @@ class Client:
     the kernel's emulator core at the kernel's current time, the response parsed."""
 
     def __init__(self, chain, ep, unit):
-        self.lib, self.net, self.ep, self.unit, self.tid = chain.lib, chain.net, ep, unit, 0
-        self.lib.mipemu_handle.restype = ctypes.c_long
-        self.lib.mipemu_handle.argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.c_char_p,
-                                           ctypes.c_size_t, ctypes.c_char_p, ctypes.c_size_t]
+        self.lib, self.net = chain.kernel.lib, chain.kernel.net
+        self.ep, self.unit, self.tid = ep, unit, 0
         self.out = ctypes.create_string_buffer(400)
 
     def request(self, pdu):

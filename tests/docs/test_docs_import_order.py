@@ -34,9 +34,9 @@ def test_the_lists_are_the_order(order):
         listed = LISTED.findall(page.read_text())
         assert listed == order, f"{rel(page)}: its import order list is not `dist/mkdist.py " \
                                 f"--import-order`:\n" + "\n".join(f"{i}. `{f}`" for i, f in enumerate(order, 1))
-    from mipcosim.layout import LIB_FILES
+    from mipcosim.programs import LIB_FILES
     assert [f"st_lib/{f}" for f in LIB_FILES] == order, \
-        "cosim/mipcosim/layout.py: LIB_FILES is not the import order of dist/mkdist.py"
+        "cosim/mipcosim/programs.py: LIB_FILES is not the import order of dist/mkdist.py"
     readme = mkdist.readme(order, "0.0.0")
     assert re.findall(r"^\s+\d+\. (st_lib/\S+)$", readme, re.M) == order
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from docs_helpers import REPO
 
-from mipcosim import layout as L
+from mipcosim import programs as L
 from mipcosim.cli import link_timeout_ms as demo_link_timeout_ms
 from mipprobe.sizing import exchange_s, link_timeout_ms, timeout_table
 
@@ -60,12 +60,12 @@ def test_what_a_line_costs_is_the_same_arithmetic():
 def test_the_tables_ttimeout_ends_needless_retransmissions():
     """The page's measurement: 4 records of 123 registers at 9,600 baud, lossless: with a TCP
     tTimeout of 0.3 s every record goes twice, with the table's 2,480 ms more none does."""
-    from mipcosim.sim import SEC, Chain, Setup
+    from mipcosim.sim import SEC, LoggerLink, Setup
     out = []
     for extra in (0, link_timeout_ms(9600, 123)):
         st = Setup(link_baud=9600, timeout_ms=300 + extra, records=4, payload=123,
                    status_first=L.RTU_STATUS_FIRST)
-        with Chain(st, Path(tempfile.mkdtemp(prefix="ttimeout-"))) as ch:
+        with LoggerLink(st, Path(tempfile.mkdtemp(prefix="ttimeout-"))) as ch:
             assert ch.run_to_end(300 * SEC)
             out.append((ch.plcs[("out", 1)][f"%MW{L.peer_base(1) + L.S_RETRANS}"],
                         ch.plcs[("cen", 0)][f"%MW{L.peer_base(1) + L.R_DUP}"]))

@@ -2,7 +2,7 @@
 duplication it catches (a judge that passes everything would make the matrix worthless)."""
 import pytest
 
-from mipcosim import layout as L
+from mipcosim import programs as L
 from mipinterop.matrix import Cell, CellRun, Config
 
 WANT = [[n * 100 + j for j in range(5)] for n in range(1, 7)]

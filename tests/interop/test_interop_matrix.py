@@ -16,11 +16,10 @@ from dataclasses import asdict
 import pytest
 from mipcosim.trace import read_trace
 
+from mipcosim.kernel import SEC
 from mipinterop import kernel
 from mipinterop.matrix import (EMU, Cell, Config, MatrixError, all_cells, build_programs,
                                run_cell)
-
-SEC = 1_000_000_000
 
 
 @pytest.fixture(scope="module")

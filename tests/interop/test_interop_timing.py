@@ -6,10 +6,9 @@ import json
 
 import pytest
 
+from mipcosim.kernel import MS
 from mipinterop import timing as T
 from mipinterop.matrix import MatrixError
-
-MS = 1_000_000
 
 
 def _trace(tmp_path, events):

@@ -76,7 +76,7 @@ def test_the_push_central_hands_every_relay_event_to_wincc_once(capsys, tmp_path
     drivers whose driver A (the active one) is away from 2 s to 4 s; both drivers take every
     event once, with the relay's time stamp. Slow: a cold build cache builds both programs
     (about 10 s); under a second when cached."""
-    from mipcosim import chainlayout as C
+    from mipcosim import chainprograms as C
     d = tmp_path / "scenario"
     d.mkdir()
     (d / "central_push.conf").write_text(C.central_push_config())

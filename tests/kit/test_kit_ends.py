@@ -16,8 +16,8 @@ EVENTS = [(0.05, [0x0102, 101, 0x0101, 1]), (0.06, [0x0102, 102, 0x0101, 0]),
 
 
 def lib():
-    from mipcosim import layout as L
-    return [str(L.ST_LIB / f) for f in L.LIB_FILES]
+    from mipcosim import programs as L
+    return L.lib_sources()
 
 
 def logged(kp):
@@ -239,7 +239,7 @@ def test_the_chains_own_programs_relay_to_scada_over_a_lossy_radio(net):
     integrator's programs in the kit: the relay's events reach the SCADA over the realistic
     radio with 10 % loss each way, the SCADA stopped for 2 s: every event once, in order.
     Slow: a cold build cache builds both programs (tens of seconds); 5 s wall when cached."""
-    from mipcosim import chainlayout as C
+    from mipcosim import chainprograms as C
     lossy = Net(net.workdir / "lossy", 1, radio="realistic", loss_up=0.1, loss_down=0.1, seed=3)
     try:
         out = lossy.plc("outstation", C.program_sources("out"), C.L.PLC_DIR / "outstation_soe.conf",

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from kit_helpers import KIT, REPO, run
-from mipcosim import layout as L
+from mipcosim import programs as L
 from mipprograms.common import config
 from plcharness.build import matiec_available
 from plcharness.plc import Plc

@@ -43,8 +43,8 @@ def non_portable(project):
 
 
 def lib():
-    from mipcosim import layout as L
-    return [str(L.ST_LIB / f) for f in L.LIB_FILES]
+    from mipcosim import programs as L
+    return L.lib_sources()
 
 
 def example_plc(net, **kw):

@@ -347,7 +347,7 @@ def test_ci_templates_fetch_the_submodule_the_kit_comes_from():
 def test_plc_at_the_mdp_with_a_peer_outstation(tmp_path):
     """A soft-PLC attached to the MDP-810 (this repository's central program and config, as a
     user's would be) reads out a note-following peer at station 2 of a two-station network."""
-    from mipcosim import layout as L
+    from mipcosim import programs as L
     from mipkit import Net
     conf = tmp_path / "central.conf"
     conf.write_text(L.central_config(502, 2))
@@ -375,8 +375,8 @@ def test_matiec_builds_the_example_when_iec2c_is_on_path(example, tmp_path):
 def _cold_restart_run(tmp_path, lenient):
     from mipkit import Net
     src = [EXAMPLE / "st" / "FieldLogger.st", EXAMPLE / "st" / "Outstation.st"]
-    from mipcosim import layout as L
-    lib = [str(L.ST_LIB / f) for f in L.LIB_FILES]
+    from mipcosim import programs as L
+    lib = L.lib_sources()
     net = Net(tmp_path / ("lenient" if lenient else "strict"), radio="fast", seed=1)
     out = net.plc("outstation", lib + src, EXAMPLE / "plcrt" / "outstation.conf", at=1)
     central = net.peer("central", lenient=lenient)
@@ -419,7 +419,7 @@ def test_cold_restart_strict_peer_refuses_it(tmp_path):
 def test_openplc_mbconfig_and_static_mode(tmp_path):
     """An OpenPLC mbconfig.cfg (cyclic polling, static MIP mode: this repository's OpenPLC
     outstation, as a user's would be) on a static network, the peer writing static blocks."""
-    from mipcosim import layout as L
+    from mipcosim import programs as L
     from mipkit import Net, assert_records
     with Net(tmp_path / "net", 1, radio="fast", static=True, static_registers=123, seed=2) as net:
         out = net.plc("outstation", L.program_sources("outstation", False),
@@ -458,9 +458,9 @@ def _needs_iec2c():
 def test_restarts_say_whether_retain_was_restored(tmp_path, compiler):
     """A matiec build keeps its RETAIN variables as an stc build does (the variables matiec
     marks retained, and the arrays it cannot mark)."""
-    from mipcosim import layout as L
+    from mipcosim import programs as L
     from mipkit import Net
-    lib = [str(L.ST_LIB / f) for f in L.LIB_FILES]
+    lib = L.lib_sources()
     with Net(tmp_path / "net", radio="fast", compiler=compiler) as net:
         out = net.plc("outstation", lib + [EXAMPLE / "st" / "FieldLogger.st", EXAMPLE / "st" / "Outstation.st"],
                       EXAMPLE / "plcrt" / "outstation.conf", at=1, retain_period_ms=200)
@@ -513,8 +513,8 @@ def test_one_record_at_a_time_passes_assert_records_against_the_note_peer(tmp_pa
     such 16#FFFF and assert_records failed ("record 2: got [], want [...]"); an empty record
     ends a transfer but is no record, for the note peer as for MIP_Receiver."""
     from mipkit import Net, assert_records
-    from mipcosim import layout as L
-    lib = [str(L.ST_LIB / f) for f in L.LIB_FILES]
+    from mipcosim import programs as L
+    lib = L.lib_sources()
     src = [EXAMPLE / "st" / "FieldLogger.st", EXAMPLE / "st" / "Outstation.st"]
     with Net(tmp_path, radio="fast", seed=3) as net:
         out = net.plc("outstation", lib + src, EXAMPLE / "plcrt" / "outstation.conf", at=1)
@@ -533,11 +533,11 @@ def test_delivered_taps_the_integrators_own_central(tmp_path):
     type, read after every scan. The outstation logs one record every 2 s, so every transfer
     ends with an empty 16#FFFF, which is not delivered; a kill -9 of the central rolls its
     receivers back, and what they delivered after the snapshot comes again, once."""
-    from mipcosim import layout as L
+    from mipcosim import programs as L
     from mipkit import KitError, Net, assert_records
     conf = tmp_path / "central.conf"
     conf.write_text(L.central_config(502, 1, retain=L.retain_section(tmp_path / "c.retain", 1000)))
-    lib = [str(L.ST_LIB / f) for f in L.LIB_FILES]
+    lib = L.lib_sources()
     src = [EXAMPLE / "st" / "FieldLogger.st", EXAMPLE / "st" / "Outstation.st"]
     want = lambda n: [n % 65536, n // 65536] + [(n * k) % 65536 for k in range(3, 9)]  # noqa: E731
     with Net(tmp_path / "net", 1, radio="fast", loss_up=0.2, seed=4) as net:

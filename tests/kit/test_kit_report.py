@@ -7,8 +7,8 @@ from kit_helpers import EXAMPLE
 
 
 def lib():
-    from mipcosim import layout as L
-    return [str(L.ST_LIB / f) for f in L.LIB_FILES]
+    from mipcosim import programs as L
+    return L.lib_sources()
 
 
 def blocks_of(sources, tmp_path):
@@ -40,7 +40,7 @@ def test_blocks_are_found_by_type(tmp_path):
     """Every instance of the four blocks, outermost only (a MIP_Link's or MIP_BufferSender's own
     MIP_Sender and MIP_Receiver are its parts), whatever the integrator named them."""
     import warnings
-    from mipcosim import layout as L
+    from mipcosim import programs as L
     warnings.simplefilter("ignore")
     assert blocks_of(lib() + [EXAMPLE / "st" / "FieldLogger.st", EXAMPLE / "st" / "Outstation.st"],
                      tmp_path / "a") == [("FIELDSTATION.SND", "MIP_Sender")]
@@ -55,7 +55,7 @@ def test_blocks_are_found_by_type(tmp_path):
 
 
 def test_diagnosis_members_and_names_come_from_st_lib():
-    from mipcosim import layout as L
+    from mipcosim import programs as L
     from mipkit.report import describe, enum_name, signatures
     sig = signatures()
     assert [n for n, _ in sig["MIP_Sender"][1]] == ["eState", "eWaitReason", "wWaitFor", "eErrorId"]
@@ -94,7 +94,7 @@ def test_trace_summary_folds_empty_polls_and_marks_the_fault():
 
 def test_the_fault_at_an_integrators_own_central(tmp_path):
     """No peer receives: the records are those the central PLC's MIP_Receiver delivered."""
-    from mipcosim import layout as L
+    from mipcosim import programs as L
     from mipkit import Net
     from mipkit.failure import failure_report
     conf = tmp_path / "central.conf"

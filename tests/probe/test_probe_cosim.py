@@ -21,11 +21,11 @@ PROBE = Path(sys.executable).parent / "mip-probe"
 
 
 def cosim(timeout_ms, transfer_timeout_ms, loss, seed=3):
-    from mipcosim import layout as L
-    from mipcosim.sim import SEC, Chain, Radio, Setup
+    from mipcosim import programs as L
+    from mipcosim.sim import SEC, LoggerLink, Radio, Setup
     st = Setup(radio=Radio.realistic(), records=12, payload=122, timeout_ms=timeout_ms,
                transfer_timeout_s=math.ceil(transfer_timeout_ms / 1000), loss=loss, seed=seed)
-    with Chain(st, Path(tempfile.mkdtemp(prefix="probe-cosim-"))) as ch:
+    with LoggerLink(st, Path(tempfile.mkdtemp(prefix="probe-cosim-"))) as ch:
         done = ch.run_to_end(1800 * SEC)
         out = {"done": done,
                "retransmissions": ch.mw(("out", 1), L.peer_base(1) + L.S_RETRANS),

@@ -27,6 +27,7 @@ from pymodbus.framer import FramerType
 
 from miptest.emu import recv_exact
 from miptest.rtu import crc16, frame
+from mipprobe.regmap import TRM810 as T
 
 
 class Faults:
@@ -35,7 +36,7 @@ class Faults:
 
     def __init__(self, one_based=False, static=None, sticky_bit4=False):
         self.one_based, self.static, self.sticky = one_based, static, sticky_bit4
-        self.shadow = [0] * 148
+        self.shadow = [0] * T.capacity
         self.lock = threading.Lock()       # one request at a time, as on a modem
 
     def handle(self, pdu, forward):
@@ -54,8 +55,8 @@ class Faults:
         rsp = forward(pdu)
         if rsp and self.sticky and fc == 3 and rsp[0] == 3:
             addr, n = struct.unpack(">HH", pdu[1:5])
-            if addr <= 2198 < addr + n:
-                k = 2 + 2 * (2198 - addr)
+            if addr <= T.read_status < addr + n:
+                k = 2 + 2 * (T.read_status - addr)
                 (v,) = struct.unpack(">H", rsp[k:k + 2])
                 rsp = rsp[:k] + struct.pack(">H", v | 0x10) + rsp[k + 2:]
         return rsp
@@ -64,18 +65,19 @@ class Faults:
         n = self.static
         addr, q = struct.unpack(">HH", pdu[1:5])
         if fc == 3:
-            if not (2000 <= addr and addr + q <= 2149):
+            if not (T.write_count <= addr and addr + q <= T.write_data + T.capacity):
                 return None
-            regs = [n if a == 2000 else self.shadow[a - 2001] for a in range(addr, addr + q)]
+            regs = [n if a == T.write_count else self.shadow[a - T.write_data]
+                    for a in range(addr, addr + q)]
             return struct.pack(">BB", 3, 2 * q) + b"".join(struct.pack(">H", r) for r in regs)
         values = [q] if fc == 6 else list(struct.unpack(f">{q}H", pdu[6:6 + 2 * q]))
-        if not (2001 <= addr and addr + len(values) <= 2149):
+        if not (T.write_data <= addr and addr + len(values) <= T.write_data + T.capacity):
             return None
         before = self.shadow[:n]
-        self.shadow[addr - 2001:addr - 2001 + len(values)] = values
+        self.shadow[addr - T.write_data:addr - T.write_data + len(values)] = values
         if self.shadow[:n] != before:
             body = self.shadow[:n]
-            rsp = forward(struct.pack(">BHHB", 16, 2001, n, 2 * n)
+            rsp = forward(struct.pack(">BHHB", 16, T.write_data, n, 2 * n)
                           + b"".join(struct.pack(">H", r) for r in body))
             if rsp is None or rsp[0] & 0x80:
                 return rsp
@@ -254,10 +256,10 @@ class WritingPlc:
                 for j, v in enumerate(block):
                     if self.done:
                         return
-                    self.c.write_register(2001 + j, v, device_id=self.unit)
+                    self.c.write_register(T.write_data + j, v, device_id=self.unit)
                     time.sleep(self.cycle)
             else:
-                self.c.write_registers(2001, block, device_id=self.unit)
+                self.c.write_registers(T.write_data, block, device_id=self.unit)
                 time.sleep(self.cycle * self.n)
 
     def stop(self):

@@ -163,24 +163,24 @@ def test_mangled_configs_reader_and_plcrt_agree(compiler, check):
 
 def project_configs():
     """The plcrt configs of the repository (plc/, the kit's example and tests) and those the
-    project's writers make (mipcosim.layout, chainlayout)."""
-    from mipcosim import chainlayout, layout
+    project's writers make (mipcosim.programs, chainprograms)."""
+    from mipcosim import chainprograms, programs
     files = sorted(p for d in ("plc", "kit/example", "tests/kit/ends", "runtime_shim/fuzz")
                    for p in (REPO / d).rglob("*") if p.suffix in (".conf", ".cfg"))
     out = [(str(p.relative_to(REPO)), p.read_text()) for p in files]
-    retain = layout.retain_section("x.retain", 500)
-    rtu = layout.serial_keys("/dev/ttyS0")
-    out += [("outstation_config", layout.outstation_config(5020, retain=retain)),
-            ("outstation_config rtu", layout.outstation_config(0, serial=rtu, status_first=3,
+    retain = programs.retain_section("x.retain", 500)
+    rtu = programs.serial_keys("/dev/ttyS0")
+    out += [("outstation_config", programs.outstation_config(5020, retain=retain)),
+            ("outstation_config rtu", programs.outstation_config(0, serial=rtu, status_first=3,
                                                                fc23=True)),
-            ("outstation_config channel", layout.outstation_config(5020, channel=True)),
-            ("central_config", layout.central_config(5020, 3, retain=retain)),
-            ("central_config rtu", layout.central_config(0, 2, serial=rtu, status_first=True)),
-            ("central_config channel", layout.central_config(5020, 2, channel=True)),
-            ("central_many_config", layout.central_many_config(5020, retain=retain)),
-            ("chain out", chainlayout.outstation_soe_config(retain=retain)),
-            ("chain cen", chainlayout.central_soe_config(retain=retain)),
-            ("chain push", chainlayout.central_push_config())]
+            ("outstation_config channel", programs.outstation_config(5020, channel=True)),
+            ("central_config", programs.central_config(5020, 3, retain=retain)),
+            ("central_config rtu", programs.central_config(0, 2, serial=rtu, status_first=True)),
+            ("central_config channel", programs.central_config(5020, 2, channel=True)),
+            ("central_many_config", programs.central_many_config(5020, retain=retain)),
+            ("chain out", chainprograms.outstation_soe_config(retain=retain)),
+            ("chain cen", chainprograms.central_soe_config(retain=retain)),
+            ("chain push", chainprograms.central_push_config())]
     return [(name, text) for name, text in out if not model.is_mbconfig(text)]
 
 

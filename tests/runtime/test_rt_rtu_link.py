@@ -397,7 +397,7 @@ def test_example_outstation_on_a_missing_serial_line_names_the_link_error(tmp_pa
     error with the runtime's reason (1002: the line cannot be opened) and MIP_WAIT_LINK within
     the device's timeout (1 s: in virtual time a failed exchange costs its timeout), and no
     transfer is failed by it."""
-    from mipcosim import layout as L
+    from mipcosim import programs as L
     cfg = tmp_path / "out.conf"
     cfg.write_text(L.outstation_config(0, serial=L.serial_keys(tmp_path / "no-such-tty", 19200),
                                        status_first=L.RTU_STATUS_FIRST))

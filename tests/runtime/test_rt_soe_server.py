@@ -14,7 +14,7 @@ from plcharness import Plc, PlcError, build_program
 from plcharness.config import Config
 
 from mippeer.scada import Client, ScadaError, SoeMaster
-from mipcosim.layout import LIB_FILES, ST_LIB, enum_values
+from mipcosim.programs import LIB_FILES, ST_LIB, enum_values
 from rt_helpers import one_task
 
 REPO = Path(__file__).resolve().parents[2]

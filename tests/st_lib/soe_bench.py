@@ -16,7 +16,8 @@ from __future__ import annotations
 import struct
 from pathlib import Path
 
-from mipcosim.layout import enum_values
+from mipcosim.kernel import MS
+from mipcosim.programs import enum_values
 from mippeer import siprotec as pyrelay
 from miptest.soe import Entry, expected, script  # noqa: F401 (the tests import them from here)
 from plcharness import Plc  # noqa: F401 (the type build() returns)
@@ -28,7 +29,6 @@ SOE_TYPES = REPO / "st_lib" / "MIP_TypesSoe.st"
 ERR = enum_values("E_MIP_SoeError", SOE_TYPES)
 STATE = enum_values("E_MIP_SoeState", SOE_TYPES)
 WAIT = enum_values("E_MIP_SoeWait", SOE_TYPES)
-MS = 1_000_000
 BASE = 600                      # PDU address of 40601 (docs/chain.md)
 
 

@@ -20,9 +20,11 @@ import weakref
 from dataclasses import dataclass
 from pathlib import Path
 
-from mipcosim.layout import enum_values  # noqa: F401 (the tests import it from here)
-from mipcosim.sim import FATE_FN as _FATE_FN, Stats as _Stats, kernel_lib
+from mipcosim.programs import enum_values  # noqa: F401 (the tests import it from here)
+from mipcosim.kernel import FATE_FN as _FATE_FN, MS, CosimError, Kernel, Stats as _Stats, kernel_lib
+from mipcosim.kernel import Radio as KernelRadio
 from plcharness import Plc, PlcError
+from mipprobe.regmap import MDP810, TRM810
 
 # the numbers of st_lib's enumerations, read from st_lib/MIP_Types.st (never copied by hand)
 ERR = enum_values("E_MIP_Error")
@@ -32,14 +34,13 @@ RCV = enum_values("E_MIP_ReceiverState")
 
 REPO = Path(__file__).resolve().parents[2]
 LIB = REPO / "st_lib"
-from mipcosim.layout import LIB_FILES   # import order, the one list
+from mipcosim.programs import LIB_FILES   # import order, the one list
 LIB_PATHS = [str(LIB / f) for f in LIB_FILES]
 
 HAS_WRITE = {"MIP_Sender", "MIP_Receiver", "MIP_Link", "MIP_BufferSender"}
 HAS_CHUNK = {"MIP_Sender", "MIP_Link"}
 HAS_RECORD = {"MIP_Receiver", "MIP_Link"}
 FFFF = 0xFFFF
-MS = 1_000_000
 
 
 def dialect() -> str:
@@ -213,7 +214,7 @@ class Endpoint:
     (mipemu_net_inject / mipemu_net_peek, no side effects on "new data")."""
 
     # write area, read status, read data: emulator/README.md, register maps
-    MDP, TRM = (10, 198, 200), (2001, 2198, 2200)
+    MDP, TRM = ((m.write_data, m.read_status, m.read_data) for m in (MDP810, TRM810))
 
     def __init__(self, radio: "Radio", ep: int, unit: int):
         self.radio, self.ep, self.unit = radio, ep, unit
@@ -335,23 +336,23 @@ class Radio:
     GAP_NS = 1 * MS
 
     def __init__(self, static_n=0, fate=None, poll_scans=5, tick_ms=10, seed=1):
-        lib = _lib()
         self.static_n, self.poll_scans = static_n, poll_scans
         self.stations = max(1, poll_scans * tick_ms * MS // (2 * self.GAP_NS))
-        err = ctypes.create_string_buffer(256)
-        self._sim = lib.mipcosim_new_args(self.stations, 1 if static_n else 0, static_n or 148,
-                                          0.0, 0.0, 0.0, seed, self.BITRATE, self.GAP_NS,
-                                          self.OVERHEAD, err, 256)
-        if not self._sim:
-            raise RuntimeError(f"emulator: {err.value.decode()}")
-        weakref.finalize(self, lib.mipcosim_free, self._sim)
-        self.net = lib.mipcosim_net(self._sim)
+        try:
+            kernel = Kernel(self.stations, static=bool(static_n), static_registers=static_n or 148,
+                            seed=seed, radio=KernelRadio(self.BITRATE, self.GAP_NS, self.OVERHEAD))
+        except CosimError as e:
+            raise RuntimeError(f"emulator: {e}") from None
+        self._kernel = kernel
+        weakref.finalize(self, kernel.close)
+        self._sim = kernel.handle
+        self.net = kernel.net
         self.fate = fate or (lambda src, block: "ok")
         self.log: list[Telegram] = []
         self.now = 0
         self._error = None
         self._hook = _FATE_FN(self._on_telegram)   # referenced as long as the network lives
-        lib.mipemu_net_set_fate(self.net, self._hook, None)
+        kernel.lib.mipemu_net_set_fate(self.net, self._hook, None)
         self.station = self.stations
         self.outstation = Endpoint(self, self.station, 1)
         self.central = Endpoint(self, 0, self.station)

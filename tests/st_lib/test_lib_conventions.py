@@ -12,7 +12,7 @@ import re
 from pathlib import Path
 
 import pytest
-from mipcosim.layout import LIB_FILES
+from mipcosim.programs import LIB_FILES
 from mipdocs import stdecl
 from mipdocs.blockref import LIVE, header_rows
 

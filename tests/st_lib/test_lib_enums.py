@@ -1,12 +1,12 @@
 """The enum numbers Python uses come from st_lib/MIP_Types.st through one reader
-(mipcosim.layout.st_enums): it agrees with the documentation's reader (docs/tools/stdecl.py,
+(mipcosim.programs.st_enums): it agrees with the documentation's reader (docs/tools/stdecl.py,
 behind the 'as integer' column of docs/blocks.md) and refuses what it cannot number."""
 import re
 from pathlib import Path
 
 import pytest
 
-from mipcosim.layout import ERRORS, EnumError, enum_values, st_enums
+from mipcosim.programs import ERRORS, EnumError, enum_values, st_enums
 
 REPO = Path(__file__).resolve().parents[2]
 

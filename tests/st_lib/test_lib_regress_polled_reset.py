@@ -21,7 +21,7 @@ if not (REPO / "build" / "cosim" / "libmipcosim.so").is_file():
     pytest.fail("build/cosim/libmipcosim.so not built: run make first (these tests cannot run without it)", pytrace=False)
 
 from mipcosim.check import check, summary          # noqa: E402
-from mipcosim.sim import SEC, Chain, Radio, Setup  # noqa: E402
+from mipcosim.sim import SEC, LoggerLink, Radio, Setup  # noqa: E402
 
 RECORDS = 20
 
@@ -35,7 +35,7 @@ def workdir(tmp_path_factory):
 def test_polled_lossy_transfer_leaves_reset_phase(workdir, loss, seed):
     st = Setup(loss=loss, seed=seed, records=RECORDS, payload=122, timeout_ms=1500,
                polled=True, radio=Radio.realistic())
-    with Chain(st, workdir) as ch:
+    with LoggerLink(st, workdir) as ch:
         finished = ch.run_to_end(200 * SEC, step_ns=SEC // 10, settle_ns=3 * SEC)
         reps = check(ch)
         tot = summary(reps)

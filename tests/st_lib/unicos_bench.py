@@ -10,7 +10,7 @@ from __future__ import annotations
 import struct
 from pathlib import Path
 
-from mipcosim.layout import enum_values
+from mipcosim.programs import enum_values
 from mippeer.unicos import UnicosDriver
 import stlib_sim
 from stlib_sim import LIB, MS, Fb, RunUntil

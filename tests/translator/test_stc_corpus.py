@@ -5,6 +5,7 @@ import glob
 import os
 
 import pytest
+from stc.semantics import SEMANTICS
 
 import stc_harness as H
 
@@ -16,7 +17,7 @@ def _id(p):
     return os.path.splitext(os.path.basename(p))[0]
 
 
-@pytest.mark.parametrize("semantics", ["matiec", "openplc", "iec"])
+@pytest.mark.parametrize("semantics", SEMANTICS)
 @pytest.mark.parametrize("path", ACCEPT, ids=_id)
 def test_accept(path, semantics, tmp_path):
     H.check_accept(path, tmp_path, semantics)

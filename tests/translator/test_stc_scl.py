@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from mipcosim.layout import LIB_FILES
+from mipcosim.programs import LIB_FILES
 from mipprograms.common import config
 from stc.scl_out import array_aliases, generate_files, library_version
 

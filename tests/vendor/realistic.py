@@ -5,7 +5,7 @@ survive."""
 from pathlib import Path
 
 from mipcosim.check import check, summary
-from mipcosim.sim import SEC, Chain, Radio, Setup
+from mipcosim.sim import SEC, LoggerLink, Radio, Setup
 
 RECORDS = 8
 
@@ -18,7 +18,7 @@ def setup(src, roles, loss=0.3, seed=7, link_baud=9600):
 
 def run_to_end(src, roles, workdir, limit_s=900):
     """(finished, virtual seconds, summary, problems) of a read-out of RECORDS records."""
-    with Chain(setup(src, roles), Path(workdir)) as ch:
+    with LoggerLink(setup(src, roles), Path(workdir)) as ch:
         finished = ch.run_to_end(limit_s * SEC)
         reps = check(ch)
         return finished, ch.now / SEC, summary(reps), [p for r in reps for p in r.problems]
@@ -26,7 +26,7 @@ def run_to_end(src, roles, workdir, limit_s=900):
 
 def run_for(src, roles, workdir, seconds, names):
     """The variables `names` ("OUTSTATION.X" / "CENTRAL.X") after `seconds` of virtual time."""
-    with Chain(setup(src, roles), Path(workdir)) as ch:
+    with LoggerLink(setup(src, roles), Path(workdir)) as ch:
         ch.run_for(seconds * SEC)
         plc = {"OUTSTATION": ch.plcs[("out", 1)], "CENTRAL": ch.plcs[("cen", 0)]}
         return {n: plc[n.split(".", 1)[0]][n] for n in names}

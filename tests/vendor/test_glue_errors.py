@@ -13,7 +13,7 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[2]
 
-from mipcosim import glue
+from mipcosim import vendor_glue as glue
 from plcharness import Plc
 from standin_server import ScriptedServer
 
@@ -64,7 +64,7 @@ END_CONFIGURATION
 @pytest.fixture
 def build(tmp_path):
     def make(family, port):
-        from mipcosim import layout as L
+        from mipcosim import programs as L
         src = tmp_path / f"main.{family}.st"
         src.write_text(program(family))
         cfg = tmp_path / "plc.conf"

@@ -71,7 +71,7 @@ END_CONFIGURATION
 @pytest.fixture
 def build(tmp_path):
     def make(port, timeout="1s", fc23=False):
-        from mipcosim import layout as L
+        from mipcosim import programs as L
         src = tmp_path / "main.codesys.st"
         src.write_text(PROG)
         cfg = tmp_path / "plc.conf"

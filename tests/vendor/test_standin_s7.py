@@ -109,7 +109,7 @@ class ExceptionServer(ModbusServer):
 
 
 def build(tmp_path, port, timeout="1s"):
-    from mipcosim import layout as L
+    from mipcosim import programs as L
     tmp_path.mkdir(parents=True, exist_ok=True)
     src = tmp_path / "main.codesys.st"
     src.write_text(PROG)

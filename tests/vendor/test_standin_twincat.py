@@ -78,7 +78,7 @@ END_CONFIGURATION
 
 
 def config(port, timeout="1s", fc23=False):
-    from mipcosim import layout as L
+    from mipcosim import programs as L
     return L.outstation_config(port, channel=True, fc23=fc23).replace("timeout = 1s",
                                                                       f"timeout = {timeout}")
 

@@ -1,14 +1,14 @@
 """CODESYS (issue 36): the shipped glue (dist/glue/codesys/MIP_CdsModbusIo) with the stand-ins
 of ModbusFB's ClientTCP / ClientRequestReadHoldingRegisters / ClientRequestWriteMultipleRegisters
 (standins/codesys/) and the portable blocks, in the example programs' place of the located I/O
-(mipcosim/glue.py), over the emulator in co-simulation: the record-for-record check of the demo
+(mipcosim/vendor_glue.py), over the emulator in co-simulation: the record-for-record check of the demo
 (mipcosim/check.py), and the handshake mistake of the family (xExecute held TRUE)."""
 import itertools
 
 import pytest
 
-from mipcosim import glue
-from mipcosim import layout as L
+from mipcosim import vendor_glue as glue
+from mipcosim import programs as L
 from vendor_helpers import assert_exact, run, run_outstation, sources
 import realistic
 

@@ -1,6 +1,6 @@
 """S7 (issue 36): the shipped glue (dist/glue/s7/MIP_S7ModbusIo.scl, TIA SCL, read by stc's SCL
 dialect) with a stand-in of MB_CLIENT (standins/s7/) and the portable blocks, in the example
-programs' place of the located I/O (mipcosim/glue.py), over the emulator in co-simulation: the
+programs' place of the located I/O (mipcosim/vendor_glue.py), over the emulator in co-simulation: the
 record-for-record check of the demo (mipcosim/check.py), and the handshake mistake of the
 family (DONE taken as a level)."""
 import itertools
@@ -8,10 +8,10 @@ import re
 
 import pytest
 
-from mipcosim import glue
-from mipcosim import layout as L
+from mipcosim import vendor_glue as glue
+from mipcosim import programs as L
 from mipcosim.check import check, summary
-from mipcosim.sim import SEC, Chain, Radio, Setup
+from mipcosim.sim import SEC, LoggerLink, Radio, Setup
 from vendor_helpers import assert_exact, run, run_outstation, sources
 
 FAMILY = "s7"
@@ -132,7 +132,7 @@ def test_s7_each_error_once_and_the_transfer_recovers(vendor_workdir, realistic)
                radio=Radio.realistic() if realistic else Radio(),
                timeout_ms=3000 if realistic else 300)
     seen = []
-    with Chain(st, wd) as ch:
+    with LoggerLink(st, wd) as ch:
         o = ch.plcs[("out", 1)]
         for _name, fail, status in INJECTED:
             ch.run_for(SEC // 2)

@@ -1,6 +1,6 @@
 """TwinCAT (issue 36): the shipped glue (dist/glue/twincat/MIP_TcModbusIo) with the stand-ins
 of Tc2_ModbusSrv's FB_MBReadRegs / FB_MBWriteRegs (standins/twincat/) and the portable blocks,
-in the example programs' place of the located I/O (mipcosim/glue.py), over the emulator in
+in the example programs' place of the located I/O (mipcosim/vendor_glue.py), over the emulator in
 co-simulation: the record-for-record check of the demo (mipcosim/check.py), and the handshake
 mistake of the family (bBusy's fall taken as done without looking at bError)."""
 import itertools
@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from mipcosim import glue
-from mipcosim import layout as L
+from mipcosim import vendor_glue as glue
+from mipcosim import programs as L
 from vendor_helpers import assert_exact, run, run_outstation, sources
 import realistic
 

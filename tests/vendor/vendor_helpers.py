@@ -1,10 +1,10 @@
 """What the vendor families' tests share: a transfer of the example programs with a family's
-glue and stand-ins (mipcosim/glue.py) in co-simulation, and the record-for-record check."""
+glue and stand-ins (mipcosim/vendor_glue.py) in co-simulation, and the record-for-record check."""
 from pathlib import Path
 
-from mipcosim import glue
+from mipcosim import vendor_glue as glue
 from mipcosim.check import check, summary
-from mipcosim.sim import SEC, Chain, Setup
+from mipcosim.sim import SEC, LoggerLink, Setup
 
 
 def sources(family, workdir, glue_text=None, roles=("outstation", "central")):
@@ -26,7 +26,7 @@ def run(family, workdir, loss, restart, records=24, per_transfer=7, seed=7,
     timeout_ms)."""
     st = Setup(loss=loss, seed=seed, records=records, per_transfer=per_transfer, log_period_ms=50,
                sources=sources(family, workdir, roles=roles), channel=tuple(roles), **setup)
-    with Chain(st, workdir) as ch:
+    with LoggerLink(st, workdir) as ch:
         if restart != "none":
             ch.run_for(SEC)          # mid read-out
             ch.restart(("out", 1) if restart == "outstation" else ("cen", 0))
@@ -55,7 +55,7 @@ def run_outstation(family, workdir, src, seconds, words, extra=()):
     of virtual time, read while the PLC is still there."""
     st = Setup(seed=7, records=24, per_transfer=7, log_period_ms=50, timeout_ms=300,
                sources=src, channel=tuple(src))
-    with Chain(st, workdir) as ch:
+    with LoggerLink(st, workdir) as ch:
         for n, v in words.items():
             ch.plcs[("out", 1)][f"OUTSTATION.{n}" if isinstance(n, str) else f"%MW{n}"] = v
         ch.run_for(seconds * SEC)

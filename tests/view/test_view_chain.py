@@ -12,6 +12,7 @@ from view_helpers import needs_browser
 from mipview import shots
 from mipview import session as S
 from mipview.chainview import ChainLive, merged
+from mipcosim.kernel import MS
 
 RELAY_READ = "relay -> PLC: FC3 40601.., 1 entry read, stored in the logger (RETAIN)"
 RELAY_ACK = "PLC -> relay: FC16 SOE_Control, 1 entry acknowledged, deleted at the relay"
@@ -71,7 +72,6 @@ def test_a_followed_chain_demo_run_shows_the_relay_and_the_scada(view_workdir, t
     assert not any(t.startswith("FC16 write") for t in texts)
 
 
-MS = 1_000_000
 ORIGIN = 7_000_000_000          # CLOCK_MONOTONIC at the trace's time 0 (the emulator's start)
 
 

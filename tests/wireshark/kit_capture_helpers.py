@@ -1,6 +1,6 @@
 """A small network of the kit for the capture tests (test_wireshark_kit_capture.py), importable
 by the kit test they run in a pytest of its own."""
-from mipcosim import layout as L
+from mipcosim import programs as L
 
 RECORDS = [[n, 100 + n, 200 + n] for n in range(1, 8)]
 

@@ -7,6 +7,7 @@ import threading
 
 from . import __version__, oneline
 from .diag import Diagnostics
+from .semantics import SEMANTICS
 
 USAGE_EPILOG = """\
 Each -I DIR adds the *.st files of DIR (sorted by name) as library sources: their TYPEs,
@@ -51,7 +52,7 @@ def main(argv=None):
     ap.add_argument("-o", dest="outdir", metavar="OUTDIR", help="directory for the generated files")
     ap.add_argument("-I", dest="libdirs", metavar="DIR", action="append", default=[],
                     help="also read the *.st files in DIR as library POUs")
-    ap.add_argument("--semantics", choices=["matiec", "openplc", "iec"], default="matiec",
+    ap.add_argument("--semantics", choices=SEMANTICS, default="matiec",
                     help="run-time values to reproduce: upstream matiec's (default), those of "
                          "OpenPLC v3's matiec fork, or IEC 61131-3's")
     ap.add_argument("--werror-portability", action="store_true",

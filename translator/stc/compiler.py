@@ -2,9 +2,7 @@
 from . import parser
 from . import syntax as S
 from .check import Checker
-
-
-SEMANTICS = ("matiec", "openplc", "iec")
+from .semantics import SEMANTICS
 
 
 def dialect_of(fname, dialect=None):

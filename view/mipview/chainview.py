@@ -14,7 +14,6 @@ event's trip.
 """
 from __future__ import annotations
 
-import ctypes
 import json
 from pathlib import Path
 
@@ -39,7 +38,6 @@ class ChainLive(Stepping):
     mode = "live"
 
     def __init__(self, workdir: Path | None = None, events=20, handover="pull"):
-        from mipdocs.chainsim import TRACE_FN
         from mipdocs.gen_traces import WORK
         from mipcosim import chain as C
         from mipcosim.sim import CosimError
@@ -56,13 +54,8 @@ class ChainLive(Stepping):
                                  self.workdir)
         except (CosimError, OSError) as e:
             raise ViewError(f"the chain: {e}") from None
-        lib = self.ch.lib
-        lib.mipemu_net_set_trace.argtypes = [ctypes.c_void_p, TRACE_FN, ctypes.c_void_p]
-        lib.mipemu_net_set_trace.restype = None
         self.lines = []
-        self._cb = TRACE_FN(lambda user, line, n: self.lines.append(
-            json.loads(ctypes.string_at(line, n))))
-        lib.mipemu_net_set_trace(lib.mipcosim_net(self.ch.sim), self._cb, None)
+        self.ch.kernel.on_trace(lambda line: self.lines.append(line))
         self.paused = False
         self.speed = 1.0
         self.tick = self.ch.tick_ns
@@ -196,7 +189,7 @@ class ChainLive(Stepping):
             "extra_loss": {"up": 0.0, "down": 0.0},
             "lose_next": {"record": False, "ack": False},
             "done": self.done, **dg, "blocks": self._blocks(),
-            "registers": self.windows.peek(self.ch.lib, self.ch.lib.mipcosim_net(self.ch.sim)),
+            "registers": self.windows.peek(self.ch.kernel.lib, self.ch.kernel.net),
             "radio": {"down": s1.get("tel_down", 0), "up": s1.get("tel_up", 0),
                       "lost_down": s1.get("lost_down", 0), "lost_up": s1.get("lost_up", 0)},
             "off": {},

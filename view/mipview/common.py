@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from mipcosim.layout import st_enums
+from mipcosim.kernel import MS as MS  # re-exported to the view's modules
+from mipcosim.programs import st_enums
 from mipdocs import chainsim
 # re-exported to follow.py and session.py (the redundant alias says so to ruff)
 from mipdocs import seqdiag as seqdiag
-from mipdocs.chainsim import MS as MS
 
 from .rows import row_data, rows_of
 

@@ -8,6 +8,7 @@ from pathlib import Path
 from mipcosim.sim import FATE_FN
 from mipdocs.chainsim import Chain, ChainError, Side
 from mipdocs.gen_traces import WORK, logger_data
+from mipprobe.regmap import MDP810, TRM810
 
 from .common import MS, ViewError, diagram, enum_name
 from .presets import PRESETS
@@ -19,10 +20,14 @@ SLOT_LIMIT_MS = 10_000               # "one radio slot" gives up after this much
 # register tables): (title, endpoint, unit, first address, count). Endpoint 0 is the MDP-810
 # (unit = station), 1 the TRM-810 of station 1 (mipemu.h).
 WINDOWS = [
-    ("TRM-810 write (2000: count, 2001..: record)", 1, 1, 2000, 9),
-    ("TRM-810 read (2198: status, 2199: count, 2200..: acknowledgement)", 1, 1, 2198, 9),
-    ("MDP-810 read, station 1 (198: status, 199: count, 200..: record)", 0, 1, 198, 9),
-    ("MDP-810 write, station 1 (9: count, 10..: acknowledgement)", 0, 1, 9, 9),
+    (f"TRM-810 write ({TRM810.write_count}: count, {TRM810.write_data}..: record)", 1, 1,
+     TRM810.write_count, 9),
+    (f"TRM-810 read ({TRM810.read_status}: status, {TRM810.read_count}: count, "
+     f"{TRM810.read_data}..: acknowledgement)", 1, 1, TRM810.read_status, 9),
+    (f"MDP-810 read, station 1 ({MDP810.read_status}: status, {MDP810.read_count}: count, "
+     f"{MDP810.read_data}..: record)", 0, 1, MDP810.read_status, 9),
+    (f"MDP-810 write, station 1 ({MDP810.write_count}: count, {MDP810.write_data}..: "
+     "acknowledgement)", 0, 1, MDP810.write_count, 9),
 ]
 # what each register of a window is (offset from the window's first register): a short name
 # under its address and a tooltip. The areas are the emulator's (emulator/README.md "Register
@@ -47,10 +52,10 @@ _CHECK = ("check", "check value of the record acknowledged, with acknowledgement
 _DATA = ("data", "the record's data: the logger's registers")
 _UNUSED = ("-", "not part of the block (an acknowledgement has 1 or 3 registers)")
 REGISTERS = {
-    2000: [_COUNT_TX, _RECORD] + [_DATA] * 7,
-    2198: [_STATUS, _COUNT_RX, _ACK, _MAGIC, _CHECK] + [_UNUSED] * 4,
-    198: [_STATUS, _COUNT_RX, _RECORD] + [_DATA] * 6,
-    9: [_COUNT_TX, _ACK, _MAGIC, _CHECK] + [_UNUSED] * 5,
+    TRM810.write_count: [_COUNT_TX, _RECORD] + [_DATA] * 7,
+    TRM810.read_status: [_STATUS, _COUNT_RX, _ACK, _MAGIC, _CHECK] + [_UNUSED] * 4,
+    MDP810.read_status: [_STATUS, _COUNT_RX, _RECORD] + [_DATA] * 6,
+    MDP810.write_count: [_COUNT_TX, _ACK, _MAGIC, _CHECK] + [_UNUSED] * 5,
 }
 
 
@@ -191,7 +196,7 @@ class Live(Stepping):
         self.windows = Windows()
         self.history = History()
         self._fate = FATE_FN(self._on_fate)               # kept alive as long as the network
-        self.ch.lib.mipemu_net_set_fate(self.ch.net, self._fate, None)
+        self.ch.kernel.lib.mipemu_net_set_fate(self.ch.kernel.net, self._fate, None)
 
     # ---------------------------------------------------------------- the simulation
     def _on_fate(self, user, station, up, blk, n):
@@ -261,8 +266,7 @@ class Live(Stepping):
                 raise ViewError("outage_ms must be 10..600000")
             self.ch._emit(side._line(self.ch.t, "restart",
                                      f"PLC off for {outage_ms} ms (warm restart)", 0))
-            self.ch._check(self.ch.lib.mipcosim_plc_replace(
-                self.ch.sim, self.ch.ids[name], None, None, self.ch.tick))
+            self.ch.kernel.replace(self.ch.ids[name])
             self.off[name] = self.t_ms + outage_ms
         else:
             raise ViewError(f"restart kind {kind!r}: cold or warm")
@@ -270,10 +274,8 @@ class Live(Stepping):
     def _power_on(self, name):
         side = self.side(name)
         plc = side.plc
-        scan = ctypes.cast(plc.library.plcrt_scan, ctypes.c_void_p)
         self.ch._emit(side._line(self.ch.t, "restart", "PLC on again, its memory kept", 0))
-        self.ch._check(self.ch.lib.mipcosim_plc_replace(self.ch.sim, self.ch.ids[name], scan,
-                                                        plc.handle, self.ch.tick))
+        self.ch.kernel.replace(self.ch.ids[name], plc, self.ch.tick)
         # not wired again: the kernel keeps the PLC's connection across a replace (only its
         # taps and half-exchanged bytes go, cosim/src/mipcosim.c drop_plc_wiring) and the
         # instance keeps its transport (plcrt takes one only before its first scan)
@@ -313,7 +315,7 @@ class Live(Stepping):
                 "off": side.name in self.off}
 
     def _registers(self):
-        return self.windows.peek(self.ch.lib, self.ch.net)
+        return self.windows.peek(self.ch.kernel.lib, self.ch.kernel.net)
 
     def state(self):
         dg = diagram(self.history, self.ch.lines, f"{self.preset.title} (live)")

@@ -26,12 +26,14 @@ from __future__ import annotations
 import hashlib
 import re
 
+from mipcosim.kernel import MS
 from mipdocs import seqdiag
-from mipdocs.chainsim import MS
+from mipprobe.regmap import MDP810, TRM810
 
 CHUNK = 100                  # rows per chunk of the history (our choice: a few screens)
 FFFF = 0xFFFF
-WRITE_AT = {"trm": (2001, "outstation", "record"), "mdp": (10, "central", "ack")}
+WRITE_AT = {"trm": (TRM810.write_data, "outstation", "record"),
+            "mdp": (MDP810.write_data, "central", "ack")}
 
 
 def counter(n):

@@ -20,6 +20,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from stc.semantics import SEMANTICS as STC_SEMANTICS
+
 from .build_cache import (_cache_root, _compiler_fingerprint, _core_objects, _hash_inputs,
                           _prune_cache)
 from .build_common import (GCSE_LIMIT, RUNTIME_DIR, BuildError, BuildResult, Symbol, _cc, _compile,
@@ -54,7 +56,7 @@ def resolve_compiler(compiler: str) -> str:
 
 
 
-SEMANTICS = (None, "matiec", "openplc", "iec")
+SEMANTICS = (None, *STC_SEMANTICS)   # None: stc's default (PLCRT_SEMANTICS, else matiec)
 
 
 def is_openplc_config(path) -> bool:
@@ -366,9 +368,9 @@ def _build_into(sources, out: Path, compiler: str, cflags, semantics=None, cache
         _write_retain_c(out / "plcrt_retain_gen.c", retained, decls)
         _compile(ret_cmd, "compiling the table of RETAIN variables")
         objs.append(o)
-    o = out / "plcrt_glue.o"
+    o = out / "plcrt_abi.o"
     _compile([cc, "-std=gnu11", "-Wall", *base, core_inc, f"-I{gen}", "-c",
-              str(src / "plcrt_glue.c"), "-o", str(o)], "compiling the located variables")
+              str(src / "plcrt_abi.c"), "-o", str(o)], "compiling the located variables")
     objs.append(o)
     core_objs, main_o = _core_objects(cache, cc, ["-std=gnu11", "-Wall", *base, core_inc], mb_cflags,
                                      out)
@@ -396,7 +398,7 @@ def main(argv=None):
     ap = _OneLineParser(prog="plcrt-build", description=__doc__.split("\n\n")[0])
     ap.add_argument("-o", "--outdir", required=True)
     ap.add_argument("--compiler", default="auto", choices=["auto", "stc", "matiec"])
-    ap.add_argument("--semantics", choices=["matiec", "openplc", "iec"], default=None,
+    ap.add_argument("--semantics", choices=STC_SEMANTICS, default=None,
                     help="stc only: run-time values of upstream matiec (stc's default), of "
                          "OpenPLC v3's matiec fork, or IEC 61131-3 (default: PLCRT_SEMANTICS)")
     ap.add_argument("sources", nargs="+")

@@ -1,4 +1,5 @@
-"""The example programs' register layout (plc/README.md), the logger's data, runtime configs."""
+"""The example programs (plc/) as the co-simulation runs them: their register layout (plc/README.md),
+the logger's data, their runtime configs and st_lib's files in import order."""
 from __future__ import annotations
 
 import re
@@ -6,6 +7,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
+from mipprobe.regmap import MDP810, TRM810
 from plcharness.config import Config, Section
 
 REPO = Path(__file__).resolve().parents[2]
@@ -114,9 +116,14 @@ def write_image(s):
     return 100 + 123 * (s - 1)
 
 
+def lib_sources() -> list[str]:
+    """st_lib's files (paths) in the import order: what a build takes before the programs."""
+    return [str(ST_LIB / f) for f in LIB_FILES]
+
+
 def program_sources(role: str, bidi: bool):
     name = f"{role}{'_bidi' if bidi else ''}.st"
-    return [str(ST_LIB / f) for f in LIB_FILES] + [str(PLC_DIR / "PLC_Logger.st"),
+    return lib_sources() + [str(PLC_DIR / "PLC_Logger.st"),
                                                    str(PLC_DIR / name)]
 
 
@@ -269,7 +276,7 @@ def outstation_model(trm_port, host="127.0.0.1", comment="", retain=None, serial
                   "its station.")
     cfg.add("device", "trm", **_link(serial, host, trm_port, fc23), unit_id=unit,
             errors="%IW30", online="%IX9.0")
-    _read_write_ranges(cfg, "trm", 1, 2198, 2001, status_first, channel)
+    _read_write_ranges(cfg, "trm", 1, TRM810.read_status, TRM810.write_data, status_first, channel)
     _add_retain(cfg, retain)
     return cfg
 
@@ -291,7 +298,8 @@ def central_model(mdp_port, stations, host="127.0.0.1", comment="", retain=None,
         cfg.add("device", f"mdp{s}", **_link(serial, host, mdp_port, fc23),
                 unit_id=f"%QW{CHANNEL_UNIT}" if channel and s == 1 else s,
                 errors=f"%IW{30 + s}", online=f"%IX9.{s}")
-        _read_write_ranges(cfg, f"mdp{s}", s, 198, 10, status_first, channel and s == 1)
+        _read_write_ranges(cfg, f"mdp{s}", s, MDP810.read_status, MDP810.write_data, status_first,
+                           channel and s == 1)
     return cfg
 
 
@@ -318,9 +326,9 @@ def central_many_config(mdp_port, host="127.0.0.1", comment="", retain=None):
             online="%IX9.1")
     cfg.add("device", "mdp_ack", host=host, port=mdp_port, unit_id="%QW3", errors="%IW32",
             online="%IX9.2")
-    cfg.add("read", "mdp_read", device="mdp", start=198, size=125, image="%IW100",
+    cfg.add("read", "mdp_read", device="mdp", start=MDP810.read_status, size=125, image="%IW100",
             policy="trigger", trigger="%QX1.0", done="%IX1.0", error="%IX1.1", status="%IW11")
-    cfg.add("write", "mdp_write", device="mdp_ack", start=10, size=123, image="%QW100",
+    cfg.add("write", "mdp_write", device="mdp_ack", start=MDP810.write_data, size=123, image="%QW100",
             policy="trigger", trigger="%QX1.1", done="%IX1.2", error="%IX1.3", status="%IW21",
             length="%QW1")
     return cfg.text()

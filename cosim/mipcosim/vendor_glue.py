@@ -10,7 +10,9 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from . import layout as L
+from mipprobe.regmap import MDP810, TRM810
+
+from . import programs as L
 
 REPO = L.REPO
 FAMILIES = ("twincat", "codesys", "s7")
@@ -106,7 +108,8 @@ def variant(text: str, family: str, role: str, s: int = 1) -> str:
     m = re.search(rf"^\(\* station {s}: read handshake.*?^xWrDone{s} := .*?\n", text, re.M | re.S)
     if not m:
         raise GlueError(f"no read section of station {s}")
-    unit, ra, wa = ("1", "2198", "2001") if role == "outstation" else (str(s), "198", "10")
+    regs = TRM810 if role == "outstation" else MDP810
+    unit, ra, wa = "1" if role == "outstation" else str(s), str(regs.read_status), str(regs.write_data)
     text = (text[:m.start()] + f"(* station {s}: the {family} glue and the stand-ins *)\n"
             + call.format(s=s, unit=unit, ra=ra, wa=wa, blk=blk) + text[m.end():])
     # the write section: only the request stays (the glue takes the block at its edge)

@@ -1,4 +1,4 @@
-"""The chain's layout (issue 35): its programs, their runtime configs, parameters and status
+"""The chain's programs (issue 35): their runtime configs, parameters and status
 words, and the relay events of a run with what the control system must receive
 (cosim/mipcosim/chain.py runs them; mipdemo.chain (plc/demo.py --chain) and bench/mipbench/chain.py
 use them too)."""
@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from . import layout as L
+from . import programs as L
 
 ORIGIN_MS = 1767225600000          # the relay's time stamp of virtual time 0 (2026-01-01 UTC)
 SOE_BASE = 600                     # PDU address of 40601, at the relay and at the central
@@ -30,7 +30,7 @@ def program_sources(role, handover="pull"):
     """The st_lib files, the programs' helpers and the chain's program of `role` ("out" |
     "cen"; the central of the push way with handover "push")."""
     name = PUSH_PROGRAM if role == "cen" and handover == "push" else PROGRAMS[role]
-    return ([str(L.ST_LIB / f) for f in L.LIB_FILES] + [str(L.PLC_DIR / h) for h in HELPERS]
+    return (L.lib_sources() + [str(L.PLC_DIR / h) for h in HELPERS]
             + [str(L.PLC_DIR / name)])
 
 
