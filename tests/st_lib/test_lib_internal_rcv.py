@@ -7,7 +7,7 @@ like test_lib_internal.py's blocks."""
 import random
 
 import pytest
-from mipcosim.layout import enum_values
+from mipcosim.programs import enum_values
 from mipprograms.common import config
 
 from stlib_sim import build_text, lib_type

@@ -4,7 +4,7 @@ SIPROTEC event recorder says, judged against what MIP_SoeReader expects: MIP_Soe
 inputs -> result, compiled from st_lib and run like test_lib_internal.py's blocks."""
 
 import pytest
-from mipcosim.layout import ST_LIB, enum_values
+from mipcosim.programs import ST_LIB, enum_values
 from mipprograms.common import config
 
 from stlib_sim import build_text, lib_type
