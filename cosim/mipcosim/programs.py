@@ -21,11 +21,14 @@ if (Path(__file__).resolve().parent / "_st_lib").is_dir():
 LIB_FILES = ["MIP_CheckStep.st", "MIP_EchoMagic.st", "MIP_Internal_SnapshotGate.st",
              "MIP_Layout.st", "MIP_Types.st", "MIP_TypesSoe.st", "MIP_TypesSoeServer.st",
              "MIP_UnicosTypes.st", "MIP_Version.st", "MIP_WriteChannel.st",
-             "MIP_Internal_RecordBlock.st", "MIP_Internal_SenderWait.st", "MIP_Internal_Window.st",
-             "MIP_SoeReader.st", "MIP_SoeServer.st", "MIP_StatusBit.st", "MIP_UnicosChannel.st",
-             "MIP_UnicosEvents.st", "MIP_UnicosStatus.st", "MIP_ReadDecoder.st", "MIP_Receiver.st",
-             "MIP_Status.st", "MIP_Internal_SenderAck.st", "MIP_Sender.st", "MIP_BufferSender.st",
-             "MIP_Link.st"]
+             "MIP_Internal_AckBlock.st", "MIP_Internal_RcvClassify.st",
+             "MIP_Internal_ReadCheck.st", "MIP_Internal_RecordBlock.st",
+             "MIP_Internal_SenderWait.st", "MIP_Internal_SoeClassify.st",
+             "MIP_Internal_SoeWaitReason.st", "MIP_Internal_Window.st", "MIP_SoeReader.st",
+             "MIP_SoeServer.st", "MIP_StatusBit.st", "MIP_UnicosChannel.st",
+             "MIP_UnicosEvents.st", "MIP_UnicosStatus.st", "MIP_ReadDecoder.st",
+             "MIP_Receiver.st", "MIP_Status.st", "MIP_Internal_SenderAck.st", "MIP_Sender.st",
+             "MIP_BufferSender.st", "MIP_Link.st"]
 MAX_STATIONS = 4
 WINDOW = 160
 FFFF = 0xFFFF

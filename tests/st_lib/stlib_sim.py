@@ -55,9 +55,12 @@ def dialect() -> str:
 
 def lib_type(name: str) -> str:
     """How a test program declares a variable of st_lib's type `name`: the name itself, or
-    under the SCL dialect, where the library has no array type names, `ARRAY[..] OF ..`."""
+    under the SCL dialect, where the library has no array type names, `ARRAY[..] OF ..`, and
+    no enumerations, INT."""
     if dialect() != "scl":
         return name
+    if name.startswith("E_MIP_"):
+        return "INT"            # TIA has no enumerations: the SCL export's enums are Int
     return _array_aliases().get(name.upper(), name)
 
 

@@ -22,7 +22,7 @@ LIB = REPO / "st_lib"
 # -- the two libraries (CONVENTIONS.md, "Two libraries, one error enum each") ---------------
 # Until issue 46 step 2 gives the chain library its own folder, a file belongs to the chain
 # library when its name says Soe or Unicos; every other file is the core's.
-CHAIN_FILE = re.compile(r"^MIP_(Types)?(Soe|Unicos)")
+CHAIN_FILE = re.compile(r"^MIP_(Types|Internal_)?(Soe|Unicos)")
 LIBRARIES = {
     # library: (its one error enum, its one wait-reason enum, the high byte of its S7 status
     #           word on an error: 16#8000 + base + the error's position in its enum)

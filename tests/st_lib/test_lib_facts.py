@@ -32,10 +32,10 @@ def test_read_status_bits_are_decoded_in_one_place():
 
 def test_check_value_step_is_written_once():
     # the step c := ROL(c XOR r, 5) of PROTOCOL.md's check value: only MIP_CheckStep rotates,
-    # and the sender and the receiver both fold it
+    # and the sender and the receiver (through MIP_Internal_ReadCheck) both fold it
     assert places(r"\bRO[LR]\s*\(") == [("MIP_CheckStep.st", "ROL(")]
     callers = sorted({f for f, _ in places(r"\bMIP_CheckStep\s*\(")} - {"MIP_CheckStep.st"})
-    assert callers == ["MIP_Receiver.st", "MIP_Sender.st"]
+    assert callers == ["MIP_Internal_ReadCheck.st", "MIP_Sender.st"]
 
 
 def test_buffer_bound_matches_the_buffer_type():
