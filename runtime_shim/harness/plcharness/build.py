@@ -22,6 +22,7 @@ from pathlib import Path
 
 from stc.semantics import SEMANTICS as STC_SEMANTICS
 
+from .config import is_mbconfig
 from .build_cache import (_cache_root, _compiler_fingerprint, _core_objects, _hash_inputs,
                           _prune_cache)
 from .build_common import (GCSE_LIMIT, RUNTIME_DIR, BuildError, BuildResult, Symbol, _cc, _compile,
@@ -60,18 +61,12 @@ SEMANTICS = (None, *STC_SEMANTICS)   # None: stc's default (PLCRT_SEMANTICS, els
 
 
 def is_openplc_config(path) -> bool:
-    """True for an OpenPLC v3 mbconfig.cfg (no [sections]; its first key is Num_Devices or a
-    deviceN. key), the same test the runtime's config loader makes."""
+    """True for an OpenPLC v3 mbconfig.cfg: the runtime's own test (config.is_mbconfig);
+    False for a file that cannot be read."""
     try:
-        text = Path(path).read_text(errors="replace")
+        return is_mbconfig(Path(path).read_text(errors="replace"))
     except OSError:
         return False
-    for raw in text.splitlines():
-        line = raw.strip()
-        if not line or line.startswith("#"):
-            continue
-        return bool(re.match(r"(Num_Devices|device\d+\.)", line))
-    return False
 
 
 def _translate_stc(sources, gen, semantics=None):
