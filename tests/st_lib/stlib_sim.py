@@ -565,9 +565,7 @@ ALL = [("snd", "MIP_Sender"), ("rcv", "MIP_Receiver"), ("lo", "MIP_Link"), ("lc"
        ("bs", "MIP_BufferSender"), ("st", "MIP_Status")]
 PLCOPEN_SND = ("xDone", "xBusy", "xError")
 PLCOPEN_LINK_S = ("xSendDone", "xSendBusy", "xSendError")
-# an enable-type block (st_lib/CONVENTIONS.md "enable-outputs"): xError excludes xValid and
-# xBusy, which are TRUE together while it runs
-PLCOPEN_RCV = (("xValid", "xError"), ("xBusy", "xError"))
+PLCOPEN_RCV = (("xValid", "xError"), ("xBusy", "xError"))   # enable-type: xError excludes both
 PLCOPEN_LINK_R = (("xRecvValid", "xRecvError"), ("xRecvBusy", "xRecvError"))
 
 

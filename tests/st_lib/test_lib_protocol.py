@@ -362,13 +362,13 @@ def test_receiver_classifies_numbers(wd):
     sr.feed(3, [33])                     # duplicate: discarded
     assert r["udiDuplicates"] == 1
     sr.feed(FFFF, [44])
-    assert r["xDone"] and r["wAck"] == FFFF
+    assert r["xTransferComplete"] and r["wAck"] == FFFF
     sr.feed(FFFF, [44])
     assert r["udiDuplicates"] == 2
     assert u.sink.records == [(1, [11]), (2, [22]), (3, [33]), (FFFF, [44])]
     assert u.sink.transfers == [[11, 22, 33, 44]]
     sr.feed(2, [1])                      # after a complete transfer only 1 may follow
-    assert r["udiUnexpected"] == 2 and r["xDone"]
+    assert r["udiUnexpected"] == 2 and r["xTransferComplete"]
     sr.feed(1, [5])
     sr.feed(2, [6])
     assert r["xBusy"]
