@@ -9,6 +9,7 @@ statements.py, expressions.py, coercion.py, calls.py, stdlib.py); this module ho
 its diagnostics and the order of the passes (run)."""
 from .. import syntax as S
 from ..diag import CompileError
+from ..semantics import dialect
 from .calls import CallChecks
 from .coercion import CoercionChecks
 from .declarations import DeclarationChecks
@@ -28,11 +29,14 @@ class Checker(TypeChecks, DeclarationChecks, StatementChecks, ExpressionChecks, 
         self.p.semantics = semantics
         self.strict_iec = strict_iec   # --strict-iec: warn where an edition-2 checker is stricter
         self.file = None
-        self.scl_files = set()         # files read as TIA SCL (compiler.py, scl_in.name_arrays)
-        self.vendor_files = set()      # files in the TwinCAT / CODESYS dialect (vendor_in.py)
+        self.dialects = {}             # file -> its semantics.Dialect (compiler.py); else ST's
+        self._st = dialect("st", semantics)
 
-    def _vendor(self):
-        return self.file in self.vendor_files
+    @property
+    def dialect(self):
+        """The rules of the file being checked (stc/semantics.py): the checker asks them, it
+        never tests a dialect's name."""
+        return self.dialects.get(self.file, self._st)
 
     def warn(self, pos, msg):
         """Portability warning: the construct's value differs between matiec and IEC."""

@@ -51,9 +51,9 @@ class CallChecks:
             return self.conversion(c, conv)
         if name in T.STD_FUNCS:
             return self.std_func(c, expected)
-        if name in _VENDOR_FUNCS and self._vendor():
+        if name in _VENDOR_FUNCS and self.dialect.address_functions:
             return self.vendor_func(c)
-        if name.startswith("TO_") and self._vendor() and name[3:] in T.ELEMENTARY \
+        if name.startswith("TO_") and self.dialect.enum_to_number and name[3:] in T.ELEMENTARY \
                 and T.ELEMENTARY[name[3:]].kind in ("sint", "uint", "bit") and len(c.args) == 1 \
                 and isinstance(c.args[0], S.ArgPos):
             # TO_WORD(eErrorID): the number of an enumerated value (CODESYS)
@@ -207,7 +207,7 @@ class CallChecks:
                     if not _is_variable(e):
                         self.fail(e.pos, f"VAR_IN_OUT '{p.name}' needs a variable")
                     if not T.same_type(t, p.type) and not (
-                            self._vendor() and t.is_array and T.same_type(t, p.type, False)):
+                            self.dialect.arrays_by_shape and t.is_array and T.same_type(t, p.type, False)):
                         self.fail(e.pos, f"VAR_IN_OUT '{p.name}' is {p.type}, got {t}")
                 else:
                     t = self.expr(e, p.type)

@@ -35,9 +35,10 @@ class CoercionChecks:
             return
         if T.same_type(from_t, to_t):
             return
-        if self._vendor() and from_t.is_array and to_t.is_array and T.same_type(from_t, to_t, False):
+        if self.dialect.arrays_by_shape and from_t.is_array and to_t.is_array \
+                and T.same_type(from_t, to_t, False):
             return    # the vendor dialects assign arrays of the same bounds and element type
-        if from_t.is_array and to_t.is_array and self.file in self.scl_files:
+        if from_t.is_array and to_t.is_array and self.dialect.arrays_named_by_shape:
             self.fail(e.pos, f"{what}: {from_t} cannot be {to_t}: SCL assigns and passes arrays "
                       "only between the same bounds and element type")
         if from_t.is_array and to_t.is_array:

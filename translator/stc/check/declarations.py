@@ -97,7 +97,7 @@ class DeclarationChecks:
                     if pou is not None and pou.kind == "function":
                         self.err(npos, "a function block instance inside a FUNCTION is not "
                                  "portable (matiec rejects it): use a FUNCTION_BLOCK")
-                    if kind == "VAR_IN_OUT" and not self._vendor():
+                    if kind == "VAR_IN_OUT" and not self.dialect.fb_in_out:
                         self.err(npos, "VAR_IN_OUT of a function block type is not portable "
                                  "(it crashes matiec)")
                     if kind in ("VAR_INPUT", "VAR_OUTPUT") and pou is not None and pou.kind == "function":
@@ -126,8 +126,8 @@ class DeclarationChecks:
 
     def _located(self, v, loc, pou):
         text, pos = loc
-        vendor_fb = pou is not None and pou.kind == "function_block" and self._vendor()
-        if pou is not None and pou.kind != "program" and not vendor_fb:
+        located_fb = pou is not None and pou.kind == "function_block" and self.dialect.located_in_fb
+        if pou is not None and pou.kind != "program" and not located_fb:
             # (the vendor dialects: TwinCAT links an FB's AT %I* / %Q* in its I/O mapping; stc
             # takes full addresses there, one cell for every instance: the stand-ins' channel)
             self.err(pos, f"located variables in a {pou.kind.upper()} are not "

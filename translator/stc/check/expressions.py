@@ -167,7 +167,8 @@ class ExpressionChecks:
             e.var = v
             return v.type
         if isinstance(e, S.Field):
-            if isinstance(e.base, S.Name) and self._vendor() and e.base.name not in self.scope \
+            if isinstance(e.base, S.Name) and self.dialect.enum_qualified_values \
+                    and e.base.name not in self.scope \
                     and self.p.types.get(e.base.name) is not None \
                     and self.p.types[e.base.name].is_enum:
                 # Enum.Value (the vendor dialects; CODESYS's qualified_only enumerations)
@@ -214,7 +215,7 @@ class ExpressionChecks:
                       f"(x AND 16#{1 << min(int(bit) if bit.isdigit() else 0, 63):X}) <> 0 to read; "
                       "OR / AND NOT masks to write")
         if isinstance(e, S.Deref):
-            if not self._vendor():
+            if not self.dialect.pointers:
                 self.fail(e.pos, "pointer dereference (^) is not portable (matiec rejects POINTER TO)")
             bt = self.expr(e.base, None)
             if not isinstance(bt, T.PointerT):

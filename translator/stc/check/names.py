@@ -60,7 +60,7 @@ class TypeChecks:
             vals, codes = [], []
             explicit = False
             for vname, vval, vpos in spec.items:
-                if vval is not None and not self._vendor():
+                if vval is not None and not self.dialect.enum_explicit_values:
                     self.err(vpos, "enumerated values with explicit values (A := 0) are not "
                              "portable (matiec rejects them): declare (A, B, ...) and convert "
                              "with CASE")
@@ -117,7 +117,7 @@ class TypeChecks:
 
     def resolve_type(self, spec, member=False, in_array=False):
         if isinstance(spec, S.PointerRef):
-            if spec.word != "POINTER" or not self._vendor():
+            if spec.word != "POINTER" or not self.dialect.pointers:
                 self.fail(spec.pos, f"{spec.word} TO is not portable (matiec rejects pointers and "
                           "references); pointers are read in the TwinCAT / CODESYS dialects only "
                           "(--dialect=twincat|codesys)" if spec.word == "POINTER" else
@@ -129,7 +129,7 @@ class TypeChecks:
             return T.PointerT(target)
         if isinstance(spec, S.NamedType):
             n = spec.name
-            if n == "PVOID" and self._vendor():
+            if n == "PVOID" and self.dialect.pointers:
                 return T.PointerT(T.ELEMENTARY["BYTE"])
             if n in T.ELEMENTARY:
                 return T.ELEMENTARY[n]
@@ -182,7 +182,7 @@ class TypeChecks:
             self.fail(spec.pos, f"subrange types like {spec.base}(0..100) are not portable "
                       f"(matiec rejects them): use plain {spec.base} and LIMIT()")
         if isinstance(spec, S.StringRef):
-            if self._vendor() and spec.base == "STRING" and 0 < int(spec.size) <= T.STR_MAX:
+            if self.dialect.string_length_decl and spec.base == "STRING" and 0 < int(spec.size) <= T.STR_MAX:
                 return T.STRING       # STRING(15) of the vendor blocks: stc's STRING holds it
             self.fail(spec.pos, f"{spec.base}[{spec.size}] is not portable (matiec drops or "
                       "crashes on it): use an ARRAY OF BYTE")
