@@ -2,7 +2,8 @@
 problem-codes.csv). Every error and warning stc reports carries its code, printed at the end of
 the line (`file:3:6: error: ... [S0412]`); `stc --explain CODE` prints the row.
 
-Codes: P (reading the text: the parser, the SCL and TwinCAT / CODESYS front ends), S (the
+Codes: P (reading the text: the parser, the SCL and TwinCAT / CODESYS front ends), G (the SCL
+generator, stc.scl_out), S (the
 checker's errors, S0xxx-S7xxx by the part of stc/check/ that reports it), W (portability
 warnings). Columns: code, severity (error / warning), title, message (the text stc prints, with
 … where it names the construct), example (a file of tests/translator/ that stc reports it for;
