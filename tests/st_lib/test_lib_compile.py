@@ -11,8 +11,8 @@ from plcharness.matiec import matiec_paths
 
 from stlib_sim import LIB, LIB_FILES, LIB_PATHS
 
-ALL_BLOCKS = ["MIP_Status", "MIP_WriteChannel", "MIP_Layout", "MIP_ReadDecoder", "MIP_Sender",
-              "MIP_Receiver", "MIP_Link", "MIP_BufferSender", "MIP_SoeServer", "MIP_UnicosChannel",
+ALL_BLOCKS = ["MIP_Status", "MIP_Internal_WriteChannel", "MIP_Internal_Layout", "MIP_Internal_ReadDecoder", "MIP_Sender",
+              "MIP_Receiver", "MIP_Link", "MIP_BufferSender", "MIP_SoeServer", "MIP_Internal_UnicosChannel",
               "MIP_UnicosEvents", "MIP_UnicosStatus", "MIP_Internal_SnapshotGate",
               "MIP_Internal_RecordBlock", "MIP_Internal_SenderWait", "MIP_Internal_Window",
               "MIP_Internal_SenderAck"]

@@ -45,13 +45,13 @@ FIX = "issue 46 step 2"
 # (block or type, rule, detail, why it deviates today, fixed by)
 DEVIATIONS = [
     # internal helpers: marked in their header only, not by name
-    ("MIP_CheckStep", "internal-name", "no prefix MIP_Internal_", "noun name with the public prefix", FIX),
-    ("MIP_EchoMagic", "internal-name", "no prefix MIP_Internal_", "noun name with the public prefix", FIX),
-    ("MIP_Layout", "internal-name", "no prefix MIP_Internal_", "noun name with the public prefix", FIX),
-    ("MIP_WriteChannel", "internal-name", "no prefix MIP_Internal_", "noun name with the public prefix", FIX),
-    ("MIP_StatusBit", "internal-name", "no prefix MIP_Internal_", "noun name with the public prefix", FIX),
-    ("MIP_UnicosChannel", "internal-name", "no prefix MIP_Internal_", "noun name with the public prefix", FIX),
-    ("MIP_ReadDecoder", "internal-name", "no prefix MIP_Internal_", "noun name with the public prefix", FIX),
+    ("MIP_Internal_CheckStep", "internal-name", "no prefix MIP_Internal_", "noun name with the public prefix", FIX),
+    ("MIP_Internal_EchoMagic", "internal-name", "no prefix MIP_Internal_", "noun name with the public prefix", FIX),
+    ("MIP_Internal_Layout", "internal-name", "no prefix MIP_Internal_", "noun name with the public prefix", FIX),
+    ("MIP_Internal_WriteChannel", "internal-name", "no prefix MIP_Internal_", "noun name with the public prefix", FIX),
+    ("MIP_Internal_StatusBit", "internal-name", "no prefix MIP_Internal_", "noun name with the public prefix", FIX),
+    ("MIP_Internal_UnicosChannel", "internal-name", "no prefix MIP_Internal_", "noun name with the public prefix", FIX),
+    ("MIP_Internal_ReadDecoder", "internal-name", "no prefix MIP_Internal_", "noun name with the public prefix", FIX),
     # enable-type blocks that report with xDone instead of xValid
     ("MIP_Receiver", "enable-outputs", "missing xValid", "xDone means 'a transfer completed'", FIX),
     ("MIP_Receiver", "enable-outputs", "has xDone", "xDone means 'a transfer completed'", FIX),

@@ -26,7 +26,7 @@ PROGRAMS = sorted(p for p in glob.glob(os.path.join(PLC_DIR, "*.st"))
 
 # (file pattern, kind, text the source line contains, reason)
 ALLOWED = [
-    ("st_lib/MIP_WriteChannel.st", "timer-pt", "tonReq(",
+    ("st_lib/MIP_Internal_WriteChannel.st", "timer-pt", "tonReq(",
      "runs only when tTimeout > T#0s (the IN condition), so PT is never T#0s"),
     ("st_lib/MIP_Receiver.st", "time-sum", "PT := tCfgTimeout + tCfgTimeout + tCfgTimeout",
      "three equal terms: the nanosecond part of the sum is never exactly 1e9 (n + n + n = 1e9 "
@@ -69,7 +69,7 @@ ALLOWED = [
      "timing difference only"),
     ("st_lib/MIP_SoeServer.st", "timer-pt", "tonSilent(",
      "runs only when tAckTimeout > T#0s (the IN condition), so PT is never T#0s"),
-    ("st_lib/MIP_UnicosChannel.st", "timer-pt", "tonRetry(",
+    ("st_lib/MIP_Internal_UnicosChannel.st", "timer-pt", "tonRetry(",
      "PT is tRetry (default T#500ms), the pause before a repeated write; at T#0s matiec "
      "repeats one scan later, a timing difference only"),
     ("st_lib/MIP_UnicosEvents.st", "timer-pt", "tonDelay(",
