@@ -1,5 +1,5 @@
 # dist/: the release archive of st_lib. `make dist` writes build/dist/mip-logger-<version>.tar.gz
-# and .zip (version from st_lib/MIP_Version.st, checked against CHANGELOG.md; the PLCopen XML
+# and .zip (version from st_lib/core/MIP_Version.st, checked against CHANGELOG.md; the PLCopen XML
 # inside is validated against the TC6 v2.01 schema). See docs/releases.md.
 # mkdist is also the package mipdist (dist/pyproject.toml), installed by `make venv`
 PY_PACKAGES += dist

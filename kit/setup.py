@@ -102,7 +102,7 @@ class SdistKit(sdist):
 
 def version():
     """st_lib's version (MIP_Version.st), the one version of a release."""
-    text = (REPO / "st_lib" / "MIP_Version.st").read_text(encoding="utf-8")
+    text = (REPO / "st_lib" / "core" / "MIP_Version.st").read_text(encoding="utf-8")
     parts = dict(re.findall(r"\bu(Major|Minor|Patch)\s*:\s*UINT\s*:=\s*(\d+)", text))
     return f"{parts['Major']}.{parts['Minor']}.{parts['Patch']}"
 

@@ -89,7 +89,7 @@ def time_variables(path):
     return {n.upper() for n in re.findall(r"^\s*(\w+)\s*:\s*TIME\b", code, re.M)}
 
 
-SOURCES = sorted((REPO / "plc").glob("*.st")) + sorted((REPO / "st_lib").glob("*.st"))
+SOURCES = sorted((REPO / "plc").glob("*.st")) + sorted((REPO / "st_lib").glob("*/*.st"))
 
 
 @pytest.mark.parametrize("path", SOURCES, ids=[p.name for p in SOURCES])

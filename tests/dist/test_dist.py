@@ -86,7 +86,7 @@ def test_archive_holds_sources_in_import_order_and_the_product_files(archive):
     with tarfile.open(tgz) as t:
         names = [n[len(top.name) + 1:] for n in t.getnames()]
     order = blocks_md_order()
-    assert sorted(order) == sorted(f"st_lib/{p.name}" for p in (REPO / "st_lib").glob("*.st"))
+    assert sorted(order) == sorted(f"st_lib/{p.name}" for p in (REPO / "st_lib").glob("*/*.st"))
     assert [n for n in names if n.startswith("st_lib/")] == order
     for n in order:
         assert (top / n).read_bytes() == (REPO / n).read_bytes(), n
@@ -182,7 +182,7 @@ def _copy_product(tmp_path):
 
 def test_version_without_changelog_entry_is_refused_in_one_line(tmp_path):
     repo = _copy_product(tmp_path)
-    v = repo / "st_lib" / "MIP_Version.st"
+    v = repo / "st_lib" / "core" / "MIP_Version.st"
     v.write_text(re.sub(r"(uPatch : UINT := )\d+;", r"\g<1>97;", v.read_text()))
     r2 = subprocess.run([sys.executable, str(repo / "dist" / "mkdist.py"), "-o",
                          str(tmp_path / "out")], cwd=repo, capture_output=True, text=True)
@@ -194,12 +194,12 @@ def test_version_without_changelog_entry_is_refused_in_one_line(tmp_path):
 
 def test_missing_version_constant_is_one_line_with_the_file(tmp_path):
     repo = _copy_product(tmp_path)
-    v = repo / "st_lib" / "MIP_Version.st"
+    v = repo / "st_lib" / "core" / "MIP_Version.st"
     v.write_text(v.read_text().replace("uMinor : UINT", "uMinorX : UINT"))
     r = subprocess.run([sys.executable, str(repo / "dist" / "mkdist.py"), "--version"],
                        cwd=repo, capture_output=True, text=True)
     assert r.returncode == 1
-    assert r.stderr == ("st_lib/MIP_Version.st: error: no constant uMinor : UINT := N; "
+    assert r.stderr == ("st_lib/core/MIP_Version.st: error: no constant uMinor : UINT := N; "
                         "(the version is uMajor.uMinor.uPatch)\n")
 
 

@@ -55,7 +55,7 @@ def _blark_errors(files):
 def test_every_type_and_pou_is_an_object(twincat):
     duts = sorted((twincat / "DUTs").glob("*.TcDUT"))
     pous = sorted((twincat / "POUs").glob("*.TcPOU"))
-    srcs = sorted((REPO / "st_lib").glob("*.st")) + sorted(
+    srcs = sorted((REPO / "st_lib").glob("*/*.st")) + sorted(
         (REPO / "dist" / "glue" / "twincat").glob("*.twincat.st"))
     want_pous = _names(r"^(?:FUNCTION_BLOCK|FUNCTION|PROGRAM)\s+(\w+)", srcs)
     assert {p.stem for p in pous} == want_pous

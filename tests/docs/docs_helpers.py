@@ -8,7 +8,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[2]
 TOOLS = REPO / "docs" / "tools"
 PY = sys.executable
-ST_LIB = sorted(str(p) for p in (REPO / "st_lib").glob("*.st"))
+ST_LIB = sorted(str(p) for p in (REPO / "st_lib").glob("*/*.st"))
 XSD = REPO / "build" / "docs" / "tc6_xml_v201.xsd"
 # the co-simulation kernel (its emulator core runs the docs' chains: docs/tools/chainsim.py)
 KERNEL_SO = REPO / "build" / "cosim" / "libmipcosim.so"

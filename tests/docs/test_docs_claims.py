@@ -39,7 +39,7 @@ def public_blocks():
     """The function blocks of st_lib an application calls: FUNCTION_BLOCKs whose header does
     not call them internal."""
     out = []
-    for f in sorted((REPO / "st_lib").glob("*.st")):
+    for f in sorted((REPO / "st_lib").glob("*/*.st")):
         text = f.read_text()
         fb = re.search(r"^FUNCTION_BLOCK (\w+)", text, re.M)
         purpose = re.search(r"@purpose\s+(\S+)", text)
@@ -123,7 +123,7 @@ def test_guarantee_table_window_row_matches_mip_sender():
     """docs/protocol.md's guarantee table said window 2 runs "not `xRetained`"; MIP_Sender's
     header says under which settings uWindow 2 falls back to 1 (tests/st_lib/
     test_lib_window_warm.py runs window 2 with xRetained through warm restarts)."""
-    sender = (REPO / "st_lib" / "MIP_Sender.st").read_text()
+    sender = (REPO / "st_lib" / "core" / "MIP_Sender.st").read_text()
     row = re.search(r"^\s*\| uWindow .*$", sender, re.M).group(0)
     fallback = re.search(r"PROTOCOL\.md P27;([^)]*)\)", row).group(1)
     table = (REPO / "docs" / "protocol.md").read_text()

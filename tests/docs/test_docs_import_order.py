@@ -24,7 +24,7 @@ def order():
                          env=dict(os.environ, PYTHONDONTWRITEBYTECODE="1"))
     assert out.returncode == 0, out.stderr
     files = out.stdout.split()
-    assert sorted(files) == sorted(str(p.relative_to(REPO)) for p in (REPO / "st_lib").glob("*.st"))
+    assert sorted(files) == sorted(str(p.relative_to(REPO)) for p in (REPO / "st_lib").glob("*/*.st"))
     assert files == mkdist.import_order()[0]
     return files
 

@@ -57,7 +57,7 @@ def need_glue(family):
 
 
 def st_lib_files():
-    return sorted((REPO / "st_lib").glob("*.st"))
+    return sorted((REPO / "st_lib").glob("*/*.st"))
 
 
 def ironplcc():

@@ -6,7 +6,7 @@ import re
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
-LIB = sorted((REPO / "st_lib").glob("*.st"))
+LIB = sorted((REPO / "st_lib").glob("*/*.st"))
 
 
 def code(path):
@@ -34,15 +34,15 @@ def test_check_value_step_is_written_once():
     # the step c := ROL(c XOR r, 5) of PROTOCOL.md's check value: only MIP_Internal_CheckStep rotates,
     # and the sender and the receiver (through MIP_Internal_ReadCheck) both fold it
     assert places(r"\bRO[LR]\s*\(") == [("MIP_Internal_CheckStep.st", "ROL(")]
-    callers = sorted({f for f, _ in places(r"\bMIP_CheckStep\s*\(")} - {"MIP_Internal_CheckStep.st"})
+    callers = sorted({f for f, _ in places(r"\bMIP_Internal_CheckStep\s*\(")} - {"MIP_Internal_CheckStep.st"})
     assert callers == ["MIP_Internal_ReadCheck.st", "MIP_Sender.st"]
 
 
 def test_buffer_bound_matches_the_buffer_type():
     from mipdocs import stdecl
-    types = {t.name: t for t in stdecl.parse_file(str(REPO / "st_lib" / "MIP_Types.st")).types}
+    types = {t.name: t for t in stdecl.parse_file(str(REPO / "st_lib" / "core" / "MIP_Types.st")).types}
     (lo, hi), = types["MIP_T_Buffer"].spec.dims
-    unit = stdecl.parse_file(str(REPO / "st_lib" / "MIP_BufferSender.st"))
+    unit = stdecl.parse_file(str(REPO / "st_lib" / "core" / "MIP_BufferSender.st"))
     consts = {v.name: v.init for p in unit.pous for s in p.sections if s.constant for v in s.vars}
     assert int(consts["udiBufferLen"]) == int(hi) - int(lo) + 1
     # the VAR CONSTANT is the one place of the number (MIP_T_Buffer says 0..8191)

@@ -623,7 +623,7 @@ def array_aliases(paths):
 
 def library_version(paths):
     """MAJOR.MINOR.PATCH from the constants uMajor, uMinor, uPatch of the FUNCTION that declares
-    them (st_lib/MIP_Version.st, the library's one source of its version)."""
+    them (st_lib/core/MIP_Version.st, the library's one source of its version)."""
     for _f, _t, nodes in _parsed(paths).files:
         for n in nodes:
             if not isinstance(n, S.Function):
@@ -634,7 +634,7 @@ def library_version(paths):
             if all(isinstance(x, S.IntLit) for x in parts):
                 return ".".join(str(x.value) for x in parts)
     raise SclError("stc.scl_out: error: no FUNCTION with constants uMajor, uMinor, uPatch "
-                   "(st_lib/MIP_Version.st) among the inputs")
+                   "(st_lib/core/MIP_Version.st) among the inputs")
 
 
 def generate_files(paths, version):
