@@ -284,10 +284,10 @@ def readme_chain(order: list[str], version: str, core_version: str,
     lines = [f"{top}: the chain's application blocks (SIPROTEC relay reader and server, UNICOS",
              "hand-over to WinCC OA) in IEC 61131-3 Structured Text, built on the MIP core library",
              "",
-             f"Needs the core library {PRODUCT} {core_version} (its release archive {PRODUCT}-"
-             f"{core_version}): import the core first, then either the single file {top}.st,",
-             "or the files of st_lib/chain/ in this order (each needs only the core and the",
-             "ones before it):", ""]
+             f"Needs the core library {PRODUCT} {core_version} (its release archive",
+             f"{PRODUCT}-{core_version}): import the core first, then either the single file",
+             f"{top}.st, or the files of st_lib/chain/ in this order (each needs only the",
+             "core and the ones before it):", ""]
     lines += [f"  {i}. {f}" for i, f in enumerate(order, 1)]
     lines += ["",
               f"{top}.xml is the same library as PLCopen XML (TC6 v2.01); it refers to the",
@@ -296,9 +296,9 @@ def readme_chain(order: list[str], version: str, core_version: str,
               "MAJOR * 10000 + MINOR * 100 + PATCH.",
               "",
               f"{top}.scl (or the files of scl/, same order) is the library as TIA Portal SCL",
-              f"external sources, after the core's {PRODUCT}-{core_version}.scl (generated from",
-              "st_lib; never compiled in TIA Portal by this project). Import order of the",
-              "separate .scl files:", ""]
+              f"external sources, imported after the core's {PRODUCT}-{core_version}.scl",
+              "(generated from st_lib; never compiled in TIA Portal by this project). Import",
+              "order of the separate .scl files:", ""]
     lines += [f"  {i}. {n}" for i, n in enumerate(scl_names, 1)]
     lines.append("")
     return "\n".join(lines)
