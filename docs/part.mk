@@ -59,7 +59,9 @@ docs-plot: | venv
 	$(PY) $(DOCS_TOOLS)/lossplot.py docs/data/throughput-vs-loss.json -o docs/img/throughput-vs-loss.svg
 
 docs-plcopen: $(DOCS_XML) $(PLCOPEN_XSD)
-	$(foreach x,$(DOCS_XML),$(PY) $(DOCS_TOOLS)/plcopen_export.py --validate $(PLCOPEN_XSD) $(x) && echo "docs: $(x) is valid PLCopen TC6 v2.01" &&) true
+	$(PY) $(DOCS_TOOLS)/plcopen_export.py --validate $(PLCOPEN_XSD) $(DOCS_BUILD)/st_lib-core.xml
+	$(PY) $(DOCS_TOOLS)/plcopen_export.py --validate $(PLCOPEN_XSD) $(DOCS_BUILD)/st_lib-chain.xml
+	@echo "docs: $(DOCS_XML) are valid PLCopen TC6 v2.01"
 
 # the package graph of docs/dev/architecture.md, from the imports and the layers of .importlinter
 # (mipkit is not installed into the venv: kit/ on the path, as pytest.ini has it)
