@@ -1,7 +1,7 @@
-"""Block reference (Markdown) from the doc headers of st_lib/*.st: the one source of truth.
+"""Block reference (Markdown) from the doc headers of st_lib/*/*.st: the one source of truth.
 
-    .venv/bin/python docs/tools/blockref.py -o docs/blocks.md st_lib/*.st
-    .venv/bin/python docs/tools/blockref.py --check st_lib/*.st     # header vs declarations
+    .venv/bin/python docs/tools/blockref.py -o /tmp/blocks.md st_lib/core/*.st  # make docs-blocks: mkdist --reference
+    .venv/bin/python docs/tools/blockref.py --check st_lib/*/*.st   # header vs declarations
 
 Every FUNCTION_BLOCK with a `(*@ block NAME ... *)` header gets a section: purpose, the
 interface table of the header, behaviour and example. Types come from the TYPE blocks and their
