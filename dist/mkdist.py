@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
-"""Release archives of st_lib's two libraries (issue 46): the protocol core (st_lib/core/) as
-build/dist/mip-logger-<version>.{tar.gz,zip} and the chain's application blocks (st_lib/chain/,
-built on the core) as build/dist/mip-logger-chain-<version>.{tar.gz,zip}.
+"""Release archives of st_lib's two libraries, the protocol core and the chain's blocks.
+
+The core (st_lib/core/) goes to build/dist/mip-logger-<version>.{tar.gz,zip}, the chain's
+application blocks (st_lib/chain/, built on the core) to
+build/dist/mip-logger-chain-<version>.{tar.gz,zip}.
 
     .venv/bin/python dist/mkdist.py --xsd build/docs/tc6_xml_v201.xsd -o build/dist
     .venv/bin/python dist/mkdist.py --version [chain]       # print a library's version (core)
