@@ -280,30 +280,38 @@ def readme(order: list[str], version: str, scl_names: list[str] = ()) -> str:
     return "\n".join(lines)
 
 
+CHAIN_README = """{top}: the chain's application blocks (SIPROTEC relay reader and server, UNICOS
+hand-over to WinCC OA) in IEC 61131-3 Structured Text, built on the MIP core library
+
+Needs the core library {core} {core_version} (its release archive
+{core}-{core_version}): import the core first, then either the single file
+{top}.st, or the files of st_lib/chain/ in this order (each needs only the
+core and the ones before it):
+
+{files}
+
+{top}.xml is the same library as PLCopen XML (TC6 v2.01); it refers to the
+core's types and blocks by name (import the core's XML first). blocks.md is the
+block reference. MIP_ChainVersion(0) returns the version as a number:
+MAJOR * 10000 + MINOR * 100 + PATCH.
+
+{top}.scl (or the files of scl/, same order) is the library as TIA Portal SCL
+external sources, imported after the core's {core}-{core_version}.scl
+(generated from st_lib; never compiled in TIA Portal by this project). Import
+order of the separate .scl files:
+
+{scl}
+"""
+
+
 def readme_chain(order: list[str], version: str, core_version: str,
                  scl_names: list[str] = ()) -> str:
-    top = f"{PRODUCTS['chain']}-{version}"
-    lines = [f"{top}: the chain's application blocks (SIPROTEC relay reader and server, UNICOS",
-             "hand-over to WinCC OA) in IEC 61131-3 Structured Text, built on the MIP core library",
-             "",
-             f"Needs the core library {PRODUCT} {core_version} (its release archive",
-             f"{PRODUCT}-{core_version}): import the core first, then either the single file",
-             f"{top}.st, or the files of st_lib/chain/ in this order (each needs only the",
-             "core and the ones before it):", ""]
-    lines += [f"  {i}. {f}" for i, f in enumerate(order, 1)]
-    lines += ["",
-              f"{top}.xml is the same library as PLCopen XML (TC6 v2.01); it refers to the",
-              "core's types and blocks by name (import the core's XML first). blocks.md is the",
-              "block reference. MIP_ChainVersion(0) returns the version as a number:",
-              "MAJOR * 10000 + MINOR * 100 + PATCH.",
-              "",
-              f"{top}.scl (or the files of scl/, same order) is the library as TIA Portal SCL",
-              f"external sources, imported after the core's {PRODUCT}-{core_version}.scl",
-              "(generated from st_lib; never compiled in TIA Portal by this project). Import",
-              "order of the separate .scl files:", ""]
-    lines += [f"  {i}. {n}" for i, n in enumerate(scl_names, 1)]
-    lines.append("")
-    return "\n".join(lines)
+    """The chain archive's README.txt: the core version it needs, its import orders."""
+    def numbered(items):
+        return "\n".join(f"  {i}. {x}" for i, x in enumerate(items, 1))
+    return CHAIN_README.format(top=f"{PRODUCTS['chain']}-{version}", core=PRODUCT,
+                               core_version=core_version, files=numbered(order),
+                               scl=numbered(scl_names))
 
 
 def glue_files(repo: Path = REPO) -> list[str]:
