@@ -1,7 +1,7 @@
 """IronPLC (ironplc/ironplc, an independent IEC 61131-3 compiler) on the TwinCAT and CODESYS
 files, in its `twincat` and `codesys` dialects: 0 errors (issue 36 item 5).
 
-Each family is checked as one compilation unit: the portable blocks (st_lib/*.st), the glue
+Each family is checked as one compilation unit: the portable blocks (st_lib/*/*.st), the glue
 files (dist/glue/<family>/**) and declarations of the vendor client blocks the glue calls
 (tests/independent/stubs/<family>/: names from the wiring page, no behaviour; a glue file that declares
 a block itself, such as a stand-in, replaces the stub of that name).

@@ -71,7 +71,7 @@ def _array_aliases():
 
 
 def lib_sources(workdir: Path) -> list[str]:
-    """The library files a bench builds its program with: st_lib/*.st, or under the SCL
+    """The library files a bench builds its program with: st_lib/*/*.st, or under the SCL
     dialect the generated .scl (any bench that builds through this runs on the SCL too)."""
     if dialect() != "scl":
         return LIB_PATHS

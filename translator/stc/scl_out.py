@@ -1,5 +1,5 @@
 """ST (matiec dialect) -> TIA Portal SCL external source files, generated from stc's own syntax
-tree (one source of truth: st_lib/*.st; the .scl is never edited by hand).
+tree (one source of truth: st_lib/*/*.st; the .scl is never edited by hand).
 
     python -m stc.scl_out -o OUTDIR FILE.st...      # FILE.st in import order
 
