@@ -16,8 +16,8 @@ import stlib_sim
 from stlib_sim import LIB, MS, Fb, RunUntil
 from plcharness import Plc
 
-UERR = enum_values("E_MIP_UnicosError", LIB / "MIP_UnicosTypes.st")
-USTATE = enum_values("E_MIP_UnicosState", LIB / "MIP_UnicosTypes.st")
+UERR = enum_values("E_MIP_UnicosError", LIB / "chain" / "MIP_UnicosTypes.st")
+USTATE = enum_values("E_MIP_UnicosState", LIB / "chain" / "MIP_UnicosTypes.st")
 TICK_MS = 10
 
 

@@ -74,7 +74,7 @@ def test_input_argument_of_a_block_call(tmp_path):
         "edition-2 checker rejects it): write WORD#3 or a based literal like 16#3 [W0008]"]
 
 
-LIB = sorted(glob.glob(os.path.join(H.ROOT, "st_lib", "*.st")))
+LIB = sorted(glob.glob(os.path.join(H.ROOT, "st_lib", "*", "*.st")))
 PLC = ["central", "central_bidi", "central_many", "outstation", "outstation_bidi",
        "central_soe", "outstation_soe", "central_push"]
 

@@ -1,5 +1,5 @@
 """ST (matiec dialect) -> TIA Portal SCL external source files, generated from stc's own syntax
-tree (one source of truth: st_lib/*.st; the .scl is never edited by hand).
+tree (one source of truth: st_lib/*/*.st; the .scl is never edited by hand).
 
     python -m stc.scl_out -o OUTDIR FILE.st...      # FILE.st in import order
 
@@ -638,7 +638,7 @@ def array_aliases(paths):
 
 def library_version(paths):
     """MAJOR.MINOR.PATCH from the constants uMajor, uMinor, uPatch of the FUNCTION that declares
-    them (st_lib/MIP_Version.st, the library's one source of its version)."""
+    them (st_lib/core/MIP_Version.st, the library's one source of its version)."""
     for _f, _t, nodes in _parsed(paths).files:
         for n in nodes:
             if not isinstance(n, S.Function):
@@ -649,7 +649,7 @@ def library_version(paths):
             if all(isinstance(x, S.IntLit) for x in parts):
                 return ".".join(str(x.value) for x in parts)
     raise _error("stc.scl_out", "G0107", "no FUNCTION with constants uMajor, uMinor, uPatch "
-                 "(st_lib/MIP_Version.st) among the inputs")
+                 "(st_lib/core/MIP_Version.st) among the inputs")
 
 
 def generate_files(paths, version):
