@@ -364,8 +364,10 @@ class LoggerLink(_Kernel):
         2 applies only where P27 allows it, e.g. not in MIP_Link)."""
         out = set()
         for (role, _), plc in self.plcs.items():
-            names = (["OUT0.LINK.SND.XPIPE"] if self.s.bidi else ["OUT0.SND.XPIPE"]) if role == "out" \
-                else ([f"CEN0.LINK{st}.SND.XPIPE" for st in range(1, self.s.stations + 1)]
+            # the hand-written logic is the instance app of the generated PROGRAM (plc/image/)
+            names = (["OUT0.APP.STA1.LINK.SND.XPIPE"] if self.s.bidi else ["OUT0.APP.SND.XPIPE"]) \
+                if role == "out" else ([f"CEN0.APP.STA{st}.LINK.SND.XPIPE"
+                                        for st in range(1, self.s.stations + 1)]
                       if self.s.bidi else [])
             for n in names:
                 try:
