@@ -161,29 +161,27 @@ def generate(img: Image, source: str = "plc/mipprograms/image.py") -> str:
             f"   do not edit. The located image of {img.program}Logic (plc/{img.name}.st, written by",
             "   hand): the located words, copied into its structures before the call and out of them",
             "   after it. *)"]
-    ins, outs, copy_in, copy_out = [], [], [], []
+    located, copy_in, copy_out = [], [], []     # the AT declarations in address order per station
     for k, m in enumerate(status_members("par")):      # %MW0..: all read
-        ins.append(f"  par_{m} AT %MW{PARAMS_BASE + k} : WORD;")
+        located.append(f"  par_{m} AT %MW{PARAMS_BASE + k} : WORD;")
         copy_in.append(f"par.{m} := par_{m};")
     for s in range(1, img.stations + 1):
         for m, d, addr in MODEM_BITS:
             a = addr.format(s=s, st=10 + s)
             typ = "BOOL" if m[0] == "x" else "WORD"
-            (ins if d == "in" else outs).append(f"  m{s}_{m} AT {a} : {typ};")
+            located.append(f"  m{s}_{m} AT {a} : {typ};")
             (copy_in if d == "in" else copy_out).append(
                 f"m{s}.{m} := m{s}_{m};" if d == "in" else f"m{s}_{m} := m{s}.{m};")
-        decl = glue.declarations(lay, s)
-        ins += decl[:READ_REGS]
-        outs += decl[READ_REGS:]
+        located += glue.declarations(lay, s)      # mip-glue's: the read block's, the write block's
         copy_in += glue.read_copies(lay, s, indent="")
         copy_out += glue.write_copies(lay, s, indent="")
         for g, m, addr, d in _status_words(img, s):
-            (ins if d == "in" else outs).append(f"  {g}_{m} AT %MW{addr} : WORD;")
+            located.append(f"  {g}_{m} AT %MW{addr} : WORD;")
             (copy_in if d == "in" else copy_out).append(
                 f"{g}.{m} := {g}_{m};" if d == "in" else f"{g}_{m} := {g}.{m};")
         if "win" in img.status:
             b = peer_base(s) + WIN_OFFSET
-            outs += [f"  win{s}_{i} AT %MW{b + i} : WORD;" for i in range(WINDOW)]
+            located += [f"  win{s}_{i} AT %MW{b + i} : WORD;" for i in range(WINDOW)]
             copy_out += [f"win{s}_{i} := win{s}[{i}];" for i in range(WINDOW)]
     structs = globals_of(img)
     call = ", ".join(f"{n} := {n}" for n, _t in structs)
@@ -194,7 +192,7 @@ def generate(img: Image, source: str = "plc/mipprograms/image.py") -> str:
     text += ["END_VAR", "VAR",
              f"  snapReq AT {SNAP_REQUEST} : BOOL;    (* plcrt [retain] request: a snapshot after this scan *)",
              f"  snapSaved AT {SNAP_SAVED} : WORD;     (* plcrt [retain] saved: snapshots completed *)"]
-    text += ins + outs + ["END_VAR"] + copy_in
+    text += located + ["END_VAR"] + copy_in
     text += [f"app({call},", "    wSnapshots := snapSaved);", "snapReq := app.xSnapshotReq;"]
     text += copy_out + ["END_PROGRAM", "",
              "CONFIGURATION Config0", "  RESOURCE Res0 ON PLC",
