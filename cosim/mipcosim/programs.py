@@ -48,10 +48,21 @@ RCV_WORDS = {_const_name(m): k for k, m in enumerate(status_members("rcv"))}
 S_BASE = SND_OFFSET
 SND_WORDS = {_const_name(m): S_BASE + k for k, m in enumerate(status_members("snd"))}
 W_BASE = WIN_OFFSET
-globals().update({f"P_{n}": k for n, k in PARAM_WORDS.items()})
-globals().update({f"R_{n}": k for n, k in RCV_WORDS.items()})
-globals().update({f"S_{n}": k for n, k in SND_WORDS.items()})
-P_CHUNK = PARAM_WORDS["CHUNK_SIZE"]
+# looked up by name (a member the ST renames or drops is a KeyError here, not a silent shift)
+P_START, P_TOTAL_LO, P_TOTAL_HI, P_PER_TRANSFER, P_PAYLOAD, P_SESSION, P_STATION, P_FLAGS, \
+    P_LOG_PERIOD, P_TIMEOUT, P_CHUNK, P_TRANSFER_TIMEOUT, P_MAX_RETRIES, P_CYCLIC_WRITE, \
+    P_START_LO, P_START_HI = (PARAM_WORDS[n] for n in (
+        "START", "TOTAL_LO", "TOTAL_HI", "PER_TRANSFER", "PAYLOAD", "SESSION", "STATION", "FLAGS",
+        "LOG_PERIOD", "TIMEOUT", "CHUNK_SIZE", "TRANSFER_TIMEOUT", "MAX_RETRIES", "CYCLIC_WRITE",
+        "START_LO", "START_HI"))
+R_SEQ, R_FLAGS, R_NUMBER, R_LEN, R_ERROR, R_REC_LO, R_REC_HI, R_COM_LO, R_COM_HI, R_SUM_A, \
+    R_SUM_B, R_TRANSFERS, R_FAILED, R_DUP, R_UNEXP, R_OPEN_LO, R_OPEN_HI, R_OFFERED, \
+    R_TAKEN = (RCV_WORDS[n] for n in (
+        "SEQ", "FLAGS", "NUMBER", "LEN", "ERROR", "REC_LO", "REC_HI", "COM_LO", "COM_HI", "SUM_A",
+        "SUM_B", "TRANSFERS", "FAILED", "DUP", "UNEXP", "OPEN_LO", "OPEN_HI", "OFFERED", "TAKEN"))
+S_SEQ, S_FLAGS, S_ERROR, S_LOG_LO, S_LOG_HI, S_OUT_LO, S_OUT_HI, S_DONE, S_FAILED, S_RETRANS, \
+    S_ALL = (SND_WORDS[n] for n in ("SEQ", "FLAGS", "ERROR", "LOG_LO", "LOG_HI", "OUT_LO", "OUT_HI",
+                                    "DONE", "FAILED", "RETRANS", "ALL"))
 F_POLLED, F_STATIC, F_CYCLIC, F_RETAIN, F_WINDOW2, F_HANDOVER = 1, 2, 4, 8, 16, 32
 # F_RETAIN: the blocks' xRetained (W1, W2); F_WINDOW2: MIP_Sender's uWindow 2 (P27);
 # F_HANDOVER: the central acknowledges a record only once the control system took it
