@@ -1,5 +1,7 @@
-"""Writes the example programs plc/{outstation,central}{,_bidi}.st, plc/central_many.st and the
-OpenPLC v3 Modbus configurations plc/openplc/{outstation,central}-mbconfig.cfg.
+"""Writes the generated ST of plc/: the located images plc/image/{outstation,central}{,_bidi}_io.st
+of the hand-written logger programs (mipprograms.image), the programs still generated whole
+(plc/central_many.st, the chain's) and the OpenPLC v3 Modbus configurations
+plc/openplc/{outstation,central}-mbconfig.cfg.
 
 Portable ST cannot index located variables, so the copies between the located Modbus image
 and the MIP blocks' arrays are one statement per register; this generator writes them with

@@ -1,27 +1,24 @@
-"""The located image of the example programs, described once.
+"""The located image of the example logger programs, described once.
 
-The logic of each program in plc/ is ST written by hand (plc/<name>.st). What portable ST cannot
-write compactly, its located I/O, is generated from this description into plc/image/<name>_io.st
-(marked "generated ... do not edit"): the scalar `AT %IX / %IW / %QX / %QW / %MW` words of
-every modem range and status block, and two programs that copy them into and out of the globals
-the hand-written program uses (VAR_EXTERNAL):
+The logic of each logger program in plc/ is ST written by hand (plc/<name>.st: FUNCTION_BLOCK
+<Program>Logic, working on structures, never on a located variable). Only its located image is
+generated, from this description, into plc/image/<name>_io.st (first line: "generated ... do
+not edit"): PROGRAM <Program> with one located scalar per register (`AT %IX / %IW / %QX / %QW /
+%MW`), the copies into the structures (PLC_T_Params, PLC_T_Modem per modem range,
+PLC_T_RcvStatus, PLC_T_SndStatus, PLC_T_Window), the call of the logic (instance app, RETAIN)
+with them as VAR_IN_OUT, the copies out, and the CONFIGURATION.
 
-    PROGRAM <P>_ImageIn    located inputs  -> globals   (first in the task)
-    PROGRAM <P>           the hand-written logic         (second)
-    PROGRAM <P>_ImageOut   globals -> located outputs   (last)
+Why so (checked with upstream matiec, the matiec fork stock OpenPLC ships and stc; plc/README.md
+"Hand-written logic, generated image"): OpenPLC binds only the first register of a located
+ARRAY, so the image stays scalar and the copies are generated; a FUNCTION_BLOCK cannot hold
+located variables (matiec), so they are in the PROGRAM; unlocated VAR_GLOBALs break upstream
+matiec's LOCATED_VARIABLES.h, so the structures are the PROGRAM's and go to the logic by
+reference; matiec wants a block declared before its use, so the logic comes first.
 
-Why so (checked with upstream matiec, OpenPLC's matiec fork and stc, plc/README.md): matiec
-has no located arrays that OpenPLC binds (it binds a located ARRAY's first register only) and a
-FUNCTION_BLOCK cannot hold located variables, so the image stays one scalar per register; the
-copies are generated, the globals have named types (PLC_T_Modem, PLC_T_RcvStatus,
-PLC_T_SndStatus, PLC_T_Window in plc/PLC_Logger.st) and both matiec flavours and stc accept
-VAR_GLOBAL in the CONFIGURATION with VAR_EXTERNAL in the programs. The instances of one task
-run in the order the CONFIGURATION declares them (matiec, stc in every mode).
-
-The %MW status block is defined once: the order of the members of PLC_T_RcvStatus and
-PLC_T_SndStatus in plc/PLC_Logger.st is the block (member k at base + k); this module reads it
-from that ST file with stc's parser (status_members), and so do the co-simulation's R_* / S_*
-numbers (mipcosim.programs). The bases (100 + 200 (s - 1), +20, +40) are given here only.
+The %MW words are defined once: the order of the members of PLC_T_Params, PLC_T_RcvStatus and
+PLC_T_SndStatus in plc/PLC_Logger.st (member k at the block's base + k), read from that ST file
+with stc's parser (status_members) by the generator and by the co-simulation's P_* / R_* / S_*
+numbers (mipcosim.programs). Only the bases are given here.
 """
 from __future__ import annotations
 
@@ -32,7 +29,9 @@ from pathlib import Path
 from . import mipglue as glue
 
 PLC_DIR = Path(__file__).resolve().parents[1]
-TYPES_FILE = PLC_DIR / "PLC_Logger.st"        # where the types of the globals are declared
+TYPES_FILE = PLC_DIR / "PLC_Logger.st"        # where the image's types are declared
+if (Path(__file__).resolve().parent / "PLC_Logger.st").is_file():
+    TYPES_FILE = Path(__file__).resolve().parent / "PLC_Logger.st"   # in the test kit's wheel (kit/)
 IMAGE_DIR = "image"                            # plc/image/<name>_io.st
 READ_REGS, WRITE_REGS, WINDOW = 125, 123, 160
 SND_OFFSET, WIN_OFFSET = 20, 40                # in a peer's block: sender status, window
