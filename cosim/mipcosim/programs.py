@@ -8,6 +8,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from mipprobe.regmap import MDP810, TRM810
+from mipprograms.image import SND_OFFSET, WIN_OFFSET, program_files, status_members
 from plcharness.config import Config, Section
 
 from .libraries import LIBRARIES, all_files, library_files
@@ -28,23 +29,39 @@ MAX_STATIONS = 4
 WINDOW = 160
 FFFF = 0xFFFF
 
-# %MW parameters
+# The %MW words, defined once: the order of the members of PLC_T_Params, PLC_T_RcvStatus and
+# PLC_T_SndStatus in plc/PLC_Logger.st (member k at the block's base + k), read from the ST by
+# mipprograms.image (stc's parser). wTotalLo -> P_TOTAL_LO, wRecLo -> R_REC_LO, ...
+
+
+def _const_name(member):
+    return re.sub(r"(?<=[a-z0-9])([A-Z])", r"_\1", member[1:]).upper()
+
+
+PARAM_WORDS = {_const_name(m): k for k, m in enumerate(status_members("par"))}
+RCV_WORDS = {_const_name(m): k for k, m in enumerate(status_members("rcv"))}
+S_BASE = SND_OFFSET
+SND_WORDS = {_const_name(m): S_BASE + k for k, m in enumerate(status_members("snd"))}
+W_BASE = WIN_OFFSET
+# looked up by name (a member the ST renames or drops is a KeyError here, not a silent shift)
 P_START, P_TOTAL_LO, P_TOTAL_HI, P_PER_TRANSFER, P_PAYLOAD, P_SESSION, P_STATION, P_FLAGS, \
     P_LOG_PERIOD, P_TIMEOUT, P_CHUNK, P_TRANSFER_TIMEOUT, P_MAX_RETRIES, P_CYCLIC_WRITE, \
-    P_START_LO, P_START_HI = range(16)
+    P_START_LO, P_START_HI = (PARAM_WORDS[n] for n in (
+        "START", "TOTAL_LO", "TOTAL_HI", "PER_TRANSFER", "PAYLOAD", "SESSION", "STATION", "FLAGS",
+        "LOG_PERIOD", "TIMEOUT", "CHUNK_SIZE", "TRANSFER_TIMEOUT", "MAX_RETRIES", "CYCLIC_WRITE",
+        "START_LO", "START_HI"))
+R_SEQ, R_FLAGS, R_NUMBER, R_LEN, R_ERROR, R_REC_LO, R_REC_HI, R_COM_LO, R_COM_HI, R_SUM_A, \
+    R_SUM_B, R_TRANSFERS, R_FAILED, R_DUP, R_UNEXP, R_OPEN_LO, R_OPEN_HI, R_OFFERED, \
+    R_TAKEN = (RCV_WORDS[n] for n in (
+        "SEQ", "FLAGS", "NUMBER", "LEN", "ERROR", "REC_LO", "REC_HI", "COM_LO", "COM_HI", "SUM_A",
+        "SUM_B", "TRANSFERS", "FAILED", "DUP", "UNEXP", "OPEN_LO", "OPEN_HI", "OFFERED", "TAKEN"))
+S_SEQ, S_FLAGS, S_ERROR, S_LOG_LO, S_LOG_HI, S_OUT_LO, S_OUT_HI, S_DONE, S_FAILED, S_RETRANS, \
+    S_ALL = (SND_WORDS[n] for n in ("SEQ", "FLAGS", "ERROR", "LOG_LO", "LOG_HI", "OUT_LO", "OUT_HI",
+                                    "DONE", "FAILED", "RETRANS", "ALL"))
 F_POLLED, F_STATIC, F_CYCLIC, F_RETAIN, F_WINDOW2, F_HANDOVER = 1, 2, 4, 8, 16, 32
 # F_RETAIN: the blocks' xRetained (W1, W2); F_WINDOW2: MIP_Sender's uWindow 2 (P27);
 # F_HANDOVER: the central acknowledges a record only once the control system took it
 # (PLC_HandOver: R_OFFERED / R_TAKEN)
-
-# offsets in a peer block (%MW 100 + 200 (s-1))
-R_SEQ, R_FLAGS, R_NUMBER, R_LEN, R_ERROR, R_REC_LO, R_REC_HI, R_COM_LO, R_COM_HI, R_SUM_A, \
-    R_SUM_B, R_TRANSFERS, R_FAILED, R_DUP, R_UNEXP, R_OPEN_LO, R_OPEN_HI, R_OFFERED, \
-    R_TAKEN = range(19)
-S_BASE = 20
-S_SEQ, S_FLAGS, S_ERROR, S_LOG_LO, S_LOG_HI, S_OUT_LO, S_OUT_HI, S_DONE, S_FAILED, S_RETRANS, \
-    S_ALL = range(S_BASE, S_BASE + 11)
-W_BASE = 40
 
 
 class EnumError(Exception):
@@ -121,9 +138,12 @@ def lib_sources(libs=LIBRARIES) -> list[str]:
 
 
 def program_sources(role: str, bidi: bool):
-    name = f"{role}{'_bidi' if bidi else ''}.st"
-    return lib_sources(("core",)) + [str(PLC_DIR / "PLC_Logger.st"),
-                                                   str(PLC_DIR / name)]
+    """The files of plc/'s program `role` (outstation, central, central_many; bidi: the
+    _bidi variant) in compile order: st_lib, the helpers, the hand-written program and its
+    generated image (plc/image/, which holds the CONFIGURATION)."""
+    name = f"{role}{'_bidi' if bidi else ''}"
+    return lib_sources(("core",)) + [str(PLC_DIR / "PLC_Logger.st")] + \
+        [str(p) for p in program_files(name)]
 
 
 def log_value(n, j, session, station):
@@ -174,11 +194,19 @@ class Params:
         flags = (F_POLLED if self.polled else 0) | (F_STATIC if self.static else 0) | \
                 (F_CYCLIC if self.cyclic else 0) | (F_RETAIN if self.retain else 0) | \
                 (F_WINDOW2 if self.window >= 2 else 0) | (F_HANDOVER if self.handover else 0)
-        return [1 if start else 0, self.records % 65536, self.records // 65536, self.per_transfer,
-                self.payload, self.session, self.station, flags, self.log_period_ms,
-                self.timeout_ms, self.chunk, self.transfer_timeout_s, self.max_retries, 0,
-                self.start % 65536, self.start // 65536] + \
-            [w for d in self.down_start for w in (d % 65536, d // 65536)]
+        values = {"START": 1 if start else 0, "TOTAL_LO": self.records % 65536,
+                  "TOTAL_HI": self.records // 65536, "PER_TRANSFER": self.per_transfer,
+                  "PAYLOAD": self.payload, "SESSION": self.session, "STATION": self.station,
+                  "FLAGS": flags, "LOG_PERIOD": self.log_period_ms, "TIMEOUT": self.timeout_ms,
+                  "CHUNK_SIZE": self.chunk, "TRANSFER_TIMEOUT": self.transfer_timeout_s,
+                  "MAX_RETRIES": self.max_retries, "CYCLIC_WRITE": 0,
+                  "START_LO": self.start % 65536, "START_HI": self.start // 65536}
+        for s, d in enumerate(self.down_start, 1):
+            values[f"DOWN_START{s}_LO"], values[f"DOWN_START{s}_HI"] = d % 65536, d // 65536
+        words = [0] * len(PARAM_WORDS)
+        for name, k in PARAM_WORDS.items():
+            words[k] = values[name]      # KeyError: a parameter of PLC_T_Params with no value here
+        return words
 
     def effective_payload(self, bidi):
         room = self.chunk - (2 if bidi else 1)

@@ -280,18 +280,20 @@ class LoggerLink(_Kernel):
             # the %MW words are contiguous in the image
             self.kernel.tap(slot, pid, seq, hdr, nhdr, 2 if data else -1, data, 122)
 
+        # the hand-written logic is the instance APP of the generated PROGRAM (plc/image/); a
+        # station's blocks are in its STA<s> (PLC_RcvStation, PLC_LinkStation)
         if role == "out":
             b = L.peer_base(1)
-            tap(20 + s, b + L.S_SEQ, 2, seq_src="SRC")         # sender events: flags, error
+            tap(20 + s, b + L.S_SEQ, 2, seq_src="APP.STA1.SRC" if bidi else "APP.SRC")
             if bidi:
-                tap(30 + s, b + L.R_SEQ, 4, "OUTSTATIONBIDI.LINK.ARECORD", "STORE")
+                tap(30 + s, b + L.R_SEQ, 4, "OUTSTATIONBIDI.APP.STA1.LINK.ARECORD", "APP.STA1.STORE")
         else:
             for st in range(1, self.s.stations + 1):
                 b = L.peer_base(st)
-                fb = f"CENTRALBIDI.LINK{st}" if bidi else f"CENTRAL.RCV{st}"
-                tap(st, b + L.R_SEQ, 4, f"{fb}.ARECORD", f"STORE{st}")   # flags, number, len, error
+                fb = f"{prog}.APP.STA{st}.{'LINK' if bidi else 'RCV'}"
+                tap(st, b + L.R_SEQ, 4, f"{fb}.ARECORD", f"APP.STA{st}.STORE")   # flags, number, len, error
                 if bidi:
-                    tap(10 + st, b + L.S_SEQ, 2, seq_src=f"SRC{st}")
+                    tap(10 + st, b + L.S_SEQ, 2, seq_src=f"APP.STA{st}.SRC")
 
     # ------------------------------------------------------------------ running
 
@@ -364,8 +366,10 @@ class LoggerLink(_Kernel):
         2 applies only where P27 allows it, e.g. not in MIP_Link)."""
         out = set()
         for (role, _), plc in self.plcs.items():
-            names = (["OUT0.LINK.SND.XPIPE"] if self.s.bidi else ["OUT0.SND.XPIPE"]) if role == "out" \
-                else ([f"CEN0.LINK{st}.SND.XPIPE" for st in range(1, self.s.stations + 1)]
+            # the hand-written logic is the instance app of the generated PROGRAM (plc/image/)
+            names = (["OUT0.APP.STA1.LINK.SND.XPIPE"] if self.s.bidi else ["OUT0.APP.SND.XPIPE"]) \
+                if role == "out" else ([f"CEN0.APP.STA{st}.LINK.SND.XPIPE"
+                                        for st in range(1, self.s.stations + 1)]
                       if self.s.bidi else [])
             for n in names:
                 try:

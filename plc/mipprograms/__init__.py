@@ -3,7 +3,10 @@
 - mipglue: `mip-glue`, the located-variable copies between a Modbus master's image and the MIP
   blocks (also for integrators: the test kit installs it);
 - openplc_limits: stock OpenPLC v3's Modbus master limits, checked on an mbconfig.cfg;
-- gen (common, logger, soe): plc/*.st and plc/openplc/*.cfg (plc/gen_programs.py runs it).
+- image: the one description of the logger programs' located image (plc/image/*_io.st) and
+  the %MW layout read from plc/PLC_Logger.st;
+- gen (common, logger, soe, image): the generated ST of plc/ and plc/openplc/*.cfg
+  (plc/gen_programs.py runs it).
 
-Standard library only: the co-simulation (central_many), the kit and the demos import it, it
+Standard library, mipprobe and stc's parser only: the co-simulation (central_many), the kit and the demos import it, it
 imports none of them."""

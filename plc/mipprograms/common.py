@@ -152,21 +152,6 @@ def located_io(s, tag):
     return lines
 
 
-def status_vars(s, receiver=True, sender=True):
-    b = peer_base(s)
-    out = []
-    if receiver:
-        names = ["Seq", "Flags", "Number", "Len", "Error", "RecLo", "RecHi", "ComLo", "ComHi",
-                 "SumA", "SumB", "Transfers", "Failed", "Dup", "Unexp", "OpenLo", "OpenHi"]
-        out += [f"  mR{s}{n} AT %MW{b + i} : WORD;" for i, n in enumerate(names)]
-        out += [f"  mWin{s}_{i} AT %MW{b + 40 + i} : WORD;" for i in range(WINDOW)]
-    if sender:
-        names = ["Seq", "Flags", "Error", "LogLo", "LogHi", "OutLo", "OutHi", "Done", "Failed",
-                 "Retrans", "All"]
-        out += [f"  mS{s}{n} AT %MW{b + 20 + i} : WORD;" for i, n in enumerate(names)]
-    return out
-
-
 def io_before(s):
     """Read handshake and read block copy, before the MIP block is called."""
     lines = [f"(* station {s}: read handshake (trigger policy): a read every other scan; the block is"
@@ -192,40 +177,6 @@ def io_after(s, fb):
     lines += glue.write_copies(GLUE, s, array=f"{fb}.aWrite")
     lines += ["END_IF;"]
     return lines
-
-
-def store_out(s, store, extra_failed=None):
-    lines = [
-        f"mR{s}Seq := {store}.wSeq;", f"mR{s}Flags := {store}.wFlags;",
-        f"mR{s}Number := {store}.wNumber;", f"mR{s}Len := {store}.wLen;",
-        f"mR{s}Error := {store}.wError;",
-        f"mR{s}RecLo := UDINT_TO_WORD({store}.udiRecords MOD 65536);",
-        f"mR{s}RecHi := UDINT_TO_WORD({store}.udiRecords / 65536);",
-        f"mR{s}ComLo := UDINT_TO_WORD({store}.udiCommitted MOD 65536);",
-        f"mR{s}ComHi := UDINT_TO_WORD({store}.udiCommitted / 65536);",
-        f"mR{s}SumA := {store}.wSumA;", f"mR{s}SumB := {store}.wSumB;",
-        f"mR{s}Transfers := UINT_TO_WORD({store}.uTransfers);",
-        f"mR{s}Failed := UINT_TO_WORD({store}.uFailed);",
-        f"mR{s}OpenLo := UDINT_TO_WORD({store}.udiOpen MOD 65536);",
-        f"mR{s}OpenHi := UDINT_TO_WORD({store}.udiOpen / 65536);",
-    ]
-    lines += [f"mWin{s}_{i} := {store}.aWindow[{i}];" for i in range(WINDOW)]
-    return lines
-
-
-def source_out(s, src, retrans):
-    return [
-        f"mS{s}Seq := {src}.wSeq;", f"mS{s}Flags := {src}.wFlags;",
-        f"mS{s}Error := {src}.wLastError;",
-        f"mS{s}LogLo := UDINT_TO_WORD({src}.udiLogged MOD 65536);",
-        f"mS{s}LogHi := UDINT_TO_WORD({src}.udiLogged / 65536);",
-        f"mS{s}OutLo := UDINT_TO_WORD({src}.udiReadOut MOD 65536);",
-        f"mS{s}OutHi := UDINT_TO_WORD({src}.udiReadOut / 65536);",
-        f"mS{s}Done := UINT_TO_WORD({src}.uTransfersDone);",
-        f"mS{s}Failed := UINT_TO_WORD({src}.uTransfersFailed);",
-        f"mS{s}Retrans := UDINT_TO_WORD({retrans} MOD 65536);",
-        f"IF {src}.xAllReadOut THEN mS{s}All := WORD#1; ELSE mS{s}All := WORD#0; END_IF;",
-    ]
 
 
 def var_blocks(decl):

@@ -1,5 +1,7 @@
-"""Writes the example programs plc/{outstation,central}{,_bidi}.st, plc/central_many.st and the
-OpenPLC v3 Modbus configurations plc/openplc/{outstation,central}-mbconfig.cfg.
+"""Writes the generated ST of plc/: the located images plc/image/{outstation,central}{,_bidi}_io.st
+of the hand-written logger programs (mipprograms.image), the programs still generated whole
+(plc/central_many.st, the chain's) and the OpenPLC v3 Modbus configurations
+plc/openplc/{outstation,central}-mbconfig.cfg.
 
 Portable ST cannot index located variables, so the copies between the located Modbus image
 and the MIP blocks' arrays are one statement per register; this generator writes them with
@@ -22,7 +24,8 @@ from pathlib import Path
 from mipprobe.regmap import MDP810, TRM810
 
 from .common import OPENPLC_STATIONS, MAX_STATIONS, READ_REGS, WRITE_REGS
-from .logger import MANY_STATIONS, MAX_UNIT, central, central_many, outstation
+from .image import IMAGES, generate as generate_image, io_file
+from .logger import MANY_STATIONS, MAX_UNIT, central_many
 from .openplc_limits import MAX_MB_IO, LimitError, check as check_openplc
 from .soe import central_push, central_soe, outstation_soe
 
@@ -77,9 +80,9 @@ def main(argv=()):
         print(f"gen_programs.py: error: --many-stations {a.many_stations}: one MDP-810 serves "
               f"unit ids 1..{MAX_UNIT}", file=sys.stderr)
         return 2
-    files = [("outstation.st", outstation(False)), ("central.st", central(False)),
-             ("outstation_bidi.st", outstation(True)), ("central_bidi.st", central(True)),
-             ("central_many.st", central_many(a.many_stations)),
+    # the located image of the hand-written programs (plc/<name>.st): plc/image/<name>_io.st
+    files = [(io_file(img.name), generate_image(img)) for img in IMAGES]
+    files += [("central_many.st", central_many(a.many_stations)),
              ("outstation_soe.st", outstation_soe()), ("central_soe.st", central_soe()),
              ("central_push.st", central_push())]
     files += openplc_configs(a.openplc_stations)

@@ -145,8 +145,8 @@ def test_guarantee_table_cold_restart_row_names_what_the_caller_must_do():
     table = (REPO / "docs" / "protocol.md").read_text()
     row = re.search(r"^\| cold restart \|.*$", table, re.M).group(0)
     assert "xAckByCaller" in row and "xRecordProcessed" in row
-    gen = (REPO / "plc" / "central.st").read_text()
-    assert "xAckByCaller := xHandOver" in gen and "(pFlags AND 16#0020)" in gen, \
+    gen = (REPO / "plc" / "central.st").read_text() + (REPO / "plc" / "PLC_Logger.st").read_text()
+    assert "xAckByCaller := stSet.xHandOver" in gen and "(stPar.wFlags AND 16#0020)" in gen, \
         "plc/central.st no longer hands over with flags bit 5: change the guarantee table's row"
     assert (REPO / "tests" / "chain" / "test_chain_central_cold.py").is_file()
 
@@ -257,7 +257,7 @@ def test_central_many_is_not_retain_as_plc_readme_says():
     assert "This program is not RETAIN" in text
     assert "VAR RETAIN" not in (REPO / "plc" / "central_many.st").read_text(), \
         "plc/central_many.st is RETAIN now: change plc/README.md"
-    assert "VAR RETAIN" in (REPO / "plc" / "central.st").read_text()
+    assert "VAR RETAIN\n  app : CentralLogic;" in (REPO / "plc" / "image" / "central_io.st").read_text()
 
 
 # The other limitations the pages state (the sweep of issue 44: "not supported / not yet / needs

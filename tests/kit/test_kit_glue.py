@@ -237,8 +237,8 @@ def test_kit_example_glue_is_what_its_command_writes(example, program):
 
 
 @pytest.mark.parametrize("program,args,indent", [
-    ("central.st", ["--stations", "4", "--read-array", "rd{s}", "--write-array", "rcv{s}.aWrite",
-                    "--runtime", "plcrt"], "  "),
+    ("image/central_io.st", ["--stations", "4", "--read-array", "m{s}.aRead", "--write-array",
+                             "m{s}.aWrite", "--runtime", "plcrt"], ""),
     ("central_many.st", ["--read-prefix", "r_", "--write-prefix", "w_", "--read-array", "rd",
                          "--write-array", "aWr"], "    "),
 ])
@@ -250,7 +250,7 @@ def test_plc_programs_copies_are_what_mip_glue_writes(program, args, indent):
     text = (REPO / "plc" / program).read_text()
     regions = re.findall(r"\(\* BEGIN mip-glue ([\w ]+?)(?:: [^\n]*)? \*\)\n(.*?)\(\* END mip-glue \1 \*\)",
                          r.stdout, re.S)
-    assert len(regions) == 1 + 2 * (4 if program == "central.st" else 1)
+    assert len(regions) == 1 + 2 * (4 if program == "image/central_io.st" else 1)
     decl = regions[0][1].splitlines()[1:-1]        # without VAR / END_VAR
     start = 0
     for line in decl:                              # in order (the handshake lines between stations)

@@ -359,7 +359,7 @@ def test_plc_at_the_mdp_with_a_peer_outstation(tmp_path):
             cen[f"%MW{i}"] = w
         assert net.run_until(lambda: peer.done, within_s=120)
         assert net.stats(2)["lost_down"] > 0 and net.stats(1)["blocks_up"] == 0
-        assert cen["CENTRAL.RCV2.UDIRECORDS"] == 7
+        assert cen["CENTRAL.APP.STA2.RCV.UDIRECORDS"] == 7
 
 
 def test_matiec_builds_the_example_when_iec2c_is_on_path(example, tmp_path):
@@ -546,12 +546,13 @@ def test_delivered_taps_the_integrators_own_central(tmp_path):
         for i, w in enumerate(L.Params(records=0, station=0, retain=True).words()):
             cen[f"%MW{i}"] = w
         out["%MW1"], out["%MW3"], out["%MW0"] = 8, 1500, 1
-        assert [r.split(".")[-1] for r in cen.receivers] == ["RCV1", "RCV2", "RCV3", "RCV4"]
+        assert [".".join(r.split(".")[-2:]) for r in cen.receivers] == [
+            "STA1.RCV", "STA2.RCV", "STA3.RCV", "STA4.RCV"]
         with pytest.raises(KitError, match="has 4 MIP_Receiver instances .*name one"):
             cen.delivered()
-        assert net.run_until(lambda: len(cen.delivered("RCV1")) >= 3, within_s=60)
+        assert net.run_until(lambda: len(cen.delivered("STA1.RCV")) >= 3, within_s=60)
         cen.restart("kill9")
         assert net.run_until(lambda: out["%MW12"] == 8, within_s=120)
         net.run_for(2)
-        assert assert_records(cen.delivered("rcv1"), want) == 8
-        assert cen.transfers_received("RCV1") == 8 and cen.delivered("RCV2") == []
+        assert assert_records(cen.delivered("sta1.rcv"), want) == 8
+        assert cen.transfers_received("STA1.RCV") == 8 and cen.delivered("STA2.RCV") == []

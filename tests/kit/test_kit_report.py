@@ -45,9 +45,9 @@ def test_blocks_are_found_by_type(tmp_path):
     assert blocks_of(lib() + [EXAMPLE / "st" / "FieldLogger.st", EXAMPLE / "st" / "Outstation.st"],
                      tmp_path / "a") == [("FIELDSTATION.SND", "MIP_Sender")]
     assert blocks_of(L.program_sources("central", False), tmp_path / "b") == \
-        [(f"CENTRAL.RCV{i}", "MIP_Receiver") for i in range(1, 5)]
+        [(f"CENTRAL.APP.STA{i}.RCV", "MIP_Receiver") for i in range(1, 5)]
     assert blocks_of(L.program_sources("central", True), tmp_path / "c") == \
-        [(f"CENTRALBIDI.LINK{i}", "MIP_Link") for i in range(1, 5)]
+        [(f"CENTRALBIDI.APP.STA{i}.LINK", "MIP_Link") for i in range(1, 5)]
     src = tmp_path / "Buf.st"
     src.write_text(BUFFER_PROGRAM)
     assert blocks_of(lib() + [src], tmp_path / "d") == [("BUF.BS", "MIP_BufferSender"),
@@ -107,16 +107,16 @@ def test_the_fault_at_an_integrators_own_central(tmp_path):
             cen[f"%MW{i}"] = w
         assert net.run_until(lambda: peer.done, within_s=120)
         head, _, _ = failure_report(net, "record 3: got [3, 0], want [3, 1]", tmp_path / "r")
-        assert re.fullmatch(r"mip-kit: fault: record 3: central CENTRAL\.RCV2 delivered it by "
+        assert re.fullmatch(r"mip-kit: fault: record 3: central CENTRAL\.APP\.STA2\.RCV delivered it by "
                             r"\d+\.\d{3} s \(sampled every 100 ms\)", head[0]), head[0]
         assert head[1].startswith("mip-kit: the blocks at the fault (")
-        rcv2 = next(l for l in head[2:] if l.startswith("  central CENTRAL.RCV2 (MIP_Receiver): "))
+        rcv2 = next(l for l in head[2:] if l.startswith("  central CENTRAL.APP.STA2.RCV (MIP_Receiver): "))
         assert "eWaitReason=MIP_WAIT_RECORD" in rcv2
         blocks = [l.split(" (MIP_Receiver)")[0] for l in head if l.startswith("  central ")]
-        assert blocks[:4] == [f"  central CENTRAL.RCV{i}" for i in range(1, 5)]
+        assert blocks[:4] == [f"  central CENTRAL.APP.STA{i}.RCV" for i in range(1, 5)]
         head, _, _ = failure_report(net, "not complete", tmp_path / "r2")
         assert head[0].startswith("mip-kit: fault: record 8: never delivered by central "
-                                  "CENTRAL.RCV2 (it delivered 7 records, the last at "), head[0]
+                                  "CENTRAL.APP.STA2.RCV (it delivered 7 records, the last at "), head[0]
 
 
 def test_a_failure_that_is_not_about_records_says_none_is_missing(example):

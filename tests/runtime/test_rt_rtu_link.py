@@ -406,7 +406,7 @@ def test_example_outstation_on_a_missing_serial_line_names_the_link_error(tmp_pa
         for i, w in enumerate(L.Params(records=5, station=1).words()):
             plc[f"%MW{i}"] = w
         plc.scan(150)
-        snd = "OUTSTATION.SND"
+        snd = "OUTSTATION.APP.SND"
         wait = L.enum_values("E_MIP_WaitReason")
         assert plc[f"{snd}.XLINKERROR"] and plc[f"{snd}.WLINKERROR"] == 1002
         assert plc[f"{snd}.EWAITREASON"] == wait["MIP_WAIT_LINK"]

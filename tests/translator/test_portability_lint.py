@@ -18,6 +18,7 @@ from stc.compiler import compile_files
 from stc.diag import Diagnostics
 
 import stc_harness as H
+from mipprograms.image import program_files   # a program's files: its logic, its image
 
 STLIB = sorted(glob.glob(os.path.join(H.ROOT, "st_lib", "*", "*.st")))
 PLC_DIR = os.path.join(H.ROOT, "plc")
@@ -87,7 +88,8 @@ def _divergences():
     helpers = sorted(glob.glob(os.path.join(PLC_DIR, "PLC_*.st")))   # PLC_Logger.st first
     sets = [[(f, True) for f in STLIB]]
     for prog in PROGRAMS:
-        sets.append([(f, True) for f in STLIB] + [(h, False) for h in helpers] + [(prog, False)])
+        sets.append([(f, True) for f in STLIB] + [(h, False) for h in helpers]
+                    + [(str(f), False) for f in program_files(os.path.basename(prog)[:-3])])
     for files in sets:
         texts = []
         for f, lib in files:

@@ -7,6 +7,7 @@ import subprocess
 import pytest
 
 import stc_harness as H
+from mipprograms.image import program_files
 
 STLIB = os.path.join(H.ROOT, "st_lib")
 PLC = os.path.join(H.ROOT, "plc")
@@ -37,7 +38,8 @@ def test_st_lib_translates_and_compiles(libs, tmp_path):
 def test_plc_program_translates_and_compiles(prog, tmp_path):
     out = str(tmp_path / "o")
     extra = sorted(glob.glob(os.path.join(PLC, "PLC_*.st")))     # the helpers, PLC_Logger.st first
+    files = [str(f) for f in program_files(os.path.basename(prog)[:-3])]   # logic, image
     r = H.run_stc(["-I", os.path.join(STLIB, "core"), "-I", os.path.join(STLIB, "chain"), "-o", out]
-                  + extra + [prog])
+                  + extra + files)
     assert r.returncode == 0, r.stderr
     _compile(out)

@@ -7,6 +7,7 @@ import os
 import pytest
 
 import stc_harness as H
+from mipprograms.image import program_files
 
 PROG = """PROGRAM Main
 VAR
@@ -85,7 +86,7 @@ def test_st_lib_and_plc_have_only_typed_bit_string_literals(prog, tmp_path):
     if prog:
         files += [os.path.join(H.ROOT, "plc", "PLC_Logger.st"),
                   os.path.join(H.ROOT, "plc", "PLC_SoeChain.st"),
-                  os.path.join(H.ROOT, "plc", prog + ".st")]
+                  *map(str, program_files(prog))]
     r = H.run_stc(["--strict-iec", "-o", str(tmp_path / "gen"), *files])
     assert r.returncode == 0, r.stderr[-2000:]
     assert not warnings(r), "\n".join(warnings(r))

@@ -51,9 +51,9 @@ def test_codesys_xexecute_held_ends_in_a_named_error(vendor_workdir):
     r = run_outstation(FAMILY, vendor_workdir / "cds-held", src, 3, {12: 3},
                        extra=("IO1.FBRD.XDONE",))
     errors = L.enum_values("E_MIP_Error")
-    assert r["SRC.UTRANSFERSDONE"] == 0
-    assert r["SRC.UTRANSFERSFAILED"] >= 1
-    assert r["SRC.WLASTERROR"] == errors["MIP_ERR_NO_ACK"]
+    assert r["APP.SRC.UTRANSFERSDONE"] == 0
+    assert r["APP.SRC.UTRANSFERSFAILED"] >= 1
+    assert r["APP.SRC.WLASTERROR"] == errors["MIP_ERR_NO_ACK"]
     assert r["IO1.FBRD.XDONE"]                     # the one request's xDone, still shown
 
 
@@ -75,11 +75,11 @@ def test_codesys_glue_without_reply_timeout_fails_with_reply_timeout(vendor_work
     src = sources(FAMILY, wd, _without_reply_timeout(), roles=("outstation",))
     r = realistic.run_for(src, ("outstation",), wd, 20,
                           ("OUTSTATION.IO1.EREADERROR", "OUTSTATION.IO1.EWRITEERROR",
-                           "OUTSTATION.SND.XLINKERROR", "OUTSTATION.SND.WLINKERROR",
-                           "OUTSTATION.SRC.UTRANSFERSDONE"))
+                           "OUTSTATION.APP.SND.XLINKERROR", "OUTSTATION.APP.SND.WLINKERROR",
+                           "OUTSTATION.APP.SRC.UTRANSFERSDONE"))
     assert r["OUTSTATION.IO1.EREADERROR"] == 56
-    assert r["OUTSTATION.SND.XLINKERROR"] and r["OUTSTATION.SND.WLINKERROR"] == 56
-    assert r["OUTSTATION.SRC.UTRANSFERSDONE"] == 0
+    assert r["OUTSTATION.APP.SND.XLINKERROR"] and r["OUTSTATION.APP.SND.WLINKERROR"] == 56
+    assert r["OUTSTATION.APP.SRC.UTRANSFERSDONE"] == 0
 
 
 def test_codesys_glue_passes_the_realistic_radio_at_30_percent_loss(vendor_workdir):

@@ -55,12 +55,12 @@ def test_s7_done_taken_as_a_level_ends_in_a_named_error(vendor_workdir):
                        "      IF #mb.ERROR AND")
     src = sources(FAMILY, vendor_workdir / "s7-level", bad, roles=("outstation",))
     r = run_outstation(FAMILY, vendor_workdir / "s7-level", src, 45, {12: 3},
-                       extra=("SND.UDIWRITEERRORS", "IO1.WRITEDONE"))
+                       extra=("APP.SND.UDIWRITEERRORS", "IO1.WRITEDONE"))
     errors = L.enum_values("E_MIP_Error")
-    assert r["SRC.UTRANSFERSDONE"] == 0
-    assert r["SRC.UTRANSFERSFAILED"] >= 1
-    assert r["SRC.WLASTERROR"] == errors["MIP_ERR_NO_ACK"]
-    assert r["SND.UDIWRITEERRORS"] >= 1 and not r["IO1.WRITEDONE"]
+    assert r["APP.SRC.UTRANSFERSDONE"] == 0
+    assert r["APP.SRC.UTRANSFERSFAILED"] >= 1
+    assert r["APP.SRC.WLASTERROR"] == errors["MIP_ERR_NO_ACK"]
+    assert r["APP.SND.UDIWRITEERRORS"] >= 1 and not r["IO1.WRITEDONE"]
 
 
 # issue 47: the connection description. A field the glue sets, removed: against the strict
@@ -78,13 +78,13 @@ def test_s7_glue_without_a_connection_field_fails_with_the_manuals_status(vendor
     wd = vendor_workdir / f"s7-no-{status:x}"
     src = sources(FAMILY, wd, good.replace(line, ""), roles=("outstation",))
     r = run_outstation(FAMILY, wd, src, 10, {12: 3},
-                       extra=("SND.XLINKERROR", "SND.WLINKERROR", "IO1.LASTSTATUS",
+                       extra=("APP.SND.XLINKERROR", "APP.SND.WLINKERROR", "IO1.LASTSTATUS",
                               "IO1.MB.CONNECTED"))
     errors = L.enum_values("E_MIP_Error")
     assert r["IO1.LASTSTATUS"] == status and not r["IO1.MB.CONNECTED"]
-    assert r["SND.XLINKERROR"] and r["SND.WLINKERROR"] == status
-    assert r["SRC.UTRANSFERSDONE"] == 0 and r["SRC.UTRANSFERSFAILED"] >= 1
-    assert r["SRC.WLASTERROR"] == errors["MIP_ERR_NO_ACK"]
+    assert r["APP.SND.XLINKERROR"] and r["APP.SND.WLINKERROR"] == status
+    assert r["APP.SRC.UTRANSFERSDONE"] == 0 and r["APP.SRC.UTRANSFERSFAILED"] >= 1
+    assert r["APP.SRC.WLASTERROR"] == errors["MIP_ERR_NO_ACK"]
 
 
 def test_s7_shipped_glue_over_the_realistic_radio(vendor_workdir):
@@ -111,12 +111,12 @@ def test_s7_lasting_errors_end_in_a_named_error(vendor_workdir, name, fail, stat
     src = sources(FAMILY, vendor_workdir / f"s7-inj-{name}", roles=("outstation",))
     r = run_outstation(FAMILY, vendor_workdir / f"s7-inj-{name}", src, 10,
                        {12: 3, "IO1.MB.SI_FAIL": fail, "IO1.MB.SI_FAILCOUNT": 30000},
-                       extra=("SND.XLINKERROR", "SND.WLINKERROR", "IO1.LASTSTATUS"))
+                       extra=("APP.SND.XLINKERROR", "APP.SND.WLINKERROR", "IO1.LASTSTATUS"))
     errors = L.enum_values("E_MIP_Error")
     assert r["IO1.LASTSTATUS"] == status
-    assert r["SND.XLINKERROR"] and r["SND.WLINKERROR"] == status
-    assert r["SRC.UTRANSFERSDONE"] == 0 and r["SRC.UTRANSFERSFAILED"] >= 1
-    assert r["SRC.WLASTERROR"] == errors["MIP_ERR_NO_ACK"]
+    assert r["APP.SND.XLINKERROR"] and r["APP.SND.WLINKERROR"] == status
+    assert r["APP.SRC.UTRANSFERSDONE"] == 0 and r["APP.SRC.UTRANSFERSFAILED"] >= 1
+    assert r["APP.SRC.WLASTERROR"] == errors["MIP_ERR_NO_ACK"]
 
 
 @pytest.mark.parametrize("realistic", [False, True], ids=["fast-radio", "realistic-radio-30pc-loss"])
@@ -173,8 +173,8 @@ def test_s7_glue_buffer_in_an_optimized_block_fails_with_818c(vendor_workdir):
     wd = vendor_workdir / "s7-optimized"
     src = sources(FAMILY, wd, bad, roles=("outstation",))
     r = run_outstation(FAMILY, wd, src, 10, {12: 3, "IO1.MB.SI_AREAOPTIMIZED": True},
-                       extra=("SND.WLINKERROR", "IO1.LASTSTATUS"))
+                       extra=("APP.SND.WLINKERROR", "IO1.LASTSTATUS"))
     errors = L.enum_values("E_MIP_Error")
-    assert r["IO1.LASTSTATUS"] == 0x818C and r["SND.WLINKERROR"] == 0x818C
-    assert r["SRC.UTRANSFERSDONE"] == 0
-    assert r["SRC.WLASTERROR"] == errors["MIP_ERR_NO_ACK"]
+    assert r["IO1.LASTSTATUS"] == 0x818C and r["APP.SND.WLINKERROR"] == 0x818C
+    assert r["APP.SRC.UTRANSFERSDONE"] == 0
+    assert r["APP.SRC.WLASTERROR"] == errors["MIP_ERR_NO_ACK"]

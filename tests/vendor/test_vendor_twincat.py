@@ -61,9 +61,9 @@ def test_twincat_failed_writes_end_in_a_named_error(vendor_workdir, mistaken):
     r = _failing_writes(vendor_workdir / ("mistaken" if mistaken else "checked"), mistaken)
     errors = L.enum_values("E_MIP_Error")
     assert r["IO1.NWRITEERRID"] == 0x8002          # the stand-in's exception 02: "invalid address"
-    assert r["SRC.UTRANSFERSDONE"] == 0
-    assert r["SRC.UTRANSFERSFAILED"] >= 1
-    assert r["SRC.WLASTERROR"] == errors["MIP_ERR_NO_ACK"]
+    assert r["APP.SRC.UTRANSFERSDONE"] == 0
+    assert r["APP.SRC.UTRANSFERSFAILED"] >= 1
+    assert r["APP.SRC.WLASTERROR"] == errors["MIP_ERR_NO_ACK"]
 
 
 def _central_sources(workdir, unit_id=True):
@@ -88,11 +88,11 @@ def test_twincat_glue_without_unit_id_fails_with_the_gateway_exception(vendor_wo
     the receiver's link error, nothing read out. The shipped call passes (test below)."""
     wd = vendor_workdir / "tc-nounit"
     r = realistic.run_for(_central_sources(wd, unit_id=False), ("central",), wd, 20,
-                          ("CENTRAL.IO1.NREADERRID", "CENTRAL.RCV1.XLINKERROR",
-                           "CENTRAL.RCV1.WLINKERROR", "CENTRAL.RCV1.UDIRECORDS"))
+                          ("CENTRAL.IO1.NREADERRID", "CENTRAL.APP.STA1.RCV.XLINKERROR",
+                           "CENTRAL.APP.STA1.RCV.WLINKERROR", "CENTRAL.APP.STA1.RCV.UDIRECORDS"))
     assert r["CENTRAL.IO1.NREADERRID"] == 0x800B
-    assert r["CENTRAL.RCV1.XLINKERROR"] and r["CENTRAL.RCV1.WLINKERROR"] == 0x800B
-    assert r["CENTRAL.RCV1.UDIRECORDS"] == 0
+    assert r["CENTRAL.APP.STA1.RCV.XLINKERROR"] and r["CENTRAL.APP.STA1.RCV.WLINKERROR"] == 0x800B
+    assert r["CENTRAL.APP.STA1.RCV.UDIRECORDS"] == 0
 
 
 @pytest.mark.slow

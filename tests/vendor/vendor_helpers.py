@@ -61,4 +61,4 @@ def run_outstation(family, workdir, src, seconds, words, extra=()):
         ch.run_for(seconds * SEC)
         o = ch.plcs[("out", 1)]
         return {n: o[f"OUTSTATION.{n}"] for n in
-                ("SRC.UTRANSFERSFAILED", "SRC.UTRANSFERSDONE", "SRC.WLASTERROR", *extra)}
+                ("APP.SRC.UTRANSFERSFAILED", "APP.SRC.UTRANSFERSDONE", "APP.SRC.WLASTERROR", *extra)}
