@@ -49,6 +49,11 @@ STANDARD_FB = {"TON": "TON_TIME", "TOF": "TOF_TIME", "TP": "TP_TIME",
 # done, 16#7000 idle, 16#7001 first call of a job, 16#7002 job running, 16#8xxx error)
 STATUS_NAME = "status"
 STATUS_PREV = "statusBusyBefore"
+# the status word of an error: 16#8000 + the library's base + the error's position in its
+# enum; the library is told by the type of eErrorId (st_lib/CONVENTIONS.md "error-range":
+# the core's E_MIP_Error 16#8001.., the chain's E_MIP_ChainError 16#8101..)
+STATUS_ERROR_BASE = {"E_MIP_CHAINERROR": 0x8100}
+STATUS_ERROR_DEFAULT = 0x8000
 
 
 class SclError(Exception):
@@ -499,13 +504,24 @@ class _Pou:
             self.flush_comments(d.pos[0] + 1, "      ", same_line=d.pos[0], slash=True)
         return header, self.out
 
+    def error_base(self):
+        """The status word's base for an error: by the type of the block's eErrorId."""
+        for b in self.n.blocks:
+            if b.kind != "VAR_OUTPUT":
+                continue
+            for d in b.decls:
+                if any(n == "EERRORID" for n, _ in d.names):
+                    t = getattr(d.type, "name", "") or ""
+                    return STATUS_ERROR_BASE.get(t.upper(), STATUS_ERROR_DEFAULT)
+        return STATUS_ERROR_DEFAULT
+
     def status_region(self):
         has_done = "XDONE" in self.locals
         r = ["", "    REGION LGF status",
              "        // generated: status follows xBusy, xError and eErrorId (Siemens LGF "
              "convention, docs/wiring-s7.md)",
              "        IF #xError THEN",
-             f"            #{STATUS_NAME} := WORD#16#8000 OR INT_TO_WORD(#eErrorId);",
+             f"            #{STATUS_NAME} := WORD#16#{self.error_base():04X} OR INT_TO_WORD(#eErrorId);",
              "        ELSIF #xBusy THEN",
              f"            IF #{STATUS_PREV} THEN",
              f"                #{STATUS_NAME} := WORD#16#7002;",
