@@ -203,7 +203,7 @@ def test_disabled_and_enabled_again_the_record_is_sent_again_not_lost(wd):
     b.step(10)
     b.u["xEnable"] = False
     b.step(30)                                   # the write under way ends (no answer)
-    assert b.u["eState"] == USTATE["MIP_UNI_DISABLED"] and not b.u["xWriteReqA"]
+    assert b.u["eState"] == USTATE["MIP_UNI_DISABLED"] and not b.u["stRequestA.xWriteReq"]
     assert b.src.processed == []
     b.ca.down = False
     b.u["xEnable"] = True
