@@ -220,7 +220,8 @@ def central_push():
     decl = [SOE_PARAMS, SOE_PARAM_VARS,
             "  rcv : MIP_Receiver;           (* records from the outstation *)",
             "  uni : MIP_UnicosEvents;       (* their entries to WinCC OA's UNICOS driver(s) *)",
-            "  xRedundant : BOOL;            (* flags bit 2: a redundant pair of drivers *)"]
+            "  xRedundant : BOOL;            (* flags bit 2: a redundant pair of drivers *)",
+            "  uniARep, uniBRep : MIP_T_UnicosReply;   (* the drivers' answers to uni's writes *)"]
     decl += soe_located_io("MDP-810 unit 1")
     decl += unicos_io("A", 0) + unicos_io("B", 1)
     decl += soe_status([("mRecLo", "records handed over, low word"), ("mRecHi", "high word"),

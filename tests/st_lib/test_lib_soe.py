@@ -372,3 +372,21 @@ def test_only_reads_numbered_1_are_read_again_before_their_acknowledgement(wd):
     assert b.logger.stored == expected(events, ORIGIN) and not b.fb["xError"]
     ones = [v for v in b.acks() if v & 0xFF == 1]
     assert episodes == [1] * len(ones) and len(ones) >= 2 and len(b.acks()) > len(ones)
+
+
+def test_disabled_while_a_read_is_open_says_so_and_the_next_enable_goes_on(wd):
+    """xLeftOpen (0.1.0's xAborted): xEnable fell while a read was open; its entries stay in the
+    relay and the next enable hands over the rest, each entry once."""
+    events = script(6)
+    b = Bench(wd, make_relay("py", events))
+    assert b.run_until(lambda: b.fb["xEntryValid"], 300)      # a read is open
+    assert b.fb["xValid"] and b.fb["xBusy"] and not b.fb["xLeftOpen"]
+    b.fb["xEnable"] = False
+    b.step()
+    assert b.fb["xLeftOpen"] and not b.fb["xValid"] and not b.fb["xBusy"]
+    assert b.fb["eWaitReason"] == WAIT["MIP_CHAIN_WAIT_NONE"]
+    b.fb["xEnable"] = True
+    b.step()
+    assert not b.fb["xLeftOpen"]
+    assert b.run_until(lambda: len(b.logger.stored) == 6 and b.fb["xCaughtUp"], 800)
+    assert b.logger.stored == expected(events, ORIGIN)
