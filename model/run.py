@@ -16,7 +16,7 @@ safety search (`-DSAFETY -DBFS`), which stops at the shortest counterexample and
 trace in the same run. A search that ends without covering the whole state space (memory,
 depth or time) proves nothing: its verdict is INCOMPLETE and fails the run.
 
-usage: model/run.py [-k SUBSTRING] [--quick] [--list] [--junit FILE] [--trace-dir DIR] [--work DIR]
+usage: model/run.py [-k SUBSTRING] [--quick] [--tier all|check|large] [--list] [--junit FILE] [--trace-dir DIR] [--work DIR]
 """
 import argparse
 import concurrent.futures
@@ -30,7 +30,7 @@ import time
 from xml.sax.saxutils import escape
 
 # run as a script (python3 model/run.py): Python puts this folder first on sys.path
-from configs import CONFIGS, QUICK, bounded
+from configs import CONFIGS, QUICK, bounded, large
 from spin_search import run_one, search_for
 
 
@@ -57,7 +57,11 @@ def main(argv):
     ap.add_argument("-j", type=int, default=os.cpu_count() or 2,
                     help="configurations checked in parallel (default: one per core)")
     ap.add_argument("--quick", action="store_true",
-                    help="only the quick set: one configuration of each family (make test)")
+                    help="only the quick set: one configuration of each family (make test; "
+                         "whatever --tier says)")
+    ap.add_argument("--tier", choices=("all", "check", "large"), default="all",
+                    help="all: every configuration (default); check: all but the large ones "
+                         "(make check); large: only those (make check-large; model/configs.py LARGE)")
     ap.add_argument("--timeout", type=int, default=1200,
                     help="seconds one search may take before it counts as INCOMPLETE (default 1200)")
     ap.add_argument("--memlim", type=int, default=int(os.environ.get("MODEL_MEMLIM", "4096")),
@@ -78,7 +82,8 @@ def main(argv):
     extra = dict(d.split("=", 1) if "=" in d else (d, "1") for d in a.D)
     sel = [(n, dict(d, **extra), e, w) for n, d, e, w in CONFIGS
            if (n == a.k if a.exact else a.k in n) and (not a.quick or n in QUICK)
-           and not any(x in n for x in a.x)]
+           and not any(x in n for x in a.x)
+           and (a.quick or a.tier == "all" or (a.tier == "large") == large(n))]
     if a.list:
         for name, defs, expect, what in sel:
             search = search_for(expect, name) + (" bounded" if expect == "holds" and bounded(name) else "")

@@ -103,3 +103,26 @@ def test_a_bounded_configuration_searches_as_far_as_its_cap_and_says_it_is_no_pr
         stored[cap] = int(row[0].split()[1])
         assert "bounded searches, not proofs" in r.stdout
     assert 0 < stored[192] < stored[288], stored
+
+
+def _listed(*args, tmp_path):
+    r = run("--list", *args, tmp_path=tmp_path)
+    assert r.returncode == 0, r.stdout + r.stderr
+    return {ln.split()[0] for ln in r.stdout.splitlines()}
+
+
+def test_make_check_and_check_large_together_search_every_configuration_once(tmp_path):
+    # make check runs --tier check, make check-large --tier large (CI runs both): no
+    # configuration may fall between the two or be searched twice, and make test's quick set
+    # stays in make check
+    every = _listed(tmp_path=tmp_path)
+    check = _listed("--tier", "check", tmp_path=tmp_path)
+    large = _listed("--tier", "large", tmp_path=tmp_path)
+    quick = _listed("--quick", tmp_path=tmp_path)
+    assert check | large == every and not check & large
+    assert quick <= check
+    assert large and len(large) < len(check)
+    assert any(n.startswith("warm/bidi/") for n in large)
+    mk = subprocess.run(["make", "-n", "--no-print-directory", "model-check", "model-large"], cwd=ROOT,
+                        capture_output=True, text=True)
+    assert "--tier check" in mk.stdout and "--tier large" in mk.stdout, mk.stdout + mk.stderr

@@ -525,7 +525,7 @@ class Bench(RunUntil):
         self.radio = radio
         self.tick_ns = tick_ms * MS
         self.scans = 0
-        self.check_plcopen = list(check_plcopen)   # (fb, (done, busy, error) member names)
+        self.check_plcopen = list(check_plcopen)   # (fb, member names of which one at most is TRUE)
 
     def step(self, n=1):
         for _ in range(n):
@@ -565,7 +565,8 @@ ALL = [("snd", "MIP_Sender"), ("rcv", "MIP_Receiver"), ("lo", "MIP_Link"), ("lc"
        ("bs", "MIP_BufferSender"), ("st", "MIP_Status")]
 PLCOPEN_SND = ("xDone", "xBusy", "xError")
 PLCOPEN_LINK_S = ("xSendDone", "xSendBusy", "xSendError")
-PLCOPEN_LINK_R = ("xRecvDone", "xRecvBusy", "xRecvError")
+PLCOPEN_RCV = (("xValid", "xError"), ("xBusy", "xError"))   # enable-type: xError excludes both
+PLCOPEN_LINK_R = (("xRecvValid", "xRecvError"), ("xRecvBusy", "xRecvError"))
 
 
 class Uni:
@@ -592,7 +593,7 @@ class Uni:
             self.src = ChunkSource(self.snd, data)
             parts.insert(0, self.src)
         self.bench = Bench([self.plc_o, self.plc_c], parts, self.radio,
-                           [(self.snd, PLCOPEN_SND), (self.rcv, PLCOPEN_SND)])
+                           [(self.snd, PLCOPEN_SND)] + [(self.rcv, r) for r in PLCOPEN_RCV])
         self.settings = dict(polled=polled, static=bool(static_n), timeout_ms=timeout_ms,
                              chunk=chunk, transfer_timeout_ms=transfer_timeout_ms,
                              enable=enable)
@@ -653,8 +654,8 @@ class Bi:
         self.bench = Bench([self.plc_o, self.plc_c],
                            [self.src_o, self.src_c, self.port_o, self.port_c,
                             self.sink_o, self.sink_c], self.radio,
-                           [(self.lo, PLCOPEN_LINK_S), (self.lo, PLCOPEN_LINK_R),
-                            (self.lc, PLCOPEN_LINK_S), (self.lc, PLCOPEN_LINK_R)])
+                           [(fb, names) for fb in (self.lo, self.lc)
+                            for names in (PLCOPEN_LINK_S,) + PLCOPEN_LINK_R])
         for fb, central in ((self.lo, False), (self.lc, True)):
             fb["xCentral"] = central
             fb["xPolled"], fb["xStatic"] = polled, bool(static_n)

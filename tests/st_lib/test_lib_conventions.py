@@ -52,13 +52,6 @@ DEVIATIONS = [
     ("MIP_StatusBit", "internal-name", "no prefix MIP_Internal_", "noun name with the public prefix", FIX),
     ("MIP_UnicosChannel", "internal-name", "no prefix MIP_Internal_", "noun name with the public prefix", FIX),
     ("MIP_ReadDecoder", "internal-name", "no prefix MIP_Internal_", "noun name with the public prefix", FIX),
-    # enable-type blocks that report with xDone instead of xValid
-    ("MIP_Receiver", "enable-outputs", "missing xValid", "xDone means 'a transfer completed'", FIX),
-    ("MIP_Receiver", "enable-outputs", "has xDone", "xDone means 'a transfer completed'", FIX),
-    ("MIP_Link", "enable-outputs", "missing xRecvValid", "receiving side as MIP_Receiver", FIX),
-    ("MIP_Link", "enable-outputs", "has xRecvDone", "receiving side as MIP_Receiver", FIX),
-    ("MIP_Link", "status-word", "no sendStatus in the SCL export", "the generator adds status only for xBusy/xError/eErrorId", FIX),
-    ("MIP_Link", "status-word", "no recvStatus in the SCL export", "the generator adds status only for xBusy/xError/eErrorId", FIX),
 ]
 
 

@@ -104,5 +104,5 @@ def test_receiver_accepts_the_full_number_space(wd):
             done_set = False
     plc.scan(3)
     assert delivered == 65535 and i == 65535 and offset_ok
-    assert G("MAIN.rcv.xDone") and G("MAIN.rcv.wAck") == FFFF
+    assert G("MAIN.rcv.xTransferComplete") and G("MAIN.rcv.wAck") == FFFF
     assert G("MAIN.rcv.udiDuplicates") == 0 and G("MAIN.rcv.udiUnexpected") == 0

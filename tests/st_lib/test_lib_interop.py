@@ -233,7 +233,7 @@ def test_lone_ffff_is_a_one_record_transfer(wd):
     is the next transfer; the same block again is a duplicate."""
     p1, p2 = pattern(40, seed=308), pattern(7, seed=309)
     u, note = uni_vs_note_outstation(wd, [[FFFF] + p1])
-    assert u.bench.run_until(lambda: u.rcv["xDone"], 300)
+    assert u.bench.run_until(lambda: u.rcv["xTransferComplete"], 300)
     assert u.sink.transfers == [p1] and u.rcv["wAck"] == FFFF
     assert u.port_c.writes[-1] == [FFFF]      # the note's acknowledgement, no echo (P24)
     note.todo.append([FFFF] + p2)
@@ -252,7 +252,7 @@ def test_note_outstation_record_1_restarts_the_transfer(wd):
     u, note = uni_vs_note_outstation(wd, old)
     assert u.bench.run_until(lambda: u.rcv["wAck"] == 3, 500)
     note.todo, note.cur = list(new), None
-    assert u.bench.run_until(lambda: u.rcv["xDone"], 500)
+    assert u.bench.run_until(lambda: u.rcv["xTransferComplete"], 500)
     assert u.sink.transfers == [[21, 22, 23]]
     assert u.rcv["udiFailedTransfers"] == 1 and u.rcv["eLastErrorId"] == E_SENDER_RESET
 
@@ -273,7 +273,7 @@ def test_receiver_out_of_step_error_and_its_clearing(wd):
     assert 900 <= elapsed_ms <= 900 + 300 + 50, elapsed_ms     # the bound + one repetition
     assert u.sink.records == []
     note.todo, note.cur = [[1, 1], [FFFF, 2]], None     # the operator restarts the outstation
-    assert u.bench.run_until(lambda: u.rcv["xDone"], 500)
+    assert u.bench.run_until(lambda: u.rcv["xTransferComplete"], 500)
     assert not u.rcv["xError"] and u.sink.transfers == [[1, 2]]
 
 

@@ -242,6 +242,6 @@ def test_bidirectional_abort_and_send_again(wd):
     assert bi.bench.run_until(lambda: bi.lo["xSendDone"] and bi.lc["xSendDone"], 8000)
     assert bi.sink_c.transfers == [new]
     assert bi.sink_o.transfers == [b]
-    assert bi.lc["xRecvDone"] and not bi.lc["xRecvError"]
+    assert bi.lc["xRecvTransferComplete"] and bi.lc["xRecvValid"] and not bi.lc["xRecvError"]
     # the aborted transfer was reported by the central's receiving side
     assert bi.lc["udiFailedTransfers"] == 1

@@ -79,7 +79,7 @@ def test_note_example_counter_by_counter(wd):
     assert [b[0] for b in c_blocks if len(b) == 1] == [2, 3, 4, FFFF]
     assert u.sink.transfers == [data]
     assert [n for n, _ in u.sink.records] == [1, 2, 3, 4, FFFF]
-    assert u.rcv["xDone"] and u.rcv["wAck"] == FFFF
+    assert u.rcv["xTransferComplete"] and u.rcv["wAck"] == FFFF
     assert u.snd["udiRecords"] == 5 and u.snd["udiRetransmissions"] == 1
 
 
@@ -362,13 +362,13 @@ def test_receiver_classifies_numbers(wd):
     sr.feed(3, [33])                     # duplicate: discarded
     assert r["udiDuplicates"] == 1
     sr.feed(FFFF, [44])
-    assert r["xDone"] and r["wAck"] == FFFF
+    assert r["xTransferComplete"] and r["wAck"] == FFFF
     sr.feed(FFFF, [44])
     assert r["udiDuplicates"] == 2
     assert u.sink.records == [(1, [11]), (2, [22]), (3, [33]), (FFFF, [44])]
     assert u.sink.transfers == [[11, 22, 33, 44]]
     sr.feed(2, [1])                      # after a complete transfer only 1 may follow
-    assert r["udiUnexpected"] == 2 and r["xDone"]
+    assert r["udiUnexpected"] == 2 and r["xTransferComplete"]
     sr.feed(1, [5])
     sr.feed(2, [6])
     assert r["xBusy"]
@@ -450,7 +450,7 @@ def test_record_65535_after_65534(wd):
     jump_counters(u, 65533)
     assert u.bench.run_until(lambda: u.snd["xDone"], 3000)
     assert [n for n, _ in u.sink.records] == [1, 65534, FFFF]
-    assert u.rcv["xDone"] and u.rcv["udiTransfers"] == 1
+    assert u.rcv["xTransferComplete"] and u.rcv["udiTransfers"] == 1
 
 
 def test_record_one_again_with_other_content_is_a_new_transfer(wd):
@@ -496,3 +496,39 @@ def test_a_dead_link_is_a_link_error_at_both_blocks_and_the_transfer_resumes(wd)
     assert u.sink.transfers == [data]
     for fb in (u.snd, u.rcv):
         assert not fb["xLinkError"] and fb["wLinkError"] == 1110   # the reason is kept
+
+
+# ---------------------------------------------------------------- the enable-type outputs (issue 46)
+
+def test_the_receiver_is_enable_type_valid_busy_and_a_transfer_that_completes(wd):
+    """MIP_Receiver as st_lib/CONVENTIONS.md's enable-type block: xBusy from the first enabled
+    call and through a completed transfer (its work has no end); xValid also needs a read of
+    the own modem and drops while the reads fail; a completed transfer is xTransferEnd for
+    one scan and xTransferComplete held; xEnable FALSE clears them all."""
+    data = pattern(3 * 122, seed=46)
+    u = Uni(wd, data, enable=False)
+    u.bench.step(3)
+    assert not (u.rcv["xBusy"] or u.rcv["xValid"] or u.rcv["xTransferComplete"])
+    u.rcv["xEnable"] = True
+    u.bench.step()
+    assert u.rcv["xBusy"] and not u.rcv["xError"]
+    assert u.bench.run_until(lambda: u.rcv["xValid"], 50)
+    u.snd["xExecute"] = True
+    ends = 0
+    while not u.rcv["xTransferComplete"] and u.bench.scans < 5000:
+        u.bench.step()
+        ends += u.rcv["xTransferEnd"]
+        assert u.rcv["xBusy"] and u.rcv["xValid"]
+    assert u.rcv["xTransferComplete"] and ends == 1 and u.sink.transfers == [data]
+    u.bench.step(20)
+    assert u.rcv["xTransferComplete"] and u.rcv["xBusy"] and u.rcv["xValid"]
+    assert not u.rcv["xTransferEnd"]
+    u.port_c.read_fail = 1110                            # plcrt: no answer in time
+    u.bench.step(6)
+    assert u.rcv["xLinkError"] and u.rcv["xBusy"] and not u.rcv["xValid"]
+    assert not u.rcv["xError"]
+    u.port_c.read_fail = 0
+    assert u.bench.run_until(lambda: u.rcv["xValid"], 50)
+    u.rcv["xEnable"] = False
+    u.bench.step()
+    assert not (u.rcv["xBusy"] or u.rcv["xValid"] or u.rcv["xTransferComplete"])

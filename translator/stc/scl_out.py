@@ -18,7 +18,9 @@ What changes (docs/wiring-s7.md, "What the generator writes"):
 - A FUNCTION's VAR becomes VAR_TEMP (TIA FCs have no static data) and is set to its initial
   value at the start of the body, as IEC initialises a function's locals on every call.
 - An FB with the PLCopen outputs xBusy, xError and eErrorId gets an LGF-style `status : Word`
-  output, derived from them at the end of its body (REGION "LGF status").
+  output, derived from them at the end of its body (REGION "LGF status"); a combined block
+  (MIP_Link: xSendBusy, xSendError, eSendErrorId and xRecvBusy, ...) gets one per side,
+  `sendStatus` and `recvStatus` (st_lib/CONVENTIONS.md, "status-word").
 - Comments are kept where they were (between the statements and declarations they followed).
 """
 from __future__ import annotations
@@ -54,6 +56,8 @@ STATUS_PREV = "statusBusyBefore"
 # the core's E_MIP_Error 16#8001.., the chain's E_MIP_ChainError 16#8101..)
 STATUS_ERROR_BASE = {"E_MIP_CHAINERROR": 0x8100}
 STATUS_ERROR_DEFAULT = 0x8000
+# the sides of a combined block (its output infix, the prefix of its status word's name)
+STATUS_SIDES = (("Send", "send"), ("Recv", "recv"))
 
 
 class SclError(Exception):
@@ -397,16 +401,20 @@ class _Pou:
 
     # ---- the block
     def lgf_status(self):
-        """Whether this FB gets the LGF-style status output (xBusy, xError, eErrorId outputs,
-        no RETURN that would skip its update, no name clash)."""
-        if self.is_fn:
-            return False
+        """The LGF-style status outputs this FB gets: [(output infix, status name, name of its
+        "busy before" local)], one for a block with xBusy, xError, eErrorId outputs, one per
+        side for a combined block (xSendBusy ..., xRecvBusy ...); none for a function, a block
+        with a RETURN that would skip the update, or a name clash."""
+        if self.is_fn or any(isinstance(x, S.Return) for x in _walk(self.n.body)):
+            return []
         outs = {n for b in self.n.blocks if b.kind == "VAR_OUTPUT" for d in b.decls for n, _ in d.names}
+        sides = [("", STATUS_NAME, STATUS_PREV)]
         if not {"XBUSY", "XERROR", "EERRORID"} <= outs:
-            return False
-        if STATUS_NAME.upper() in self.locals or STATUS_PREV.upper() in self.locals:
-            return False
-        return not any(isinstance(x, S.Return) for x in _walk(self.n.body))
+            sides = [(infix, pre + "Status", pre + "StatusBusyBefore") for infix, pre in STATUS_SIDES]
+        sides = [s for s in sides
+                 if {f"X{s[0]}BUSY".upper(), f"X{s[0]}ERROR".upper(), f"E{s[0]}ERRORID".upper()} <= outs
+                 and s[1].upper() not in self.locals and s[2].upper() not in self.locals]
+        return sides
 
     def write(self, version):
         n = self.n
@@ -448,13 +456,13 @@ class _Pou:
         self.stmts(n.body, "    ", top=True)
         self.flush_comments(n.end_pos[0], "    ")
         self.close_region("    ")
-        if lgf:
-            body_out.extend(self.status_region())
+        for infix, status, prev in lgf:
+            body_out.extend(self.status_region(infix, status, prev))
             sections.setdefault("VAR_OUTPUT", []).append(
-                f"      {STATUS_NAME} : Word := WORD#16#7000;  // LGF-style status, derived from "
-                "xBusy, xError, eErrorId (docs/wiring-s7.md)")
+                f"      {status} : Word := WORD#16#7000;  // LGF-style status, derived from "
+                f"x{infix}Busy, x{infix}Error, e{infix}ErrorId (docs/wiring-s7.md)")
             sections.setdefault("VAR", []).append(
-                f"      {STATUS_PREV} : Bool;  // xBusy in the previous call (status 16#7001 on "
+                f"      {prev} : Bool;  // x{infix}Busy in the previous call (status 16#7001 on "
                 "the first busy call)")
         for et in sorted(self.used_enums):
             consts = sections.setdefault("VAR CONSTANT", [])
@@ -504,34 +512,36 @@ class _Pou:
             self.flush_comments(d.pos[0] + 1, "      ", same_line=d.pos[0], slash=True)
         return header, self.out
 
-    def error_base(self):
-        """The status word's base for an error: by the type of the block's eErrorId."""
+    def error_base(self, infix=""):
+        """The status word's base for an error: by the type of the block's e<infix>ErrorId."""
+        want = f"E{infix}ERRORID".upper()
         for b in self.n.blocks:
             if b.kind != "VAR_OUTPUT":
                 continue
             for d in b.decls:
-                if any(n == "EERRORID" for n, _ in d.names):
+                if any(n == want for n, _ in d.names):
                     t = getattr(d.type, "name", "") or ""
                     return STATUS_ERROR_BASE.get(t.upper(), STATUS_ERROR_DEFAULT)
         return STATUS_ERROR_DEFAULT
 
-    def status_region(self):
-        has_done = "XDONE" in self.locals
-        r = ["", "    REGION LGF status",
-             "        // generated: status follows xBusy, xError and eErrorId (Siemens LGF "
-             "convention, docs/wiring-s7.md)",
-             "        IF #xError THEN",
-             f"            #{STATUS_NAME} := WORD#16#{self.error_base():04X} OR INT_TO_WORD(#eErrorId);",
-             "        ELSIF #xBusy THEN",
-             f"            IF #{STATUS_PREV} THEN",
-             f"                #{STATUS_NAME} := WORD#16#7002;",
+    def status_region(self, infix="", status=STATUS_NAME, prev=STATUS_PREV):
+        i = infix
+        has_done = f"X{i}DONE".upper() in self.locals
+        r = ["", f"    REGION LGF {status}",
+             f"        // generated: {status} follows x{i}Busy, x{i}Error and e{i}ErrorId (Siemens "
+             "LGF convention, docs/wiring-s7.md)",
+             f"        IF #x{i}Error THEN",
+             f"            #{status} := WORD#16#{self.error_base(i):04X} OR INT_TO_WORD(#e{i}ErrorId);",
+             f"        ELSIF #x{i}Busy THEN",
+             f"            IF #{prev} THEN",
+             f"                #{status} := WORD#16#7002;",
              "            ELSE",
-             f"                #{STATUS_NAME} := WORD#16#7001;",
+             f"                #{status} := WORD#16#7001;",
              "            END_IF;"]
         if has_done:
-            r += ["        ELSIF #xDone THEN", f"            #{STATUS_NAME} := WORD#16#0;"]
-        r += ["        ELSE", f"            #{STATUS_NAME} := WORD#16#7000;", "        END_IF;",
-              f"        #{STATUS_PREV} := #xBusy;", "    END_REGION"]
+            r += [f"        ELSIF #x{i}Done THEN", f"            #{status} := WORD#16#0;"]
+        r += ["        ELSE", f"            #{status} := WORD#16#7000;", "        END_IF;",
+              f"        #{prev} := #x{i}Busy;", "    END_REGION"]
         return r
 
 
