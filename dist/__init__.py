@@ -1,2 +1,3 @@
-"""mipdist: the release archive of st_lib (dist/, installed by `make venv`). mkdist writes the
-archive (`make dist`) and computes the import order of st_lib (`dist/mkdist.py --import-order`)."""
+"""mipdist: the release archives of st_lib's two libraries (dist/, installed by `make venv`). mkdist
+writes them (`make dist`), checks and prints each library's import order
+(`dist/mkdist.py --import-order`) and writes the block references (`--reference`)."""

@@ -1,16 +1,26 @@
 #!/usr/bin/env python3
-"""Release archive of st_lib: build/dist/mip-logger-<version>.{tar.gz,zip}.
+"""Release archives of st_lib's two libraries, the protocol core and the chain's blocks.
+
+The core (st_lib/core/) goes to build/dist/mip-logger-<version>.{tar.gz,zip}, the chain's
+application blocks (st_lib/chain/, built on the core) to
+build/dist/mip-logger-chain-<version>.{tar.gz,zip}.
 
     .venv/bin/python dist/mkdist.py --xsd build/docs/tc6_xml_v201.xsd -o build/dist
-    .venv/bin/python dist/mkdist.py --version        # print the version and exit
-    .venv/bin/python dist/mkdist.py --import-order   # print st_lib/*.st in import order
+    .venv/bin/python dist/mkdist.py --version [chain]       # print a library's version (core)
+    .venv/bin/python dist/mkdist.py --import-order [core|chain]  # a library's files in import
+                                                            # order (default: core, then chain)
+    .venv/bin/python dist/mkdist.py --reference docs        # docs/blocks.md, docs/blocks-chain.md
 
-The version has one source: the constants uMajor / uMinor / uPatch of st_lib/MIP_Version.st.
-Before anything is written the script checks that CHANGELOG.md has an entry
-`## [<version>] - YYYY-MM-DD` and that LICENSE exists. The archive holds, under
-mip-logger-<version>/:
+Each library's version has one source: the constants uMajor / uMinor / uPatch of its version
+function (st_lib/core/MIP_Version.st, st_lib/chain/MIP_ChainVersion.st). Before anything is
+written the script checks that CHANGELOG.md has an entry `## [<version>] - YYYY-MM-DD` for the
+core and `## [chain <version>] - YYYY-MM-DD` for the chain library (CHANGELOG_HEADING), and that
+LICENSE exists. Each library's import order has one source, st_lib/<library>/import-order.txt
+(mipcosim.libraries); the script checks it against the files' dependencies (every file after
+the ones it uses, the core using nothing of the chain) and refuses a wrong one in one line.
+The core archive holds, under mip-logger-<version>/:
 
-    st_lib/*.st                     the sources, stored in import order (README.txt lists it)
+    st_lib/core/*.st                the sources, stored in import order (README.txt lists it)
     mip-logger-<version>.st         the same sources concatenated in import order (one import)
     mip-logger-<version>.xml        PLCopen XML (TC6 v2.01), validated against the schema
     scl/*.scl                       the blocks as TIA Portal SCL external sources, generated from
@@ -26,9 +36,14 @@ mip-logger-<version>/:
                                     generated from the .st files (twincat_objects); twincat/README.txt
     LICENSE, CHANGELOG.md, README.txt
 
-The import order is the one of docs/blocks.md (every type and block before its first use); it is
-the only import order the project states: `--import-order` prints it for build commands, and the
-pages that list it are checked against it (tests/docs/test_docs_import_order.py).
+The chain archive holds, under mip-logger-chain-<version>/, the chain library's own files in the
+same form: st_lib/chain/*.st, mip-logger-chain-<version>.st / .xml / .scl, scl/*.scl, blocks.md
+(docs/blocks-chain.md), LICENSE, CHANGELOG.md and README.txt (which names the core version it
+needs: import the core first). No glue: the glue connects the core's blocks to a vendor's client.
+
+The import orders are the ones of docs/blocks.md and docs/blocks-chain.md (every type and block
+before its first use); `--import-order` prints them for build commands, and the pages that list
+them are checked against them (tests/docs/test_docs_import_order.py).
 The archives are reproducible: fixed member order and time stamps (SOURCE_DATE_EPOCH, or
 2026-01-01). Every error is one line and a non-zero exit.
 """
@@ -46,7 +61,7 @@ import time
 import zipfile
 from pathlib import Path
 
-from mipdocs.blockref import dependency_order, render
+from mipdocs.blockref import render, uses_and_defines
 from mipdocs.plcopen_export import export, validate
 from mipdocs.stdecl import StError, parse_file
 from stc import oneline
@@ -56,7 +71,16 @@ WIRESHARK = "wireshark/mipmb.lua"     # dist/wireshark/mipmb.lua, at the same pa
 GLUE = "glue"                         # dist/glue/<family>/*, at the same paths in the archive
 
 PRODUCT = "mip-logger"
-VERSION_FILE = "st_lib/MIP_Version.st"
+LIBRARIES = ("core", "chain")         # mipcosim.libraries.LIBRARIES: the chain builds on the core
+# per library: its archive's name, its version file and its CHANGELOG heading (our choice: the
+# core keeps the heading of the single library's releases, the chain's names itself)
+PRODUCTS = {"core": PRODUCT, "chain": f"{PRODUCT}-chain"}
+VERSION_FILES = {"core": "st_lib/core/MIP_Version.st", "chain": "st_lib/chain/MIP_ChainVersion.st"}
+VERSION_FILE = VERSION_FILES["core"]
+CHANGELOG_HEADING = {"core": "## [{v}] - YYYY-MM-DD", "chain": "## [chain {v}] - YYYY-MM-DD"}
+# releases made before the split, when both libraries were one: their heading is the core's
+JOINT_RELEASES = ("0.1.0",)
+REFERENCE = {"core": "blocks.md", "chain": "blocks-chain.md"}     # in docs/ and the archives
 DEFAULT_EPOCH = 1767225600          # 2026-01-01T00:00:00Z
 CONST = re.compile(r"^\s*u(Major|Minor|Patch)\s*:\s*UINT\s*:=\s*(\d+)\s*;", re.M)
 
@@ -65,30 +89,31 @@ class DistError(Exception):
     """One line for the user: FILE[:LINE]: error: MESSAGE."""
 
 
-def read_version(repo: Path = REPO) -> str:
-    path = repo / VERSION_FILE
+def read_version(repo: Path = REPO, lib: str = "core") -> str:
+    vfile = VERSION_FILES[lib]
+    path = repo / vfile
     try:
         text = path.read_text(encoding="utf-8")
     except OSError as e:
-        raise DistError(f"{VERSION_FILE}: error: {e.strerror}") from None
+        raise DistError(f"{vfile}: error: {e.strerror}") from None
     parts = {}
     for m in CONST.finditer(text):
         line = text.count("\n", 0, m.start()) + 1
         if m.group(1) in parts:
-            raise DistError(f"{VERSION_FILE}:{line}: error: u{m.group(1)} is declared twice")
+            raise DistError(f"{vfile}:{line}: error: u{m.group(1)} is declared twice")
         parts[m.group(1)] = int(m.group(2))
     missing = [k for k in ("Major", "Minor", "Patch") if k not in parts]
     if missing:
-        raise DistError(f"{VERSION_FILE}: error: no constant u{missing[0]} : UINT := N; "
+        raise DistError(f"{vfile}: error: no constant u{missing[0]} : UINT := N; "
                         f"(the version is uMajor.uMinor.uPatch)")
     for k in ("Minor", "Patch"):
         if parts[k] > 99:
-            raise DistError(f"{VERSION_FILE}: error: u{k} = {parts[k]}: at most 99 (MIP_Version(0) "
-                            f"is MAJOR * 10000 + MINOR * 100 + PATCH)")
+            raise DistError(f"{vfile}: error: u{k} = {parts[k]}: at most 99 (the version function "
+                            f"returns MAJOR * 10000 + MINOR * 100 + PATCH)")
     return f"{parts['Major']}.{parts['Minor']}.{parts['Patch']}"
 
 
-def check_changelog(version: str, repo: Path = REPO) -> None:
+def check_changelog(version: str, repo: Path = REPO, lib: str = "core") -> None:
     path = repo / "CHANGELOG.md"
     try:
         text = path.read_text(encoding="utf-8")
@@ -96,29 +121,79 @@ def check_changelog(version: str, repo: Path = REPO) -> None:
         raise DistError(f"CHANGELOG.md: error: {e.strerror}") from None
     if not re.search(r"^## \[Unreleased\]\s*$", text, re.M):
         raise DistError("CHANGELOG.md: error: no '## [Unreleased]' section (Keep a Changelog)")
-    if not re.search(rf"^## \[{re.escape(version)}\] - \d{{4}}-\d{{2}}-\d{{2}}\s*$", text, re.M):
-        raise DistError(f"CHANGELOG.md: error: no entry '## [{version}] - YYYY-MM-DD' for the "
-                        f"version in {VERSION_FILE}")
+    heads = [CHANGELOG_HEADING[lib].format(v=version)]
+    if lib != "core" and version in JOINT_RELEASES:
+        heads.append(CHANGELOG_HEADING["core"].format(v=version))
+    pats = [re.escape(h).replace("YYYY\\-MM\\-DD", r"\d{4}-\d{2}-\d{2}") for h in heads]
+    if not any(re.search(rf"^{p}\s*$", text, re.M) for p in pats):
+        raise DistError(f"CHANGELOG.md: error: no entry '{heads[0]}' for the version in "
+                        f"{VERSION_FILES[lib]}")
     if not (repo / "LICENSE").is_file():
         raise DistError("LICENSE: error: missing")
 
 
-def import_order(repo: Path = REPO):
-    """(st_lib/*.st relative to repo in the import order of docs/blocks.md, parsed units)."""
-    files = sorted(str(p.relative_to(repo)) for p in (repo / "st_lib").glob("*.st"))
+def _parse(repo: Path, files: list[str]):
     cwd = os.getcwd()
     os.chdir(repo)
     try:
-        units = [parse_file(f) for f in files]
+        return [parse_file(f) for f in files]
     except StError as e:
         raise DistError(str(e)) from None
     finally:
         os.chdir(cwd)
-    return dependency_order(units), units
 
 
-def concatenated(order: list[str], version: str, repo: Path = REPO) -> str:
-    out = [f"(* {PRODUCT} {version}: st_lib in one file, in import order.\n"
+def import_order(repo: Path = REPO, lib: str = "core"):
+    """(the library's .st files relative to repo in the import order of its
+    st_lib/<lib>/import-order.txt, their parsed units). Checked: the order file lists every .st
+    file of the folder; each file uses no name of a file listed after it; the core uses no
+    name of the chain library; the chain no name of a core file that does not exist."""
+    from mipcosim.libraries import ORDER_FILE, LibraryError, library_files, order_entries
+    root = repo / "st_lib"
+    try:
+        libs = LIBRARIES[:LIBRARIES.index(lib) + 1]
+        files = {x: [f"st_lib/{f}" for f in library_files(x, root)] for x in libs}
+        lines = {f"st_lib/{x}/{name}": n for x in libs for n, name in order_entries(root, x)}
+    except (LibraryError, ValueError) as e:
+        raise DistError(str(e) if isinstance(e, LibraryError)
+                        else f"st_lib: error: no library {lib!r}") from None
+    for x in libs:
+        unlisted = sorted(set(str(p.relative_to(repo)) for p in (root / x).glob("*.st"))
+                          - set(files[x]))
+        if unlisted:
+            raise DistError(f"st_lib/{x}/{ORDER_FILE}: error: {unlisted[0]} is not listed "
+                            f"(every .st file of st_lib/{x}/ is, in import order)")
+    # the dependencies, checked against the order of every library (a later library's names
+    # are 'after' the whole earlier library: the core must use none of the chain's)
+    every = [f for x in LIBRARIES for f in (files.get(x) or _listed(root, x))]
+    units = _parse(repo, every)
+    defines, uses = uses_and_defines(units)
+    for i, f in enumerate(every):
+        for g in every[i + 1:]:
+            hit = sorted(uses[f] & defines[g])
+            if hit:
+                own = f.split("/")[1]
+                where = f"st_lib/{own}/{ORDER_FILE}:{lines.get(f, 0)}" if own == g.split("/")[1] \
+                    else f
+                why = (f"the {own} library uses no name of the {g.split('/')[1]} library"
+                       if own != g.split("/")[1] else f"list {Path(g).name} before it")
+                raise DistError(f"{where}: error: {Path(f).name} uses {hit[0]} of {g}: {why}")
+    by_file = {u.file: u for u in units}
+    return files[lib], [by_file[f] for f in files[lib]]
+
+
+def _listed(root: Path, lib: str) -> list[str]:
+    """A later library's files (for the check that an earlier one uses none of them); its own
+    order file is checked when it is built."""
+    from mipcosim.libraries import LibraryError, library_files
+    try:
+        return [f"st_lib/{f}" for f in library_files(lib, root)]
+    except LibraryError:
+        return sorted(str(p.relative_to(root.parent)) for p in (root / lib).glob("*.st"))
+
+
+def concatenated(order: list[str], version: str, repo: Path = REPO, product: str = PRODUCT) -> str:
+    out = [f"(* {product} {version}: {Path(order[0]).parent} in one file, in import order.\n"
            f"   Generated by dist/mkdist.py from {', '.join(Path(f).name for f in order)}.\n"
            f"   Licence: see LICENSE in the release archive. *)\n"]
     for f in order:
@@ -127,22 +202,24 @@ def concatenated(order: list[str], version: str, repo: Path = REPO) -> str:
     return "".join(out)
 
 
-def scl_sources(order: list[str], version: str, repo: Path = REPO) -> list[tuple[str, str]]:
+def scl_sources(order: list[str], version: str, repo: Path = REPO,
+                before: list[str] = ()) -> list[tuple[str, str]]:
     """[(scl/<name>.scl, text)] in import order: st_lib as TIA Portal SCL external sources,
     generated by stc.scl_out (one source of truth; a file without a block or a STRUCT type,
     such as a types file whose enumerations and array types the blocks carry themselves, has
-    none)."""
+    none). `before`: the files of the libraries it builds on (read for their types, not
+    written)."""
     from stc.scl_out import SclError, generate_files
     try:
-        out = generate_files([str(repo / f) for f in order], version)
+        out = generate_files([str(repo / f) for f in list(before) + list(order)], version)
     except SclError as e:
         raise DistError(str(e)) from None
     return [(f"scl/{Path(f).stem}.scl", out[str(repo / f)]) for f in order
             if str(repo / f) in out]
 
 
-def scl_one_file(scl: list[tuple[str, str]], version: str) -> str:
-    out = [f"// {PRODUCT} {version}: st_lib as TIA Portal SCL in one external source, in import\n"
+def scl_one_file(scl: list[tuple[str, str]], version: str, product: str = PRODUCT) -> str:
+    out = [f"// {product} {version}: the library as TIA Portal SCL in one external source, in import\n"
            f"// order. Generated by dist/mkdist.py (stc.scl_out); licence: see LICENSE.\n"]
     # types first, then FCs / FBs (our choice: every type declared before any block that uses
     # it): the files with only types (STRUCTs, e.g. MIP_T_UnicosRequest) ahead, each group in
@@ -175,8 +252,11 @@ def glue_bytes(path: Path) -> bytes:
 
 def readme(order: list[str], version: str, scl_names: list[str] = ()) -> str:
     lines = [f"{PRODUCT} {version}: MIP chunked transfer blocks in IEC 61131-3 Structured Text",
+             "(the protocol core library; the chain's application blocks, SIPROTEC relay reader",
+             f"and server and the UNICOS hand-over, are the library {PRODUCTS['chain']}, built on",
+             "this one)",
              "",
-             f"Import either the single file {PRODUCT}-{version}.st, or the files of st_lib/",
+             f"Import either the single file {PRODUCT}-{version}.st, or the files of st_lib/core/",
              "in this order (each needs only the ones before it):", ""]
     lines += [f"  {i}. {f}" for i, f in enumerate(order, 1)]
     lines += ["",
@@ -205,6 +285,40 @@ def readme(order: list[str], version: str, scl_names: list[str] = ()) -> str:
               "into the IDE; its README.md has the import steps.",
               ""]
     return "\n".join(lines)
+
+
+CHAIN_README = """{top}: the chain's application blocks (SIPROTEC relay reader and server, UNICOS
+hand-over to WinCC OA) in IEC 61131-3 Structured Text, built on the MIP core library
+
+Needs the core library {core} {core_version} (its release archive
+{core}-{core_version}): import the core first, then either the single file
+{top}.st, or the files of st_lib/chain/ in this order (each needs only the
+core and the ones before it):
+
+{files}
+
+{top}.xml is the same library as PLCopen XML (TC6 v2.01); it refers to the
+core's types and blocks by name (import the core's XML first). blocks.md is the
+block reference. MIP_ChainVersion(0) returns the version as a number:
+MAJOR * 10000 + MINOR * 100 + PATCH.
+
+{top}.scl (or the files of scl/, same order) is the library as TIA Portal SCL
+external sources, imported after the core's {core}-{core_version}.scl
+(generated from st_lib; never compiled in TIA Portal by this project). Import
+order of the separate .scl files:
+
+{scl}
+"""
+
+
+def readme_chain(order: list[str], version: str, core_version: str,
+                 scl_names: list[str] = ()) -> str:
+    """The chain archive's README.txt: the core version it needs, its import orders."""
+    def numbered(items):
+        return "\n".join(f"  {i}. {x}" for i, x in enumerate(items, 1))
+    return CHAIN_README.format(top=f"{PRODUCTS['chain']}-{version}", core=PRODUCT,
+                               core_version=core_version, files=numbered(order),
+                               scl=numbered(scl_names))
 
 
 def glue_files(repo: Path = REPO) -> list[str]:
@@ -379,44 +493,43 @@ def plcopen_with_glue(units, order, version, xsd, repo: Path = REPO) -> list[tup
     return out
 
 
-def build(outdir: Path, xsd: Path | None, repo: Path = REPO) -> list[Path]:
-    version = read_version(repo)
-    check_changelog(version, repo)
-    order, units = import_order(repo)
-    top = f"{PRODUCT}-{version}"
-    xml = export(units, f"{PRODUCT}-st_lib", "2026-01-01T00:00:00", order=order, version=version)
+def _validated(xml: str, xsd: Path | None, name: str, repo: Path) -> str:
     if xsd is not None:
         if not xsd.is_file():
             raise DistError(f"{xsd}: error: schema missing (make {os.path.relpath(xsd, repo)})")
         with tempfile.TemporaryDirectory() as tmp:
-            xml_path = Path(tmp) / f"{top}.xml"
+            xml_path = Path(tmp) / f"{name}.xml"
             xml_path.write_text(xml, encoding="utf-8")
             errors = validate(str(xsd), str(xml_path))
         if errors:
             raise DistError(errors[0])
-    outdir.mkdir(parents=True, exist_ok=True)
+    return xml
+
+
+REFERENCE_INTRO = {
+    "core": ("The core library (`st_lib/core/`): the MIP protocol blocks. The chain's application "
+             "blocks (`MIP_Soe*`, `MIP_Unicos*`) are a library of their own, built on this one: "
+             "[blocks-chain.md](blocks-chain.md)."),
+    "chain": ("The chain library (`st_lib/chain/`): the application blocks of the chain "
+              "([chain.md](chain.md)), built on the core library ([blocks.md](blocks.md)): "
+              "import the core's files first, then these."),
+}
+
+
+def reference(lib: str, repo: Path = REPO) -> str:
+    """A library's block reference (docs/blocks.md for the core, docs/blocks-chain.md for the
+    chain; blocks.md of its archive), in the library's import order."""
+    order, units = import_order(repo, lib)
     cwd = os.getcwd()
     os.chdir(repo)
     try:
-        blocks = render(units, "`st_lib/*.st`")
+        return render(units, f"`st_lib/{lib}/*.st`", order=order,
+                      title=f"Block reference: the {lib} library", intro=[REFERENCE_INTRO[lib]])
     finally:
         os.chdir(cwd)
-    from stc.scl_out import tia_bytes
-    scl = scl_sources(order, version, repo)
-    members = [(f"{top}/README.txt", readme(order, version, [n for n, _ in scl]).encode()),
-               (f"{top}/LICENSE", (repo / "LICENSE").read_bytes()),
-               (f"{top}/CHANGELOG.md", (repo / "CHANGELOG.md").read_bytes())]
-    members += [(f"{top}/{f}", (repo / f).read_bytes()) for f in order]
-    members += [(f"{top}/{top}.st", concatenated(order, version, repo).encode()),
-                (f"{top}/{top}.xml", xml.encode())]
-    members += [(f"{top}/{name}", tia_bytes(text)) for name, text in scl]
-    members += [(f"{top}/{top}.scl", tia_bytes(scl_one_file(scl, version))),
-                (f"{top}/blocks.md", blocks.encode()),
-                (f"{top}/{WIRESHARK}", (repo / "dist" / WIRESHARK).read_bytes())]
-    members += [(f"{top}/{f}", glue_bytes(repo / "dist" / f)) for f in glue_files(repo)]
-    members += [(f"{top}/{name}", text.encode()) for name, text in twincat_objects(order, repo)]
-    members += [(f"{top}/{top}-{fam}.xml", text.encode())
-                for fam, text in plcopen_with_glue(units, order, version, xsd, repo)]
+
+
+def _write_archives(outdir: Path, top: str, members) -> list[Path]:
     epoch = int(os.environ.get("SOURCE_DATE_EPOCH", DEFAULT_EPOCH))
     tgz = outdir / f"{top}.tar.gz"
     buf = io.BytesIO()
@@ -440,22 +553,96 @@ def build(outdir: Path, xsd: Path | None, repo: Path = REPO) -> list[Path]:
     return [tgz, zpath]
 
 
+def core_members(xsd: Path | None, repo: Path = REPO):
+    """(archive name, [(member, bytes)]) of the core library's release."""
+    from stc.scl_out import tia_bytes
+    version = read_version(repo)
+    check_changelog(version, repo)
+    order, units = import_order(repo, "core")
+    top = f"{PRODUCT}-{version}"
+    xml = _validated(export(units, f"{PRODUCT}-st_lib", "2026-01-01T00:00:00", order=order,
+                            version=version), xsd, top, repo)
+    scl = scl_sources(order, version, repo)
+    members = [(f"{top}/README.txt", readme(order, version, [n for n, _ in scl]).encode()),
+               (f"{top}/LICENSE", (repo / "LICENSE").read_bytes()),
+               (f"{top}/CHANGELOG.md", (repo / "CHANGELOG.md").read_bytes())]
+    members += [(f"{top}/{f}", (repo / f).read_bytes()) for f in order]
+    members += [(f"{top}/{top}.st", concatenated(order, version, repo).encode()),
+                (f"{top}/{top}.xml", xml.encode())]
+    members += [(f"{top}/{name}", tia_bytes(text)) for name, text in scl]
+    members += [(f"{top}/{top}.scl", tia_bytes(scl_one_file(scl, version))),
+                (f"{top}/blocks.md", reference("core", repo).encode()),
+                (f"{top}/{WIRESHARK}", (repo / "dist" / WIRESHARK).read_bytes())]
+    members += [(f"{top}/{f}", glue_bytes(repo / "dist" / f)) for f in glue_files(repo)]
+    members += [(f"{top}/{name}", text.encode()) for name, text in twincat_objects(order, repo)]
+    members += [(f"{top}/{top}-{fam}.xml", text.encode())
+                for fam, text in plcopen_with_glue(units, order, version, xsd, repo)]
+    return top, members
+
+
+def chain_members(xsd: Path | None, repo: Path = REPO):
+    """(archive name, [(member, bytes)]) of the chain library's release: its own files only."""
+    from stc.scl_out import tia_bytes
+    product = PRODUCTS["chain"]
+    version = read_version(repo, "chain")
+    check_changelog(version, repo, "chain")
+    core_order, _ = import_order(repo, "core")
+    order, units = import_order(repo, "chain")
+    top = f"{product}-{version}"
+    xml = _validated(export(units, f"{product}-st_lib", "2026-01-01T00:00:00", order=order,
+                            version=version), xsd, top, repo)
+    scl = scl_sources(order, version, repo, before=core_order)
+    members = [(f"{top}/README.txt", readme_chain(order, version, read_version(repo),
+                                                  [n for n, _ in scl]).encode()),
+               (f"{top}/LICENSE", (repo / "LICENSE").read_bytes()),
+               (f"{top}/CHANGELOG.md", (repo / "CHANGELOG.md").read_bytes())]
+    members += [(f"{top}/{f}", (repo / f).read_bytes()) for f in order]
+    members += [(f"{top}/{top}.st", concatenated(order, version, repo, product).encode()),
+                (f"{top}/{top}.xml", xml.encode())]
+    members += [(f"{top}/{name}", tia_bytes(text)) for name, text in scl]
+    members += [(f"{top}/{top}.scl", tia_bytes(scl_one_file(scl, version, product))),
+                (f"{top}/blocks.md", reference("chain", repo).encode())]
+    return top, members
+
+
+def build(outdir: Path, xsd: Path | None, repo: Path = REPO) -> list[Path]:
+    """Both libraries' archives; nothing is written unless both are complete."""
+    releases = [core_members(xsd, repo), chain_members(xsd, repo)]
+    outdir.mkdir(parents=True, exist_ok=True)
+    return [p for top, members in releases for p in _write_archives(outdir, top, members)]
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="mkdist", description=__doc__.splitlines()[0])
     ap.add_argument("-o", "--outdir", default=str(REPO / "build" / "dist"))
     ap.add_argument("--xsd", help="validate the PLCopen XML against this TC6 v2.01 schema")
-    ap.add_argument("--version", action="store_true", help="print the version and exit")
-    ap.add_argument("--import-order", action="store_true",
-                    help="print the st_lib files in import order, one a line, and exit")
+    ap.add_argument("--version", nargs="?", const="core", choices=LIBRARIES,
+                    help="print a library's version (default: the core's) and exit")
+    ap.add_argument("--import-order", nargs="?", const="all", choices=LIBRARIES + ("all",),
+                    help="print a library's files in import order, one a line (default: the "
+                         "core's, then the chain's), and exit")
+    ap.add_argument("--reference", metavar="DIR",
+                    help="write each library's block reference (DIR/blocks.md: the core, "
+                         "DIR/blocks-chain.md: the chain) and exit")
+    ap.add_argument("--repo", default=str(REPO), help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
+    repo = Path(a.repo).resolve()
 
     def step():
         if a.version:
-            print(read_version())
+            print(read_version(repo, a.version))
         elif a.import_order:
-            print("\n".join(import_order()[0]))
+            libs = LIBRARIES if a.import_order == "all" else (a.import_order,)
+            print("\n".join(f for lib in libs for f in import_order(repo, lib)[0]))
+        elif a.reference:
+            for lib in LIBRARIES:
+                path = Path(a.reference) / REFERENCE[lib]
+                try:
+                    path.write_text(reference(lib, repo), encoding="utf-8")
+                except OSError as e:
+                    raise DistError(f"{path}: error: {e.strerror}") from None
         else:
-            for p in build(Path(a.outdir), Path(a.xsd) if a.xsd else None):
+            for p in build(Path(a.outdir), Path(a.xsd) if a.xsd else None, repo):
                 print(f"dist: wrote {os.path.relpath(p)}")
     return oneline.run("mkdist", step, located=(DistError,))
 

@@ -1,6 +1,8 @@
-# dist/: the release archive of st_lib. `make dist` writes build/dist/mip-logger-<version>.tar.gz
-# and .zip (version from st_lib/MIP_Version.st, checked against CHANGELOG.md; the PLCopen XML
-# inside is validated against the TC6 v2.01 schema). See docs/releases.md.
+# dist/: the release archives of st_lib's two libraries. `make dist` writes
+# build/dist/mip-logger-<version>.tar.gz and .zip (the core; version from
+# st_lib/core/MIP_Version.st) and mip-logger-chain-<version>.* (the chain library; version from
+# st_lib/chain/MIP_ChainVersion.st), each checked against CHANGELOG.md, the PLCopen XML inside
+# validated against the TC6 v2.01 schema. See docs/releases.md.
 # mkdist is also the package mipdist (dist/pyproject.toml), installed by `make venv`
 PY_PACKAGES += dist
 DIST_DIR := $(BUILD)/dist

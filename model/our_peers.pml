@@ -194,7 +194,7 @@ byte sr_L, sr_Lchk = CHK0, sr_oldchk, sr_at, sr_ai, sr_rerr;
 bool sr_first = 1, sr_uoos, sr_sempty, sr_nolone;
 int  sr_compl;
 #if SPLITREAD
-byte sr_dnum;                /* the receiver's MIP_ReadDecoder: the last number taken */
+byte sr_dnum;                /* the receiver's MIP_Internal_ReadDecoder: the last number taken */
 #define DNUM_NEW(nc) (nc != dnum)
 #else
 #define DNUM_NEW(nc) 0
@@ -526,7 +526,7 @@ ACTIVE_OurReceiver proctype OurReceiver() {
     byte oldchk;             /* P19: check value of an old 16#FFFF found as the first block */
     bool nw, first = 1, uoos;
 #if SPLITREAD
-    byte dnum;               /* MIP_ReadDecoder: a changed number is a new telegram too (SPLITREAD only) */
+    byte dnum;               /* MIP_Internal_ReadDecoder: a changed number is a new telegram too (SPLITREAD only) */
 #endif
     bool sempty;             /* P19: a read since xEnable showed the area empty (count 0) */
     bool nolone;             /* P19: no lone 16#FFFF until a record 1 was accepted */

@@ -48,8 +48,8 @@ FULL_TIER = {
         "a 2 M-state search of the bidirectional warm model; the runner's other tests stay quick",
     "tests/docs/test_docs_examples.py::test_glue_example_sends_its_data":
         "runs the guide's glue example in real time; its translation stays quick",
-    "tests/st_lib/test_lib_compile.py::test_matiec_compiles_st_lib[openplc-flags]":
-        "OpenPLC's flags only relax matiec's checks; the plain compile stays quick",
+    "tests/st_lib/test_lib_split.py::test_matiec_compiles_each_library_alone[openplc-flags":
+        "OpenPLC's flags only relax matiec's checks; the plain compiles stay quick",
     "tests/chain/test_chain_programs.py::test_chain_programs_compile_with_matiec[outstation-bidi]":
         "a matiec build each; the uni programs' builds stay quick",
     "tests/chain/test_chain_programs.py::test_chain_programs_compile_with_matiec[central-bidi]":
@@ -71,7 +71,7 @@ FULL_TIER_IEC = {
     "tests/st_lib/test_lib_counting.py": "the counter's whole number space",
     "tests/st_lib/test_lib_interop.py::test_sender_against_note_central_session_opens_with_record_1":
         "a long session against the note central",
-    "tests/st_lib/test_lib_compile.py::test_matiec_compiles_st_lib":
+    "tests/st_lib/test_lib_split.py::test_matiec_compiles_each_library_alone":
         "iec2c's run does not depend on PLCRT_SEMANTICS: the default pass has it",
 }
 

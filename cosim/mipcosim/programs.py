@@ -10,25 +10,20 @@ from pathlib import Path
 from mipprobe.regmap import MDP810, TRM810
 from plcharness.config import Config, Section
 
+from .libraries import LIBRARIES, all_files, library_files
+
 REPO = Path(__file__).resolve().parents[2]
 PLC_DIR = REPO / "plc"
 ST_LIB = REPO / "st_lib"
 if (Path(__file__).resolve().parent / "_st_lib").is_dir():
     ST_LIB = Path(__file__).resolve().parent / "_st_lib"     # installed by the test kit (kit/)
-# st_lib in the import order of `dist/mkdist.py --import-order` (the release archive's and
-# docs/blocks.md's): the list the Python tools build from (tests, docs, benchmarks); a copy,
-# checked against that order by tests/docs/test_docs_import_order.py
-LIB_FILES = ["MIP_CheckStep.st", "MIP_EchoMagic.st", "MIP_Internal_SnapshotGate.st",
-             "MIP_Layout.st", "MIP_Types.st", "MIP_TypesSoe.st", "MIP_TypesSoeServer.st",
-             "MIP_UnicosTypes.st", "MIP_Version.st", "MIP_WriteChannel.st",
-             "MIP_Internal_AckBlock.st", "MIP_Internal_RcvClassify.st",
-             "MIP_Internal_ReadCheck.st", "MIP_Internal_RecordBlock.st",
-             "MIP_Internal_SenderWait.st", "MIP_Internal_SoeClassify.st",
-             "MIP_Internal_SoeWaitReason.st", "MIP_Internal_Window.st", "MIP_SoeReader.st",
-             "MIP_SoeServer.st", "MIP_StatusBit.st", "MIP_UnicosChannel.st",
-             "MIP_UnicosEvents.st", "MIP_UnicosStatus.st", "MIP_ReadDecoder.st",
-             "MIP_Receiver.st", "MIP_Status.st", "MIP_Internal_SenderAck.st", "MIP_Sender.st",
-             "MIP_BufferSender.st", "MIP_Link.st"]
+# st_lib's two libraries (core, then chain) in their import order, read from the one order file
+# of each library (st_lib/<library>/import-order.txt, mipcosim.libraries): paths relative to
+# ST_LIB (core/MIP_Types.st, ...), the lists the Python tools build from (tests, docs, benchmarks)
+CORE_FILES = library_files("core", ST_LIB)
+CHAIN_FILES = library_files("chain", ST_LIB)
+LIB_FILES = CORE_FILES + CHAIN_FILES
+TYPES_ST = ST_LIB / "core" / "MIP_Types.st"       # the core's types (E_MIP_Error, ...)
 MAX_STATIONS = 4
 WINDOW = 160
 FFFF = 0xFFFF
@@ -60,7 +55,7 @@ _ENUM = re.compile(r"\b([A-Za-z_]\w*)\s*:\s*\(([^;]*?)\)\s*;", re.S)
 
 
 @lru_cache(maxsize=None)
-def st_enums(path: str | Path = ST_LIB / "MIP_Types.st") -> dict[str, list[str]]:
+def st_enums(path: str | Path = TYPES_ST) -> dict[str, list[str]]:
     """The enumerated types of an ST file, {type name: [value names in order]}: a value's
     number is its index (IEC 61131-3 leaves it to the implementation; matiec, stc and the PLCs
     we target number from 0). The one reader of the numbers st_lib's E_MIP_* outputs carry
@@ -80,7 +75,7 @@ def st_enums(path: str | Path = ST_LIB / "MIP_Types.st") -> dict[str, list[str]]
     return out
 
 
-def enum_values(type_name: str, path: str | Path = ST_LIB / "MIP_Types.st") -> dict[str, int]:
+def enum_values(type_name: str, path: str | Path = TYPES_ST) -> dict[str, int]:
     """{value name: number} of one enumerated type of st_lib (e.g. E_MIP_Error)."""
     enums = st_enums(path)
     if type_name not in enums:
@@ -119,14 +114,15 @@ def write_image(s):
     return 100 + 123 * (s - 1)
 
 
-def lib_sources() -> list[str]:
-    """st_lib's files (paths) in the import order: what a build takes before the programs."""
-    return [str(ST_LIB / f) for f in LIB_FILES]
+def lib_sources(libs=LIBRARIES) -> list[str]:
+    """st_lib's files (paths) of the given libraries (default both: the core, then the chain
+    library), each in its import order: what a build takes before the programs."""
+    return [str(ST_LIB / f) for f in all_files(ST_LIB, libs)]
 
 
 def program_sources(role: str, bidi: bool):
     name = f"{role}{'_bidi' if bidi else ''}.st"
-    return lib_sources() + [str(PLC_DIR / "PLC_Logger.st"),
+    return lib_sources(("core",)) + [str(PLC_DIR / "PLC_Logger.st"),
                                                    str(PLC_DIR / name)]
 
 

@@ -287,7 +287,7 @@ class Side:
         return True
 
 
-ERRORS = st_enums(LIB_DIR / "MIP_Types.st")["E_MIP_Error"]   # names by number, from the ST
+ERRORS = st_enums(LIB_DIR / "core" / "MIP_Types.st")["E_MIP_Error"]   # names by number, from the ST
 
 
 class Chain:

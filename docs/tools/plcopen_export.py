@@ -1,6 +1,6 @@
 """PLCopen XML (TC6 v2.01) export of ST sources: data types, POU interfaces, ST bodies.
 
-    .venv/bin/python docs/tools/plcopen_export.py -o build/docs/st_lib.xml st_lib/*.st
+    .venv/bin/python docs/tools/plcopen_export.py -o build/docs/st_lib-core.xml st_lib/core/*.st
     .venv/bin/python docs/tools/plcopen_export.py --validate XSD FILE.xml   # check a file
 
 Types and POUs are written in an order in which every name is declared before it is used

@@ -40,8 +40,9 @@ def fmt_t(ns):
 # ---------------------------------------------------------------- the blocks, by type
 
 def _st_lib():
+    """The core library's folder (the blocks of BLOCK_TYPES are the core's)."""
     from mipcosim import programs as L
-    return L.ST_LIB
+    return L.ST_LIB / "core"
 
 
 @functools.lru_cache(maxsize=None)

@@ -159,7 +159,7 @@ void plcrt_master_exchange_in(plcrt_t *rt, struct plcrt_master *m)
  * one the later read returns, or a newer one, which sets the bit again). Registers not read keep
  * what the last read brought.
  * The program must never see the first registers of one block with the data of another: the
- * blocks take a new number without bit 0 as a new record (MIP_ReadDecoder). Bit 0 alone cannot
+ * blocks take a new number without bit 0 as a new record (MIP_Internal_ReadDecoder). Bit 0 alone cannot
  * promise that: a read whose answer never arrived (a PLC killed while it was on the line, a CRC
  * error) has cleared it in the modem. So the further reads are made also when the image holds no
  * read of this run yet (a restarted PLC) or when the registers the first read took (count, first

@@ -3,7 +3,7 @@ seconds plus (int)(tv_nsec * n) nanoseconds through a 32-bit int (lib/C/iec_std_
 __time_mul), so `T#1ms * 2148` comes out negative. The example programs build every TIME from
 seconds and milliseconds (mipprograms.common: ms_to_time). These tests check
 
-- every TIME product in plc/*.st and st_lib/*.st, for the whole range of its operand, stays
+- every TIME product in plc/*.st and st_lib/*/*.st, for the whole range of its operand, stays
   inside that int (a model of matiec's arithmetic, so it runs without matiec);
 - the generated expressions give the right TIME (3000 ms, 60 s, the WORD maximum) under stc;
 - the chain with tTimeout 3000 ms and 60 s makes no spurious retransmission, under stc and,
@@ -89,7 +89,7 @@ def time_variables(path):
     return {n.upper() for n in re.findall(r"^\s*(\w+)\s*:\s*TIME\b", code, re.M)}
 
 
-SOURCES = sorted((REPO / "plc").glob("*.st")) + sorted((REPO / "st_lib").glob("*.st"))
+SOURCES = sorted((REPO / "plc").glob("*.st")) + sorted((REPO / "st_lib").glob("*/*.st"))
 
 
 @pytest.mark.parametrize("path", SOURCES, ids=[p.name for p in SOURCES])

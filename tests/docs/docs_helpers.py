@@ -5,10 +5,13 @@ import subprocess
 import sys
 from pathlib import Path
 
+from mipcosim.libraries import all_files
+
 REPO = Path(__file__).resolve().parents[2]
 TOOLS = REPO / "docs" / "tools"
 PY = sys.executable
-ST_LIB = sorted(str(p) for p in (REPO / "st_lib").glob("*.st"))
+# both libraries' files, the core's then the chain's, each in its import order
+ST_LIB = [str(REPO / "st_lib" / f) for f in all_files(REPO / "st_lib")]
 XSD = REPO / "build" / "docs" / "tc6_xml_v201.xsd"
 # the co-simulation kernel (its emulator core runs the docs' chains: docs/tools/chainsim.py)
 KERNEL_SO = REPO / "build" / "cosim" / "libmipcosim.so"

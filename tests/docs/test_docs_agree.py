@@ -39,8 +39,8 @@ def test_a_whole_program_shown_in_the_docs_translates(page, line, src, tmp_path)
     with stc against st_lib: it once put MIP_Sender and AT %IW100 in one VAR block."""
     f = tmp_path / "shown.st"
     f.write_text(src)
-    r = subprocess.run([str(STC), "-I", str(REPO / "st_lib"), "-o", str(tmp_path / "gen"),
-                        str(f)], capture_output=True, text=True, timeout=300)
+    r = subprocess.run([str(STC), "-I", str(REPO / "st_lib" / "core"), "-I", str(REPO / "st_lib" / "chain"),
+                        "-o", str(tmp_path / "gen"), str(f)], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, f"{page.relative_to(REPO)}:{line}: {r.stderr}"
 
 
@@ -197,5 +197,5 @@ def test_test_kit_says_where_the_venv_keeps_st_lib():
     from docrun import blocks, not_run_reason
     page = REPO / "docs" / "test-kit.md"
     run = [src for _, info, src in blocks(page) if info.startswith("sh") and not not_run_reason(src)]
-    assert any("programs.ST_LIB" in src and "stc -I \"$ST_LIB\"" in src for src in run), run
+    assert any("programs.ST_LIB" in src and "stc -I \"$ST_LIB/core\"" in src for src in run), run
     assert "_st_lib/" in page.read_text()

@@ -39,7 +39,7 @@ def public_blocks():
     """The function blocks of st_lib an application calls: FUNCTION_BLOCKs whose header does
     not call them internal."""
     out = []
-    for f in sorted((REPO / "st_lib").glob("*.st")):
+    for f in sorted((REPO / "st_lib").glob("*/*.st")):
         text = f.read_text()
         fb = re.search(r"^FUNCTION_BLOCK (\w+)", text, re.M)
         purpose = re.search(r"@purpose\s+(\S+)", text)
@@ -72,13 +72,14 @@ def test_readme_folder_table_lists_every_top_level_folder():
 
 
 def test_st_lib_readme_table_lists_every_file_in_import_order():
-    order = [f.split("/")[-1] for f in mkdist.import_order()[0]]
+    order = [f.split("st_lib/", 1)[1] for lib in ("core", "chain")
+             for f in mkdist.import_order(REPO, lib)[0]]
     rows = [c.strip("`") for c in table_first_column((REPO / "st_lib" / "README.md").read_text(),
                                                     "file")]
     assert [r for r in rows if r.endswith(".st")] == order, (
-        "st_lib/README.md's file table is not every st_lib/*.st in the import order "
+        "st_lib/README.md's file table is not every st_lib/*/*.st in the import order "
         f"(`dist/mkdist.py --import-order`): missing {sorted(set(order) - set(rows))}, "
-        f"extra {sorted(set(rows) - set(order) - {'PROTOCOL.md'})}")
+        f"extra {sorted(set(rows) - set(order) - {'PROTOCOL.md', 'CONVENTIONS.md'})}")
 
 
 @pytest.mark.parametrize("page,where", [
@@ -123,7 +124,7 @@ def test_guarantee_table_window_row_matches_mip_sender():
     """docs/protocol.md's guarantee table said window 2 runs "not `xRetained`"; MIP_Sender's
     header says under which settings uWindow 2 falls back to 1 (tests/st_lib/
     test_lib_window_warm.py runs window 2 with xRetained through warm restarts)."""
-    sender = (REPO / "st_lib" / "MIP_Sender.st").read_text()
+    sender = (REPO / "st_lib" / "core" / "MIP_Sender.st").read_text()
     row = re.search(r"^\s*\| uWindow .*$", sender, re.M).group(0)
     fallback = re.search(r"PROTOCOL\.md P27;([^)]*)\)", row).group(1)
     table = (REPO / "docs" / "protocol.md").read_text()

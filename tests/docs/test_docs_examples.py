@@ -14,7 +14,7 @@ LIB = LIB_FILES
 
 
 def test_glue_example_translates(tmp_path):
-    r = subprocess.run([str(REPO / ".venv" / "bin" / "stc"), "-I", str(REPO / "st_lib"),
+    r = subprocess.run([str(REPO / ".venv" / "bin" / "stc"), "-I", str(REPO / "st_lib" / "core"),
                         "-o", str(tmp_path / "gen"), str(SRC)],
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr[-2000:]

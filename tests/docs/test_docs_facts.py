@@ -6,10 +6,10 @@ from docs_helpers import REPO
 
 
 def wait_reasons():
-    types = (REPO / "st_lib" / "MIP_Types.st").read_text()
+    types = (REPO / "st_lib" / "core" / "MIP_Types.st").read_text()
     types = re.sub(r"\(\*.*?\*\)", "", types, flags=re.S)
     decl = re.search(r"E_MIP_WaitReason\s*:\s*\((.*?)\)", types, re.S)
-    assert decl, "st_lib/MIP_Types.st: no E_MIP_WaitReason"
+    assert decl, "st_lib/core/MIP_Types.st: no E_MIP_WaitReason"
     return re.findall(r"\bMIP_WAIT_\w+", decl.group(1))
 
 

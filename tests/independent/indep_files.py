@@ -56,8 +56,11 @@ def need_glue(family):
     return files
 
 
-def st_lib_files():
-    return sorted((REPO / "st_lib").glob("*.st"))
+def st_lib_files(libs=("core", "chain")):
+    """st_lib's files of the given libraries (default both), each library's in its import order
+    (st_lib/<library>/import-order.txt)."""
+    from mipcosim.libraries import all_files
+    return [REPO / "st_lib" / f for f in all_files(REPO / "st_lib", libs)]
 
 
 def ironplcc():

@@ -496,7 +496,7 @@ def test_wheel_carries_what_the_kit_needs_and_the_checkout_stays_clean(tmp_path)
     names = zipfile.ZipFile(whl).namelist()
     for want in ["stc/cli.py", "stc/st.lark", "plcharness/build.py",
                  "plcharness/_runtime/src/plcrt_main.c", "plcharness/_runtime/include/plcrt.h",
-                 "mipcosim/_lib/libmipcosim.so", "mipcosim/_st_lib/MIP_Sender.st",
+                 "mipcosim/_lib/libmipcosim.so", "mipcosim/_st_lib/core/MIP_Sender.st",
                  "mippeer/peer.py", "mipprobe/cli.py", "mipprobe/regmap.py", "mipkit/plugin.py",
                  "mipdocs/seqdiag.py", "mipdocs/__init__.py"]:
         assert want in names, want

@@ -270,7 +270,7 @@ def test_mip_status_shows_a_dead_serial_line_with_the_runtimes_reason(compiler, 
     """The whole path: a program reads the TRM's status with a trigger range and feeds the
     handshake to MIP_Status. The line frozen (the modem side stopped): xLinkError with 1110 within
     a timeout; back: cleared. The line gone (no such tty): xLinkError with 1002."""
-    lib = subprocess.run([sys.executable, str(REPO / "dist" / "mkdist.py"), "--import-order"],
+    lib = subprocess.run([sys.executable, str(REPO / "dist" / "mkdist.py"), "--import-order", "core"],
                          capture_output=True, text=True, cwd=REPO, check=True).stdout.split()
     link = tmp_path / "ttyMIP"
     emu = Emulator("--stations", "1", "--bitrate", "1000000", "--slot-gap-ms", "1",

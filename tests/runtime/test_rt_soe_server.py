@@ -21,9 +21,9 @@ REPO = Path(__file__).resolve().parents[2]
 
 BASE = 600                  # the registers at %QW600..625 = holding 600..625, as the relay's 40601..
 TS0 = 1767225600000         # time stamp of entry 0 (ms since 1970)
-STATES = enum_values("E_MIP_SoeSrvState", ST_LIB / "MIP_TypesSoeServer.st")
-ERRORS = enum_values("E_MIP_ChainError", ST_LIB / "MIP_TypesSoe.st")
-WAIT = enum_values("E_MIP_ChainWaitReason", ST_LIB / "MIP_TypesSoe.st")
+STATES = enum_values("E_MIP_SoeSrvState", ST_LIB / "chain" / "MIP_TypesSoeServer.st")
+ERRORS = enum_values("E_MIP_ChainError", ST_LIB / "chain" / "MIP_TypesSoe.st")
+WAIT = enum_values("E_MIP_ChainWaitReason", ST_LIB / "chain" / "MIP_TypesSoe.st")
 
 REGS = "\n".join(f"  r{i} AT %QW{BASE + i} : WORD;" for i in range(26))
 COPY = "\n".join(f"r{i} := srv.aRegs[{i}];" for i in range(26))

@@ -25,7 +25,7 @@ from stlib_sim import Fb, RunUntil, build_text, lib_type
 
 REPO = Path(__file__).resolve().parents[2]
 
-SOE_TYPES = REPO / "st_lib" / "MIP_TypesSoe.st"
+SOE_TYPES = REPO / "st_lib" / "chain" / "MIP_TypesSoe.st"
 ERR = enum_values("E_MIP_ChainError", SOE_TYPES)
 STATE = enum_values("E_MIP_SoeState", SOE_TYPES)
 WAIT = enum_values("E_MIP_ChainWaitReason", SOE_TYPES)

@@ -26,7 +26,7 @@ from mipcosim.kernel import Radio as KernelRadio
 from plcharness import Plc, PlcError
 from mipprobe.regmap import MDP810, TRM810
 
-# the numbers of st_lib's enumerations, read from st_lib/MIP_Types.st (never copied by hand)
+# the numbers of st_lib's enumerations, read from st_lib/core/MIP_Types.st (never copied by hand)
 ERR = enum_values("E_MIP_Error")
 SND = enum_values("E_MIP_SenderState")
 WAIT = enum_values("E_MIP_WaitReason")
@@ -71,7 +71,7 @@ def _array_aliases():
 
 
 def lib_sources(workdir: Path) -> list[str]:
-    """The library files a bench builds its program with: st_lib/*.st, or under the SCL
+    """The library files a bench builds its program with: st_lib/*/*.st, or under the SCL
     dialect the generated .scl (any bench that builds through this runs on the SCL too)."""
     if dialect() != "scl":
         return LIB_PATHS

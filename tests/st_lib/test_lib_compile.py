@@ -1,21 +1,22 @@
-"""st_lib compiles with stc, and with matiec's iec2c (plain flags and OpenPLC's flags) where
-iec2c is installed; every block carries the documentation header the docs generator reads."""
+"""st_lib's dialect and naming rules, the library through stc's include directories, and every
+block carries the documentation header the docs generator reads. Each library compiling alone
+with stc and matiec's iec2c: tests/st_lib/test_lib_split.py."""
 import re
-import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
-from plcharness.matiec import matiec_paths
 
 from stlib_sim import LIB, LIB_FILES, LIB_PATHS
 
-ALL_BLOCKS = ["MIP_Status", "MIP_WriteChannel", "MIP_Layout", "MIP_ReadDecoder", "MIP_Sender",
-              "MIP_Receiver", "MIP_Link", "MIP_BufferSender", "MIP_SoeServer", "MIP_UnicosChannel",
+ALL_BLOCKS = ["MIP_Status", "MIP_Internal_WriteChannel", "MIP_Internal_Layout", "MIP_Internal_ReadDecoder", "MIP_Sender",
+              "MIP_Receiver", "MIP_Link", "MIP_BufferSender", "MIP_SoeServer", "MIP_Internal_UnicosChannel",
               "MIP_UnicosEvents", "MIP_UnicosStatus", "MIP_Internal_SnapshotGate",
               "MIP_Internal_RecordBlock", "MIP_Internal_SenderWait", "MIP_Internal_Window",
               "MIP_Internal_SenderAck"]
+# the two libraries compiled with stc and matiec, each alone (the core without the chain, the
+# chain on the core): tests/st_lib/test_lib_split.py
 USE_ALL = """
 PROGRAM CompileCheck
 VAR
@@ -46,53 +47,17 @@ CONFIGURATION Config0
   END_RESOURCE
 END_CONFIGURATION
 """
-OPENPLC_FLAGS = ["-f", "-l", "-p", "-r", "-R", "-a"]
-
-
-def _combined(tmp_path):
-    text = "".join(Path(p).read_text() + "\n" for p in LIB_PATHS) + USE_ALL
-    f = tmp_path / "st_lib_all.st"
-    f.write_text(text)
-    return f
-
-
-@pytest.mark.parametrize("flags", [[], OPENPLC_FLAGS], ids=["plain", "openplc-flags"])
-def test_matiec_compiles_st_lib(tmp_path, flags):
-    exe, lib = matiec_paths()
-    if not exe:
-        pytest.skip("iec2c not found on PATH or in $IEC2C: matiec check not run "
-                    "(set PATH and MATIEC_LIB to run it)")
-    src = _combined(tmp_path)
-    out = tmp_path / "gen"
-    out.mkdir()
-    proc = subprocess.run([exe, *flags, "-I", lib, "-T", str(out), str(src)],
-                          capture_output=True, text=True)
-    assert proc.returncode == 0, proc.stdout + proc.stderr
-    assert (out / "POUS.c").is_file()
-    cc = shutil.which("cc") or shutil.which("gcc")
-    if cc and Path(lib, "C").is_dir():
-        for c in ("Config0.c", "Res0.c"):
-            p = subprocess.run([cc, "-std=gnu99", "-w", "-c", "-I", str(Path(lib, "C")), str(out / c),
-                                "-o", str(tmp_path / (c + ".o"))], capture_output=True, text=True)
-            assert p.returncode == 0, f"{c}: {p.stderr}"
-
-
-def test_stc_compiles_st_lib(tmp_path):
-    src = _combined(tmp_path)
-    stc = Path(sys.executable).parent / "stc"
-    cmd = [str(stc)] if stc.is_file() else [sys.executable, "-m", "stc.cli"]
-    proc = subprocess.run(cmd + ["-o", str(tmp_path / "gen"), str(src)], capture_output=True, text=True)
-    assert proc.returncode == 0, proc.stdout + proc.stderr
-    assert "warning" not in (proc.stdout + proc.stderr).lower(), proc.stdout + proc.stderr
 
 
 def test_library_through_stc_include_dir(tmp_path):
-    """`stc -I st_lib prog.st`: the library as an include directory (any file order)."""
+    """`stc -I st_lib/core -I st_lib/chain prog.st`: the libraries as include directories (any
+    file order)."""
     prog = tmp_path / "prog.st"
     prog.write_text(USE_ALL)
     stc = Path(sys.executable).parent / "stc"
     cmd = [str(stc)] if stc.is_file() else [sys.executable, "-m", "stc.cli"]
-    proc = subprocess.run(cmd + ["-o", str(tmp_path / "gen"), "-I", str(LIB), str(prog)],
+    proc = subprocess.run(cmd + ["-o", str(tmp_path / "gen"), "-I", str(LIB / "core"),
+                                 "-I", str(LIB / "chain"), str(prog)],
                           capture_output=True, text=True)
     assert proc.returncode == 0, proc.stdout + proc.stderr
 
@@ -119,7 +84,7 @@ def test_dialect_rules(name):
     pous = re.findall(r"^\s*(FUNCTION_BLOCK|FUNCTION|PROGRAM)\s+(\w+)", code, flags=re.M)
     assert len(pous) <= 1, f"one POU per file: {pous}"
     if pous:
-        assert pous[0][1] + ".st" == name
+        assert pous[0][1] + ".st" == Path(name).name
 
 
 def _declared(code, sections=("VAR_INPUT", "VAR_OUTPUT", "VAR_IN_OUT")):
@@ -134,7 +99,8 @@ def _declared(code, sections=("VAR_INPUT", "VAR_OUTPUT", "VAR_IN_OUT")):
 def test_block_doc_header(block):
     """The header the docs generator reads: `(*@ block NAME`, then @purpose, @interface (a
     | table | with every input and output), @behaviour and @example sections."""
-    text = (LIB / f"{block}.st").read_text()
+    (path,) = [LIB / f for f in LIB_FILES if Path(f).name == f"{block}.st"]
+    text = path.read_text()
     m = re.match(r"\(\*@ block (\w+)\n(.*?)\*\)", text, flags=re.S)
     assert m and m.group(1) == block, "file must start with (*@ block NAME"
     header = m.group(2)

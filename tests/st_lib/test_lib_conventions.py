@@ -12,23 +12,25 @@ import re
 from pathlib import Path
 
 import pytest
-from mipcosim.programs import LIB_FILES
+from mipcosim.programs import CHAIN_FILES, LIB_FILES
 from mipdocs import stdecl
 from mipdocs.blockref import LIVE, header_rows
 
 REPO = Path(__file__).resolve().parents[2]
 LIB = REPO / "st_lib"
 
-# -- the two libraries (CONVENTIONS.md, "Two libraries, one error enum each") ---------------
-# Until issue 46 step 2 gives the chain library its own folder, a file belongs to the chain
-# library when its name says Soe or Unicos; every other file is the core's.
-CHAIN_FILE = re.compile(r"^MIP_(Types|Internal_)?(Soe|Unicos)")
+# -- the two libraries (CONVENTIONS.md, "Two libraries") ----------------------------------
+# a file belongs to the library of its folder: st_lib/core/ or st_lib/chain/ (LIB_FILES are
+# paths relative to st_lib/, each library's in its import order)
 LIBRARIES = {
     # library: (its one error enum, its one wait-reason enum, the high byte of its S7 status
     #           word on an error: 16#8000 + base + the error's position in its enum)
     "core": ("E_MIP_Error", "E_MIP_WaitReason", 0x8000),
     "chain": ("E_MIP_ChainError", "E_MIP_ChainWaitReason", 0x8100),
 }
+# the chain library's names (CONVENTIONS.md, "library-prefix"): MIP_ + Soe / Unicos / Chain
+# after the kind's prefix (E_, T_, Internal_); the core has no name of that form
+CHAIN_NAME = re.compile(r"^(E_)?MIP_(T_|Internal_)?(Soe|Unicos|Chain)[A-Z]\w*$")
 INTERNAL_PREFIX = "MIP_Internal_"
 INTERNAL_MARK = "Internal:"          # the first word of a helper's @purpose
 IFACE = ("VAR_INPUT", "VAR_OUTPUT", "VAR_IN_OUT")
@@ -44,21 +46,13 @@ COMBINED_SIDES = {"execute": "Send", "enable": "Recv"}
 FIX = "issue 46 step 2"
 # (block or type, rule, detail, why it deviates today, fixed by)
 DEVIATIONS = [
-    # internal helpers: marked in their header only, not by name
-    ("MIP_CheckStep", "internal-name", "no prefix MIP_Internal_", "noun name with the public prefix", FIX),
-    ("MIP_EchoMagic", "internal-name", "no prefix MIP_Internal_", "noun name with the public prefix", FIX),
-    ("MIP_Layout", "internal-name", "no prefix MIP_Internal_", "noun name with the public prefix", FIX),
-    ("MIP_WriteChannel", "internal-name", "no prefix MIP_Internal_", "noun name with the public prefix", FIX),
-    ("MIP_StatusBit", "internal-name", "no prefix MIP_Internal_", "noun name with the public prefix", FIX),
-    ("MIP_UnicosChannel", "internal-name", "no prefix MIP_Internal_", "noun name with the public prefix", FIX),
-    ("MIP_ReadDecoder", "internal-name", "no prefix MIP_Internal_", "noun name with the public prefix", FIX),
 ]
 
 
 # -- reading the library -------------------------------------------------------------------
 
 def library_of(fname):
-    return "chain" if CHAIN_FILE.match(fname) else "core"
+    return "chain" if fname in CHAIN_FILES else "core"
 
 
 @pytest.fixture(scope="module")
@@ -120,6 +114,17 @@ def check_internal(units):
                 out.append((p.name, "internal-name",
                             f"no prefix {INTERNAL_PREFIX}" if is_internal(p)
                             else f"prefix {INTERNAL_PREFIX} without '{INTERNAL_MARK}' in @purpose"))
+    return out
+
+
+def check_library_prefix(units):
+    out = []
+    for f, u in units:
+        lib = library_of(f)
+        for name in [p.name for p in u.pous] + [t.name for t in u.types]:
+            if (lib == "chain") != bool(CHAIN_NAME.match(name)):
+                out.append((name, "library-prefix", f"{lib} library, name of the "
+                            f"{'core' if lib == 'chain' else 'chain'} form"))
     return out
 
 
@@ -343,10 +348,11 @@ def test_the_convention_counts_each_blocks_deviations(units):
     assert rows == want
 
 
-@pytest.mark.parametrize("rule", ["internal-name", "comment", "naming", "models", "enums",
+@pytest.mark.parametrize("rule", ["internal-name", "library-prefix", "comment", "naming", "models", "enums",
                                   "diagnostics", "sampled", "channels", "status-word"])
 def test_rule(rule, units, scl):
-    check = {"internal-name": check_internal, "comment": check_comments, "naming": check_naming,
+    check = {"internal-name": check_internal, "library-prefix": check_library_prefix,
+             "comment": check_comments, "naming": check_naming,
              "models": check_models, "enums": check_enums, "diagnostics": check_diagnostics,
              "sampled": check_sampled, "channels": check_channels}.get(rule)
     found = set(check(units) if check else check_status_word(units, scl))
@@ -368,7 +374,8 @@ def test_rule(rule, units, scl):
 def _rules_of(check):
     """The rule names a check reports (so that a fixed entry is found even when the check
     reports nothing of that rule any more)."""
-    return {"internal-name": {"internal-name"}, "comment": {"comment"}, "naming": {"naming"},
+    return {"internal-name": {"internal-name"}, "library-prefix": {"library-prefix"},
+            "comment": {"comment"}, "naming": {"naming"},
             "models": {"execute-outputs", "enable-outputs", "decoder-outputs", "error-enum"},
             "enums": {"one-error-enum", "one-wait-enum", "error-range"},
             "diagnostics": {"diagnostics"}, "sampled": {"sampled"}, "channels": {"channels"},

@@ -1,4 +1,4 @@
-"""The enum numbers Python uses come from st_lib/MIP_Types.st through one reader
+"""The enum numbers Python uses come from st_lib/core/MIP_Types.st through one reader
 (mipcosim.programs.st_enums): it agrees with the documentation's reader (docs/tools/stdecl.py,
 behind the 'as integer' column of docs/blocks.md) and refuses what it cannot number."""
 import re
@@ -13,7 +13,7 @@ REPO = Path(__file__).resolve().parents[2]
 
 def test_reader_agrees_with_the_documentation_reader():
     from mipdocs import stdecl
-    unit = stdecl.parse_file(str(REPO / "st_lib" / "MIP_Types.st"))
+    unit = stdecl.parse_file(str(REPO / "st_lib" / "core" / "MIP_Types.st"))
     documented = {t.name: [v for v, _ in t.values] for t in unit.types if t.kind == "enum"}
     assert st_enums() == documented
     assert len(documented) >= 4
@@ -46,7 +46,7 @@ def test_every_enum_value_is_used():
     # an unused value is dead and holds the numbers after it hostage (issue 29: MIP_SND_RESET);
     # while the version is 0.x it goes, with a CHANGELOG entry
     code = " ".join(re.sub(r"\(\*.*?\*\)", " ", p.read_text(), flags=re.S)
-                    for p in sorted((REPO / "st_lib").glob("*.st")) if p.name != "MIP_Types.st")
+                    for p in sorted((REPO / "st_lib").glob("*/*.st")) if p.name != "MIP_Types.st")
     used = {w.upper() for w in re.findall(r"\bMIP_\w+", code, re.I)}   # ST is case-blind
     unused = [v for vals in st_enums().values() for v in vals if v.upper() not in used]
     assert unused == []

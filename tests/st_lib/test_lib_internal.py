@@ -1,4 +1,4 @@
-"""The internal blocks MIP_Layout and MIP_ReadDecoder on their own: the tables the sender, the
+"""The internal blocks MIP_Internal_Layout and MIP_Internal_ReadDecoder on their own: the tables the sender, the
 receiver and the link rely on (st_lib/PROTOCOL.md section 1, note 2.1 and 2.2)."""
 
 import pytest
@@ -10,8 +10,8 @@ from stlib_sim import LIB_PATHS, compiler
 PROGRAM = """
 PROGRAM MAIN
 VAR
-  lay : MIP_Layout;
-  dec : MIP_ReadDecoder;
+  lay : MIP_Internal_Layout;
+  dec : MIP_Internal_ReadDecoder;
   xBidi, xDown, xEnable, xReset, xReadValid : BOOL;
   wStatus, wCount, wNumber : WORD;
   uStream : UINT;

@@ -9,9 +9,9 @@ from mipprograms.common import config
 
 from stlib_sim import build_text, lib_type
 
-CLS = enum_values("E_MIP_SoeReadClass", ST_LIB / "MIP_TypesSoe.st")
-STATE = enum_values("E_MIP_SoeState", ST_LIB / "MIP_TypesSoe.st")
-WAIT = enum_values("E_MIP_ChainWaitReason", ST_LIB / "MIP_TypesSoe.st")
+CLS = enum_values("E_MIP_SoeReadClass", ST_LIB / "chain" / "MIP_TypesSoe.st")
+STATE = enum_values("E_MIP_SoeState", ST_LIB / "chain" / "MIP_TypesSoe.st")
+WAIT = enum_values("E_MIP_ChainWaitReason", ST_LIB / "chain" / "MIP_TypesSoe.st")
 
 INPUTS = {"uSeqBits": "UINT", "xOpen": "BOOL", "wOpenSeq": "WORD", "uOpenN": "UINT",
           "xKnown": "BOOL", "wLastSeq": "WORD", "xAfterAck": "BOOL", "wAckSeq": "WORD",

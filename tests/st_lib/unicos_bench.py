@@ -16,10 +16,10 @@ import stlib_sim
 from stlib_sim import LIB, MS, Fb, RunUntil
 from plcharness import Plc
 
-UERR = enum_values("E_MIP_ChainError", LIB / "MIP_TypesSoe.st")
-USTATE = enum_values("E_MIP_UnicosState", LIB / "MIP_UnicosTypes.st")
-SSTATE = enum_values("E_MIP_UnicosStatusState", LIB / "MIP_UnicosTypes.st")
-WAIT = enum_values("E_MIP_ChainWaitReason", LIB / "MIP_TypesSoe.st")
+UERR = enum_values("E_MIP_ChainError", LIB / "chain" / "MIP_TypesSoe.st")
+USTATE = enum_values("E_MIP_UnicosState", LIB / "chain" / "MIP_UnicosTypes.st")
+SSTATE = enum_values("E_MIP_UnicosStatusState", LIB / "chain" / "MIP_UnicosTypes.st")
+WAIT = enum_values("E_MIP_ChainWaitReason", LIB / "chain" / "MIP_TypesSoe.st")
 TICK_MS = 10
 
 

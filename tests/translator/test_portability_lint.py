@@ -19,63 +19,63 @@ from stc.diag import Diagnostics
 
 import stc_harness as H
 
-STLIB = sorted(glob.glob(os.path.join(H.ROOT, "st_lib", "*.st")))
+STLIB = sorted(glob.glob(os.path.join(H.ROOT, "st_lib", "*", "*.st")))
 PLC_DIR = os.path.join(H.ROOT, "plc")
 PROGRAMS = sorted(p for p in glob.glob(os.path.join(PLC_DIR, "*.st"))
                   if not os.path.basename(p).startswith("PLC_"))   # PLC_*.st: the programs' helpers
 
 # (file pattern, kind, text the source line contains, reason)
 ALLOWED = [
-    ("st_lib/MIP_WriteChannel.st", "timer-pt", "tonReq(",
+    ("st_lib/core/MIP_Internal_WriteChannel.st", "timer-pt", "tonReq(",
      "runs only when tTimeout > T#0s (the IN condition), so PT is never T#0s"),
-    ("st_lib/MIP_Receiver.st", "time-sum", "PT := tCfgTimeout + tCfgTimeout + tCfgTimeout",
+    ("st_lib/core/MIP_Receiver.st", "time-sum", "PT := tCfgTimeout + tCfgTimeout + tCfgTimeout",
      "three equal terms: the nanosecond part of the sum is never exactly 1e9 (n + n + n = 1e9 "
      "has no integer n, and an unnormalised n + n = 1e9 is normalised by the third addition)"),
-    ("st_lib/MIP_Sender.st", "time-sum", "PT := tCfgTimeout + tCfgTimeout + tCfgTimeout",
+    ("st_lib/core/MIP_Sender.st", "time-sum", "PT := tCfgTimeout + tCfgTimeout + tCfgTimeout",
      "three equal terms: as in MIP_Receiver, the sum is always normalised"),
     ("plc/*.st", "time-sum", "T#1s * (WORD_TO_DINT(",
      "whole seconds plus at most 999 ms: the nanosecond part stays below 1e9"),
-    ("st_lib/MIP_Receiver.st", "timer-pt", "tonStep(",
+    ("st_lib/core/MIP_Receiver.st", "timer-pt", "tonStep(",
      "PT is 3 * tTimeout (default T#10s): a step bound, never T#0s in a working set-up; at "
      "T#0s matiec's Q would come one scan later, a timing difference only"),
-    ("st_lib/MIP_Receiver.st", "timer-pt", "tonTransfer(",
+    ("st_lib/core/MIP_Receiver.st", "timer-pt", "tonTransfer(",
      "runs only when tTransferTimeout > T#0s (the IN condition), so PT is never T#0s"),
-    ("st_lib/MIP_Receiver.st", "timer-pt", "tonPoll(",
+    ("st_lib/core/MIP_Receiver.st", "timer-pt", "tonPoll(",
      "PT is tTimeout, the polling interval (default T#10s); T#0s would poll one scan later "
      "under matiec, a timing difference only"),
-    ("st_lib/MIP_Receiver.st", "timer-pt", "tonHold(",
+    ("st_lib/core/MIP_Receiver.st", "timer-pt", "tonHold(",
      "PT is tTimeout / 2, a hold-off; at T#0s matiec releases it one scan later (timing only)"),
-    ("st_lib/MIP_Sender.st", "timer-pt", "tonStep(",
+    ("st_lib/core/MIP_Sender.st", "timer-pt", "tonStep(",
      "PT is 3 * tTimeout, a step bound (timing only)"),
-    ("st_lib/MIP_Sender.st", "timer-pt", "tonRetry(",
+    ("st_lib/core/MIP_Sender.st", "timer-pt", "tonRetry(",
      "PT is tTimeout, the retransmission interval (default T#10s); at T#0s matiec retransmits "
      "one scan later, a timing difference only"),
-    ("st_lib/MIP_Status.st", "timer-pt", "tonStall(",
+    ("st_lib/core/MIP_Status.st", "timer-pt", "tonStall(",
      "PT is tStallTime (default T#60s): xLinkStalled may rise one scan later under matiec when "
      "it is T#0s, a timing difference only"),
-    ("st_lib/MIP_SoeReader.st", "timer-pt", "tonRetry(",
+    ("st_lib/chain/MIP_SoeReader.st", "timer-pt", "tonRetry(",
      "PT is tAckRetry (default T#1s), a delay before the next read; at T#0s matiec ends it one "
      "scan later, a timing difference only"),
-    ("st_lib/MIP_SoeReader.st", "timer-pt", "tonProblem(",
+    ("st_lib/chain/MIP_SoeReader.st", "timer-pt", "tonProblem(",
      "PT is tRetryTimeout or tAckTimeout, a bound before xError (timing only)"),
-    ("st_lib/MIP_SoeReader.st", "timer-pt", "tonWriteFail(",
+    ("st_lib/chain/MIP_SoeReader.st", "timer-pt", "tonWriteFail(",
      "PT is tAckTimeout, a bound before xError (timing only)"),
-    ("st_lib/MIP_SoeReader.st", "timer-pt", "tonNoRead(",
+    ("st_lib/chain/MIP_SoeReader.st", "timer-pt", "tonNoRead(",
      "runs only when tReadTimeout > T#0s (the IN condition), so PT is never T#0s"),
     ("plc/PLC_Logger.st", "timer-pt", "tonLog(",
      "called only when tLogPeriod <> T#0s (the IF around it)"),
     ("plc/*.st", "timer-pt", "tonWr",
      "PT is the configured cyclic-write period; at T#0s matiec writes one scan later, a "
      "timing difference only"),
-    ("st_lib/MIP_SoeServer.st", "timer-pt", "tonSilent(",
+    ("st_lib/chain/MIP_SoeServer.st", "timer-pt", "tonSilent(",
      "runs only when tAckTimeout > T#0s (the IN condition), so PT is never T#0s"),
-    ("st_lib/MIP_UnicosChannel.st", "timer-pt", "tonRetry(",
+    ("st_lib/chain/MIP_Internal_UnicosChannel.st", "timer-pt", "tonRetry(",
      "PT is tRetry (default T#500ms), the pause before a repeated write; at T#0s matiec "
      "repeats one scan later, a timing difference only"),
-    ("st_lib/MIP_UnicosEvents.st", "timer-pt", "tonDelay(",
+    ("st_lib/chain/MIP_UnicosEvents.st", "timer-pt", "tonDelay(",
      "PT is tMaxDelay (default T#2s), the latest time to send the event table; at T#0s matiec "
      "sends it one scan later, a timing difference only"),
-    ("st_lib/MIP_UnicosStatus.st", "timer-pt", "tonGap(",
+    ("st_lib/chain/MIP_UnicosStatus.st", "timer-pt", "tonGap(",
      "PT is tMinPeriod (default T#50ms), the least time between two status tables; at T#0s "
      "matiec allows the next one a scan later, a timing difference only"),
 ]

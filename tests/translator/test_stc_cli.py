@@ -98,9 +98,9 @@ def test_errors_are_file_line_col_and_all_reported(tmp_path):
     lines = r.stderr.strip().splitlines()
     assert lines == [
         f"{bad}:3:6: error: assignment: type UINT cannot be assigned to INT without explicit "
-        "conversion (IEC strict typing): use UINT_TO_INT(...)",
+        "conversion (IEC strict typing): use UINT_TO_INT(...) [S0506]",
         f"{bad}:4:6: error: assignment: type INT cannot be assigned to UINT without explicit "
-        "conversion (IEC strict typing): use INT_TO_UINT(...)",
+        "conversion (IEC strict typing): use INT_TO_UINT(...) [S0506]",
     ]
     assert not (tmp_path / "o").exists(), "no output on errors"
 

@@ -22,10 +22,12 @@ def _compile(outdir):
             assert p.returncode == 0, f"{c}:\n{p.stderr}"
 
 
-@pytest.mark.skipif(not glob.glob(os.path.join(STLIB, "*.st")), reason="st_lib/ has no .st files yet")
-def test_st_lib_translates_and_compiles(tmp_path):
+@pytest.mark.parametrize("libs", [("core",), ("core", "chain")], ids=["core", "core+chain"])
+def test_st_lib_translates_and_compiles(libs, tmp_path):
+    """Each library (the core alone, the chain on the core) in its import order."""
+    from mipcosim.libraries import all_files
     out = str(tmp_path / "o")
-    r = H.run_stc(["-o", out] + sorted(glob.glob(os.path.join(STLIB, "*.st"))))
+    r = H.run_stc(["-o", out] + [os.path.join(STLIB, f) for f in all_files(STLIB, libs)])
     assert r.returncode == 0, r.stderr
     _compile(out)
 
@@ -35,6 +37,7 @@ def test_st_lib_translates_and_compiles(tmp_path):
 def test_plc_program_translates_and_compiles(prog, tmp_path):
     out = str(tmp_path / "o")
     extra = sorted(glob.glob(os.path.join(PLC, "PLC_*.st")))     # the helpers, PLC_Logger.st first
-    r = H.run_stc(["-I", STLIB, "-o", out] + extra + [prog])
+    r = H.run_stc(["-I", os.path.join(STLIB, "core"), "-I", os.path.join(STLIB, "chain"), "-o", out]
+                  + extra + [prog])
     assert r.returncode == 0, r.stderr
     _compile(out)

@@ -43,11 +43,11 @@ def test_untyped_literal_into_a_bit_string_warns_with_its_place(tmp_path):
     got = warnings(r)
     assert got == [
         f"{src}:4:16: warning: strict IEC: initial value: untyped integer literal 5 stored in "
-        f"WORD (a strict edition-2 checker rejects it): write WORD#5 or a based literal like 16#5",
+        f"WORD (a strict edition-2 checker rejects it): write WORD#5 or a based literal like 16#5 [W0008]",
         f"{src}:11:6: warning: strict IEC: assignment: untyped integer literal 0 stored in WORD "
-        f"(a strict edition-2 checker rejects it): write WORD#0 or a based literal like 16#0",
+        f"(a strict edition-2 checker rejects it): write WORD#0 or a based literal like 16#0 [W0008]",
         f"{src}:18:6: warning: strict IEC: assignment: untyped integer literal 12 stored in BYTE "
-        f"(a strict edition-2 checker rejects it): write BYTE#12 or a based literal like 16#C",
+        f"(a strict edition-2 checker rejects it): write BYTE#12 or a based literal like 16#C [W0008]",
     ], r.stderr
     # typed and based literals, operands of an expression, BOOL and integers: no warning
 
@@ -71,10 +71,10 @@ def test_input_argument_of_a_block_call(tmp_path):
     assert r.returncode == 0, r.stderr
     assert [x.split(": warning: ")[1] for x in warnings(r)] == [
         "strict IEC: input WIN of FB_A: untyped integer literal 3 stored in WORD (a strict "
-        "edition-2 checker rejects it): write WORD#3 or a based literal like 16#3"]
+        "edition-2 checker rejects it): write WORD#3 or a based literal like 16#3 [W0008]"]
 
 
-LIB = sorted(glob.glob(os.path.join(H.ROOT, "st_lib", "*.st")))
+LIB = sorted(glob.glob(os.path.join(H.ROOT, "st_lib", "*", "*.st")))
 PLC = ["central", "central_bidi", "central_many", "outstation", "outstation_bidi",
        "central_soe", "outstation_soe", "central_push"]
 

@@ -17,7 +17,7 @@ from mipcosim import vendor_glue as glue
 from plcharness import Plc
 from standin_server import ScriptedServer
 
-TYPES = REPO / "st_lib" / "MIP_Types.st"
+TYPES = REPO / "st_lib" / "core" / "MIP_Types.st"
 
 CALL = {
     "twincat": "io(sIPAddr := '127.0.0.1', nUnitID := 16#FF, nReadAddr := 5, nWriteAddr := 200,\n"

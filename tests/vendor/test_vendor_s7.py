@@ -42,7 +42,7 @@ def test_s7_done_taken_as_a_level_ends_in_a_named_error(vendor_workdir):
     """The integrator's mistake: MB_CLIENT's DONE / ERROR (TRUE for the one call in which a
     request ends) looked at after a second call of the instance in the same cycle, as if they
     were levels. The glue then never sees a request end. The blocks bound that wait: the write
-    handshake ends a request the caller has not ended within 10 s (MIP_WriteChannel's
+    handshake ends a request the caller has not ended within 10 s (MIP_Internal_WriteChannel's
     tTimeout) as a failed write (udiWriteErrors), the sender retransmits, and after uMaxRetries
     the transfer ends with MIP_ERR_NO_ACK, a named error; none is reported done. (Before the
     bound, the sender waited in MIP_WAIT_WRITE for as long as the run lasted.)"""

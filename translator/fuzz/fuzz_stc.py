@@ -49,7 +49,7 @@ EXTRA_TOKENS = ["IF", "THEN", "END_IF", ";", ":=", "(", ")", "[", "]", "CASE", "
 
 
 def corpus_files():
-    pats = ["tests/translator/accept/*.st", "tests/translator/reject/*.st", "st_lib/*.st", "plc/*.st",
+    pats = ["tests/translator/accept/*.st", "tests/translator/reject/*.st", "st_lib/*/*.st", "plc/*.st",
             "plc/**/*.st"]
     files = []
     for p in pats:

@@ -69,9 +69,19 @@ def main(argv=None):
                          "TwinCAT 3 / CODESYS V3 (pragmas, // comments, library namespaces, "
                          "POINTER TO, ADR, SIZEOF, MEMCPY); default: by file name (*.scl is SCL, "
                          "FILE.twincat.st / FILE.codesys.st the vendor's ST, anything else ST)")
+    ap.add_argument("--explain", metavar="CODE",
+                    help="print what the diagnostic CODE (the [P0104] / [S0505] / [W0001] at the "
+                         "end of a message) means, from stc's table of problems, and exit")
     ap.add_argument("--version", action="version", version=f"stc {__version__}")
     ap.add_argument("files", nargs="*", metavar="FILE.st")
     args = ap.parse_args(argv)
+    if args.explain is not None:
+        from .problems import explain
+        lines = explain(args.explain)
+        if lines is None:
+            ap.error(f"--explain {args.explain}: no such code (stc's codes: stc/problems.csv)")
+        print("\n".join(lines))
+        return 0
     if not args.files:
         ap.error("no input files")
     if not args.outdir:

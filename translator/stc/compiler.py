@@ -3,6 +3,7 @@ from . import parser
 from . import syntax as S
 from .check import Checker
 from .semantics import SEMANTICS
+from .semantics import dialect as rules
 
 
 def dialect_of(fname, dialect=None):
@@ -35,10 +36,8 @@ def compile_files(texts, diags, semantics="matiec", strict_iec=False, dialect=No
     if diags:
         return None
     checker = Checker(diags, semantics, strict_iec)
-    checker.scl_files = {f for f, _t, _l in texts if dialect_of(f, dialect) == "scl"}
-    checker.vendor_files = {f for f, _t, _l in texts
-                            if dialect_of(f, dialect) in ("twincat", "codesys")}
-    if checker.scl_files:
+    checker.dialects = {f: rules(dialect_of(f, dialect), semantics) for f, _t, _l in texts}
+    if any(d.arrays_named_by_shape for d in checker.dialects.values()):
         from .scl_in import name_arrays
         name_arrays(parsed)
     return checker.run(parsed)

@@ -60,13 +60,13 @@ class _Recovery:
                     msg = f"string literal not closed on its line: missing {ch}"
                 else:
                     msg = f"unexpected character {ch!r}"
-                self.report((e.line, e.column), msg)
+                self.report((e.line, e.column), "P0108", msg)
             return True
         if isinstance(e, UnexpectedToken):
             tok = e.token
             pos = _tok_pos(tok, e)
             if tok.type == "$END" or self._new(pos[0]):
-                self.report(pos, _unexpected_message(e))
+                self.report(pos, "P0104", _unexpected_message(e))
             if tok.type == "$END":
                 return False
             if self.skipping:

@@ -81,8 +81,8 @@ def parse(text, filename, diags, dialect="st"):
     p = _get_parser()
     errors = []
 
-    def report(pos, msg):
-        diags.error(filename, pos, msg)
+    def report(pos, code, msg):
+        diags.error(filename, pos, msg, code)
         errors.append(msg)
 
     if dialect in ("scl", "twincat", "codesys"):
@@ -96,10 +96,10 @@ def parse(text, filename, diags, dialect="st"):
 
     rec = _Recovery(report)
     _comment_sink[0] = lambda tok: report(
-        _pos(tok), ("//" if tok.startswith("//") else "/* */")
+        _pos(tok), "P0101", ("//" if tok.startswith("//") else "/* */")
         + " comments are not portable (matiec rejects them): use (* ... *)")
     _comment_sink[1] = lambda tok: report(
-        _pos(tok), "{ ... } pragmas are not portable (matiec pastes them into its C output): "
+        _pos(tok), "P0102", "{ ... } pragmas are not portable (matiec pastes them into its C output): "
         "remove it or make it a (* comment *)")
     _depth_sink[0] = report
     text = _blank_comments(text, report, rec)
@@ -110,7 +110,7 @@ def parse(text, filename, diags, dialect="st"):
         at = m.start(1)
         line = text.count("\n", 0, at) + 1
         col = at - (text.rfind("\n", 0, at) + 1) + 1
-        report((line, col), "PERSISTENT is CODESYS/TwinCAT, not IEC 61131-3 (matiec rejects it): "
+        report((line, col), "P0103", "PERSISTENT is CODESYS/TwinCAT, not IEC 61131-3 (matiec rejects it): "
                "use RETAIN (kept on a warm start)")
     if errors:
         _depth_sink[0] = None
@@ -122,7 +122,7 @@ def parse(text, filename, diags, dialect="st"):
         if not errors:
             tok = getattr(e, "token", None)
             pos = (getattr(e, "line", 0) or 0, getattr(e, "column", 0) or 0)
-            report(pos if pos[0] > 0 else (0, 0), _unexpected_message(e) if tok is not None else "syntax error")
+            report(pos if pos[0] > 0 else (0, 0), "P0104", _unexpected_message(e) if tok is not None else "syntax error")
         return None
     _depth_sink[0] = None
     if errors:
@@ -172,7 +172,7 @@ def _blank_comments(text, report, rec):
         end = text.find(close, start + len(tok))
         if end < 0:
             what = {"(*": "comment '(*'", "/*": "comment '/*'", "{": "pragma '{'"}[tok]
-            report(where(start), f"{what} is not closed: missing '{close}'")
+            report(where(start), "P0105", f"{what} is not closed: missing '{close}'")
             return None      # the rest of the file is inside it: nothing more to parse
         end += len(close)
         if tok == "(*":
@@ -185,14 +185,14 @@ def _blank_comments(text, report, rec):
                         next_close[0] = len(text) + 1
                 opening = text.find("(*", end, next_close[0])
                 if next_close[0] <= len(text) and opening < 0:
-                    report(where(inner), "nested comments are not portable (matiec rejects "
+                    report(where(inner), "P0106", "nested comments are not portable (matiec rejects "
                            "them without -n): close the outer comment first")
                     rec.last_line = max(rec.last_line, where(end)[0])
         elif tok == "/*":
-            report(where(start), "/* */ comments are not portable (matiec rejects them): "
+            report(where(start), "P0101", "/* */ comments are not portable (matiec rejects them): "
                    "use (* ... *)")
         else:
-            report(where(start), "{ ... } pragmas are not portable (matiec pastes them into its "
+            report(where(start), "P0102", "{ ... } pragmas are not portable (matiec pastes them into its "
                    "C output): remove it or make it a (* comment *)")
         out.append(text[pos:start])
         out.append(_NOT_NL.sub(lambda x: " " * len(x.group(0)), text[start:end]))

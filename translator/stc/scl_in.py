@@ -72,11 +72,11 @@ def to_st(text, report):
             continue
         if c == '"':
             if len(tok) < 2 or not tok.endswith('"'):
-                report(where(start), "quoted name not closed on its line: missing \"")
+                report(where(start), "P0201", "quoted name not closed on its line: missing \"")
                 return None
             inner = tok[1:-1]
             if not _IDENT.fullmatch(inner):
-                report(where(start), f"quoted name \"{inner}\": stc reads only names made of "
+                report(where(start), "P0202", f"quoted name \"{inner}\": stc reads only names made of "
                        "letters, digits and _ (strings in SCL are written '...')")
                 prev = None
                 continue
@@ -89,19 +89,19 @@ def to_st(text, report):
             continue
         if tok.startswith("(*"):
             if not tok.endswith("*)") or len(tok) < 4:
-                report(where(start), "comment '(*' is not closed: missing '*)'")
+                report(where(start), "P0203", "comment '(*' is not closed: missing '*)'")
                 return None
             continue             # the parser blanks these itself
         if tok.startswith("/*") or tok.startswith("//") or c == "{":
             if c == "{" and not tok.endswith("}"):
-                report(where(start), "attribute '{' is not closed: missing '}'")
+                report(where(start), "P0204", "attribute '{' is not closed: missing '}'")
                 return None
             put(start, _blank(tok))
             continue
         if c == "#":
             nxt = text[end:end + 1]
             if not (nxt.isalpha() or nxt == "_" or nxt == '"'):
-                report(where(start), "'#' must be followed by a local name (#name)")
+                report(where(start), "P0205", "'#' must be followed by a local name (#name)")
             out[start] = " "
             continue
         if c.isdigit():
@@ -129,7 +129,7 @@ def to_st(text, report):
             pos = nl
         elif up == "END_REGION":
             if not regions:
-                report(where(start), "END_REGION without REGION")
+                report(where(start), "P0206", "END_REGION without REGION")
             else:
                 regions.pop()
             put(start, _blank(tok))
@@ -151,7 +151,7 @@ def to_st(text, report):
         prev = up
         at_line_start = False
     for r in regions:
-        report(r, "REGION not closed: missing END_REGION")
+        report(r, "P0207", "REGION not closed: missing END_REGION")
     return "".join(out)
 
 

@@ -96,7 +96,7 @@ def _nest1(node, a):
 def _nest_d(node, d):
     node.depth = d
     if d == MAX_DEPTH + 1 and _depth_sink[0] is not None:
-        _depth_sink[0](node.pos, f"nested too deeply (more than {MAX_DEPTH} levels of "
+        _depth_sink[0](node.pos, "P0109", f"nested too deeply (more than {MAX_DEPTH} levels of "
                        "expressions or statements): split it using intermediate variables")
     return node
 

@@ -71,14 +71,14 @@ def to_st(text, report):
         c = tok[0]
         if c == "{":
             if not tok.endswith("}"):
-                report(where(start), "unclosed pragma '{': missing '}'")
+                report(where(start), "P0301", "unclosed pragma '{': missing '}'")
                 ok = False
                 break
             blank(start, end)
         elif tok.startswith("//"):
             blank(start, end)
         elif tok.startswith("(*") and not tok.endswith("*)"):
-            report(where(start), "unclosed comment '(*'")
+            report(where(start), "P0302", "unclosed comment '(*'")
             ok = False
             break
         elif c.isalpha() or c == "_":

@@ -14,7 +14,7 @@ from .rows import row_data, rows_of
 
 REPO = Path(__file__).resolve().parents[2]
 
-ENUMS = st_enums(chainsim.LIB_DIR / "MIP_Types.st")
+ENUMS = st_enums(chainsim.LIB_DIR / "core" / "MIP_Types.st")
 
 
 class ViewError(Exception):

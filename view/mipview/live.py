@@ -80,9 +80,9 @@ RECEIVER_VIEW = [("eState", "E_MIP_ReceiverState"), ("eWaitReason", "E_MIP_WaitR
                  ("udiUnexpected", None), ("udiTransfers", None),
                  ("udiFailedTransfers", None), ("eErrorId", "E_MIP_Error")]
 
-# the tooltips of the blocks' members (st_lib/MIP_Sender.st, MIP_Receiver.st)
+# the tooltips of the blocks' members (st_lib/core/MIP_Sender.st, MIP_Receiver.st)
 VAR_TIPS = {
-    "eState": "the block's state (E_MIP_SenderState / E_MIP_ReceiverState, st_lib/MIP_Types.st)",
+    "eState": "the block's state (E_MIP_SenderState / E_MIP_ReceiverState, st_lib/core/MIP_Types.st)",
     "eWaitReason": "what the block waits for (E_MIP_WaitReason)",
     "wRecord": "the record in flight: 1, 2, ... 16#FFFF the last",
     "wAck": "the last acknowledgement written: 0 (start), then the record accepted, 16#FFFF the last",

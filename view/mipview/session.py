@@ -6,7 +6,7 @@ Both produce one state (`state()`, a dict the page draws): the sequence diagram 
 run in chunks (docs/tools/seqdiag.py: the same rows and drawing as the docs' pictures, with the
 counters in the note's words and the repeats marked, rows.py), the modems' register
 windows with the registers changed since the previous state, the blocks' states and counters
-under the names of st_lib's enums (read from st_lib/MIP_Types.st), and the radio's counters.
+under the names of st_lib's enums (read from st_lib/core/MIP_Types.st), and the radio's counters.
 Nothing here models the link a second time: the live run is chainsim's Chain, the trace is
 the emulator's own.
 """

@@ -327,8 +327,8 @@ def _build_into(sources, out: Path, compiler: str, cflags, semantics=None, cache
     objs = []
     # -fno-semantic-interposition: libplc.so is linked -Bsymbolic, so a call between the
     # program's own functions never goes to another library anyway; the flag tells gcc so at
-    # compile time, and it may then inline a small FUNCTION (st_lib's MIP_CheckStep,
-    # MIP_StatusBit) into the block that calls it. Without it -fPIC makes every such call a
+    # compile time, and it may then inline a small FUNCTION (st_lib's MIP_Internal_CheckStep,
+    # MIP_Internal_StatusBit) into the block that calls it. Without it -fPIC makes every such call a
     # real one (bench_pair.st: 7165 instead of 5247 instructions per scan). gcc >= 5 and
     # clang accept it; it changes nothing in what iec2c or stc generate.
     base = ["-O2", "-fPIC", "-fno-semantic-interposition", "-g"] + cflags

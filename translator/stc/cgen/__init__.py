@@ -6,6 +6,7 @@ output buffer and the list of files it writes (generate)."""
 import contextlib
 import os
 
+from ..semantics import dialect
 from .calls import CallGen
 from .declarations import DeclarationGen
 from .expressions import ExpressionGen
@@ -23,9 +24,8 @@ class Gen(DeclarationGen, StatementGen, CallGen, ExpressionGen, RuntimeFilesGen)
         self.lines = []
         self.ind = 0
         self.tmp = 0
-        sem = getattr(project, "semantics", "matiec")
-        self.matiec = sem in ("matiec", "openplc")     # matiec's C and library, either flavour
-        self.fork = sem == "openplc"                   # OpenPLC v3's fork of matiec
+        # the run-time rules of the build (stc/semantics.py): asked by name, never by semantics
+        self.dialect = dialect("st", getattr(project, "semantics", "matiec"))
 
     # ---- output helpers
     def w(self, s=""):
@@ -51,8 +51,8 @@ class Gen(DeclarationGen, StatementGen, CallGen, ExpressionGen, RuntimeFilesGen)
         files = {}
         with open(os.path.join(os.path.dirname(os.path.dirname(__file__)), HEADER)) as f:
             files[HEADER] = f.read().replace(
-                "#define STC_MATIEC 0", f"#define STC_MATIEC {1 if self.matiec else 0}", 1).replace(
-                "#define STC_FORK 0", f"#define STC_FORK {1 if self.fork else 0}", 1)
+                "#define STC_MATIEC 0", f"#define STC_MATIEC {1 if self.dialect.matiec_library else 0}", 1).replace(
+                "#define STC_FORK 0", f"#define STC_FORK {1 if self.dialect.fork else 0}", 1)
         files["POUS.h"] = self.pous_h()
         files["POUS.c"] = self.pous_c()
         cfg_files = self.config_files()

@@ -42,7 +42,7 @@ class CallGen:
         copied = []
         for name, e in c.bound.items():
             p = pou.vars[name]
-            if p.kind == "VAR_IN_OUT" and self.matiec and _own_copy(p):
+            if p.kind == "VAR_IN_OUT" and self.dialect.fb_in_out_copy and _own_copy(p):
                 # matiec passes an FB's in-out by copy in and copy out: the instance keeps its
                 # own copy, and a call that leaves the in-out out works on that copy alone
                 self.w(f"memcpy(&{base}.{name}__COPY, &{self.lv(e)}, sizeof {base}.{name}__COPY);")
@@ -56,7 +56,7 @@ class CallGen:
         eno = getattr(c, "eno", None)
         if en is not None:
             self.w(f"{base}.EN = (uint8_t)({self.ex(en)} != 0);")
-        elif not self.matiec:
+        elif not self.dialect.en_keeps_last:
             self.w(f"{base}.EN = 1;")    # IEC: EN not given is TRUE (matiec keeps the last one)
         self.w(f"if ({base}.EN) {{")
         self.ind += 1
@@ -90,7 +90,7 @@ class CallGen:
                 if e is None:
                     args.append(self.default_value(v))
                 elif v.type.is_elem and v.type.kind == "time":
-                    args.append(self.ex(e) if self.matiec else f"stc_time_of({self.ex(e)})")
+                    args.append(self.ex(e) if self.dialect.time_as_pair else f"stc_time_of({self.ex(e)})")
                 elif v.type.is_struct or v.type.is_array:
                     args.append(self.lv(e))
                 else:
@@ -117,7 +117,7 @@ class CallGen:
         rt = pou.rtype
         zero = "0" if rt is None else self.default_value(pou.result_var) \
             if getattr(pou, "result_var", None) is not None else self._zero(rt)
-        if rt is not None and rt.is_elem and rt.kind == "time" and not self.matiec:
+        if rt is not None and rt.is_elem and rt.kind == "time" and not self.dialect.time_as_pair:
             zero = "stc_time_of(INT64_C(0))"   # the call returns stc_time; see _ex
         set1 = f"{self.lv(eno)} = 1, " if eno is not None and not body_eno else ""
         set0 = f"{self.lv(eno)} = 0, " if eno is not None else ""
@@ -129,7 +129,7 @@ class CallGen:
         t = v.type
         init = v.init if v.init is not None else getattr(t, "default", None)
         if t.is_elem and t.kind == "time":
-            if self.matiec:
+            if self.dialect.time_as_pair:
                 return self.ex(init) if isinstance(init, S.Expr) else "stc_mt_of(INT64_C(0))"
             return f"stc_time_of({self.ex(init) if isinstance(init, S.Expr) else 'INT64_C(0)'})"
         if isinstance(init, S.Expr):

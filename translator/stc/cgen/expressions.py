@@ -39,7 +39,7 @@ class ExpressionGen:
     def _is_narrow(self, t):
         """matiec mode: C evaluates 8- and 16-bit integer arithmetic in int (32 bits) and only
         truncates where the value is stored or passed on; such expressions are 'wide'."""
-        return self.matiec and t is not None and t.is_elem and t.kind in ("sint", "uint", "bit") \
+        return self.dialect.narrow_int_in_c_int and t is not None and t.is_elem and t.kind in ("sint", "uint", "bit") \
             and t.bits < 32
 
     def ex(self, e, wide=False):
@@ -56,7 +56,7 @@ class ExpressionGen:
 
     def _ex(self, e):
         t = e.ty
-        if isinstance(e, S.RealLit) and self.matiec and t.kind == "real":
+        if isinstance(e, S.RealLit) and self.dialect.real_as_c and t.kind == "real":
             # matiec prints an untyped real literal as it is written: a C double, so the
             # operation it takes part in is computed in double (0.1 + 0.2 > 0.3 on REALs is
             # TRUE); a typed REAL#0.3 is (float)0.3
@@ -66,7 +66,7 @@ class ExpressionGen:
         if isinstance(e, S.StringLit):
             return lit(e.value, t)
         if isinstance(e, S.TimeLit):
-            comps = matiec_time.literal_parts(e.text) if self.matiec else None
+            comps = matiec_time.literal_parts(e.text) if self.dialect.time_as_pair else None
             if comps is not None:
                 # as matiec's __time_to_timespec: T#1ms is 999999 ns there
                 return f"stc_mt_lit({', '.join(comps)})"
@@ -81,7 +81,7 @@ class ExpressionGen:
             return f"{et.name}__{e.name}"
         if isinstance(e, (S.Name, S.Field, S.Index, S.Deref)):
             lv = self.lv(e)
-            if t.is_elem and t.kind == "time" and not self.matiec:
+            if t.is_elem and t.kind == "time" and not self.dialect.time_as_pair:
                 return f"stc_time_ns({lv})"
             return lv
         if isinstance(e, S.UnOp):
@@ -93,7 +93,7 @@ class ExpressionGen:
             if k == "func":
                 call = self.func_call(e)
                 rt = e.pou.rtype
-                if rt.is_elem and rt.kind == "time" and not self.matiec:
+                if rt.is_elem and rt.kind == "time" and not self.dialect.time_as_pair:
                     return f"stc_time_ns({call})"
                 return call
             if k == "conv":
@@ -116,7 +116,7 @@ class ExpressionGen:
                     return f"(({t.ctype})stc_trunc_i64({x}, {lit(lo, T.LINT)}, {lit(hi, T.LINT)}))"
                 return f"(({t.ctype})stc_trunc_u64({x}, UINT64_C({hi})))"
             r = self.std_call(e)
-            if self.matiec and t is not None and t.is_elem and t.kind == "real" and t.bits == 32:
+            if self.dialect.real_as_c and t is not None and t.is_elem and t.kind == "real" and t.bits == 32:
                 r = f"((float){r})"     # matiec's typed function returns a REAL
             return r
         raise AssertionError(f"cannot generate {e!r}")
@@ -127,7 +127,7 @@ class ExpressionGen:
         it) is rounded to float first."""
         x = self.ex(e)
         t = e.ty
-        if self.matiec and t is not None and t.is_elem and t.kind == "real" and t.bits == 32:
+        if self.dialect.real_as_c and t is not None and t.is_elem and t.kind == "real" and t.bits == 32:
             return f"((float){x})"
         return x
 
@@ -135,11 +135,11 @@ class ExpressionGen:
         """A TIME expression from C int64_t nanoseconds `ns`: the same in IEC mode; in the
         matiec modes TIME expressions are stc_time pairs, as matiec's (so sums it leaves
         unnormalised compare as they do there)."""
-        return f"stc_mt_of({ns})" if self.matiec else ns
+        return f"stc_mt_of({ns})" if self.dialect.time_as_pair else ns
 
     def tns(self, x):
         """int64_t nanoseconds of the C TIME expression x."""
-        return f"stc_time_ns({x})" if self.matiec else x
+        return f"stc_time_ns({x})" if self.dialect.time_as_pair else x
 
     def unop(self, e):
         t = e.ty
@@ -194,7 +194,7 @@ class ExpressionGen:
             return f"(stc_str_cmp(&{a}, &{b}) {cop} 0)" if isinstance(e.left, (S.Name, S.Field, S.Index)) \
                 and isinstance(e.right, (S.Name, S.Field, S.Index)) else \
                 f"(stc_str_cmpv({a}, {b}) {cop} 0)"
-        if op in self._COP and self.matiec and e.left.ty.is_elem and e.left.ty.kind == "time":
+        if op in self._COP and self.dialect.time_as_pair and e.left.ty.is_elem and e.left.ty.kind == "time":
             # matiec compares tv_sec first, then tv_nsec (an unnormalised sum compares as such)
             cop = {"=": "==", "<>": "!="}.get(op, op)
             return f"(stc_mt_cmp({a}, {b}) {cop} 0)"
@@ -211,7 +211,7 @@ class ExpressionGen:
             return f"(({t.ctype})({a} {cop} {b}))"
         if t.kind == "time":
             rt = e.right.ty           # TIME op number: the checker refuses number * TIME
-            if self.matiec:
+            if self.dialect.time_as_pair:
                 # matiec's library: pairs added and normalised in one step; scaled in double
                 fn = {"+": "add", "-": "sub", "*": "mul", "/": "div"}[op]
                 return f"stc_mt_{fn}({a}, {b})" if op in ("+", "-") else f"stc_mt_{fn}({a}, (double){b})"
@@ -246,15 +246,15 @@ class ExpressionGen:
             if dst.kind == "real":
                 return f"(({dst.ctype})stc_str_to_real({x}))"
             return f"(({dst.ctype})stc_str_to_i({x}))"
-        if dst.kind == "bool" and src.kind == "time" and self.matiec:
+        if dst.kind == "bool" and src.kind == "time" and self.dialect.time_as_pair:
             return f"(({x}).tv_sec != 0 || ({x}).tv_nsec != 0)"
         if dst.kind == "bool":
             return f"({x} != 0)"
-        if src.kind == "time" and self.matiec:
+        if src.kind == "time" and self.dialect.time_as_pair:
             if dst.kind == "real":
                 return f"(({dst.ctype})((double)({x}).tv_sec + (double)({x}).tv_nsec / 1e9))"
             return f"(({dst.ctype})({x}).tv_sec)"
-        if dst.kind == "time" and self.matiec:
+        if dst.kind == "time" and self.dialect.time_as_pair:
             if src.kind == "real":
                 return f"stc_mt_of_real((double){x})"
             return f"stc_mt((long)({x}), 0)"
@@ -281,7 +281,7 @@ class ExpressionGen:
         t = e.ty
         xs = [self.fex(a) for a in args]
         if n in ("SHL", "SHR", "ROL", "ROR"):
-            if self.matiec and n in ("SHL", "SHR") and t.bits > 1:
+            if self.dialect.shift_count_modulo and n in ("SHL", "SHR") and t.bits > 1:
                 # matiec shifts in C: x86 takes the count modulo 32 (64 for LWORD), after the
                 # promotion of BYTE and WORD to int
                 mask = 63 if t.bits == 64 else 31
@@ -320,7 +320,7 @@ class ExpressionGen:
             k = xs[0]
             out = xs[-1]
             last = len(xs) - 1
-            if self.matiec:
+            if self.dialect.mux_out_of_range_zero:
                 # matiec: a selector outside 0..n-1 gives the type's initial value (0)
                 out = f"({k} == {last - 1} ? {xs[-1]} : {self._zero(t)})"
             for i in range(len(xs) - 2, 0, -1):
@@ -345,7 +345,7 @@ class ExpressionGen:
         fn = f"stc_{'lt' if cmp == '<' else 'gt'}_{fam}"
         out = xs[0]
         for x in xs[1:]:
-            if self.matiec and t.is_elem and t.kind == "time":
+            if self.dialect.time_as_pair and t.is_elem and t.kind == "time":
                 out = f"((stc_mt_cmp({out}, {x}) {cmp} 0) ? {out} : {x})"
             else:
                 out = f"({fn}({out}, {x}) ? {out} : {x})"

@@ -87,7 +87,7 @@ class RuntimeFilesGen:
             self.w()
             with self.braced(f"void {r.name}_run__(unsigned long tick)"):
                 self.w("(void)tick;")
-                if self.matiec:
+                if self.dialect.tasks_in_declaration_order:
                     # matiec: the program instances in declaration order, each when its task is
                     # due; PRIORITY plays no part
                     for i in r.instances:

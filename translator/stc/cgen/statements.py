@@ -137,7 +137,7 @@ class StatementGen:
         u64 = t.kind == "uint" and t.bits == 64
         fn = "stc_for_count_u" if u64 else "stc_for_count"
         inc = f"{cv} = ({t.ctype})({_wide(t)})({cv} + ({_wide(t)}){by})"
-        if self.matiec and not self.fork:
+        if self.dialect.for_matiec_upstream:
             # upstream matiec: no pass unless the first test holds; the increment comes before
             # the next pass's body, so the variable keeps the last value
             first = f"{'stc_for_first_up_u' if u64 else 'stc_for_first_up'}({cv}, {end}, {by}, " \
@@ -171,6 +171,6 @@ class StatementGen:
         elif t.is_struct:
             self.w(f"{lv} = {self.ex(value)};")
         elif t.is_elem and t.kind == "time":
-            self.w(f"{lv} = {self.ex(value)};" if self.matiec else f"{lv} = stc_time_of({self.ex(value)});")
+            self.w(f"{lv} = {self.ex(value)};" if self.dialect.time_as_pair else f"{lv} = stc_time_of({self.ex(value)});")
         else:
             self.w(f"{lv} = {self.ex(value)};")

@@ -9,6 +9,7 @@ statements.py, expressions.py, coercion.py, calls.py, stdlib.py); this module ho
 its diagnostics and the order of the passes (run)."""
 from .. import syntax as S
 from ..diag import CompileError
+from ..semantics import dialect
 from .calls import CallChecks
 from .coercion import CoercionChecks
 from .declarations import DeclarationChecks
@@ -28,15 +29,19 @@ class Checker(TypeChecks, DeclarationChecks, StatementChecks, ExpressionChecks, 
         self.p.semantics = semantics
         self.strict_iec = strict_iec   # --strict-iec: warn where an edition-2 checker is stricter
         self.file = None
-        self.scl_files = set()         # files read as TIA SCL (compiler.py, scl_in.name_arrays)
-        self.vendor_files = set()      # files in the TwinCAT / CODESYS dialect (vendor_in.py)
+        self.dialects = {}             # file -> its semantics.Dialect (compiler.py); else ST's
+        self._st = dialect("st", semantics)
 
-    def _vendor(self):
-        return self.file in self.vendor_files
+    @property
+    def dialect(self):
+        """The rules of the file being checked (stc/semantics.py): the checker asks them, it
+        never tests a dialect's name."""
+        return self.dialects.get(self.file, self._st)
 
-    def warn(self, pos, msg):
-        """Portability warning: the construct's value differs between matiec and IEC."""
-        self.d.warn(self.file, pos, msg)
+    def warn(self, pos, code, msg):
+        """Portability warning: the construct's value differs between matiec and IEC. code:
+        its entry in problems.csv."""
+        self.d.warn(self.file, pos, msg, code)
         self.note(pos, "warned", msg.replace("portability: ", "", 1))
 
     def note(self, pos, kind, text):
@@ -44,11 +49,12 @@ class Checker(TypeChecks, DeclarationChecks, StatementChecks, ExpressionChecks, 
         self.p.divergences.append((self.file, pos, kind, text))
 
     # ---- errors
-    def err(self, pos, msg, file=None):
-        self.d.error(file or self.file, pos, msg)
+    def err(self, pos, code, msg, file=None):
+        """An error at pos; code: its entry in problems.csv (stc/problems.py)."""
+        self.d.error(file or self.file, pos, msg, code)
 
-    def fail(self, pos, msg):
-        self.err(pos, msg)
+    def fail(self, pos, code, msg):
+        self.err(pos, code, msg)
         raise CompileError(msg)
 
     # ---- entry
@@ -69,7 +75,7 @@ class Checker(TypeChecks, DeclarationChecks, StatementChecks, ExpressionChecks, 
                     if self._declare_name(n.name, n.pos, kind):
                         self.p.pous[n.name] = Pou(kind, n.name, n, fname)
                 elif isinstance(n, S.StrayVarBlock):
-                    self.err(n.pos, f"{n.block.kind} outside a POU: global variables belong in a "
+                    self.err(n.pos, "S0001", f"{n.block.kind} outside a POU: global variables belong in a "
                              "CONFIGURATION or RESOURCE")
         # pass 2: resolve named types
         self._resolving = set()
@@ -84,7 +90,7 @@ class Checker(TypeChecks, DeclarationChecks, StatementChecks, ExpressionChecks, 
         for i, (fname, c) in enumerate(configs):
             self.file = fname
             if i > 0:
-                self.err(c.pos, "only one CONFIGURATION per build is supported")
+                self.err(c.pos, "S0002", "only one CONFIGURATION per build is supported")
                 continue
             self._configuration(c)
         # bind externals

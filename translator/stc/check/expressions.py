@@ -28,8 +28,8 @@ class ExpressionChecks:
                     imp[n] = Var(n, "VAR_INPUT" if n == "EN" else "VAR_OUTPUT", T.BOOL, None,
                                  self.cur.node.pos, self.cur.file)
                 return imp[n]
-            self.fail(name_node.pos, f"{n} in a PROGRAM body is not portable (matiec rejects it)")
-        self.fail(name_node.pos, f"unknown variable '{n}'")
+            self.fail(name_node.pos, "S0401", f"{n} in a PROGRAM body is not portable (matiec rejects it)")
+        self.fail(name_node.pos, "S0402", f"unknown variable '{n}'")
 
     def _result_var(self, pou):
         rv = getattr(pou, "result_var", None)
@@ -45,11 +45,11 @@ class ExpressionChecks:
             e.var = v
             e.ty = v.type
             if v.constant:
-                self.err(e.pos, f"cannot {what} CONSTANT '{v.name}'")
+                self.err(e.pos, "S0403", f"cannot {what} CONSTANT '{v.name}'")
             if v.kind == "VAR_INPUT" and self.cur is not None and self.cur.kind == "function":
                 pass
             if v.type.is_fb:
-                self.err(e.pos, f"cannot assign to function block instance '{v.name}'")
+                self.err(e.pos, "S0404", f"cannot assign to function block instance '{v.name}'")
             return v.type
         if isinstance(e, S.Field):
             bt = self.expr(e.base, None, lvalue=True)
@@ -57,13 +57,13 @@ class ExpressionChecks:
                 ft = self.fb_member(e, bt)
                 fv = bt.pou.vars.get(e.name)
                 if fv is None:
-                    self.fail(e.pos, f"{e.name} of a function block instance is set by its call "
+                    self.fail(e.pos, "S0405", f"{e.name} of a function block instance is set by its call "
                               f"(EN := ... in the call), not by an assignment")
                 if fv.kind == "VAR_OUTPUT":
-                    self.err(e.pos, f"writing output {e.name} of function block instance from "
+                    self.err(e.pos, "S0406", f"writing output {e.name} of function block instance from "
                              "outside is not portable (matiec rejects it)")
                 elif fv.kind not in ("VAR_INPUT",):
-                    self.err(e.pos, f"'{e.name}' is not an input of {bt.name}")
+                    self.err(e.pos, "S0407", f"'{e.name}' is not an input of {bt.name}")
                 self._check_base_assignable(e.base)
                 return ft
             self._check_base_assignable(e.base)
@@ -73,7 +73,7 @@ class ExpressionChecks:
             return self.expr(e, None)
         if isinstance(e, (S.BitAccess, S.Deref)):
             return self.expr(e, None)
-        self.fail(e.pos, "the left side of ':=' must be a variable")
+        self.fail(e.pos, "S0408", "the left side of ':=' must be a variable")
 
     def _check_base_assignable(self, e):
         while isinstance(e, (S.Field, S.Index)):
@@ -81,7 +81,7 @@ class ExpressionChecks:
         if isinstance(e, S.Name):
             v = getattr(e, "var", None) or self.scope.get(e.name)
             if v is not None and v.constant:
-                self.err(e.pos, f"cannot assign to CONSTANT '{v.name}'")
+                self.err(e.pos, "S0409", f"cannot assign to CONSTANT '{v.name}'")
 
     def fb_member(self, e, bt):
         if e.name in ("EN", "ENO") and e.name not in bt.pou.vars:
@@ -95,9 +95,9 @@ class ExpressionChecks:
             return fv.type
         if fv is None or fv.kind not in ("VAR_INPUT", "VAR_OUTPUT"):
             if fv is not None and bt.pou.std is None:
-                self.fail(e.pos, f"'{e.name}' of {bt.name} is not an input or output: internal "
+                self.fail(e.pos, "S0410", f"'{e.name}' of {bt.name} is not an input or output: internal "
                           "variables are not accessible from outside")
-            self.fail(e.pos, f"{bt.name} has no input or output '{e.name}'")
+            self.fail(e.pos, "S0411", f"{bt.name} has no input or output '{e.name}'")
         e.ty = fv.type
         return fv.type
 
@@ -114,7 +114,7 @@ class ExpressionChecks:
     def _expr(self, e, expected):
         if isinstance(e, S.IntLit):
             if e.value is None:
-                self.fail(e.pos, f"invalid integer literal {e.text}")
+                self.fail(e.pos, "S0412", f"invalid integer literal {e.text}")
             return T.LIT_INT
         if isinstance(e, S.RealLit):
             return T.LIT_REAL
@@ -122,20 +122,20 @@ class ExpressionChecks:
             return T.BOOL
         if isinstance(e, S.TimeLit):
             if e.ns is None:
-                self.fail(e.pos, f"malformed TIME literal {e.text}")
+                self.fail(e.pos, "S0413", f"malformed TIME literal {e.text}")
             if re.search(r"[0-9](us|ns)", e.text or "", re.I):
-                self.fail(e.pos, f"{e.text}: the units us and ns are not portable (matiec rejects "
+                self.fail(e.pos, "S0414", f"{e.text}: the units us and ns are not portable (matiec rejects "
                           "them): write fractions of ms, e.g. T#0.1ms")
             return T.TIME
         if isinstance(e, S.StringLit):
             if e.text.startswith('"'):
-                self.fail(e.pos, "WSTRING literals (\"...\") are not supported by stc: use "
+                self.fail(e.pos, "S0415", "WSTRING literals (\"...\") are not supported by stc: use "
                           "'...' (STRING)")
             v = _string_value(e.text[1:-1])
             if v is None:
-                self.fail(e.pos, f"invalid $ escape in string literal {e.text}")
+                self.fail(e.pos, "S0416", f"invalid $ escape in string literal {e.text}")
             if len(v) > T.STR_MAX:
-                self.warn(e.pos, f"string literal of {len(v)} characters: a STRING holds "
+                self.warn(e.pos, "W0004", f"string literal of {len(v)} characters: a STRING holds "
                           f"{T.STR_MAX} (matiec cuts it)")
                 v = v[:T.STR_MAX]
             e.value = v
@@ -157,23 +157,24 @@ class ExpressionChecks:
                         if expected is not None and expected.is_enum and expected in ets:
                             et = expected
                         else:
-                            self.fail(e.pos, f"'{e.name}' is a value of several enumerated types: "
+                            self.fail(e.pos, "S0417", f"'{e.name}' is a value of several enumerated types: "
                                       f"write {ets[0].name}#{e.name}")
                     e.enum_value = (et, et.values.index(e.name))
                     return et
                 if e.name in self.p.pous or e.name in T.STD_FBS:
-                    self.fail(e.pos, f"'{e.name}' is a POU, not a variable")
-                self.fail(e.pos, f"unknown variable '{e.name}'")
+                    self.fail(e.pos, "S0418", f"'{e.name}' is a POU, not a variable")
+                self.fail(e.pos, "S0402", f"unknown variable '{e.name}'")
             e.var = v
             return v.type
         if isinstance(e, S.Field):
-            if isinstance(e.base, S.Name) and self._vendor() and e.base.name not in self.scope \
+            if isinstance(e.base, S.Name) and self.dialect.enum_qualified_values \
+                    and e.base.name not in self.scope \
                     and self.p.types.get(e.base.name) is not None \
                     and self.p.types[e.base.name].is_enum:
                 # Enum.Value (the vendor dialects; CODESYS's qualified_only enumerations)
                 et = self.p.types[e.base.name]
                 if e.name not in et.values:
-                    self.fail(e.pos, f"'{e.name}' is not a value of {et.name}")
+                    self.fail(e.pos, "S0111", f"'{e.name}' is not a value of {et.name}")
                 e.enum_value = (et, et.values.index(e.name))
                 return et
             bt = self.expr(e.base, None)
@@ -182,43 +183,43 @@ class ExpressionChecks:
             if bt.is_struct:
                 f = bt.fields.get(e.name)
                 if f is None:
-                    self.fail(e.pos, f"{bt.name} has no member '{e.name}'")
+                    self.fail(e.pos, "S0136", f"{bt.name} has no member '{e.name}'")
                 return f[0]
-            self.fail(e.pos, f"'.{e.name}' on a value of type {bt} (only STRUCT members and "
+            self.fail(e.pos, "S0419", f"'.{e.name}' on a value of type {bt} (only STRUCT members and "
                       "function block outputs have fields)")
         if isinstance(e, S.Index):
             bt = self.expr(e.base, None)
             if not bt.is_array:
-                self.fail(e.pos, f"indexing a value of type {bt}, which is not an ARRAY")
+                self.fail(e.pos, "S0420", f"indexing a value of type {bt}, which is not an ARRAY")
             if len(e.indexes) != len(bt.dims):
-                self.fail(e.pos, f"{bt} needs {len(bt.dims)} index(es), got {len(e.indexes)}")
+                self.fail(e.pos, "S0421", f"{bt} needs {len(bt.dims)} index(es), got {len(e.indexes)}")
             for ix, (lo, hi) in zip(e.indexes, bt.dims):
                 it = self.expr(ix, None)
                 if it.is_lit:
                     if it.kind != "int":
-                        self.fail(ix.pos, "array index must be an integer")
+                        self.fail(ix.pos, "S0422", "array index must be an integer")
                     self.settle(ix, T.DINT)
                     v = self.const_value(ix)
                     if v is not None and not lo <= v <= hi:
-                        self.err(ix.pos, f"index {v} is out of bounds {lo}..{hi}")
+                        self.err(ix.pos, "S0423", f"index {v} is out of bounds {lo}..{hi}")
                 elif it.is_elem and it.kind == "bit":
-                    self.err(ix.pos, f"an array index of type {it} is not portable (matiec rejects "
+                    self.err(ix.pos, "S0424", f"an array index of type {it} is not portable (matiec rejects "
                              f"it): convert it, e.g. {it.name}_TO_UINT(i)")
                 elif not (it.is_elem and it.is_int):
-                    self.err(ix.pos, f"array index must be of an integer type, not {it}")
+                    self.err(ix.pos, "S0425", f"array index must be of an integer type, not {it}")
             return bt.elem
         if isinstance(e, S.BitAccess):
             self.expr(e.base, None)
             bit = e.bit.lstrip("%XxBbWwDd") if e.bit.startswith("%") else e.bit
-            self.fail(e.pos, f"bit access .{e.bit} is not portable (matiec rejects it): use "
+            self.fail(e.pos, "S0426", f"bit access .{e.bit} is not portable (matiec rejects it): use "
                       f"(x AND 16#{1 << min(int(bit) if bit.isdigit() else 0, 63):X}) <> 0 to read; "
                       "OR / AND NOT masks to write")
         if isinstance(e, S.Deref):
-            if not self._vendor():
-                self.fail(e.pos, "pointer dereference (^) is not portable (matiec rejects POINTER TO)")
+            if not self.dialect.pointers:
+                self.fail(e.pos, "S0427", "pointer dereference (^) is not portable (matiec rejects POINTER TO)")
             bt = self.expr(e.base, None)
             if not isinstance(bt, T.PointerT):
-                self.fail(e.pos, f"'^' on a value of type {bt}, which is not a POINTER TO")
+                self.fail(e.pos, "S0428", f"'^' on a value of type {bt}, which is not a POINTER TO")
             return bt.target
         if isinstance(e, S.Call):
             return self.call(e, statement=False, expected=expected)
@@ -226,37 +227,37 @@ class ExpressionChecks:
             return self.unop(e, expected)
         if isinstance(e, S.BinOp):
             return self.binop(e, expected)
-        self.fail(e.pos, "unsupported expression")
+        self.fail(e.pos, "S0429", "unsupported expression")
 
     def typed_lit(self, e):
         tn = e.type_name
         if e.kind == "bad":
-            self.fail(e.pos, f"invalid integer literal in {e.text}")
+            self.fail(e.pos, "S0430", f"invalid integer literal in {e.text}")
         if tn in self.p.types and self.p.types[tn] is not None and self.p.types[tn].is_enum:
             et = self.p.types[tn]
             if e.kind != "ident" or e.value not in et.values:
-                self.fail(e.pos, f"'{e.text}': {e.value} is not a value of {tn}")
+                self.fail(e.pos, "S0431", f"'{e.text}': {e.value} is not a value of {tn}")
             e.enum_value = (et, et.values.index(e.value))
             return et
         if tn in ("T", "TIME"):
-            self.fail(e.pos, f"malformed TIME literal {e.text}")
+            self.fail(e.pos, "S0413", f"malformed TIME literal {e.text}")
         t = T.ELEMENTARY.get(tn)
         if t is None or t.kind == "time":
             if tn in T.UNSUPPORTED_TYPES or tn in ("D", "TOD", "DT"):
-                self.fail(e.pos, f"{tn} literals are not supported by stc")
-            self.fail(e.pos, f"unknown type or enumeration '{tn}' in literal {e.text}")
+                self.fail(e.pos, "S0432", f"{tn} literals are not supported by stc")
+            self.fail(e.pos, "S0433", f"unknown type or enumeration '{tn}' in literal {e.text}")
         if t.kind == "bool":
             if e.kind == "bool" or e.kind == "int" and e.value in (0, 1):
                 return t
-            self.fail(e.pos, f"invalid BOOL literal {e.text}")
+            self.fail(e.pos, "S0434", f"invalid BOOL literal {e.text}")
         if t.kind == "real":
             if e.kind != "real":
-                self.fail(e.pos, f"invalid {tn} literal {e.text}")
+                self.fail(e.pos, "S0435", f"invalid {tn} literal {e.text}")
             return t
         if e.kind != "int":
-            self.fail(e.pos, f"invalid {tn} literal {e.text}")
+            self.fail(e.pos, "S0435", f"invalid {tn} literal {e.text}")
         if not _lit_fits(e.value, t):
-            self.fail(e.pos, f"{e.text} is out of range of {tn}")
+            self.fail(e.pos, "S0436", f"{e.text} is out of range of {tn}")
         return t
 
     def unop(self, e, expected):
@@ -264,20 +265,20 @@ class ExpressionChecks:
         if e.op == "NOT":
             if t.is_lit:
                 if t.kind != "int":
-                    self.fail(e.pos, "NOT needs BOOL or a bit string type")
+                    self.fail(e.pos, "S0437", "NOT needs BOOL or a bit string type")
                 return t
             if not (t.is_elem and t.is_anybit):
-                self.fail(e.pos, f"NOT needs BOOL or a bit string type, not {t}")
+                self.fail(e.pos, "S0438", f"NOT needs BOOL or a bit string type, not {t}")
             return t
         if t.is_lit:
             return t
         if e.op == "-":
             if t.is_elem and (t.kind in ("sint", "real", "time")):
                 return t
-            self.fail(e.pos, f"unary minus needs a signed type, not {t}")
+            self.fail(e.pos, "S0439", f"unary minus needs a signed type, not {t}")
         if t.is_elem and t.is_num:
             return t
-        self.fail(e.pos, f"unary + needs a numeric type, not {t}")
+        self.fail(e.pos, "S0440", f"unary + needs a numeric type, not {t}")
 
     _ARITH = {"+", "-", "*", "/", "MOD", "**"}
     _CMP = {"=", "<>", "<", ">", "<=", ">="}
@@ -301,18 +302,18 @@ class ExpressionChecks:
                     self.settle(e.right, T.DINT if rt.kind == "int" else T.ELEMENTARY["LREAL"])
                 self._warn_time_scale(e, e.left, e.right)
                 return T.TIME
-            self.fail(e.pos, f"TIME {op} {rt}: the right operand must be a number")
+            self.fail(e.pos, "S0441", f"TIME {op} {rt}: the right operand must be a number")
         if op == "*" and rt.is_elem and rt.kind == "time" and (lt.is_lit or lt.is_elem and lt.is_num):
             # matiec accepts it, but its C passes the number as the TIME argument of __time_mul
             # and does not compile (checked with iec2c): refuse it here, where the line is known
-            self.fail(e.pos, "number * TIME: matiec's generated C does not compile this order; "
+            self.fail(e.pos, "S0442", "number * TIME: matiec's generated C does not compile this order; "
                       "write TIME * number")
         if op in ("+", "-") and lt.is_elem and lt.kind == "time":
             if rt.is_elem and rt.kind == "time":
                 self.note(e.pos, "time-sum", f"TIME '{op}': matiec leaves a nanosecond part of "
                           "exactly 1e9 unnormalised (it compares below the whole second)")
                 return T.TIME
-            self.fail(e.pos, f"TIME {op} {rt}: both operands must be TIME (write e.g. T#5ms)")
+            self.fail(e.pos, "S0443", f"TIME {op} {rt}: both operands must be TIME (write e.g. T#5ms)")
         if op == "**":
             return self._power(e, lt, rt)
         if lt.is_lit and rt.is_lit:
@@ -323,7 +324,7 @@ class ExpressionChecks:
                 self.settle(e.right, base)
                 return T.BOOL
             if op in self._LOGIC and "real" in (lt.kind, rt.kind):
-                self.fail(e.pos, f"{op} needs BOOL or a bit string type")
+                self.fail(e.pos, "S0444", f"{op} needs BOOL or a bit string type")
             return T.LIT_REAL if "real" in (lt.kind, rt.kind) else T.LIT_INT
         if lt.is_lit:
             self.coerce(e.left, lt, rt, None, soft=True)
@@ -336,7 +337,7 @@ class ExpressionChecks:
             self.need_settled(e.right, lt)
             rt = lt
         if not T.same_type(lt, rt):
-            self.fail(e.pos, f"'{op}' between {lt} and {rt}: IEC strict typing needs the same "
+            self.fail(e.pos, "S0445", f"'{op}' between {lt} and {rt}: IEC strict typing needs the same "
                       f"type on both sides; convert explicitly (e.g. {_conv_hint(rt, lt)})")
         t = lt
         if t.is_elem and t.kind == "real" and t.bits == 32 and any(
@@ -352,36 +353,36 @@ class ExpressionChecks:
             self._warn_narrow(e, t)
         if op in self._CMP:
             if t.is_array or t.is_struct or t.is_fb:
-                self.fail(e.pos, f"cannot compare values of type {t}")
+                self.fail(e.pos, "S0446", f"cannot compare values of type {t}")
             if t.is_enum and op not in ("=", "<>"):
-                self.fail(e.pos, f"'{op}' on enumerated type {t}: only = and <> are allowed")
+                self.fail(e.pos, "S0447", f"'{op}' on enumerated type {t}: only = and <> are allowed")
             return T.BOOL
         if op in self._LOGIC:
             if not (t.is_elem and t.is_anybit):
-                self.fail(e.pos, f"{op} needs BOOL or a bit string type (BYTE/WORD/DWORD/LWORD), "
+                self.fail(e.pos, "S0448", f"{op} needs BOOL or a bit string type (BYTE/WORD/DWORD/LWORD), "
                           f"not {t}")
             return t
         if t.is_elem and t.kind == "string":
-            self.fail(e.pos, f"'{op}' on STRING is not defined: use CONCAT, LEN")
+            self.fail(e.pos, "S0449", f"'{op}' on STRING is not defined: use CONCAT, LEN")
         # arithmetic
         if not t.is_elem:
-            self.fail(e.pos, f"'{op}' on {t}")
+            self.fail(e.pos, "S0450", f"'{op}' on {t}")
         if op == "/" and t.is_int and self.const_value(e.right) == 0:
-            self.fail(e.right.pos, "division by constant zero (matiec rejects it)")
+            self.fail(e.right.pos, "S0451", "division by constant zero (matiec rejects it)")
         if op == "MOD":
             if not t.is_int:
-                self.fail(e.pos, f"MOD needs an integer type, not {t}")
+                self.fail(e.pos, "S0452", f"MOD needs an integer type, not {t}")
             return t
         if op == "**":
             if t.kind != "real":
-                self.fail(e.pos, f"'**' needs REAL or LREAL, not {t}")
+                self.fail(e.pos, "S0453", f"'**' needs REAL or LREAL, not {t}")
             return t
         if t.kind == "time":
             if op in ("+", "-"):
                 return t
-            self.fail(e.pos, f"TIME {op} TIME is not defined")
+            self.fail(e.pos, "S0454", f"TIME {op} TIME is not defined")
         if not t.is_num:
-            self.fail(e.pos, f"arithmetic '{op}' on {t} is not allowed (matiec rejects it: "
+            self.fail(e.pos, "S0455", f"arithmetic '{op}' on {t} is not allowed (matiec rejects it: "
                       f"{t.name} is a bit string): convert first, e.g. {t.name}_TO_UINT(x) {op} 1")
         return t
 
@@ -407,12 +408,12 @@ class ExpressionChecks:
             # 32-bit nanoseconds (the form docs/wiring-openplc.md recommends)
             return
         if e.op == "*":
-            self.warn(e.pos, "portability: TIME * number differs between matiec and IEC: matiec "
+            self.warn(e.pos, "W0005", "portability: TIME * number differs between matiec and IEC: matiec "
                       "scales the sub-second part through a 32-bit int of nanoseconds "
                       "(T#1ms * 2148 gives -2.147 s); build it from whole seconds and "
                       "milliseconds: T#1s * (n / 1000) + T#1ms * (n MOD 1000)")
         else:
-            self.warn(e.pos, "portability: TIME / number differs between matiec and IEC: "
+            self.warn(e.pos, "W0006", "portability: TIME / number differs between matiec and IEC: "
                       "matiec divides seconds and nanoseconds in double, so the result can be "
                       "some ns off (more for long TIMEs)")
 
@@ -440,7 +441,7 @@ class ExpressionChecks:
             arith = isinstance(x, S.BinOp) and x.op in ("+", "-", "*") or \
                 isinstance(x, S.UnOp) and (x.op == "-" or x.op == "NOT" and t.kind != "bool")
             if arith and self.const_value(x) is None:
-                self.warn(x.pos, f"portability: the intermediate value of this {t} expression "
+                self.warn(x.pos, "W0007", f"portability: the intermediate value of this {t} expression "
                           f"is not truncated to {t} by matiec (C computes it in 32-bit int) "
                           f"but is by IEC: assign it to a variable of type {t} first")
                 return
@@ -449,7 +450,7 @@ class ExpressionChecks:
         """x ** y (EXPT): x REAL or LREAL, y any number; the result has x's type."""
         if lt.is_lit:
             if lt.kind != "real":
-                self.fail(e.left.pos, "'**' needs REAL or LREAL on the left: write a REAL "
+                self.fail(e.left.pos, "S0456", "'**' needs REAL or LREAL on the left: write a REAL "
                           "literal like 2.0")
             if e.left.ty is not None and not e.left.ty.is_lit:
                 lt = e.left.ty          # settled by the context already
@@ -457,9 +458,9 @@ class ExpressionChecks:
                 lt = rt if rt.is_elem and rt.kind == "real" else T.ELEMENTARY["LREAL"]
                 self.settle(e.left, lt)
         if not (lt.is_elem and lt.kind == "real"):
-            self.fail(e.pos, f"'**' needs REAL or LREAL, not {lt}")
+            self.fail(e.pos, "S0453", f"'**' needs REAL or LREAL, not {lt}")
         if rt.is_lit:
             self.settle(e.right, lt if rt.kind == "real" else T.DINT)
         elif not (rt.is_elem and rt.is_num):
-            self.fail(e.right.pos, f"'**': the exponent must be a number, not {rt}")
+            self.fail(e.right.pos, "S0457", f"'**': the exponent must be a number, not {rt}")
         return lt
