@@ -130,7 +130,7 @@ def outstation_soe():
              "mFailed := UINT_TO_WORD(lgr.uTransfersFailed);", "mError := lgr.wLastError;",
              "mFlags := WORD#0;",
              "IF rdr.xError THEN mFlags := mFlags OR WORD#1; END_IF;",
-             "IF rdr.xDone THEN mFlags := mFlags OR WORD#2; END_IF;",
+             "IF rdr.xCaughtUp THEN mFlags := mFlags OR WORD#2; END_IF;",
              "IF lgr.xFull THEN mFlags := mFlags OR WORD#4; END_IF;",
              "IF snd.xError THEN mFlags := mFlags OR WORD#8; END_IF;",
              "mRetrans := UDINT_TO_WORD(snd.udiRetransmissions MOD 65536);"]
@@ -220,7 +220,8 @@ def central_push():
     decl = [SOE_PARAMS, SOE_PARAM_VARS,
             "  rcv : MIP_Receiver;           (* records from the outstation *)",
             "  uni : MIP_UnicosEvents;       (* their entries to WinCC OA's UNICOS driver(s) *)",
-            "  xRedundant : BOOL;            (* flags bit 2: a redundant pair of drivers *)"]
+            "  xRedundant : BOOL;            (* flags bit 2: a redundant pair of drivers *)",
+            "  uniARep, uniBRep : MIP_T_UnicosReply;   (* the drivers' answers to uni's writes *)"]
     decl += soe_located_io("MDP-810 unit 1")
     decl += unicos_io("A", 0) + unicos_io("B", 1)
     decl += soe_status([("mRecLo", "records handed over, low word"), ("mRecHi", "high word"),
@@ -239,19 +240,22 @@ def central_push():
              "    xReadError := rdErr1, wReadStatus := rdSt1,",
              "    xWriteDone := xWrDone1, xWriteError := wrErr1, xRetained := xRetain,",
              "    wSnapshots := snapSaved);",
+             "uniARep.xWriteDone := uniADone;", "uniARep.xWriteError := uniAErr;",
+             "uniARep.wWriteStatus := uniASt;",
+             "uniBRep.xWriteDone := uniBDone;", "uniBRep.xWriteError := uniBErr;",
+             "uniBRep.wWriteStatus := uniBSt;",
              "(* flags bit 3, read every scan: driver B is the active one (a fail-over) *)",
              "uni(xEnable := xRun, aRecord := rcv.aRecord, uRecordLen := rcv.uRecordLen,",
              f"    xRecordValid := rcv.xRecordValid, wMarker := WORD#{UNICOS_MARKER},",
              "    xRedundant := xRedundant, xActiveB := (pFlags AND 16#0008) <> 0,",
-             "    xWriteDoneA := uniADone, xWriteErrorA := uniAErr, wWriteStatusA := uniASt,",
-             "    xWriteDoneB := uniBDone, xWriteErrorB := uniBErr, wWriteStatusB := uniBSt);",
+             "    stReplyA := uniARep, stReplyB := uniBRep);",
              "snapReq := rcv.xSnapshotReq;",
-             "uniATrig := uni.xWriteReqA;",
-             "uniALen := UINT_TO_WORD(uni.uWriteLenA);",
-             "uniBTrig := uni.xWriteReqB;",
-             "uniBLen := UINT_TO_WORD(uni.uWriteLenB);"]
-    code += [f"uniA{i} := uni.aWriteA[{i}];" for i in range(123)]
-    code += [f"uniB{i} := uni.aWriteB[{i}];" for i in range(123)]
+             "uniATrig := uni.stRequestA.xWriteReq;",
+             "uniALen := UINT_TO_WORD(uni.stRequestA.uWriteLen);",
+             "uniBTrig := uni.stRequestB.xWriteReq;",
+             "uniBLen := UINT_TO_WORD(uni.stRequestB.uWriteLen);"]
+    code += [f"uniA{i} := uni.stRequestA.aWrite[{i}];" for i in range(123)]
+    code += [f"uniB{i} := uni.stRequestB.aWrite[{i}];" for i in range(123)]
     code += udint_words("mRecLo", "mRecHi", "uni.udiRecords")
     code += udint_words("mEvLo", "mEvHi", "uni.udiEvents")
     code += ["mFrames := UDINT_TO_WORD(uni.udiFrames MOD 65536);",

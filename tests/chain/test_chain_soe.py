@@ -109,7 +109,7 @@ def test_soe_reader_in_a_plc_against_the_c_relay_in_cosim(tmp_path):
     assert logged(plc) == expected(events, ORIGIN)
     st = relay.stats()
     assert st["entries"] == 0 and st["acknowledged"] == 20 and st["bad_acks"] == 0
-    assert plc["MAIN.RDR.XDONE"] and not plc["MAIN.RDR.XERROR"]
+    assert plc["MAIN.RDR.XCAUGHTUP"] and not plc["MAIN.RDR.XERROR"]
 
 
 def test_generated_events_follow_virtual_time(tmp_path):
@@ -151,4 +151,4 @@ def test_soe_reader_in_real_time_against_mip_emulator_relay(tmp_path):
     assert [(e.type_bit, e.address, e.cause_type, e.value) for e in got] == \
         [(e.type_bit, e.address, e.cause_type, e.value) for e in exp], out
     assert [e.time_ms for e in got] == [e.time_ms for e in exp], out
-    assert plc["MAIN.RDR.XDONE"] and not plc["MAIN.RDR.XERROR"]
+    assert plc["MAIN.RDR.XCAUGHTUP"] and not plc["MAIN.RDR.XERROR"]

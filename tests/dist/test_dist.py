@@ -198,8 +198,9 @@ def test_one_file_library_translates_with_stc(archive, tmp_path):
 
 
 def test_scl_library_is_generated_complete_and_runs(archive, tmp_path):
-    """scl/*.scl: one file per st_lib file with a block, in import order, exactly what the
-    generator writes from st_lib; the one-file .scl translates as SCL and runs (MIP_Version)."""
+    """scl/*.scl: one file per st_lib file with a block or a STRUCT type (a PLC data type in
+    TIA; enumerations and array types the blocks carry themselves), in import order, exactly
+    what the generator writes from st_lib; the one-file .scl translates as SCL and runs (MIP_Version)."""
     from stc.scl_out import generate_files
     _, tgz, top = archive
     version = top.name.split("-")[-1]
@@ -210,14 +211,14 @@ def test_scl_library_is_generated_complete_and_runs(archive, tmp_path):
     want = [f"scl/{Path(f).stem}.scl" for f in order if str(REPO / f) in fresh]
     assert [n for n in names if n.startswith("scl/")] == want
     assert len(want) == sum(1 for f in order if re.search(
-        r"^\s*FUNCTION(_BLOCK)?\s", (REPO / f).read_text(), re.M))
+        r"^\s*FUNCTION(_BLOCK)?\s|:\s*STRUCT\b", (REPO / f).read_text(), re.M))
     for f in order:
         if str(REPO / f) in fresh:
             assert (top / f"scl/{Path(f).stem}.scl").read_text() == fresh[str(REPO / f)], f
     one = top / f"{top.name}.scl"
     major, minor, patch = map(int, version.split("."))
     assert one.read_text().count(f"VERSION : {major}.{minor}\n") == \
-        one.read_text().count("\nBEGIN\n")
+        one.read_text().count("\nBEGIN\n") + len(re.findall(r'^TYPE "', one.read_text(), re.M))
     assert f"{top.name}.scl" in (top / "README.txt").read_text()
     assert probe_version(one, tmp_path)[:3] == (major, minor, patch)
 

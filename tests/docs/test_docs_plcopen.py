@@ -167,9 +167,15 @@ def st_from_xml(path):
     for dt in root.iterfind(".//p:dataType", NS):
         base = dt.find("p:baseType", NS)
         enum = base.find("p:enum", NS)
+        struct = base.find("p:struct", NS)
         if enum is not None:
             vals = ", ".join(v.get("name") for v in enum.iterfind(".//p:value", NS))
             out.append(f"  {dt.get('name')} : ({vals});")
+        elif struct is not None:
+            out.append(f"  {dt.get('name')} : STRUCT")
+            out += [f"    {v.get('name')} : {elementary_or_derived(v.find('p:type', NS))};"
+                    for v in struct.iterfind("p:variable", NS)]
+            out.append("  END_STRUCT;")
         else:
             out.append(f"  {dt.get('name')} : {elementary_or_derived(base)};")
     out.append("END_TYPE")

@@ -22,7 +22,8 @@ REPO = Path(__file__).resolve().parents[2]
 BASE = 600                  # the registers at %QW600..625 = holding 600..625, as the relay's 40601..
 TS0 = 1767225600000         # time stamp of entry 0 (ms since 1970)
 STATES = enum_values("E_MIP_SoeSrvState", ST_LIB / "chain" / "MIP_TypesSoeServer.st")
-ERRORS = enum_values("E_MIP_SoeSrvError", ST_LIB / "chain" / "MIP_TypesSoeServer.st")
+ERRORS = enum_values("E_MIP_ChainError", ST_LIB / "chain" / "MIP_TypesSoe.st")
+WAIT = enum_values("E_MIP_ChainWaitReason", ST_LIB / "chain" / "MIP_TypesSoe.st")
 
 REGS = "\n".join(f"  r{i} AT %QW{BASE + i} : WORD;" for i in range(26))
 COPY = "\n".join(f"r{i} := srv.aRegs[{i}];" for i in range(26))
@@ -140,6 +141,7 @@ def test_every_entry_once_in_order_with_its_time_stamp(build, tmp_path):
     assert [r["value"] for r in rows] == [k % 2 for k in range(1, 21)]
     assert plc["MAIN.srv.udiPut"] == 20 and plc["MAIN.srv.udiBadAcks"] == 0
     assert plc["MAIN.srv.eState"] == STATES["MIP_SRV_IDLE"]
+    assert plc["MAIN.srv.eWaitReason"] == WAIT["MIP_CHAIN_WAIT_PUT"] and plc["MAIN.srv.xValid"]
     assert plc["%QW600"] == 0 and plc["%QW601"] >> 8 == 0      # count 0, nothing offered
     plc.close()
 
@@ -175,6 +177,7 @@ def test_a_wrong_acknowledgement_is_refused_and_changes_nothing(build, tmp_path)
     regs = [plc[f"%QW{BASE + i}"] for i in range(26)]
     seq, n = regs[1] & 0xFF, regs[1] >> 8
     assert (regs[0], n) == (4, 3) and plc["MAIN.srv.eState"] == STATES["MIP_SRV_OFFERED"]
+    assert plc["MAIN.srv.eWaitReason"] == WAIT["MIP_CHAIN_WAIT_SCADA"]
     for bad in (seq + 1 + (3 << 8),          # another sequence number
                 seq + (4 << 8),              # more entries than offered
                 seq + (3 << 8) + 0x8000,     # reset list: the server never deletes untaken entries
@@ -203,7 +206,8 @@ def test_a_silent_scada_is_named_and_loses_nothing(build, tmp_path):
     plc.scan(100)                            # 2 s after the offer: the SCADA is silent
     assert plc["MAIN.srv.xError"]
     assert plc["MAIN.srv.eErrorId"] == ERRORS["MIP_SRV_ERR_SCADA_SILENT"]
-    assert plc["MAIN.srv.eState"] == STATES["MIP_SRV_SCADA_SILENT"]
+    assert plc["MAIN.srv.eState"] == STATES["MIP_SRV_SCADA_SILENT"] and not plc["MAIN.srv.xValid"]
+    assert plc["MAIN.srv.eWaitReason"] == WAIT["MIP_CHAIN_WAIT_SCADA"] and not plc["MAIN.srv.xBusy"]
     assert plc["MAIN.srv.uQueued"] == 7
     rows = []
     run(plc, scada(plc, rows), lambda: plc["MAIN.srv.udiAcked"] == 7)
@@ -220,6 +224,7 @@ def test_a_warm_restart_between_serve_and_acknowledgement_loses_and_repeats_noth
     plc.scan(3)                              # entries 1..3 put, the offer formed ...
     assert plc["MAIN.srv.uOffered"] == 0 and plc["MAIN.srv.xSnapshotReq"]
     assert plc["MAIN.srv.eState"] == STATES["MIP_SRV_WAIT_SNAPSHOT"]
+    assert plc["MAIN.srv.eWaitReason"] == WAIT["MIP_CHAIN_WAIT_SNAPSHOT"]
     plc.scan()                               # ... and shown once a snapshot holds it
     assert plc["MAIN.srv.uOffered"] == 3
     snap = plc.retain_last()

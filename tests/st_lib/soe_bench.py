@@ -26,9 +26,9 @@ from stlib_sim import Fb, RunUntil, build_text, lib_type
 REPO = Path(__file__).resolve().parents[2]
 
 SOE_TYPES = REPO / "st_lib" / "chain" / "MIP_TypesSoe.st"
-ERR = enum_values("E_MIP_SoeError", SOE_TYPES)
+ERR = enum_values("E_MIP_ChainError", SOE_TYPES)
 STATE = enum_values("E_MIP_SoeState", SOE_TYPES)
-WAIT = enum_values("E_MIP_SoeWait", SOE_TYPES)
+WAIT = enum_values("E_MIP_ChainWaitReason", SOE_TYPES)
 BASE = 600                      # PDU address of 40601 (docs/chain.md)
 
 
@@ -230,8 +230,11 @@ class Bench(RunUntil):
             self.scans += 1
             self.client.after_scan()
             self.logger.after_scan()
-            flags = [fb["xDone"], fb["xBusy"], fb["xError"]]
-            assert sum(flags) <= 1, f"more than one of xDone, xBusy, xError: {flags}"
+            # the enable-type outputs (st_lib/CONVENTIONS.md): valid and busy while enabled
+            # without an error, never with one; caught up only while valid
+            flags = [fb["xValid"], fb["xBusy"], fb["xError"], fb["xCaughtUp"]]
+            assert flags[0] == flags[1] and not (flags[1] and flags[2]), flags
+            assert not flags[3] or flags[0], flags
             if self.retained and fb["xSnapshotReq"]:
                 self.take_snapshot()
             self.now_ns += self.tick_ms * MS

@@ -76,7 +76,9 @@ def test_dialect_rules(name):
     assert "//" not in code and "/*" not in code, "comments must be (* *)"
     assert not re.search(r"\b[A-Za-z_]\w*\.\d+\b", code), "no bit access w.0: use masks"
     for m in re.finditer(r"\bTYPE\b(.*?)\bEND_TYPE\b", code, flags=re.S):
-        for tname in re.findall(r"^\s*(\w+)\s*:", m.group(1), flags=re.M):
+        # a STRUCT's fields are not types
+        types = re.sub(r"\bSTRUCT\b.*?\bEND_STRUCT\b", "STRUCT", m.group(1), flags=re.S)
+        for tname in re.findall(r"^\s*(\w+)\s*:", types, flags=re.M):
             assert tname.startswith(("MIP_T_", "E_MIP_")), f"type {tname} needs the MIP prefix (-p)"
     assert not re.search(r"\(\s*\w+\s*:=\s*\d+", code), "no enum values with explicit numbers"
     pous = re.findall(r"^\s*(FUNCTION_BLOCK|FUNCTION|PROGRAM)\s+(\w+)", code, flags=re.M)
@@ -136,6 +138,8 @@ def _declarations():
 def test_every_declaration_follows_the_naming_scheme():
     decls = _declarations()
     assert len(decls) > 100, "the declaration scan found too little: fix the test"
+    structs = set(re.findall(r"^\s*(MIP_T_\w+)\s*:\s*STRUCT\b", "".join(
+        Path(p).read_text() for p in LIB_PATHS), flags=re.M))
     bad = []
     for f, name, ty in decls:
         if name == "i" and ty in ("INT", "UINT"):
@@ -143,6 +147,8 @@ def test_every_declaration_follows_the_naming_scheme():
         want = _TYPE_PREFIX.get(ty) or _STD_FB.get(ty)
         if ty.startswith("E_MIP_"):
             want = "e"
+        elif ty in structs:
+            want = "st"
         elif ty.startswith("MIP_T_") or ty == "ARRAY":
             want = "a"
         elif ty.startswith("MIP_"):

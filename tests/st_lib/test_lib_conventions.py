@@ -46,52 +46,6 @@ COMBINED_SIDES = {"execute": "Send", "enable": "Recv"}
 FIX = "issue 46 step 2"
 # (block or type, rule, detail, why it deviates today, fixed by)
 DEVIATIONS = [
-    # the chain blocks: written before the convention
-    ("MIP_SoeReader", "enable-outputs", "missing xValid", "xDone means 'caught up'", FIX),
-    ("MIP_SoeReader", "enable-outputs", "has xDone", "xDone means 'caught up' (MIP_SoeReader.st:153)", FIX),
-    ("MIP_SoeReader", "enable-outputs", "has xAborted", "xAborted means 'xEnable fell' (MIP_SoeReader.st:155)", FIX),
-    ("MIP_SoeReader", "error-enum", "eErrorId : E_MIP_SoeError", "an error enum of its own", FIX),
-    ("MIP_SoeReader", "error-enum", "eLastErrorId : E_MIP_SoeError", "an error enum of its own", FIX),
-    ("MIP_SoeReader", "diagnostics", "eWaitReason : E_MIP_SoeWait", "a wait enum of its own", FIX),
-    ("MIP_SoeReader", "status-word", "errors map to 16#8000, not 16#8100", "no chain error range yet", FIX),
-    ("MIP_SoeServer", "enable-outputs", "missing xValid", "written before the convention", FIX),
-    ("MIP_SoeServer", "error-enum", "eErrorId : E_MIP_SoeSrvError", "an error enum of its own", FIX),
-    ("MIP_SoeServer", "diagnostics", "missing eWaitReason", "written before the convention", FIX),
-    ("MIP_SoeServer", "status-word", "errors map to 16#8000, not 16#8100", "no chain error range yet", FIX),
-    ("MIP_UnicosEvents", "enable-outputs", "missing xValid", "written before the convention", FIX),
-    ("MIP_UnicosEvents", "error-enum", "eErrorId : E_MIP_UnicosError", "an error enum of its own", FIX),
-    ("MIP_UnicosEvents", "diagnostics", "missing eWaitReason", "written before the convention", FIX),
-    ("MIP_UnicosEvents", "sampled", "tMaxDelay is live", "reads every parameter live (its header, lines 14-34)", FIX),
-    ("MIP_UnicosEvents", "sampled", "tRetry is live", "reads every parameter live (its header, lines 14-34)", FIX),
-    ("MIP_UnicosEvents", "sampled", "uTableEvents is live", "reads every parameter live (its header, lines 14-34)", FIX),
-    ("MIP_UnicosEvents", "sampled", "uMaxRetries is live", "reads every parameter live (its header, lines 14-34)", FIX),
-    ("MIP_UnicosEvents", "sampled", "wMarker is live", "reads every parameter live (its header, lines 14-34)", FIX),
-    ("MIP_UnicosEvents", "sampled", "xEvents32 is live", "reads every parameter live (its header, lines 14-34)", FIX),
-    ("MIP_UnicosEvents", "sampled", "xLittleEndianRegister is live", "reads every parameter live (its header, lines 14-34)", FIX),
-    ("MIP_UnicosEvents", "sampled", "xRedundant is live", "reads every parameter live (its header, lines 14-34)", FIX),
-    ("MIP_UnicosEvents", "sampled", "xSendPerRecord is live", "reads every parameter live (its header, lines 14-34)", FIX),
-    ("MIP_UnicosEvents", "channels", "6 fields repeated per channel A/B", "driver A and B field by field", FIX),
-    ("MIP_UnicosEvents", "status-word", "errors map to 16#8000, not 16#8100", "no chain error range yet", FIX),
-    ("MIP_UnicosStatus", "enable-outputs", "missing xValid", "written before the convention", FIX),
-    ("MIP_UnicosStatus", "enable-outputs", "missing xBusy", "written before the convention", FIX),
-    ("MIP_UnicosStatus", "error-enum", "eErrorId : E_MIP_UnicosError", "an error enum of its own", FIX),
-    ("MIP_UnicosStatus", "diagnostics", "missing eState", "written before the convention", FIX),
-    ("MIP_UnicosStatus", "diagnostics", "missing eWaitReason", "written before the convention", FIX),
-    ("MIP_UnicosStatus", "sampled", "tMinPeriod is live", "reads its parameters live", FIX),
-    ("MIP_UnicosStatus", "sampled", "tRetry is live", "reads its parameters live", FIX),
-    ("MIP_UnicosStatus", "sampled", "uMaxRetries is live", "reads its parameters live", FIX),
-    ("MIP_UnicosStatus", "sampled", "wMarker is live", "reads its parameters live", FIX),
-    ("MIP_UnicosStatus", "sampled", "wOffset is live", "reads its parameters live", FIX),
-    ("MIP_UnicosStatus", "sampled", "xRedundant is live", "reads its parameters live", FIX),
-    ("MIP_UnicosStatus", "channels", "6 fields repeated per channel A/B", "driver A and B field by field", FIX),
-    ("MIP_UnicosStatus", "status-word", "no status in the SCL export", "no xBusy, so the generator adds none", FIX),
-    # the chain library's types: three error enums and a wait enum of their own
-    ("E_MIP_ChainError", "one-error-enum", "missing", "the chain library has no error enum of its own yet", FIX),
-    ("E_MIP_SoeError", "one-error-enum", "a second error enum in chain", "one per block, not per library", FIX),
-    ("E_MIP_SoeSrvError", "one-error-enum", "a second error enum in chain", "one per block, not per library", FIX),
-    ("E_MIP_UnicosError", "one-error-enum", "a second error enum in chain", "one per block, not per library", FIX),
-    ("E_MIP_ChainWaitReason", "one-wait-enum", "missing", "the chain library has no wait enum of its own yet", FIX),
-    ("E_MIP_SoeWait", "one-wait-enum", "a second wait enum in chain", "MIP_SoeReader's own", FIX),
 ]
 
 
@@ -289,6 +243,7 @@ LIVE_INPUT = re.compile(r"""
     x(Enable|Execute|Abort)                        # the defining inputs, the abort
   | a[A-Z]\w* | u\w*Len                             # data handed in, its length
   | x\w*(Valid|Done|Error|Last)[AB]? | w\w*Status[AB]?   # the caller's handshakes
+  | stReply[AB]                                    # ... of a channel, as one structure
   | xRecordProcessed | xEntryStored | xPut | wCtrl\w+ | wSnapshots
   | xLoggerFull | xResetList | xActiveB             # the operator's commands
 """, re.X)
@@ -317,11 +272,14 @@ def check_sampled(units):
 
 def check_channels(units):
     """No channel repeated field by field (xWriteDoneA, xWriteDoneB, ...): one block per
-    channel, or the channel's fields as one structure."""
+    channel, or the channel's fields as one structure (stReplyA, stReplyB of one STRUCT type
+    are the channel's structure, not a repeated field)."""
+    structs = {t.name for _f, u in units for t in u.types if t.kind == "struct"}
     out = []
     for _f, p in public_pous(units):
-        names = {v.name for _k, v in iface(p)}
-        pairs = sorted(n[:-1] for n in names if n.endswith("A") and n[:-1] + "B" in names)
+        names = {v.name: v.type.name for _k, v in iface(p)}
+        pairs = sorted(n[:-1] for n, ty in names.items() if n.endswith("A") and n[:-1] + "B" in names
+                       and not (ty in structs and names[n[:-1] + "B"] == ty))
         if pairs:
             out.append((p.name, "channels", f"{len(pairs)} fields repeated per channel A/B"))
     return out

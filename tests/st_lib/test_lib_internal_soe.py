@@ -11,7 +11,7 @@ from stlib_sim import build_text, lib_type
 
 CLS = enum_values("E_MIP_SoeReadClass", ST_LIB / "chain" / "MIP_TypesSoe.st")
 STATE = enum_values("E_MIP_SoeState", ST_LIB / "chain" / "MIP_TypesSoe.st")
-WAIT = enum_values("E_MIP_SoeWait", ST_LIB / "chain" / "MIP_TypesSoe.st")
+WAIT = enum_values("E_MIP_ChainWaitReason", ST_LIB / "chain" / "MIP_TypesSoe.st")
 
 INPUTS = {"uSeqBits": "UINT", "xOpen": "BOOL", "wOpenSeq": "WORD", "uOpenN": "UINT",
           "xKnown": "BOOL", "wLastSeq": "WORD", "xAfterAck": "BOOL", "wAckSeq": "WORD",
@@ -30,7 +30,7 @@ VAR
 {"".join(f"  {n} : {t};{chr(10)}" for n, t in INPUTS.items())}  eClass : {lib_type('E_MIP_SoeReadClass')};
   {", ".join(WAIT_INPUTS)} : BOOL;
   eState : {lib_type('E_MIP_SoeState')};
-  eWait : {lib_type('E_MIP_SoeWait')};
+  eWait : {lib_type('E_MIP_ChainWaitReason')};
 END_VAR
 {"".join(f"aRd[{i}] := r{i};{chr(10)}" for i in range(26))}\
 {"".join(f"aOp[{i}] := o{i};{chr(10)}aCd[{i}] := c{i};{chr(10)}" for i in range(24))}\
@@ -183,4 +183,4 @@ def test_wait_reason(plc, state, true, want):
     for name in WAIT_INPUTS:
         plc[f"MAIN.{name}"] = name in true
     plc.scan()
-    assert plc["MAIN.eWait"] == WAIT["MIP_SOE_WAIT_" + want]
+    assert plc["MAIN.eWait"] == WAIT["MIP_CHAIN_WAIT_" + want]

@@ -44,7 +44,7 @@ def random_run(wd, relay, seed):
         assert not b.fb["xError"], (seed, b.fb["eErrorId"])
     b.logger.capacity = None
     b.client.lose_read_answer = b.client.lose_write_answer = b.client.lose_write_request = 0
-    done = b.run_until(lambda: len(b.logger.stored) >= n and b.fb["xDone"], 3000)
+    done = b.run_until(lambda: len(b.logger.stored) >= n and b.fb["xCaughtUp"], 3000)
     assert done, (seed, len(b.logger.stored), n, b.fb["eWaitReason"])
     assert b.logger.stored == expected(events, ORIGIN), seed
     acks_after_stores(b.log)

@@ -29,7 +29,7 @@ def test_ack_waits_for_the_snapshot(wd):
             seen.append(b.fb["eWaitReason"])
     step_without_snapshots(60)
     assert len(b.logger.stored) == 3 and b.client.writes == []
-    assert seen[-1] == WAIT["MIP_SOE_WAIT_SNAPSHOT"] and b.fb["xSnapshotReq"]
+    assert seen[-1] == WAIT["MIP_CHAIN_WAIT_SNAPSHOT"] and b.fb["xSnapshotReq"]
     orig(10)                             # snapshots complete again: the acknowledgement goes
     assert b.acks() == [1 + 3 * 256]
 
@@ -53,9 +53,9 @@ def test_warm_restarts_deliver_every_entry_exactly_once(wd, relay, seed):
         if b.snapshot and rnd.random() < 0.5:
             b.warm_restart()
             restarts += 1
-        if len(b.logger.stored) == 72 and b.fb["xDone"]:
+        if len(b.logger.stored) == 72 and b.fb["xCaughtUp"]:
             break
-    assert b.run_until(lambda: len(b.logger.stored) == 72 and b.fb["xDone"], 1500)
+    assert b.run_until(lambda: len(b.logger.stored) == 72 and b.fb["xCaughtUp"], 1500)
     assert restarts >= 10
     assert b.logger.stored == expected(events, ORIGIN)
     assert b.relay.entries() == 0 and not b.fb["xError"]
@@ -70,7 +70,7 @@ def test_warm_restart_in_the_middle_of_a_read(wd):
     b.step()
     b.warm_restart()
     at = len(b.log)
-    assert b.run_until(lambda: len(b.logger.stored) == 3 and b.fb["xDone"], 300)
+    assert b.run_until(lambda: len(b.logger.stored) == 3 and b.fb["xCaughtUp"], 300)
     assert b.logger.stored == expected(events, ORIGIN)
     # after the restart: the second and third (what the snapshot's logger lacks), not the first
     assert [x[2] for x in b.log[at:] if x[0] == "store"] == [1, 2]
@@ -81,7 +81,7 @@ def test_cold_restart_loses_nothing_but_may_duplicate(wd):
     b = Bench(wd, make_relay("py", events), delay=3)
     assert b.run_until(lambda: len(b.logger.stored) == 2, 100)
     b.cold_restart()
-    assert b.run_until(lambda: b.fb["xDone"], 300)
+    assert b.run_until(lambda: b.fb["xCaughtUp"], 300)
     exp = expected(events, ORIGIN)
     # the open read comes again from its first entry: the two stored before are duplicated
     assert b.logger.stored == exp[:2] + exp
@@ -131,7 +131,7 @@ def _relay_restarts_and_every_entry_is_stored(b, relay, events, seed):
     restart_relay(b, relay, later)
     b.relay.advance(b.now_ns)
     at = len(b.log)
-    assert b.run_until(lambda: b.fb["xDone"] and len(b.logger.stored) >= 3 + 5, 600), b.log[-8:]
+    assert b.run_until(lambda: b.fb["xCaughtUp"] and len(b.logger.stored) >= 3 + 5, 600), b.log[-8:]
     assert b.logger.stored == expected(events, ORIGIN) + expected(later, ORIGIN)
     first_new = [i for i, ev in enumerate(b.log) if ev[0] == "store"][3]
     assert [ev for ev in b.log[at:first_new] if ev[0] == "write"] == [], b.log[at:]

@@ -8,7 +8,7 @@ import random
 import pytest
 
 from mippeer.unicos import UnicosConfig
-from unicos_bench import UERR, USTATE, UnicosBench, entry
+from unicos_bench import UERR, USTATE, WAIT, UnicosBench, entry
 
 T0 = 1767225600000          # 2026-01-01 00:00:00 UTC in ms
 
@@ -203,9 +203,31 @@ def test_disabled_and_enabled_again_the_record_is_sent_again_not_lost(wd):
     b.step(10)
     b.u["xEnable"] = False
     b.step(30)                                   # the write under way ends (no answer)
-    assert b.u["eState"] == USTATE["MIP_UNI_DISABLED"] and not b.u["xWriteReqA"]
+    assert b.u["eState"] == USTATE["MIP_UNI_DISABLED"] and not b.u["stRequestA.xWriteReq"]
     assert b.src.processed == []
     b.ca.down = False
     b.u["xEnable"] = True
     b.drain()
     assert got(b.da) == expected(entries)
+
+
+def test_parameters_are_sampled_at_the_rising_edge_of_xenable(wd):
+    """st_lib/CONVENTIONS.md "sampled": xRedundant set while enabled changes nothing; the next
+    enable takes it. The diagnostics say what the block waits for."""
+    b = UnicosBench(wd)
+    b.step(2)
+    assert b.u["xValid"] and b.u["xBusy"] and b.u["eWaitReason"] == WAIT["MIP_CHAIN_WAIT_RECORD"]
+    b.u["xRedundant"] = True                       # while enabled: not taken
+    first = relay_entries(2, seed=21)
+    b.offer(record(first))
+    b.drain()
+    assert got(b.da) == expected(first) and got(b.db) == [] and b.cb.adus == []
+    b.u["xEnable"] = False
+    b.step(2)
+    assert not b.u["xValid"] and not b.u["xBusy"]
+    assert b.u["eWaitReason"] == WAIT["MIP_CHAIN_WAIT_NONE"]
+    b.u["xEnable"] = True                          # the rising edge takes xRedundant
+    second = relay_entries(2, seed=22, t0=T0 + 10**6)
+    b.offer(record(second))
+    b.drain()
+    assert got(b.da) == expected(first + second) and got(b.db) == expected(second)

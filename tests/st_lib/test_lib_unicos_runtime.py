@@ -17,16 +17,19 @@ T0 = 1767225600000
 def program():
     decl = ["  uni : MIP_UnicosEvents;", f"  rec : {lib_type('MIP_T_Payload')};",
             "  " + ", ".join(f"rec{i}" for i in range(24)) + " : WORD;",
-            "  uLen : UINT;", "  xValid : BOOL;", "END_VAR", "VAR",
+            "  uLen : UINT;", "  xValid : BOOL;", f"  rep : {lib_type('MIP_T_UnicosReply')};",
+            "END_VAR", "VAR",
             "  wrTrig AT %QX1.0 : BOOL;", "  wrDone AT %IX1.0 : BOOL;", "  wrErr AT %IX1.1 : BOOL;",
             "  wrStatus AT %IW10 : WORD;", "  wrLen AT %QW1 : WORD;"]
     decl += [f"  w{i} AT %QW{100 + i} : WORD;" for i in range(123)]
     body = [f"rec[{i}] := rec{i};" for i in range(24)]
+    body += ["rep.xWriteDone := wrDone;", "rep.xWriteError := wrErr;", "rep.wWriteStatus := wrStatus;"]
     body += ["uni(xEnable := TRUE, aRecord := rec, uRecordLen := uLen, xRecordValid := xValid,",
              f"    wMarker := WORD#{MARKER}, tRetry := T#100ms, uMaxRetries := 1,",
-             "    xWriteDoneA := wrDone, xWriteErrorA := wrErr, wWriteStatusA := wrStatus);",
-             "wrTrig := uni.xWriteReqA;", "wrLen := UINT_TO_WORD(uni.uWriteLenA);"]
-    body += [f"w{i} := uni.aWriteA[{i}];" for i in range(123)]
+             "    stReplyA := rep);",
+             "wrTrig := uni.stRequestA.xWriteReq;",
+             "wrLen := UINT_TO_WORD(uni.stRequestA.uWriteLen);"]
+    body += [f"w{i} := uni.stRequestA.aWrite[{i}];" for i in range(123)]
     return ("PROGRAM MAIN\nVAR\n" + "\n".join(decl) + "\nEND_VAR\n" + "\n".join(body)
             + "\nEND_PROGRAM\n\nCONFIGURATION Config0\n  RESOURCE Res0 ON PLC\n"
             "    TASK tMain(INTERVAL := T#10ms, PRIORITY := 0);\n"

@@ -16,8 +16,10 @@ import stlib_sim
 from stlib_sim import LIB, MS, Fb, RunUntil
 from plcharness import Plc
 
-UERR = enum_values("E_MIP_UnicosError", LIB / "chain" / "MIP_UnicosTypes.st")
+UERR = enum_values("E_MIP_ChainError", LIB / "chain" / "MIP_TypesSoe.st")
 USTATE = enum_values("E_MIP_UnicosState", LIB / "chain" / "MIP_UnicosTypes.st")
+SSTATE = enum_values("E_MIP_UnicosStatusState", LIB / "chain" / "MIP_UnicosTypes.st")
+WAIT = enum_values("E_MIP_ChainWaitReason", LIB / "chain" / "MIP_TypesSoe.st")
 TICK_MS = 10
 
 
@@ -45,11 +47,11 @@ def gen_program():
         "rcv.xRecordProcessed := cuni.xRecordProcessed;"] + [
         f"tab[{i}] := tab{i};" for i in range(96)] + ["sts(aTable := tab);"]
     text = text.replace(call, call + "\n".join(calls) + "\n", 1)
-    post = [f"a{i} := uni.aWriteA[{i}];" for i in range(123)]
-    post += [f"b{i} := uni.aWriteB[{i}];" for i in range(123)]
-    post += [f"ua{i} := cuni.aWriteA[{i}];" for i in range(123)]
-    post += [f"sa{i} := sts.aWriteA[{i}];" for i in range(98)]
-    post += [f"sb{i} := sts.aWriteB[{i}];" for i in range(98)]
+    post = [f"a{i} := uni.stRequestA.aWrite[{i}];" for i in range(123)]
+    post += [f"b{i} := uni.stRequestB.aWrite[{i}];" for i in range(123)]
+    post += [f"ua{i} := cuni.stRequestA.aWrite[{i}];" for i in range(123)]
+    post += [f"sa{i} := sts.stRequestA.aWrite[{i}];" for i in range(98)]
+    post += [f"sb{i} := sts.stRequestB.aWrite[{i}];" for i in range(98)]
     return text.replace("END_PROGRAM", "\n".join(post) + "\nEND_PROGRAM", 1)
 
 
@@ -65,8 +67,8 @@ def entry(type_bit, address, cause, value, ts_ms):
 
 
 class Client:
-    """The PLC's Modbus client for one driver: on xWriteReq<X> it sends one FC16 of uWriteLen<X>
-    registers at wWriteAddress to `driver` (a UnicosDriver, called directly); done on a normal
+    """The PLC's Modbus client for one driver: on stRequest<X>.xWriteReq it sends one FC16 of
+    its uWriteLen registers at wWriteAddress to `driver` (a UnicosDriver, called directly); done on a normal
     answer, error with the exception code, or error with status 1110 (plcrt: timed out) after `timeout_scans` when
     the driver does not answer (muted, or `down`)."""
 
@@ -74,7 +76,7 @@ class Client:
         self.b, self.ch, self.driver = bench, ch, driver
         self.delay_scans = delay_scans               # an answer comes this many scans later
         self.fb = fb or bench.u                      # the block's members
-        self.reg = reg or (lambda i: bench.plc[f"MAIN.{ch.lower()}{i}"])   # aWrite<ch>[i]
+        self.reg = reg or (lambda i: bench.plc[f"MAIN.{ch.lower()}{i}"])   # stRequest<ch>.aWrite[i]
         self.timeout_scans = timeout_scans
         self.down = False
         self.adus = []              # every request sent
@@ -83,19 +85,19 @@ class Client:
 
     def _set(self, done, err, status=0):
         u = self.fb
-        u[f"xWriteDone{self.ch}"], u[f"xWriteError{self.ch}"] = done, err
-        u[f"wWriteStatus{self.ch}"] = status
+        u[f"stReply{self.ch}.xWriteDone"], u[f"stReply{self.ch}.xWriteError"] = done, err
+        u[f"stReply{self.ch}.wWriteStatus"] = status
 
     def after_scan(self):
         u = self.fb
-        req = u[f"xWriteReq{self.ch}"]
+        req = u[f"stRequest{self.ch}.xWriteReq"]
         if not req:
             if self._state != "idle":
                 self._set(False, False)
             self._state = "idle"
             return
         if self._state == "idle":
-            n = u[f"uWriteLen{self.ch}"]
+            n = u[f"stRequest{self.ch}.uWriteLen"]
             regs = [self.reg(i) for i in range(n)]
             self._tid = (self._tid + 1) & 0xFFFF
             pdu = struct.pack(f">BHHB{n}H", 16, u["wWriteAddress"], n, 2 * n, *regs)

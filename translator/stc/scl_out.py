@@ -51,6 +51,11 @@ STANDARD_FB = {"TON": "TON_TIME", "TOF": "TOF_TIME", "TP": "TP_TIME",
 # done, 16#7000 idle, 16#7001 first call of a job, 16#7002 job running, 16#8xxx error)
 STATUS_NAME = "status"
 STATUS_PREV = "statusBusyBefore"
+# the status word of an error: 16#8000 + the library's base + the error's position in its
+# enum; the library is told by the type of eErrorId (st_lib/CONVENTIONS.md "error-range":
+# the core's E_MIP_Error 16#8001.., the chain's E_MIP_ChainError 16#8101..)
+STATUS_ERROR_BASE = {"E_MIP_CHAINERROR": 0x8100}
+STATUS_ERROR_DEFAULT = 0x8000
 # the sides of a combined block (its output infix, the prefix of its status word's name)
 STATUS_SIDES = (("Send", "send"), ("Recv", "recv"))
 
@@ -513,6 +518,18 @@ class _Pou:
             self.flush_comments(d.pos[0] + 1, "      ", same_line=d.pos[0], slash=True)
         return header, self.out
 
+    def error_base(self, infix=""):
+        """The status word's base for an error: by the type of the block's e<infix>ErrorId."""
+        want = f"E{infix}ERRORID".upper()
+        for b in self.n.blocks:
+            if b.kind != "VAR_OUTPUT":
+                continue
+            for d in b.decls:
+                if any(n == want for n, _ in d.names):
+                    t = getattr(d.type, "name", "") or ""
+                    return STATUS_ERROR_BASE.get(t.upper(), STATUS_ERROR_DEFAULT)
+        return STATUS_ERROR_DEFAULT
+
     def status_region(self, infix="", status=STATUS_NAME, prev=STATUS_PREV):
         i = infix
         has_done = f"X{i}DONE".upper() in self.locals
@@ -520,7 +537,7 @@ class _Pou:
              f"        // generated: {status} follows x{i}Busy, x{i}Error and e{i}ErrorId (Siemens "
              "LGF convention, docs/wiring-s7.md)",
              f"        IF #x{i}Error THEN",
-             f"            #{status} := WORD#16#8000 OR INT_TO_WORD(#e{i}ErrorId);",
+             f"            #{status} := WORD#16#{self.error_base(i):04X} OR INT_TO_WORD(#e{i}ErrorId);",
              f"        ELSIF #x{i}Busy THEN",
              f"            IF #{prev} THEN",
              f"                #{status} := WORD#16#7002;",
