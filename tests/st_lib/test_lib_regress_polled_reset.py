@@ -40,8 +40,8 @@ def test_polled_lossy_transfer_leaves_reset_phase(workdir, loss, seed):
         reps = check(ch)
         tot = summary(reps)
         snd = ch.plcs[("out", 1)]
-        retrans = snd["OUTSTATION.SND.UDIRETRANSMISSIONS"]
-        state = snd["OUTSTATION.SND.ESTATE"]
+        retrans = snd["OUTSTATION.APP.SND.UDIRETRANSMISSIONS"]
+        state = snd["OUTSTATION.APP.SND.ESTATE"]
         t_end = ch.now / SEC
     problems = [p for r in reps for p in r.problems]
     assert finished, (f"not all records read out after {t_end:.0f} s "
