@@ -1,4 +1,4 @@
-"""MIP_Receiver's internal functions on their own: MIP_Internal_RcvClassify (what a record
+"""MIP_Receiver's internal helpers on their own: MIP_Internal_RcvClassify (what a record
 number read is against the number acknowledged last: PROTOCOL.md P15 .. P21) as a table of
 reads -> classes, MIP_Internal_ReadCheck (the check value it compares, P17) and
 MIP_Internal_AckBlock (the acknowledgement and its echo, P24), compiled from st_lib and run
@@ -35,17 +35,19 @@ VAR
   xChkBidi, xRestZero : BOOL;
 {"".join(f"  {n} : {t};{chr(10)}" for n, t in {**CLS_INPUTS, **ACK_INPUTS}.items())}\
   eCls : {lib_type('E_MIP_RcvClass')};
+  chk : MIP_Internal_ReadCheck;
+  ack : MIP_Internal_AckBlock;
   i : UINT;
 END_VAR
 {"".join(f"aRd[{i}] := r{i};{chr(10)}" for i in range(125))}\
 eCls := MIP_Internal_RcvClassify({", ".join(f"{n} := {n}" for n in CLS_INPUTS)});
-wCheck := MIP_Internal_ReadCheck(aRead := aRd, uCount := uChkCount, xBidi := xChkBidi,
-                                 uOther := uOther);
+chk(aRead := aRd, uCount := uChkCount, xBidi := xChkBidi, uOther := uOther);
+wCheck := chk.wCheck;
 FOR i := 0 TO 122 DO
-  aWr[i] := WORD#16#FFFF;   (* junk the function must clear *)
+  aWr[i] := WORD#16#FFFF;   (* junk the block must clear *)
 END_FOR;
-uWriteLen := MIP_Internal_AckBlock(aWrite := aWr,
-  {", ".join(f"{n} := {n}" for n in ACK_INPUTS)});
+ack(aWrite := aWr, {", ".join(f"{n} := {n}" for n in ACK_INPUTS)});
+uWriteLen := ack.uWriteLen;
 w0 := aWr[0];
 w1 := aWr[1];
 w2 := aWr[2];

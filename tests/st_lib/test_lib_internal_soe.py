@@ -1,4 +1,4 @@
-"""The chain's internal functions on their own: MIP_Internal_SoeClassify (what one read of the
+"""The chain's internal helpers on their own: MIP_Internal_SoeClassify (what one read of the
 SIPROTEC event recorder says, judged against what MIP_SoeReader expects: MIP_SoeReader's
 @behaviour, [S5] 5.2.5 in docs/chain.md) and MIP_Internal_SoeWaitReason, each as a table of
 inputs -> result, compiled from st_lib and run like test_lib_internal.py's blocks."""
@@ -31,11 +31,13 @@ VAR
   {", ".join(WAIT_INPUTS)} : BOOL;
   eState : {lib_type('E_MIP_SoeState')};
   eWait : {lib_type('E_MIP_ChainWaitReason')};
+  cls : MIP_Internal_SoeClassify;
 END_VAR
 {"".join(f"aRd[{i}] := r{i};{chr(10)}" for i in range(26))}\
 {"".join(f"aOp[{i}] := o{i};{chr(10)}aCd[{i}] := c{i};{chr(10)}" for i in range(24))}\
-eClass := MIP_Internal_SoeClassify(aRead := aRd, aOpen := aOp, aCand := aCd,
+cls(aRead := aRd, aOpen := aOp, aCand := aCd,
   {", ".join(f"{n} := {n}" for n in INPUTS)});
+eClass := cls.eClass;
 eWait := MIP_Internal_SoeWaitReason(eState := eState,
   {", ".join(f"{n} := {n}" for n in WAIT_INPUTS)});
 END_PROGRAM
