@@ -30,7 +30,7 @@ import os
 import re
 import sys
 
-from . import oneline, parser
+from . import oneline, parser, scl_status
 from . import syntax as S
 from .diag import Diagnostics
 
@@ -47,17 +47,6 @@ STANDARD_FB = {"TON": "TON_TIME", "TOF": "TOF_TIME", "TP": "TP_TIME",
                "CTU": "CTU_INT", "CTD": "CTD_INT", "CTUD": "CTUD_INT",
                "R_TRIG": "R_TRIG", "F_TRIG": "F_TRIG"}
 
-# LGF-style status words (Siemens "Library of General Functions" / PLCopen convention: 16#0000
-# done, 16#7000 idle, 16#7001 first call of a job, 16#7002 job running, 16#8xxx error)
-STATUS_NAME = "status"
-STATUS_PREV = "statusBusyBefore"
-# the status word of an error: 16#8000 + the library's base + the error's position in its
-# enum; the library is told by the type of eErrorId (st_lib/CONVENTIONS.md "error-range":
-# the core's E_MIP_Error 16#8001.., the chain's E_MIP_ChainError 16#8101..)
-STATUS_ERROR_BASE = {"E_MIP_CHAINERROR": 0x8100}
-STATUS_ERROR_DEFAULT = 0x8000
-# the sides of a combined block (its output infix, the prefix of its status word's name)
-STATUS_SIDES = (("Send", "send"), ("Recv", "recv"))
 
 
 class SclError(Exception):
@@ -407,20 +396,10 @@ class _Pou:
 
     # ---- the block
     def lgf_status(self):
-        """The LGF-style status outputs this FB gets: [(output infix, status name, name of its
-        "busy before" local)], one for a block with xBusy, xError, eErrorId outputs, one per
-        side for a combined block (xSendBusy ..., xRecvBusy ...); none for a function, a block
-        with a RETURN that would skip the update, or a name clash."""
+        """The LGF-style status outputs this FB gets (stc.scl_status.sides)."""
         if self.is_fn or any(isinstance(x, S.Return) for x in _walk(self.n.body)):
-            return []
-        outs = {n for b in self.n.blocks if b.kind == "VAR_OUTPUT" for d in b.decls for n, _ in d.names}
-        sides = [("", STATUS_NAME, STATUS_PREV)]
-        if not {"XBUSY", "XERROR", "EERRORID"} <= outs:
-            sides = [(infix, pre + "Status", pre + "StatusBusyBefore") for infix, pre in STATUS_SIDES]
-        sides = [s for s in sides
-                 if {f"X{s[0]}BUSY".upper(), f"X{s[0]}ERROR".upper(), f"E{s[0]}ERRORID".upper()} <= outs
-                 and s[1].upper() not in self.locals and s[2].upper() not in self.locals]
-        return sides
+            return []   # a function, or a RETURN that would skip the update
+        return scl_status.sides(self.n.blocks, self.locals)
 
     def write(self, version):
         n = self.n
@@ -518,37 +497,8 @@ class _Pou:
             self.flush_comments(d.pos[0] + 1, "      ", same_line=d.pos[0], slash=True)
         return header, self.out
 
-    def error_base(self, infix=""):
-        """The status word's base for an error: by the type of the block's e<infix>ErrorId."""
-        want = f"E{infix}ERRORID".upper()
-        for b in self.n.blocks:
-            if b.kind != "VAR_OUTPUT":
-                continue
-            for d in b.decls:
-                if any(n == want for n, _ in d.names):
-                    t = getattr(d.type, "name", "") or ""
-                    return STATUS_ERROR_BASE.get(t.upper(), STATUS_ERROR_DEFAULT)
-        return STATUS_ERROR_DEFAULT
-
-    def status_region(self, infix="", status=STATUS_NAME, prev=STATUS_PREV):
-        i = infix
-        has_done = f"X{i}DONE".upper() in self.locals
-        r = ["", f"    REGION LGF {status}",
-             f"        // generated: {status} follows x{i}Busy, x{i}Error and e{i}ErrorId (Siemens "
-             "LGF convention, docs/wiring-s7.md)",
-             f"        IF #x{i}Error THEN",
-             f"            #{status} := WORD#16#{self.error_base(i):04X} OR INT_TO_WORD(#e{i}ErrorId);",
-             f"        ELSIF #x{i}Busy THEN",
-             f"            IF #{prev} THEN",
-             f"                #{status} := WORD#16#7002;",
-             "            ELSE",
-             f"                #{status} := WORD#16#7001;",
-             "            END_IF;"]
-        if has_done:
-            r += [f"        ELSIF #x{i}Done THEN", f"            #{status} := WORD#16#0;"]
-        r += ["        ELSE", f"            #{status} := WORD#16#7000;", "        END_IF;",
-              f"        #{prev} := #x{i}Busy;", "    END_REGION"]
-        return r
+    def status_region(self, infix="", status=scl_status.STATUS_NAME, prev=scl_status.STATUS_PREV):
+        return scl_status.region(self.n.blocks, self.locals, infix, status, prev)
 
 
 class Generator:
