@@ -3,9 +3,10 @@
 #
 #   make            build everything (venv with the stc translator, C libraries and programs)
 #   make test       the quick tier: every suite, its slow variants left out (minutes)
-#   make check      the full tier: every test, the model's proofs but the largest, full fuzz
-#                   budgets (<= 25 min on 2 cores)
-#   make check-large the largest model proofs (model/configs.py LARGE); CI runs make check, then this
+#   make check      the full tier: every test but the large tier's, the model's proofs but the
+#                   largest, full fuzz budgets (<= 25 min on 2 cores)
+#   make check-large the large tier: the largest model proofs (model/configs.py LARGE) and the
+#                   longest pytest tests (tests/conftest.py LARGE_TIER); CI runs make check, then this
 #   make run        the demo: a logger read out over the emulated radio network
 #   make view       the link live in the browser (mip-view; VIEW_ARGS, docs/view.md)
 #   make bench      benchmarks (BENCH_QUICK=1 for a short smoke run)
@@ -25,13 +26,20 @@ BUILD     := build
 RESULTS   := $(BUILD)/test-results
 CC        ?= cc
 
+# Python keeps the compiled form of our modules under build/pycache (not beside the sources).
+# With PYTHONDONTWRITEBYTECODE set, as on our CI machine, each of the test runs' thousands of
+# Python processes compiled our packages again (0.16 s of CPU a start) and each pytest worker
+# rewrote the asserts of every test module again (6 s of CPU each)
+unexport PYTHONDONTWRITEBYTECODE
+export PYTHONPYCACHEPREFIX := $(abspath $(BUILD))/pycache
+
 JOBS      ?= $(shell nproc 2>/dev/null || echo 2)
 # pytest-xdist workers of each pytest suite, and what the suites leave out (make test sets it
 # to "not slow"; make check runs everything): tests/conftest.py says what is slow and why
 PYTEST_N    ?= auto
 PYTEST_MARK ?=
-PYTEST    := $(PY) -m pytest -q -p no:cacheprovider -n $(PYTEST_N) --dist loadgroup \
-             --durations=15 $(if $(strip $(PYTEST_MARK)),-m "$(PYTEST_MARK)")
+PYTEST_RUN := $(PY) -m pytest -q -p no:cacheprovider -n $(PYTEST_N) --dist loadgroup --durations=15
+PYTEST    := $(PYTEST_RUN) $(if $(strip $(PYTEST_MARK)),-m "$(PYTEST_MARK)")
 SUITE     := python3 .ci/suite.py
 
 # Filled in by the parts:
@@ -73,14 +81,14 @@ test: all
 
 check: all
 	@$(SUITE) start --results $(RESULTS)
-	@$(MAKE) --no-print-directory -k -j$(JOBS) suites; \
+	@$(MAKE) --no-print-directory -k -j$(JOBS) suites PYTEST_MARK="not large"; \
 	$(SUITE) summary --results $(RESULTS) --title "make check" $(SUITES)
 
 # Too long for make check's 25 minutes, not for CI: .ci/run runs this after make check.
 # Its results and timing table go to $(RESULTS)-large, beside make check's.
 check-large: all
 	@$(SUITE) start --results $(RESULTS)-large
-	@$(MAKE) --no-print-directory -k -j1 $(addprefix suite/,$(LARGE_SUITES)) RESULTS=$(RESULTS)-large; \
+	@$(MAKE) --no-print-directory -k -j$(JOBS) $(addprefix suite/,$(LARGE_SUITES)) RESULTS=$(RESULTS)-large; \
 	$(SUITE) summary --results $(RESULTS)-large --title "make check-large" $(LARGE_SUITES)
 
 suites: $(addprefix suite/,$(SUITES))
@@ -90,6 +98,13 @@ suite/%:
 py-tests: all $(PYTEST_DEPS)
 	@mkdir -p $(RESULTS)
 	$(PYTEST) --junitxml=$(RESULTS)/py-tests.xml tests $(PYTEST_ARGS)
+
+# make check-large's pytest suite: the tests tests/conftest.py LARGE_TIER names (-m large)
+LARGE_SUITES += py-tests-large
+.PHONY: py-tests-large
+py-tests-large: all $(PYTEST_DEPS)
+	@mkdir -p $(RESULTS)
+	$(PYTEST_RUN) -m large --junitxml=$(RESULTS)/py-tests-large.xml tests $(PYTEST_ARGS)
 
 clean:
 	rm -rf $(BUILD)

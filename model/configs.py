@@ -267,6 +267,8 @@ LARGE = [
     (r"^bidi(-noC3)?/ours-.*\+rst-", "our link sending, with a restart: up to 4 M states each"),
     (r"^win2/ours-ours/.*\+rst-", "the pipelined sender with a restart, our receiver"),
     (r"^warm/ours-ours/.*\+wrst-both$", "warm restarts of both sides of our pair"),
+    (r"^bidi/noteS-strict-ours/.*\+rst-rcv$",
+     "the note's strict sender against our link with a restart: 15 to 21 s each"),
 ]
 
 
