@@ -37,6 +37,10 @@ JOBS      ?= $(shell nproc 2>/dev/null || echo 2)
 # pytest-xdist workers of each pytest suite, and what the suites leave out (make test sets it
 # to "not slow"; make check runs everything): tests/conftest.py says what is slow and why
 PYTEST_N    ?= auto
+# make test's py-tests run one worker more than there are cores: its quick tests wait on real
+# time (sockets, timers, processes starting) for much of theirs, and two workers kept 1.3 of 2
+# cores busy. make check keeps PYTEST_N: its suites already share the cores for 20 minutes
+QUICK_PY_N  ?= $(shell echo $$(( $(JOBS) + 1 )))
 PYTEST_MARK ?=
 PYTEST_RUN := $(PY) -m pytest -q -p no:cacheprovider -n $(PYTEST_N) --dist loadgroup --durations=15
 PYTEST    := $(PYTEST_RUN) $(if $(strip $(PYTEST_MARK)),-m "$(PYTEST_MARK)")
@@ -76,7 +80,7 @@ SUITES = py-tests $(filter $(LONG_SUITES),$(C_TESTS)) $(filter-out $(LONG_SUITES
 
 test: all
 	@$(SUITE) start --results $(RESULTS)
-	@$(MAKE) --no-print-directory -k -j$(JOBS) suites PYTEST_MARK="not slow" $(QUICK_VARS); \
+	@$(MAKE) --no-print-directory -k -j$(JOBS) suites PYTEST_MARK="not slow" PY_TESTS_N=$(QUICK_PY_N) $(QUICK_VARS); \
 	$(SUITE) summary --results $(RESULTS) --title "make test" $(SUITES)
 
 check: all
@@ -97,7 +101,7 @@ suite/%:
 
 py-tests: all $(PYTEST_DEPS)
 	@mkdir -p $(RESULTS)
-	$(PYTEST) --junitxml=$(RESULTS)/py-tests.xml tests $(PYTEST_ARGS)
+	$(PYTEST) $(if $(PY_TESTS_N),-n $(PY_TESTS_N)) --junitxml=$(RESULTS)/py-tests.xml tests $(PYTEST_ARGS)
 
 # make check-large's pytest suite: the tests tests/conftest.py LARGE_TIER names (-m large)
 LARGE_SUITES += py-tests-large
