@@ -96,8 +96,8 @@ def fig_cosim_speed(quick, workdir):
 
 def fig_cosim_scale(quick, workdir):
     """The largest MIP network: 247 outstation soft-PLCs and ONE central program with 247
-    receivers behind one shared Modbus client (plc/gen_programs.py central_many, plcrt
-    `unit_id = %QWn`) on one MDP-810, in the kernel (mipcosim.sim.Network)."""
+    receivers behind one shared Modbus client (plc/central_many.st with its image generated
+    for 247 stations by mipprograms.image_many, plcrt `unit_id = %QWn`) on one MDP-810, in the kernel (mipcosim.sim.Network)."""
     import resource
 
     name = "cosim_scale"

@@ -8,7 +8,8 @@ from functools import lru_cache
 from pathlib import Path
 
 from mipprobe.regmap import MDP810, TRM810
-from mipprograms.image import SND_OFFSET, WIN_OFFSET, program_files, status_members
+from mipprograms.image import SND_OFFSET, WIN_OFFSET, status_members
+from mipprograms.image_many import STATS_BASE, program_files, stats_members
 from plcharness.config import Config, Section
 
 from .libraries import LIBRARIES, all_files, library_files
@@ -335,10 +336,14 @@ def central_config(*args, **kw):
     return central_model(*args, **kw).text()
 
 
-# The central of a large network (plc/central_many.st, plc/gen_programs.py central_many()):
-# one shared client, %MW100.. statistics
-M_STATIONS, M_READS, M_READ_ERRS, M_WRITES, M_WRITE_ERRS, M_REC_LO, \
-    M_REC_HI, M_TRANSFERS, M_FAILED, M_ERR_STATION, M_ROUNDS = range(100, 111)
+# The central of a large network (plc/central_many.st): one shared client, its statistics at
+# %MW100..: the order of the members of PLC_T_ManyStats in plc/PLC_Logger.st (member k at
+# STATS_BASE + k), read from the ST as the P_, R_ and S_ numbers above
+MANY_WORDS = {_const_name(m): STATS_BASE + k for k, m in enumerate(stats_members())}
+M_STATIONS, M_READS, M_READ_ERRS, M_WRITES, M_WRITE_ERRS, M_REC_LO, M_REC_HI, M_TRANSFERS, \
+    M_FAILED, M_ERR_STATION, M_ROUNDS = (MANY_WORDS[n] for n in (
+        "STATIONS", "READS", "READ_ERRS", "WRITES", "WRITE_ERRS", "REC_LO", "REC_HI",
+        "TRANSFERS", "FAILED", "ERR_STATION", "ROUNDS"))
 
 
 def central_many_config(mdp_port, host="127.0.0.1", comment="", retain=None):

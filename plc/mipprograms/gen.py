@@ -1,7 +1,8 @@
 """Writes the generated ST of plc/: the located images plc/image/{outstation,central}{,_bidi}_io.st
-of the hand-written logger programs (mipprograms.image), the programs still generated whole
-(plc/central_many.st, the chain's) and the OpenPLC v3 Modbus configurations
-plc/openplc/{outstation,central}-mbconfig.cfg.
+of the hand-written logger programs (mipprograms.image) and plc/image/central_many_io.st of the
+hand-written central of a large network (mipprograms.image_many: its image and its N station
+instances), the programs still generated whole (the chain's) and the OpenPLC v3 Modbus
+configurations plc/openplc/{outstation,central}-mbconfig.cfg.
 
 Portable ST cannot index located variables, so the copies between the located Modbus image
 and the MIP blocks' arrays are one statement per register; this generator writes them with
@@ -14,8 +15,8 @@ changing the layout (plc/README.md, "Register layout"); the outputs are committe
 (default 2). Stock OpenPLC's Modbus master holds at most 400 registers per direction
 (mipprograms.openplc_limits): with the 125-register read block that is 3 stations, and a
 larger number is refused with one line before anything is written.
---many-stations sets how many receivers plc/central_many.st has (default 8; the co-simulation
-and the benchmark generate it for up to 247 stations).
+--many-stations sets how many receivers plc/image/central_many_io.st gives plc/central_many.st
+(default 8; the co-simulation and the benchmark generate it for up to 247 stations).
 """
 import argparse
 import sys
@@ -24,8 +25,8 @@ from pathlib import Path
 from mipprobe.regmap import MDP810, TRM810
 
 from .common import OPENPLC_STATIONS, MAX_STATIONS, READ_REGS, WRITE_REGS
-from .image import IMAGES, generate as generate_image, io_file
-from .logger import MANY_STATIONS, MAX_UNIT, central_many
+from .image import IMAGES, ImageError, generate as generate_image, io_file
+from .image_many import MANY_STATIONS, MAX_UNIT, NAME as MANY, generate as generate_many
 from .openplc_limits import MAX_MB_IO, LimitError, check as check_openplc
 from .soe import central_push, central_soe, outstation_soe
 
@@ -67,7 +68,7 @@ def main(argv=()):
                     help=f"stations in the central's OpenPLC configuration "
                          f"(default {OPENPLC_STATIONS}, at most {MAX_MB_IO // READ_REGS})")
     ap.add_argument("--many-stations", type=int, default=MANY_STATIONS, metavar="N",
-                    help=f"receivers in plc/central_many.st, the central of a large network "
+                    help=f"receivers of plc/central_many.st, the central of a large network "
                          f"(default {MANY_STATIONS}, 1..{MAX_UNIT})")
     ap.add_argument("-o", "--outdir", help="write here instead of plc/")
     a = ap.parse_args(list(argv))
@@ -81,9 +82,13 @@ def main(argv=()):
               f"unit ids 1..{MAX_UNIT}", file=sys.stderr)
         return 2
     # the located image of the hand-written programs (plc/<name>.st): plc/image/<name>_io.st
-    files = [(io_file(img.name), generate_image(img)) for img in IMAGES]
-    files += [("central_many.st", central_many(a.many_stations)),
-             ("outstation_soe.st", outstation_soe()), ("central_soe.st", central_soe()),
+    try:
+        files = [(io_file(img.name), generate_image(img)) for img in IMAGES]
+        files += [(io_file(MANY), generate_many(a.many_stations))]     # and its N stations
+    except ImageError as e:
+        print(f"gen_programs.py: {e}", file=sys.stderr)
+        return 2
+    files += [("outstation_soe.st", outstation_soe()), ("central_soe.st", central_soe()),
              ("central_push.st", central_push())]
     files += openplc_configs(a.openplc_stations)
     for name, text in files:              # check everything before writing anything

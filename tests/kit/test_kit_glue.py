@@ -239,8 +239,8 @@ def test_kit_example_glue_is_what_its_command_writes(example, program):
 @pytest.mark.parametrize("program,args,indent", [
     ("image/central_io.st", ["--stations", "4", "--read-array", "m{s}.aRead", "--write-array",
                              "m{s}.aWrite", "--runtime", "plcrt"], ""),
-    ("central_many.st", ["--read-prefix", "r_", "--write-prefix", "w_", "--read-array", "rd",
-                         "--write-array", "aWr"], "    "),
+    ("image/central_many_io.st", ["--read-prefix", "r_", "--write-prefix", "w_", "--read-array",
+                                  "m.aRead", "--write-array", "m.aWrite"], ""),
 ])
 def test_plc_programs_copies_are_what_mip_glue_writes(program, args, indent):
     """plc/gen_programs.py writes its copies with the same generator: the example programs
