@@ -1,6 +1,7 @@
-"""Writes the generated ST of plc/: the located images plc/image/{outstation,central}{,_bidi}_io.st
-of the hand-written logger programs (mipprograms.image), the programs still generated whole
-(plc/central_many.st, the chain's) and the OpenPLC v3 Modbus configurations
+"""Writes the generated ST of plc/: the located images plc/image/<name>_io.st of the hand-written
+programs (the logger programs' from mipprograms.image, the chain's outstation_soe, central_soe
+and central_push from mipprograms.image_chain), the program still generated whole
+(plc/central_many.st) and the OpenPLC v3 Modbus configurations
 plc/openplc/{outstation,central}-mbconfig.cfg.
 
 Portable ST cannot index located variables, so the copies between the located Modbus image
@@ -27,7 +28,7 @@ from .common import OPENPLC_STATIONS, MAX_STATIONS, READ_REGS, WRITE_REGS
 from .image import IMAGES, generate as generate_image, io_file
 from .logger import MANY_STATIONS, MAX_UNIT, central_many
 from .openplc_limits import MAX_MB_IO, LimitError, check as check_openplc
-from .soe import central_push, central_soe, outstation_soe
+from . import image_chain
 
 # where the outputs go without -o: the checkout's plc/ (this package lives in plc/mipprograms/)
 PLC_DIR = Path(__file__).resolve().parents[1]
@@ -82,9 +83,8 @@ def main(argv=()):
         return 2
     # the located image of the hand-written programs (plc/<name>.st): plc/image/<name>_io.st
     files = [(io_file(img.name), generate_image(img)) for img in IMAGES]
-    files += [("central_many.st", central_many(a.many_stations)),
-             ("outstation_soe.st", outstation_soe()), ("central_soe.st", central_soe()),
-             ("central_push.st", central_push())]
+    files += [(io_file(img.name), image_chain.generate(img)) for img in image_chain.IMAGES]
+    files += [("central_many.st", central_many(a.many_stations))]
     files += openplc_configs(a.openplc_stations)
     for name, text in files:              # check everything before writing anything
         if name.endswith(".cfg"):
