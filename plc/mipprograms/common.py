@@ -8,30 +8,11 @@ READ_REGS = 125           # one FC3 at the read-status register: status, count, 
 WRITE_REGS = 123          # one FC16 at the first write register
 WINDOW = 160              # PLC_RecordStore.aWindow
 
-
-# the located image of the example programs: station s reads %IW100 + 125(s-1).. and writes
-# %QW100 + 123(s-1).. into/from rd<s> and <fb>.aWrite, through r<s>_<i> / w<s>_<i>
-GLUE = glue.Layout(read_base=100, read_count=READ_REGS, write_base=100, write_count=WRITE_REGS,
-                   stations=MAX_STATIONS, read_array="rd{s}", write_array="rcv{s}.aWrite",
-                   numbered=True)     # write_array: the central's; io_after() passes each block's
-glue.check(GLUE, "plcrt")          # 4 stations of 125 pass OpenPLC's 400: station 4 idles there
 # plc/central_many.st: ONE read and ONE write range for all stations, r_<i> / w_<i>
 GLUE_MANY = glue.Layout(read_base=100, read_count=READ_REGS, write_base=100, write_count=WRITE_REGS,
                         read_array="rd", write_array="aWr", read_prefix="r_", write_prefix="w_",
                         numbered=False)
 glue.check(GLUE_MANY, "openplc")
-
-
-def read_image(s):        # station s (1-based): %IW of its read block
-    return GLUE.read_image(s)
-
-
-def write_image(s):
-    return GLUE.write_image(s)
-
-
-def peer_base(s):         # %MW block of peer s: receiver 0..19, sender 20..39, window 40..199
-    return 100 + 200 * (s - 1)
 
 
 PARAMS = """\
@@ -131,52 +112,6 @@ END_IF;
     "S_TRANSFER_TIMEOUT", s_to_time("pTransferTimeout")).replace(
     "MS_LOG_PERIOD", ms_to_time("pLogPeriod")).replace(
     "MS_CYCLIC_WRITE", ms_to_time("pCyclicWrite"))
-
-
-def located_io(s, tag):
-    """Declarations of station s's located I/O (see the runtime configs)."""
-    lines = [
-        f"  (* modem {tag}: read block %IW{read_image(s)}.., write block %QW{write_image(s)}.. *)",
-        f"  rdTrig{s} AT %QX{s}.0 : BOOL;",
-        f"  rdDone{s} AT %IX{s}.0 : BOOL;",
-        f"  rdErr{s} AT %IX{s}.1 : BOOL;",
-        f"  rdSt{s} AT %IW{10 + s} : WORD;         (* the read's status: why it failed *)",
-        f"  wrTrig{s} AT %QX{s}.1 : BOOL;",
-        f"  wrDone{s} AT %IX{s}.2 : BOOL;",
-        f"  wrErr{s} AT %IX{s}.3 : BOOL;",
-        f"  wrLen{s} AT %QW{s} : WORD;",
-    ]
-    lines += glue.declarations(GLUE, s)
-    lines += [f"  rd{s} : MIP_T_ReadBlock;", f"  xRdValid{s} : BOOL;", f"  xWrDone{s} : BOOL;",
-              f"  tonWr{s} : TON;"]
-    return lines
-
-
-def io_before(s):
-    """Read handshake and read block copy, before the MIP block is called."""
-    lines = [f"(* station {s}: read handshake (trigger policy): a read every other scan; the block is"
-             f" copied when it is valid (the MIP blocks look at aRead only with xReadValid) *)",
-             f"xRdValid{s} := rdDone{s} OR xCyclic;",
-             f"IF xRdValid{s} THEN"]
-    lines += glue.read_copies(GLUE, s)
-    lines += [
-        "END_IF;",
-        f"rdTrig{s} := xRun AND NOT (rdDone{s} OR rdErr{s});",
-        f"tonWr{s}(IN := xCyclic AND wrTrig{s}, PT := tCyclicWrite);",
-        f"xWrDone{s} := wrDone{s} OR tonWr{s}.Q;",
-    ]
-    return lines
-
-
-def io_after(s, fb):
-    lines = [f"(* station {s}: write handshake and block; the runtime takes the block at the"
-             f" request's rising edge, OpenPLC's cyclic master whenever it polls *)",
-             f"wrTrig{s} := {fb}.xWriteReq;",
-             f"IF wrTrig{s} OR xCyclic THEN",
-             f"  wrLen{s} := UINT_TO_WORD({fb}.uWriteLen);"]
-    lines += glue.write_copies(GLUE, s, array=f"{fb}.aWrite")
-    lines += ["END_IF;"]
-    return lines
 
 
 def var_blocks(decl):
