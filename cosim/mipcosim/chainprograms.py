@@ -7,8 +7,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from mipprograms.image import program_files
-from mipprograms.image_chain import (RELAY, SCADA, SOE_BASE, SOE_REGS, UNICOS_IMAGE,
-                                     UNICOS_MARKER, driver, status_words)
+from mipprograms.image_chain import (RELAY, SCADA, SOE_BASE, SOE_REGS, UNICOS_IMAGE,  # noqa: F401
+                                     UNICOS_MARKER, driver, status_words)    # (the chain's API)
 
 from . import programs as L
 
