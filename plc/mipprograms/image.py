@@ -120,10 +120,11 @@ def io_file(name: str) -> str:
 
 def program_files(name: str) -> list[Path]:
     """The files of program `name` in compile order after st_lib and the helpers: the
-    hand-written program, then its generated image (which holds the CONFIGURATION)."""
-    from .image_chain import BY_NAME as CHAIN      # the chain's programs (it imports this module)
+    hand-written program, then its generated image (which holds the CONFIGURATION), the
+    logger programs' (IMAGES) and the chain's (mipprograms.image_chain, which imports this
+    module: so known here by their image file)."""
     files = [PLC_DIR / f"{name}.st"]
-    if name in BY_NAME or name in CHAIN:
+    if name in BY_NAME or (PLC_DIR / io_file(name)).is_file():
         files.append(PLC_DIR / io_file(name))
     return files
 
