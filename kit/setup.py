@@ -29,7 +29,7 @@ REPO = HERE.parent if (HERE.parent / "translator" / "stc").is_dir() else HERE / 
 NEEDED = ["translator/stc", "runtime_shim/harness/plcharness", "runtime_shim/src",
           "runtime_shim/include", "cosim/mipcosim", "cosim/src/mipcosim.c", "cosim/include",
           "emulator/src/mipemu.c", "emulator/src/siprotec.c", "emulator/include", "peers/mippeer", "probe/mipprobe", "st_lib",
-          "docs/tools", "plc/mipprograms", "plc/PLC_Logger.st", "LICENSE"]
+          "docs/tools", "plc/mipprograms", "plc/PLC_Logger.st", "plc/PLC_SoeChain.st", "LICENSE"]
 NEEDED += ["dist/wireshark/mipmb.lua"]      # the dissector, for the kit's captures (capture.py)
 PACKAGES = {"stc": "translator/stc", "plcharness": "runtime_shim/harness/plcharness",
             "mipcosim": "cosim/mipcosim", "mippeer": "peers/mippeer",
@@ -70,8 +70,10 @@ class BuildKit(build_py):
         _tree(REPO / "runtime_shim" / "include", rt / "include")
         # both libraries' folders with their import orders (mipcosim.libraries reads them)
         _tree(REPO / "st_lib", out / "mipcosim" / "_st_lib", ("*.st", "import-order.txt"))
-        # the types whose member order is the programs' %MW layout (mipprograms.image reads it)
-        shutil.copyfile(REPO / "plc" / "PLC_Logger.st", out / "mipprograms" / "PLC_Logger.st")
+        # the types whose member order is the programs' %MW layout (mipprograms.image and
+        # image_chain read it)
+        for types in ("PLC_Logger.st", "PLC_SoeChain.st"):
+            shutil.copyfile(REPO / "plc" / types, out / "mipprograms" / types)
         _tree(REPO / "docs" / "tools", out / "mipdocs", ("*.py", "*.st"))   # the package, not its pyproject
         shutil.copyfile(REPO / "dist" / "wireshark" / "mipmb.lua", out / "mipkit" / "mipmb.lua")
         lib = out / "mipcosim" / "_lib"

@@ -6,60 +6,76 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from mipprograms.image import program_files
+from mipprograms.image_chain import (RELAY, SCADA, SOE_BASE, SOE_REGS, UNICOS_IMAGE,  # noqa: F401
+                                     UNICOS_MARKER, driver, status_words)    # (the chain's API)
+
 from . import programs as L
 
 ORIGIN_MS = 1767225600000          # the relay's time stamp of virtual time 0 (2026-01-01 UTC)
-SOE_BASE = 600                     # PDU address of 40601, at the relay and at the central
 PROGRAMS = {"out": "outstation_soe.st", "cen": "central_soe.st"}
 PUSH_PROGRAM = "central_push.st"   # the central of the push way (MIP_UnicosEvents)
-UNICOS_MARKER = 0xFF80             # the frames' reference number (plc/gen_programs.py)
-UNICOS_IMAGE = {"a": 400, "b": 530}
 HELPERS = ["PLC_Logger.st", "PLC_SoeChain.st"]
 
-# status words %MW100.. of the chain's programs (plc/gen_programs.py soe_status)
-OUT_STORED, OUT_SENT, OUT_LEVEL, OUT_DONE, OUT_FAILED, OUT_ERROR, OUT_FLAGS, OUT_RETRANS = \
-    100, 102, 104, 105, 106, 107, 108, 109
+# The status words %MW100.., defined once: the member order of PLC_T_SoeOutStatus,
+# PLC_T_SoeCenStatus and PLC_T_SoePushStatus in plc/PLC_SoeChain.st, read from the ST by
+# mipprograms.image_chain (stc's parser); looked up by name (wStoredLo -> STORED_LO), so a member
+# the ST renames or drops is a KeyError here, not a silent shift.
+_OUT, _CEN, _PUSH = ({L._const_name(m): a for m, a in status_words(n).items()}
+                     for n in ("outstation_soe", "central_soe", "central_push"))
+OUT_STORED, OUT_SENT, OUT_LEVEL, OUT_DONE, OUT_FAILED, OUT_ERROR, OUT_FLAGS, OUT_RETRANS = (
+    _OUT[n] for n in ("STORED_LO", "SENT_LO", "LEVEL", "DONE", "FAILED", "ERROR", "FLAGS",
+                      "RETRANS"))
 CEN_RECORDS, CEN_PUT, CEN_ACKED, CEN_BAD_ACKS, CEN_BAD_RECORDS, CEN_DUP, CEN_FAILED, \
-    CEN_FLAGS, CEN_QUEUED = 100, 102, 104, 106, 107, 108, 109, 110, 111
+    CEN_FLAGS, CEN_QUEUED = (_CEN[n] for n in ("RECORDS_LO", "PUT_LO", "ACKED_LO", "BAD_ACKS",
+                                               "BAD_RECORDS", "DUP", "FAILED", "FLAGS", "QUEUED"))
 # plc/central_push.st
 PUSH_RECORDS, PUSH_EVENTS, PUSH_FRAMES, PUSH_RETRIES, PUSH_PASSIVE, PUSH_DUP, PUSH_FAILED, \
-    PUSH_FLAGS = 100, 102, 104, 105, 106, 107, 108, 109
-
+    PUSH_FLAGS = (_PUSH[n] for n in ("RECORDS_LO", "EVENTS_LO", "FRAMES", "RETRIES", "PASSIVE",
+                                     "DUP", "FAILED", "FLAGS"))
 
 def program_sources(role, handover="pull"):
     """The st_lib files, the programs' helpers and the chain's program of `role` ("out" |
-    "cen"; the central of the push way with handover "push")."""
+    "cen"; the central of the push way with handover "push"): the hand-written logic, then its
+    generated image (plc/image/, which holds the CONFIGURATION)."""
     name = PUSH_PROGRAM if role == "cen" and handover == "push" else PROGRAMS[role]
     return (L.lib_sources() + [str(L.PLC_DIR / h) for h in HELPERS]
-            + [str(L.PLC_DIR / name)])
+            + [str(p) for p in program_files(name[:-3])])
 
 
 def relay_sections(cfg, port=15030, host="127.0.0.1"):
     """The outstation's device `relay`: 40601..40626 read into %IW300.., SOE_Control written from
-    %QW300 (FC16 of one register), trigger policy (plc/outstation_soe.st); added to cfg."""
+    %QW300 (FC16 of one register), trigger policy (plc/outstation_soe.st; the addresses are the
+    image's, mipprograms.image_chain.RELAY); added to cfg."""
+    r = RELAY.addr
     cfg.add("device", "relay", host=host, port=port, unit_id=1)
-    cfg.add("write", "soe_control", device="relay", start=SOE_BASE + 1, size=1, image="%QW300",
-            policy="trigger", trigger="%QX2.1", done="%IX2.2", error="%IX2.3", length="%QW2")
-    cfg.add("read", "soe", device="relay", start=SOE_BASE, size=26, image="%IW300",
-            policy="trigger", trigger="%QX2.0", done="%IX2.0", error="%IX2.1", status="%IW12")
+    cfg.add("write", "soe_control", device="relay", start=SOE_BASE + 1, size=1, image=r("wWrVal"),
+            policy="trigger", trigger=r("xWrTrig"), done=r("xWrDone"), error=r("xWrErr"),
+            length=r("wWrLen"))
+    cfg.add("read", "soe", device="relay", start=SOE_BASE, size=SOE_REGS, image=r("aRead"),
+            policy="trigger", trigger=r("xRdTrig"), done=r("xRdDone"), error=r("xRdErr"),
+            status=r("wRdSt"))
     return cfg
 
 
 def slave_section(cfg, port=0, host="127.0.0.1"):
-    """The central's Modbus slave for the SCADA: SOE_Control's writes counted (MIP_SoeServer)."""
-    cfg.add("slave", host=host, port=port, watch=f"%QW{SOE_BASE + 1}", watch_count="%IW9")
+    """The central's Modbus slave for the SCADA: SOE_Control's writes counted (MIP_SoeServer;
+    the addresses are the image's, mipprograms.image_chain.SCADA)."""
+    cfg.add("slave", host=host, port=port, watch=SCADA.addr("wCtrlWritten"),
+            watch_count=SCADA.addr("wCtrlWrites"))
     return cfg
 
 
 def unicos_sections(cfg, ports=(15040, 15041), host="127.0.0.1"):
     """The push central's devices unicos_a / unicos_b (WinCC OA's redundant pair of UNICOS
-    drivers) and its write ranges: FC16 of the frame at the marker, trigger policy."""
-    for k, (d, port) in enumerate(zip("ab", ports)):
+    drivers) and its write ranges: FC16 of the frame at the marker, trigger policy (the
+    addresses are the image's, mipprograms.image_chain.driver)."""
+    for d, port in zip("ab", ports):
+        r = driver(d).addr
         cfg.add("device", f"unicos_{d}", host=host, port=port, unit_id=1)
         cfg.add("write", f"unicos_{d}", device=f"unicos_{d}", start=UNICOS_MARKER, size=123,
-                image=f"%QW{UNICOS_IMAGE[d]}", policy="trigger", trigger=f"%QX3.{k}",
-                done=f"%IX3.{2 * k}", error=f"%IX3.{2 * k + 1}", status=f"%IW{13 + k}",
-                length=f"%QW{3 + k}")
+                image=r("aWrite"), policy="trigger", trigger=r("xWrTrig"),
+                done=r("xWrDone"), error=r("xWrErr"), status=r("wWrSt"), length=r("wWrLen"))
     return cfg
 
 
@@ -83,7 +99,7 @@ def central_soe_config(mdp_port=15020, slave_port=0, retain=None, host="127.0.0.
 
 @dataclass
 class SoeParams:
-    """%MW0..6 of the chain's programs (plc/gen_programs.py SOE_PARAMS)."""
+    """%MW0..6 of the chain's programs (PLC_T_SoeParams in plc/PLC_SoeChain.st)."""
     per_record: int = 15          # relay entries per MIP record (1..15)
     per_transfer: int = 8         # records per transfer at most: 8 x 15 entries fill at most half
                                   # PLC_SoeLog's ring of 256, so the next transfer's entries are

@@ -9,7 +9,8 @@ from pathlib import Path
 
 from mipprobe.regmap import MDP810, TRM810
 from mipprograms.image import SND_OFFSET, WIN_OFFSET, status_members
-from mipprograms.image_many import STATS_BASE, program_files, stats_members
+from mipprograms.image import program_files
+from mipprograms.image_many import STATS_BASE, stats_members
 from plcharness.config import Config, Section
 
 from .libraries import LIBRARIES, all_files, library_files

@@ -1,8 +1,8 @@
-"""Writes the generated ST of plc/: the located images plc/image/{outstation,central}{,_bidi}_io.st
-of the hand-written logger programs (mipprograms.image) and plc/image/central_many_io.st of the
-hand-written central of a large network (mipprograms.image_many: its image and its N station
-instances), the programs still generated whole (the chain's) and the OpenPLC v3 Modbus
-configurations plc/openplc/{outstation,central}-mbconfig.cfg.
+"""Writes the generated ST of plc/: the located images plc/image/<name>_io.st of the hand-written
+programs (the logger programs' from mipprograms.image, the chain's outstation_soe, central_soe
+and central_push from mipprograms.image_chain, and central_many's with its N station instances
+from mipprograms.image_many) and the OpenPLC v3 Modbus configurations
+plc/openplc/{outstation,central}-mbconfig.cfg.
 
 Portable ST cannot index located variables, so the copies between the located Modbus image
 and the MIP blocks' arrays are one statement per register; this generator writes them with
@@ -28,7 +28,7 @@ from .common import OPENPLC_STATIONS, MAX_STATIONS, READ_REGS, WRITE_REGS
 from .image import IMAGES, ImageError, generate as generate_image, io_file
 from .image_many import MANY_STATIONS, MAX_UNIT, NAME as MANY, generate as generate_many
 from .openplc_limits import MAX_MB_IO, LimitError, check as check_openplc
-from .soe import central_push, central_soe, outstation_soe
+from . import image_chain
 
 # where the outputs go without -o: the checkout's plc/ (this package lives in plc/mipprograms/)
 PLC_DIR = Path(__file__).resolve().parents[1]
@@ -84,12 +84,11 @@ def main(argv=()):
     # the located image of the hand-written programs (plc/<name>.st): plc/image/<name>_io.st
     try:
         files = [(io_file(img.name), generate_image(img)) for img in IMAGES]
+        files += [(io_file(img.name), image_chain.generate(img)) for img in image_chain.IMAGES]
         files += [(io_file(MANY), generate_many(a.many_stations))]     # and its N stations
     except ImageError as e:
         print(f"gen_programs.py: {e}", file=sys.stderr)
         return 2
-    files += [("outstation_soe.st", outstation_soe()), ("central_soe.st", central_soe()),
-             ("central_push.st", central_push())]
     files += openplc_configs(a.openplc_stations)
     for name, text in files:              # check everything before writing anything
         if name.endswith(".cfg"):

@@ -120,9 +120,11 @@ def io_file(name: str) -> str:
 
 def program_files(name: str) -> list[Path]:
     """The files of program `name` in compile order after st_lib and the helpers: the
-    hand-written program, then its generated image (which holds the CONFIGURATION)."""
+    hand-written program, then its generated image (which holds the CONFIGURATION), the
+    logger programs' (IMAGES) and the chain's (mipprograms.image_chain, which imports this
+    module: so known here by their image file)."""
     files = [PLC_DIR / f"{name}.st"]
-    if name in BY_NAME:
+    if name in BY_NAME or (PLC_DIR / io_file(name)).is_file():
         files.append(PLC_DIR / io_file(name))
     return files
 
@@ -165,15 +167,7 @@ def generate(img: Image, source: str = "plc/mipprograms/image.py") -> str:
         located.append(f"  par_{m} AT %MW{PARAMS_BASE + k} : WORD;")
         copy_in.append(f"par.{m} := par_{m};")
     for s in range(1, img.stations + 1):
-        for m, d, addr in MODEM_BITS:
-            a = addr.format(s=s, st=10 + s)
-            typ = "BOOL" if m[0] == "x" else "WORD"
-            located.append(f"  m{s}_{m} AT {a} : {typ};")
-            (copy_in if d == "in" else copy_out).append(
-                f"m{s}.{m} := m{s}_{m};" if d == "in" else f"m{s}_{m} := m{s}.{m};")
-        located += glue.declarations(lay, s)      # mip-glue's: the read block's, the write block's
-        copy_in += glue.read_copies(lay, s, indent="")
-        copy_out += glue.write_copies(lay, s, indent="")
+        modem_image(lay, s, located, copy_in, copy_out)
         for g, m, addr, d in _status_words(img, s):
             located.append(f"  {g}_{m} AT %MW{addr} : WORD;")
             (copy_in if d == "in" else copy_out).append(
@@ -182,20 +176,44 @@ def generate(img: Image, source: str = "plc/mipprograms/image.py") -> str:
             b = peer_base(s) + WIN_OFFSET
             located += [f"  win{s}_{i} AT %MW{b + i} : WORD;" for i in range(WINDOW)]
             copy_out += [f"win{s}_{i} := win{s}[{i}];" for i in range(WINDOW)]
-    structs = globals_of(img)
+    return program_text(head, img.program, img.instance, globals_of(img), located, copy_in,
+                        copy_out)
+
+
+def modem_image(lay: glue.Layout, s: int, located: list, copy_in: list, copy_out: list):
+    """Station s's modem range (global m<s> : PLC_T_Modem): its handshake words (MODEM_BITS)
+    and, through mip-glue, its read and write blocks; appended to the three lists."""
+    for m, d, addr in MODEM_BITS:
+        a = addr.format(s=s, st=10 + s)
+        typ = "BOOL" if m[0] == "x" else "WORD"
+        located.append(f"  m{s}_{m} AT {a} : {typ};")
+        (copy_in if d == "in" else copy_out).append(
+            f"m{s}.{m} := m{s}_{m};" if d == "in" else f"m{s}_{m} := m{s}.{m};")
+    located += glue.declarations(lay, s)      # mip-glue's: the read block's, the write block's
+    copy_in += glue.read_copies(lay, s, indent="")
+    copy_out += glue.write_copies(lay, s, indent="")
+
+
+def program_text(head: list, program: str, instance: str, structs: list, located: list,
+                 copy_in: list, copy_out: list, inputs: tuple = ()) -> str:
+    """The generated file: PROGRAM `program` with the structures `structs` ((name, type)), the
+    snapshot handshake and the located words, the copies in, the call of <program>Logic
+    (instance app; `inputs` more (input, value) of the call), the copies out and the
+    CONFIGURATION that runs it as `instance`."""
     call = ", ".join(f"{n} := {n}" for n, _t in structs)
-    text = head + [f"PROGRAM {img.program}", "VAR RETAIN",
-                   f"  app : {img.program}Logic;      (* the program's logic, written by hand *)",
+    text = head + [f"PROGRAM {program}", "VAR RETAIN",
+                   f"  app : {program}Logic;      (* the program's logic, written by hand *)",
                    "END_VAR", "VAR"]
     text += [f"  {n} : {t};" for n, t in structs]
     text += ["END_VAR", "VAR",
              f"  snapReq AT {SNAP_REQUEST} : BOOL;    (* plcrt [retain] request: a snapshot after this scan *)",
              f"  snapSaved AT {SNAP_SAVED} : WORD;     (* plcrt [retain] saved: snapshots completed *)"]
     text += located + ["END_VAR"] + copy_in
-    text += [f"app({call},", "    wSnapshots := snapSaved);", "snapReq := app.xSnapshotReq;"]
+    text += [f"app({call},", "    wSnapshots := snapSaved"
+             + "".join(f", {n} := {v}" for n, v in inputs) + ");", "snapReq := app.xSnapshotReq;"]
     text += copy_out + ["END_PROGRAM", "",
              "CONFIGURATION Config0", "  RESOURCE Res0 ON PLC",
              "    TASK tMain(INTERVAL := T#10ms, PRIORITY := 0);",
-             f"    PROGRAM {img.instance} WITH tMain : {img.program};",
+             f"    PROGRAM {instance} WITH tMain : {program};",
              "  END_RESOURCE", "END_CONFIGURATION"]
     return "\n".join(text) + "\n"

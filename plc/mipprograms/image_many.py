@@ -22,9 +22,8 @@ numbers read the same.
 from __future__ import annotations
 
 from . import mipglue as glue
-from .image import (PARAMS_BASE, PLC_DIR, READ_REGS, SNAP_REQUEST, SNAP_SAVED, WRITE_REGS,
-                    ImageError, io_file, status_members, struct_members)
-from .image import program_files as _image_files
+from .image import (PARAMS_BASE, READ_REGS, SNAP_REQUEST, SNAP_SAVED, WRITE_REGS,
+                    ImageError, status_members, struct_members)
 
 NAME, PROGRAM, INSTANCE = "central_many", "CentralMany", "cen0"
 MANY_STATIONS = 8          # receivers in the committed plc/image/central_many_io.st
@@ -106,12 +105,3 @@ def generate(n: int, source: str = "plc/mipprograms/image_many.py") -> str:
         f"    PROGRAM {INSTANCE} WITH tMain : {PROGRAM};",
         "  END_RESOURCE", "END_CONFIGURATION"]
     return "\n".join(text) + "\n"
-
-
-def program_files(name: str):
-    """The files of program `name` in compile order after st_lib and the helpers
-    (mipprograms.image.program_files), with central_many's generated image after its logic."""
-    files = _image_files(name)
-    if name == NAME:
-        files.append(PLC_DIR / io_file(NAME))
-    return files

@@ -18,7 +18,7 @@ from stc.compiler import compile_files
 from stc.diag import Diagnostics
 
 import stc_harness as H
-from mipprograms.image_many import program_files   # a program's files: its logic, its image
+from mipprograms.image import program_files   # a program's files: its logic, its image
 
 STLIB = sorted(glob.glob(os.path.join(H.ROOT, "st_lib", "*", "*.st")))
 PLC_DIR = os.path.join(H.ROOT, "plc")

@@ -7,7 +7,7 @@ import subprocess
 import pytest
 
 import stc_harness as H
-from mipprograms.image_many import program_files
+from mipprograms.image import program_files
 
 STLIB = os.path.join(H.ROOT, "st_lib")
 PLC = os.path.join(H.ROOT, "plc")

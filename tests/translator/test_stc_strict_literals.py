@@ -7,7 +7,7 @@ import os
 import pytest
 
 import stc_harness as H
-from mipprograms.image_many import program_files
+from mipprograms.image import program_files
 
 PROG = """PROGRAM Main
 VAR
