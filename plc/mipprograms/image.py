@@ -163,9 +163,7 @@ def generate(img: Image, source: str = "plc/mipprograms/image.py") -> str:
             "   hand): the located words, copied into its structures before the call and out of them",
             "   after it. *)"]
     located, copy_in, copy_out = [], [], []     # the AT declarations in address order per station
-    for k, m in enumerate(status_members("par")):      # %MW0..: all read
-        located.append(f"  par_{m} AT %MW{PARAMS_BASE + k} : WORD;")
-        copy_in.append(f"par.{m} := par_{m};")
+    params_image(status_members("par"), located, copy_in)
     for s in range(1, img.stations + 1):
         modem_image(lay, s, located, copy_in, copy_out)
         for g, m, addr, d in _status_words(img, s):
@@ -178,6 +176,14 @@ def generate(img: Image, source: str = "plc/mipprograms/image.py") -> str:
             copy_out += [f"win{s}_{i} := win{s}[{i}];" for i in range(WINDOW)]
     return program_text(head, img.program, img.instance, globals_of(img), located, copy_in,
                         copy_out)
+
+
+def params_image(members: tuple, located: list, copy_in: list):
+    """The parameters (global par, member k at %MW k): all read by the program; appended to
+    the two lists."""
+    for k, m in enumerate(members):
+        located.append(f"  par_{m} AT %MW{PARAMS_BASE + k} : WORD;")
+        copy_in.append(f"par.{m} := par_{m};")
 
 
 def modem_image(lay: glue.Layout, s: int, located: list, copy_in: list, copy_out: list):

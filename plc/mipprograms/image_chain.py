@@ -141,9 +141,7 @@ def generate(img: ChainImage, source: str = "plc/mipprograms/image_chain.py") ->
             "   hand): the located words, copied into its structures before the call and out of them",
             "   after it. *)"]
     located, copy_in, copy_out = [], [], []
-    for k, m in enumerate(members("PLC_T_SoeParams")):       # %MW0..: all read
-        located.append(f"  par_{m} AT %MW{I.PARAMS_BASE + k} : WORD;")
-        copy_in.append(f"par.{m} := par_{m};")
+    I.params_image(members("PLC_T_SoeParams"), located, copy_in)
     I.modem_image(lay, 1, located, copy_in, copy_out)
     for r in img.ranges:
         _range_image(r, located, copy_in, copy_out)

@@ -22,7 +22,7 @@ numbers read the same.
 from __future__ import annotations
 
 from . import mipglue as glue
-from .image import (PARAMS_BASE, READ_REGS, SNAP_REQUEST, SNAP_SAVED, WRITE_REGS,
+from .image import (params_image, READ_REGS, SNAP_REQUEST, SNAP_SAVED, WRITE_REGS,
                     ImageError, status_members, struct_members)
 
 NAME, PROGRAM, INSTANCE = "central_many", "CentralMany", "cen0"
@@ -71,9 +71,7 @@ def generate(n: int, source: str = "plc/mipprograms/image_many.py") -> str:
             "   structures before the calls and out of them after; the client first, then the",
             "   stations in the order 1..N. *)"]
     located, copy_in, copy_out = [], [], []
-    for k, m in enumerate(status_members("par")):          # %MW0..: all read
-        located.append(f"  par_{m} AT %MW{PARAMS_BASE + k} : WORD;")
-        copy_in.append(f"par.{m} := par_{m};")
+    params_image(status_members("par"), located, copy_in)
     for m in _modem_members():
         d, addr = MODEM_WORDS[m]
         located.append(f"  m_{m} AT {addr} : {'BOOL' if m[0] == 'x' else 'WORD'};")
