@@ -145,6 +145,13 @@ SAME_WORKER = {
 }
 
 
+@pytest.fixture(scope="session")
+def large_tier():
+    """LARGE_TIER, for the test that holds the tiers (tests/architecture/test_arch_tiers.py):
+    `import conftest` would find whichever conftest.py pytest imported under that name first."""
+    return dict(LARGE_TIER)
+
+
 def _group(nodeid):
     """The xdist_group of a test (node id without pytest-xdist's suffix), or None."""
     module = nodeid.split("::", 1)[0]

@@ -33,10 +33,9 @@ def _collected(*mark):
 
 
 @pytest.mark.slow   # two collections of the whole suite (about 10 s of CPU each)
-def test_the_large_tier_is_what_large_tier_names_and_never_in_make_test():
-    from conftest import LARGE_TIER   # tests/conftest.py: the tier lists
+def test_the_large_tier_is_what_large_tier_names_and_never_in_make_test(large_tier):
     large = _collected("-m", "large")
     quick = _collected("-m", "not slow")
     assert large and not large & quick
-    assert all(t.startswith(tuple(LARGE_TIER)) for t in large)
-    assert all(any(t.startswith(e) for t in large) for e in LARGE_TIER)
+    assert all(t.startswith(tuple(large_tier)) for t in large)
+    assert all(any(t.startswith(e) for t in large) for e in large_tier)
